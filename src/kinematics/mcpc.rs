@@ -1,0 +1,566 @@
+//! The MCPC model (paper section 2.2, eq. (1)–(4)) of the selected branches of a tree.
+//!
+//! Every movable joint on a branch gets a frame Σᵢ on its axis (z along the axis, origin at
+//! the foot of the perpendicular from the previous frame's origin) and the transform
+//!
+//! ```text
+//! prev_from_frame = Q(θ_prev) · Rz(φ) · Rx(α) · Ry(β) · Trans(x, y, 0)      (eq. (1))
+//! prev_from_tool  = Q(θ_last) · Rz(φ) · Rx(α) · Ry(β) · Rz(γ) · Trans(x, y, z)   (eq. (2))
+//! ```
+//!
+//! where `Q` is the previous joint's motion (rotation about, or translation along, its z).
+//! `φ` is a constant, not a parameter: the zero-offset choice that keeps every nominal |β|
+//! at or below 45° so the model never sits on the MCPC singularity β = ±90° (where α and the
+//! rotation about the new axis become the same motion and the identification Jacobian loses
+//! rank). Prismatic joints keep only (α, β): their origin is placed at the previous frame's
+//! origin, since the position of a translation axis has no effect. See `docs/mcpc.md`.
+
+use crate::error::{Error, Result};
+use crate::math::{
+    pose, rot_x, rot_y, rot_z, wrap_angle, xyz_angles_from_rotation, Pose, Rotation, Vec3,
+};
+use crate::tree::{Actuation, Branches, JointId, JointKind, KinematicTree, LinkId};
+use std::f64::consts::FRAC_PI_2;
+
+/// |β| above this (45°) triggers the re-parametrisation by φ = 90°.
+pub const SINGULARITY_THRESHOLD: f64 = std::f64::consts::FRAC_PI_4;
+
+/// Whether an MCPC frame's joint rotates or translates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrameKind {
+    /// Revolute or continuous: parameters (α, β, x, y).
+    Revolute,
+    /// Prismatic: parameters (α, β).
+    Prismatic,
+}
+
+impl FrameKind {
+    /// Number of MCPC parameters of such a frame.
+    pub fn parameter_count(self) -> usize {
+        match self {
+            FrameKind::Revolute => 4,
+            FrameKind::Prismatic => 2,
+        }
+    }
+}
+
+/// One joint frame Σᵢ of the MCPC model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct McpcFrame {
+    /// The tree joint this frame belongs to.
+    pub joint: JointId,
+    /// Revolute or prismatic.
+    pub kind: FrameKind,
+    /// The previous MCPC frame (`None`: the base, i.e. the root link frame).
+    pub parent: Option<usize>,
+    /// How the joint value follows the configuration vector.
+    pub actuation: Actuation,
+    /// Constant rotation about the previous joint axis (rad), the zero-offset choice.
+    pub phi: f64,
+    /// Rotation about the previous X (rad).
+    pub alpha: f64,
+    /// Rotation about the new Y (rad).
+    pub beta: f64,
+    /// Offset along the new X (m); 0 for prismatic frames.
+    pub x: f64,
+    /// Offset along the new Y (m); 0 for prismatic frames.
+    pub y: f64,
+    /// The URDF child link's frame in the moved frame Σᵢ·Q(θᵢ) (constant).
+    pub frame_from_link: Pose,
+}
+
+impl McpcFrame {
+    /// `prev_from_frame` without the previous joint's motion: Rz(φ)·Rx(α)·Ry(β)·Trans(x, y, 0).
+    pub fn constant_transform(&self) -> Pose {
+        pose(
+            Vec3::zeros(),
+            rot_z(self.phi) * rot_x(self.alpha) * rot_y(self.beta),
+        ) * pose(Vec3::new(self.x, self.y, 0.0), Rotation::identity())
+    }
+
+    /// The joint's motion Q(θ): rotation about z or translation along z.
+    pub fn motion(&self, value: f64) -> Pose {
+        match self.kind {
+            FrameKind::Revolute => pose(Vec3::zeros(), rot_z(value)),
+            FrameKind::Prismatic => pose(Vec3::new(0.0, 0.0, value), Rotation::identity()),
+        }
+    }
+}
+
+/// A tool frame of the MCPC model (eq. (2)): six parameters after the last joint frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct McpcTool {
+    /// The tool link.
+    pub link: LinkId,
+    /// The last MCPC frame of the tool's chain (`None`: the tool is rigid on the base).
+    pub parent: Option<usize>,
+    /// Constant rotation about the last joint axis (rad).
+    pub phi: f64,
+    /// Rotation about X (rad).
+    pub alpha: f64,
+    /// Rotation about Y (rad).
+    pub beta: f64,
+    /// Rotation about Z (rad).
+    pub gamma: f64,
+    /// Offset along the tool X (m).
+    pub x: f64,
+    /// Offset along the tool Y (m).
+    pub y: f64,
+    /// Offset along the tool Z (m).
+    pub z: f64,
+}
+
+impl McpcTool {
+    /// Rz(φ)·Rx(α)·Ry(β)·Rz(γ)·Trans(x, y, z).
+    pub fn constant_transform(&self) -> Pose {
+        pose(
+            Vec3::zeros(),
+            rot_z(self.phi) * rot_x(self.alpha) * rot_y(self.beta) * rot_z(self.gamma),
+        ) * pose(Vec3::new(self.x, self.y, self.z), Rotation::identity())
+    }
+}
+
+/// The MCPC model of a tree's selected branches: frames (parents first) and tools.
+#[derive(Debug, Clone, PartialEq)]
+pub struct McpcModel {
+    frames: Vec<McpcFrame>,
+    tools: Vec<McpcTool>,
+    /// `constant_transform` of every frame, cached for forward kinematics.
+    frame_constants: Vec<Pose>,
+    /// `constant_transform` of every tool.
+    tool_constants: Vec<Pose>,
+    /// For each tool, the frames from the base to it, base side first.
+    tool_chains: Vec<Vec<usize>>,
+}
+
+/// Which parameter of a frame or tool.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ParameterKind {
+    /// α (rad).
+    Alpha,
+    /// β (rad).
+    Beta,
+    /// γ (rad, tools only).
+    Gamma,
+    /// x (m).
+    X,
+    /// y (m).
+    Y,
+    /// z (m, tools only).
+    Z,
+}
+
+impl ParameterKind {
+    /// Whether the parameter is an angle (else a length).
+    pub fn is_angle(self) -> bool {
+        matches!(
+            self,
+            ParameterKind::Alpha | ParameterKind::Beta | ParameterKind::Gamma
+        )
+    }
+
+    /// Short name: alpha, beta, gamma, x, y, z.
+    pub fn name(self) -> &'static str {
+        match self {
+            ParameterKind::Alpha => "alpha",
+            ParameterKind::Beta => "beta",
+            ParameterKind::Gamma => "gamma",
+            ParameterKind::X => "x",
+            ParameterKind::Y => "y",
+            ParameterKind::Z => "z",
+        }
+    }
+}
+
+/// Where a parameter of the flat vector lives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParameterOwner {
+    /// A joint frame, by index in [`McpcModel::frames`].
+    Frame(usize),
+    /// A tool, by index in [`McpcModel::tools`].
+    Tool(usize),
+}
+
+const REVOLUTE_PARAMETERS: [ParameterKind; 4] = [
+    ParameterKind::Alpha,
+    ParameterKind::Beta,
+    ParameterKind::X,
+    ParameterKind::Y,
+];
+const PRISMATIC_PARAMETERS: [ParameterKind; 2] = [ParameterKind::Alpha, ParameterKind::Beta];
+const TOOL_PARAMETERS: [ParameterKind; 6] = [
+    ParameterKind::Alpha,
+    ParameterKind::Beta,
+    ParameterKind::Gamma,
+    ParameterKind::X,
+    ParameterKind::Y,
+    ParameterKind::Z,
+];
+
+impl McpcModel {
+    /// Builds a model from frames (parents first) and tools; checks the references.
+    pub fn new(frames: Vec<McpcFrame>, tools: Vec<McpcTool>) -> Result<Self> {
+        for (index, frame) in frames.iter().enumerate() {
+            if frame.parent.is_some_and(|p| p >= index) {
+                return Err(Error::InvalidTable {
+                    origin: "MCPC model".into(),
+                    message: format!("frame {index} names a parent that does not come before it"),
+                });
+            }
+        }
+        if tools
+            .iter()
+            .any(|t| t.parent.is_some_and(|p| p >= frames.len()))
+        {
+            return Err(Error::InvalidTable {
+                origin: "MCPC model".into(),
+                message: "a tool names a frame that does not exist".into(),
+            });
+        }
+        let tool_chains = tools
+            .iter()
+            .map(|tool| {
+                let mut chain = Vec::new();
+                let mut current = tool.parent;
+                while let Some(f) = current {
+                    chain.push(f);
+                    current = frames[f].parent;
+                }
+                chain.reverse();
+                chain
+            })
+            .collect();
+        let mut model = Self {
+            frame_constants: Vec::new(),
+            tool_constants: Vec::new(),
+            frames,
+            tools,
+            tool_chains,
+        };
+        model.refresh();
+        Ok(model)
+    }
+
+    fn refresh(&mut self) {
+        self.frame_constants = self
+            .frames
+            .iter()
+            .map(McpcFrame::constant_transform)
+            .collect();
+        self.tool_constants = self
+            .tools
+            .iter()
+            .map(McpcTool::constant_transform)
+            .collect();
+    }
+
+    /// The MCPC model of `branches` of `tree` at its nominal (URDF) geometry.
+    pub fn from_tree(tree: &KinematicTree, branches: &Branches) -> Result<Self> {
+        convert(tree, branches)
+    }
+
+    /// The joint frames, parents first.
+    pub fn frames(&self) -> &[McpcFrame] {
+        &self.frames
+    }
+
+    /// The tools.
+    pub fn tools(&self) -> &[McpcTool] {
+        &self.tools
+    }
+
+    /// The frames from the base to tool `tool`, base side first.
+    pub fn tool_chain(&self, tool: usize) -> &[usize] {
+        &self.tool_chains[tool]
+    }
+
+    /// The index of the frame of tree joint `joint`, if it is in the model.
+    pub fn frame_of_joint(&self, joint: JointId) -> Option<usize> {
+        self.frames.iter().position(|f| f.joint == joint)
+    }
+
+    /// The index of the tool at link `link`, if it is in the model.
+    pub fn tool_of_link(&self, link: LinkId) -> Option<usize> {
+        self.tools.iter().position(|t| t.link == link)
+    }
+
+    /// Number of MCPC parameters: 4 per revolute frame, 2 per prismatic frame, 6 per tool.
+    pub fn parameter_count(&self) -> usize {
+        self.frames
+            .iter()
+            .map(|f| f.kind.parameter_count())
+            .sum::<usize>()
+            + 6 * self.tools.len()
+    }
+
+    /// What each entry of the flat parameter vector is: frames in order, then tools.
+    pub fn parameter_layout(&self) -> Vec<(ParameterOwner, ParameterKind)> {
+        let mut layout = Vec::with_capacity(self.parameter_count());
+        for (index, frame) in self.frames.iter().enumerate() {
+            let kinds: &[ParameterKind] = match frame.kind {
+                FrameKind::Revolute => &REVOLUTE_PARAMETERS,
+                FrameKind::Prismatic => &PRISMATIC_PARAMETERS,
+            };
+            layout.extend(kinds.iter().map(|k| (ParameterOwner::Frame(index), *k)));
+        }
+        for index in 0..self.tools.len() {
+            layout.extend(
+                TOOL_PARAMETERS
+                    .iter()
+                    .map(|k| (ParameterOwner::Tool(index), *k)),
+            );
+        }
+        layout
+    }
+
+    /// The flat parameter vector (rad, m) in [`Self::parameter_layout`] order.
+    pub fn parameters(&self) -> Vec<f64> {
+        self.parameter_layout()
+            .into_iter()
+            .map(|(owner, kind)| self.parameter(owner, kind))
+            .collect()
+    }
+
+    /// One parameter's value.
+    pub fn parameter(&self, owner: ParameterOwner, kind: ParameterKind) -> f64 {
+        match owner {
+            ParameterOwner::Frame(i) => {
+                let f = &self.frames[i];
+                match kind {
+                    ParameterKind::Alpha => f.alpha,
+                    ParameterKind::Beta => f.beta,
+                    ParameterKind::X => f.x,
+                    ParameterKind::Y => f.y,
+                    ParameterKind::Gamma | ParameterKind::Z => 0.0,
+                }
+            }
+            ParameterOwner::Tool(i) => {
+                let t = &self.tools[i];
+                match kind {
+                    ParameterKind::Alpha => t.alpha,
+                    ParameterKind::Beta => t.beta,
+                    ParameterKind::Gamma => t.gamma,
+                    ParameterKind::X => t.x,
+                    ParameterKind::Y => t.y,
+                    ParameterKind::Z => t.z,
+                }
+            }
+        }
+    }
+
+    /// Replaces every parameter (same order as [`Self::parameters`]).
+    pub fn set_parameters(&mut self, values: &[f64]) -> Result<()> {
+        let layout = self.parameter_layout();
+        if values.len() != layout.len() {
+            return Err(Error::InvalidTable {
+                origin: "MCPC parameters".into(),
+                message: format!(
+                    "{} values given, the model has {} parameters",
+                    values.len(),
+                    layout.len()
+                ),
+            });
+        }
+        if let Some(bad) = values.iter().position(|v| !v.is_finite()) {
+            return Err(Error::InvalidTable {
+                origin: "MCPC parameters".into(),
+                message: format!("parameter {bad} is not finite"),
+            });
+        }
+        for ((owner, kind), value) in layout.into_iter().zip(values) {
+            let slot = match owner {
+                ParameterOwner::Frame(i) => {
+                    let f = &mut self.frames[i];
+                    match kind {
+                        ParameterKind::Alpha => &mut f.alpha,
+                        ParameterKind::Beta => &mut f.beta,
+                        ParameterKind::X => &mut f.x,
+                        _ => &mut f.y,
+                    }
+                }
+                ParameterOwner::Tool(i) => {
+                    let t = &mut self.tools[i];
+                    match kind {
+                        ParameterKind::Alpha => &mut t.alpha,
+                        ParameterKind::Beta => &mut t.beta,
+                        ParameterKind::Gamma => &mut t.gamma,
+                        ParameterKind::X => &mut t.x,
+                        ParameterKind::Y => &mut t.y,
+                        ParameterKind::Z => &mut t.z,
+                    }
+                }
+            };
+            *slot = *value;
+        }
+        self.refresh();
+        Ok(())
+    }
+
+    /// The joint value of frame `frame` at configuration `q`.
+    #[inline]
+    pub fn joint_value(&self, frame: usize, q: &[f64]) -> f64 {
+        match self.frames[frame].actuation {
+            Actuation::Independent(dof) => q[dof.0],
+            Actuation::Mimic {
+                master,
+                multiplier,
+                offset,
+            } => multiplier * q[master.0] + offset,
+            Actuation::None => 0.0,
+        }
+    }
+
+    /// Cached `Rz(φ)Rx(α)Ry(β)Trans(x, y, 0)` of frame `frame`.
+    #[inline]
+    pub fn frame_constant(&self, frame: usize) -> &Pose {
+        &self.frame_constants[frame]
+    }
+
+    /// Cached `Rz(φ)Rx(α)Ry(β)Rz(γ)Trans(x, y, z)` of tool `tool`.
+    #[inline]
+    pub fn tool_constant(&self, tool: usize) -> &Pose {
+        &self.tool_constants[tool]
+    }
+}
+
+/// Geometry of an MCPC frame at the all-joints-zero configuration, in the root frame.
+#[derive(Clone, Copy)]
+struct Placed {
+    rotation: Rotation,
+    origin: Vec3,
+    /// Rotation about z of this frame relative to the plain MCPC construction (see `docs/mcpc.md`).
+    twist: f64,
+}
+
+const BASE: Placed = Placed {
+    rotation: Rotation::new_unchecked(nalgebra::Quaternion::new(1.0, 0.0, 0.0, 0.0)),
+    origin: Vec3::new(0.0, 0.0, 0.0),
+    twist: 0.0,
+};
+
+/// α, β with `Rx(α)·Ry(β)·e_z = axis`; α is 0 where the axis lies along ±x (undefined there).
+fn axis_angles(axis: &Vec3) -> (f64, f64) {
+    let beta = axis.x.clamp(-1.0, 1.0).asin();
+    let alpha = if axis.y.hypot(axis.z) < 1e-12 {
+        0.0
+    } else {
+        (-axis.y).atan2(axis.z)
+    };
+    (alpha, beta)
+}
+
+fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
+    // Every joint at its own zero (mimic offsets are not applied: the model is in joint values).
+    let mut root_from_link = vec![Pose::identity()];
+    for joint in tree.joints() {
+        root_from_link.push(root_from_link[joint.parent.0] * joint.parent_from_child(0.0));
+    }
+
+    let mut frames: Vec<McpcFrame> = Vec::new();
+    let mut placed: Vec<Placed> = Vec::new();
+    let frame_of =
+        |frames: &[McpcFrame], joint: JointId| frames.iter().position(|f| f.joint == joint);
+    // The nearest movable ancestor joint of a link that is already a frame.
+    let parent_frame = |frames: &[McpcFrame], link: LinkId| -> Option<usize> {
+        tree.path_from_root(link)
+            .iter()
+            .rev()
+            .find_map(|&j| frame_of(frames, j))
+    };
+
+    let chains = branches.all().flat_map(|b| b.joints.iter().copied());
+    for joint_id in chains {
+        if frame_of(&frames, joint_id).is_some() {
+            continue;
+        }
+        let joint = tree.joint(joint_id);
+        let kind = match joint.kind {
+            JointKind::Revolute | JointKind::Continuous => FrameKind::Revolute,
+            JointKind::Prismatic => FrameKind::Prismatic,
+            JointKind::Fixed => continue,
+        };
+        let parent = parent_frame(&frames, joint.parent);
+        let previous = parent.map_or(BASE, |p| placed[p]);
+        let root_from_joint = root_from_link[joint.parent.0] * joint.parent_from_joint;
+        let axis_root = root_from_joint.rotation * joint.axis.into_inner();
+
+        let reference = previous.rotation * rot_z(-previous.twist);
+        let (alpha_ref, beta_ref) = axis_angles(&(reference.inverse() * axis_root));
+        let (phi, alpha, beta, rotation, twist) = if beta_ref.abs() <= SINGULARITY_THRESHOLD {
+            let rotation = reference * rot_x(alpha_ref) * rot_y(beta_ref);
+            (-previous.twist, alpha_ref, beta_ref, rotation, 0.0)
+        } else {
+            let turned = reference * rot_z(FRAC_PI_2);
+            let (alpha, beta) = axis_angles(&(turned.inverse() * axis_root));
+            let rotation = turned * rot_x(alpha) * rot_y(beta);
+            let plain = reference * rot_x(alpha_ref) * rot_y(beta_ref);
+            let relative = (plain.inverse() * rotation).to_rotation_matrix();
+            let twist = relative[(1, 0)].atan2(relative[(0, 0)]);
+            (-previous.twist + FRAC_PI_2, alpha, beta, rotation, twist)
+        };
+        let origin = match kind {
+            FrameKind::Revolute => {
+                let point = root_from_joint.translation.vector;
+                point + axis_root * (previous.origin - point).dot(&axis_root)
+            }
+            FrameKind::Prismatic => previous.origin,
+        };
+        let offset = rotation.inverse() * (origin - previous.origin);
+        let (x, y) = match kind {
+            FrameKind::Revolute => (offset.x, offset.y),
+            FrameKind::Prismatic => (0.0, 0.0),
+        };
+        let root_from_frame = pose(origin, rotation);
+        frames.push(McpcFrame {
+            joint: joint_id,
+            kind,
+            parent,
+            actuation: joint.actuation,
+            phi: wrap_angle(phi),
+            alpha,
+            beta,
+            x,
+            y,
+            frame_from_link: root_from_frame.inverse() * root_from_link[joint.child.0],
+        });
+        placed.push(Placed {
+            rotation,
+            origin,
+            twist,
+        });
+    }
+
+    let mut tools = Vec::new();
+    for tool_link in branches.tools() {
+        let parent = parent_frame(&frames, tool_link);
+        let previous = parent.map_or(BASE, |p| placed[p]);
+        let root_from_tool = root_from_link[tool_link.0];
+        let reference = previous.rotation * rot_z(-previous.twist);
+        let [a, b, c] = xyz_angles_from_rotation(&(reference.inverse() * root_from_tool.rotation));
+        let (phi, [alpha, beta, gamma]) = if b.abs() <= SINGULARITY_THRESHOLD {
+            (-previous.twist, [a, b, c])
+        } else {
+            let turned = reference * rot_z(FRAC_PI_2);
+            (
+                -previous.twist + FRAC_PI_2,
+                xyz_angles_from_rotation(&(turned.inverse() * root_from_tool.rotation)),
+            )
+        };
+        let offset = root_from_tool.rotation.inverse()
+            * (root_from_tool.translation.vector - previous.origin);
+        tools.push(McpcTool {
+            link: tool_link,
+            parent,
+            phi: wrap_angle(phi),
+            alpha,
+            beta,
+            gamma,
+            x: offset.x,
+            y: offset.y,
+            z: offset.z,
+        });
+    }
+    McpcModel::new(frames, tools)
+}

@@ -1,0 +1,8 @@
+//! Kinematic models built on the tree: the MCPC model and its forward kinematics.
+
+mod forward;
+pub mod mcpc;
+
+pub use mcpc::{
+    FrameKind, McpcFrame, McpcModel, McpcTool, ParameterKind, ParameterOwner, SINGULARITY_THRESHOLD,
+};

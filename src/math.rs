@@ -1,0 +1,129 @@
+//! Type aliases and small geometric helpers used everywhere.
+//!
+//! Units inside treecal are SI: metres, radians, kilograms, newtons. Conversions from
+//! millimetres and degrees happen only where files are read or written.
+//!
+//! Frames are named `a_from_b`: the pose of frame `b` expressed in frame `a`, so that
+//! `world_from_base * base_from_tool` reads right and yields `world_from_tool`.
+
+use nalgebra::{Isometry3, Matrix3, Translation3, Unit, UnitQuaternion, Vector3};
+
+/// A rigid transform (rotation + translation), metres.
+pub type Pose = Isometry3<f64>;
+/// A 3-vector, metres or unitless.
+pub type Vec3 = Vector3<f64>;
+/// A rotation.
+pub type Rotation = UnitQuaternion<f64>;
+/// A 3×3 matrix.
+pub type Mat3 = Matrix3<f64>;
+
+/// Rotation about the X axis by `angle` radians.
+pub fn rot_x(angle: f64) -> Rotation {
+    UnitQuaternion::from_axis_angle(&Vector3::x_axis(), angle)
+}
+
+/// Rotation about the Y axis by `angle` radians.
+pub fn rot_y(angle: f64) -> Rotation {
+    UnitQuaternion::from_axis_angle(&Vector3::y_axis(), angle)
+}
+
+/// Rotation about the Z axis by `angle` radians.
+pub fn rot_z(angle: f64) -> Rotation {
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle)
+}
+
+/// Rotation about an arbitrary unit axis.
+pub fn rot_axis(axis: &Unit<Vector3<f64>>, angle: f64) -> Rotation {
+    UnitQuaternion::from_axis_angle(axis, angle)
+}
+
+/// A pose from a translation and a rotation.
+pub fn pose(translation: Vec3, rotation: Rotation) -> Pose {
+    Isometry3::from_parts(Translation3::from(translation), rotation)
+}
+
+/// A pure translation.
+pub fn translation(x: f64, y: f64, z: f64) -> Pose {
+    Isometry3::translation(x, y, z)
+}
+
+/// URDF roll-pitch-yaw: `R = Rz(yaw) · Ry(pitch) · Rx(roll)` (fixed axes X, Y, Z).
+pub fn rotation_from_rpy(roll: f64, pitch: f64, yaw: f64) -> Rotation {
+    UnitQuaternion::from_euler_angles(roll, pitch, yaw)
+}
+
+/// The URDF roll, pitch, yaw of a rotation (inverse of [`rotation_from_rpy`]).
+pub fn rpy_from_rotation(rotation: &Rotation) -> [f64; 3] {
+    let (roll, pitch, yaw) = rotation.euler_angles();
+    [roll, pitch, yaw]
+}
+
+/// Intrinsic X-Y-Z angles `(a, b, c)` with `R = Rx(a) · Ry(b) · Rz(c)`, the MCPC tool
+/// convention (paper eq. (2)). `b` lies in [−π/2, π/2]; near |b| = π/2 the split between
+/// `a` and `c` is arbitrary, which is why MCPC frames are re-parametrised away from there.
+pub fn xyz_angles_from_rotation(rotation: &Rotation) -> [f64; 3] {
+    let m = rotation.to_rotation_matrix();
+    let m = m.matrix();
+    let b = m[(0, 2)].clamp(-1.0, 1.0).asin();
+    let a = (-m[(1, 2)]).atan2(m[(2, 2)]);
+    let c = (-m[(0, 1)]).atan2(m[(0, 0)]);
+    [a, b, c]
+}
+
+/// The angle in radians of the rotation that takes `a` to `b`.
+pub fn rotation_distance(a: &Rotation, b: &Rotation) -> f64 {
+    a.angle_to(b)
+}
+
+/// Wraps an angle to (−π, π].
+pub fn wrap_angle(angle: f64) -> f64 {
+    let wrapped = angle.rem_euclid(std::f64::consts::TAU);
+    if wrapped > std::f64::consts::PI {
+        wrapped - std::f64::consts::TAU
+    } else {
+        wrapped
+    }
+}
+
+/// Skew-symmetric matrix `[v]×` with `[v]× w = v × w`.
+pub fn skew(v: &Vec3) -> Mat3 {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn rpy_matches_urdf_convention() {
+        let (r, p, y) = (0.3, -0.7, 1.9);
+        let expected = rot_z(y) * rot_y(p) * rot_x(r);
+        assert_relative_eq!(rotation_from_rpy(r, p, y), expected, epsilon = 1e-15);
+        let back = rpy_from_rotation(&expected);
+        assert_relative_eq!(back[0], r, epsilon = 1e-12);
+        assert_relative_eq!(back[1], p, epsilon = 1e-12);
+        assert_relative_eq!(back[2], y, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn xyz_angles_round_trip() {
+        let (a, b, c) = (-1.2, 0.4, 2.5);
+        let rotation = rot_x(a) * rot_y(b) * rot_z(c);
+        let [a2, b2, c2] = xyz_angles_from_rotation(&rotation);
+        assert_relative_eq!(a2, a, epsilon = 1e-12);
+        assert_relative_eq!(b2, b, epsilon = 1e-12);
+        assert_relative_eq!(c2, c, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn wrap_angle_range() {
+        assert_relative_eq!(wrap_angle(3.0 * std::f64::consts::PI), std::f64::consts::PI);
+        assert_relative_eq!(wrap_angle(-0.5), -0.5);
+        assert_relative_eq!(
+            wrap_angle(7.0),
+            7.0 - std::f64::consts::TAU,
+            epsilon = 1e-15
+        );
+    }
+}

@@ -1,0 +1,10 @@
+//! URDF in and out: the only module that uses urdf-rs.
+//!
+//! - [`import`]: URDF text → [`KinematicTree`](crate::tree::KinematicTree), with every
+//!   check a real robot file needs (names, roots, cycles, NaN, unsupported joints).
+//! - [`from_mcpc`]: an MCPC table (paper Table 1 layout) → a new URDF document.
+
+pub mod from_mcpc;
+pub mod import;
+
+pub use import::{load_urdf, parse_urdf, UrdfImport};

@@ -1,0 +1,87 @@
+//! Shared helpers: robot paths, seeded random configurations, pose comparison.
+
+#![allow(dead_code)]
+
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use std::path::{Path, PathBuf};
+use treecal::math::Pose;
+use treecal::tree::KinematicTree;
+
+/// The repository root.
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A robot in `robots/`.
+pub fn robot(relative: &str) -> PathBuf {
+    repo().join("robots").join(relative)
+}
+
+/// The shared NASA Robonaut 2 description, read in place.
+pub fn robonaut2() -> PathBuf {
+    repo().join("../shared/robots/robonaut2/robonaut2.urdf")
+}
+
+/// Every URDF in `robots/` (recursively).
+pub fn all_repo_robots() -> Vec<PathBuf> {
+    let mut found = Vec::new();
+    collect(&repo().join("robots"), &mut found);
+    found.sort();
+    found
+}
+
+fn collect(dir: &Path, found: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            collect(&path, found);
+        } else if path.extension().is_some_and(|e| e == "urdf") {
+            found.push(path);
+        }
+    }
+}
+
+/// A seeded, version-stable RNG.
+pub fn rng(seed: u64) -> ChaCha8Rng {
+    ChaCha8Rng::seed_from_u64(seed)
+}
+
+/// A random configuration: within limits where bounded, within ±π (or ±1 m) otherwise.
+pub fn random_configuration(tree: &KinematicTree, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    tree.dofs()
+        .iter()
+        .map(|&j| {
+            let joint = tree.joint(j);
+            let (lower, upper) = match joint.limits {
+                Some(l) if l.lower.is_finite() && l.upper.is_finite() && l.upper > l.lower => {
+                    (l.lower, l.upper)
+                }
+                _ if joint.kind == treecal::tree::JointKind::Prismatic => (-1.0, 1.0),
+                _ => (-std::f64::consts::PI, std::f64::consts::PI),
+            };
+            rng.random_range(lower..upper)
+        })
+        .collect()
+}
+
+/// Position distance (m) and rotation angle (rad) between two poses.
+pub fn pose_difference(a: &Pose, b: &Pose) -> (f64, f64) {
+    (
+        (a.translation.vector - b.translation.vector).norm(),
+        a.rotation.angle_to(&b.rotation),
+    )
+}
+
+/// Asserts two poses agree to `tolerance` metres and radians.
+#[track_caller]
+pub fn assert_pose_eq(a: &Pose, b: &Pose, tolerance: f64, what: &str) {
+    let (position, angle) = pose_difference(a, b);
+    assert!(
+        position <= tolerance && angle <= tolerance,
+        "{what}: poses differ by {position:e} m and {angle:e} rad\n{a}\n{b}"
+    );
+}

@@ -1,0 +1,1 @@
+//! URDF import: every robot loads; bad files give clear errors.
