@@ -1,6 +1,14 @@
-//! treecal
+#![doc = include_str!("../README.md")]
+
 pub mod error;
+pub mod io;
 pub mod kinematics;
 pub mod math;
+pub mod report;
 pub mod tree;
 pub mod urdf;
+
+pub use error::{Error, Result};
+pub use kinematics::{McpcModel, McpcTable};
+pub use tree::{detect_branches, Branches, KinematicTree};
+pub use urdf::{load_urdf, parse_urdf, urdf_from_mcpc_table};

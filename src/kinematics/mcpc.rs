@@ -68,6 +68,9 @@ pub struct McpcFrame {
     pub y: f64,
     /// The URDF child link's frame in the moved frame Σᵢ·Q(θᵢ) (constant).
     pub frame_from_link: Pose,
+    /// Whether φ includes the 90° turn that moves this frame off the β = ±90° singularity
+    /// (otherwise φ only undoes an earlier turn, or is 0).
+    pub reparametrised: bool,
 }
 
 impl McpcFrame {
@@ -109,6 +112,8 @@ pub struct McpcTool {
     pub y: f64,
     /// Offset along the tool Z (m).
     pub z: f64,
+    /// Whether φ includes the 90° turn away from the β = ±90° singularity.
+    pub reparametrised: bool,
 }
 
 impl McpcTool {
@@ -488,7 +493,8 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
 
         let reference = previous.rotation * rot_z(-previous.twist);
         let (alpha_ref, beta_ref) = axis_angles(&(reference.inverse() * axis_root));
-        let (phi, alpha, beta, rotation, twist) = if beta_ref.abs() <= SINGULARITY_THRESHOLD {
+        let reparametrised = beta_ref.abs() > SINGULARITY_THRESHOLD;
+        let (phi, alpha, beta, rotation, twist) = if !reparametrised {
             let rotation = reference * rot_x(alpha_ref) * rot_y(beta_ref);
             (-previous.twist, alpha_ref, beta_ref, rotation, 0.0)
         } else {
@@ -524,6 +530,7 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
             x,
             y,
             frame_from_link: root_from_frame.inverse() * root_from_link[joint.child.0],
+            reparametrised,
         });
         placed.push(Placed {
             rotation,
@@ -539,7 +546,8 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
         let root_from_tool = root_from_link[tool_link.0];
         let reference = previous.rotation * rot_z(-previous.twist);
         let [a, b, c] = xyz_angles_from_rotation(&(reference.inverse() * root_from_tool.rotation));
-        let (phi, [alpha, beta, gamma]) = if b.abs() <= SINGULARITY_THRESHOLD {
+        let reparametrised = b.abs() > SINGULARITY_THRESHOLD;
+        let (phi, [alpha, beta, gamma]) = if !reparametrised {
             (-previous.twist, [a, b, c])
         } else {
             let turned = reference * rot_z(FRAC_PI_2);
@@ -560,6 +568,7 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
             x: offset.x,
             y: offset.y,
             z: offset.z,
+            reparametrised,
         });
     }
     McpcModel::new(frames, tools)

@@ -2,7 +2,9 @@
 
 mod forward;
 pub mod mcpc;
+pub mod table;
 
 pub use mcpc::{
     FrameKind, McpcFrame, McpcModel, McpcTool, ParameterKind, ParameterOwner, SINGULARITY_THRESHOLD,
 };
+pub use table::{McpcTable, TableBranch, TableRow, TableTool};

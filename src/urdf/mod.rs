@@ -7,4 +7,6 @@
 pub mod from_mcpc;
 pub mod import;
 
+pub use from_mcpc::urdf_from_mcpc_table;
+
 pub use import::{load_urdf, parse_urdf, UrdfImport};

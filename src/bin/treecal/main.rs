@@ -1,1 +1,29 @@
-fn main() {}
+//! `treecal`: calibrate the kinematic parameters of branched robots described by URDF.
+//!
+//! A thin layer over the library: clap parses, `cli` turns raw arguments into checked
+//! library inputs, one file per subcommand runs it.
+
+mod cli;
+mod fk;
+mod from_mcpc;
+mod inspect;
+mod robot;
+
+use clap::Parser;
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let args = cli::Cli::parse();
+    let result = match args.command {
+        cli::Command::Inspect(a) => inspect::run(a),
+        cli::Command::Fk(a) => fk::run(a),
+        cli::Command::FromMcpc(a) => from_mcpc::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("treecal: error: {error}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,35 @@
+//! Loading the robot a command works on: a URDF path, or the built-in Robonaut.
+
+use std::path::Path;
+use treecal::urdf::{load_urdf, parse_urdf, UrdfImport};
+use treecal::{detect_branches, Branches, Result};
+
+/// The Robonaut generated from the paper's Table 1, built into the binary so that the main
+/// commands work from any directory.
+pub const BUILT_IN_ROBONAUT: &str = include_str!("../../../robots/robonaut/robonaut.urdf");
+
+/// Loads `path`, or the built-in Robonaut when `None`; prints loader warnings on stderr.
+pub fn load(path: Option<&Path>) -> Result<UrdfImport> {
+    let import = match path {
+        Some(path) => load_urdf(path)?,
+        None => parse_urdf(BUILT_IN_ROBONAUT, "built-in robonaut.urdf")?,
+    };
+    for warning in &import.warnings {
+        eprintln!("treecal: warning: {warning}");
+    }
+    Ok(import)
+}
+
+/// Detects branches, with the tool links named by the user if any.
+pub fn branches(import: &UrdfImport, tools: Option<&[String]>) -> Result<Branches> {
+    let tree = &import.tree;
+    let tools = tools
+        .map(|names| {
+            names
+                .iter()
+                .map(|n| tree.link_id(n.trim()))
+                .collect::<Result<Vec<_>>>()
+        })
+        .transpose()?;
+    detect_branches(tree, tools.as_deref())
+}

@@ -1,0 +1,169 @@
+//! Joint-value CSV files (`treecal fk`): a header naming joints, one configuration per row.
+
+use crate::error::{Error, Result};
+use crate::math::Pose;
+use crate::tree::{Actuation, JointKind, KinematicTree};
+
+/// A CSV table as read: header and records with their 1-based line numbers.
+#[derive(Debug, Clone)]
+pub struct CsvTable {
+    /// Column names, trimmed.
+    pub headers: Vec<String>,
+    /// `(line, fields)` of every data row.
+    pub records: Vec<(usize, Vec<String>)>,
+}
+
+/// Parses CSV text: `#` comment lines and blank lines skipped, fields trimmed.
+pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    let mut headers: Option<Vec<String>> = None;
+    let mut records = Vec::new();
+    for record in reader.records() {
+        let record = record.map_err(|e| Error::InvalidData {
+            origin: match e.position() {
+                Some(p) => format!("{origin}:{}", p.line()),
+                None => origin.to_owned(),
+            },
+            message: format!("not readable as CSV: {e}"),
+        })?;
+        let line = record.position().map_or(0, |p| p.line() as usize);
+        let fields: Vec<String> = record.iter().map(str::to_owned).collect();
+        if fields.iter().all(String::is_empty) {
+            continue;
+        }
+        match &headers {
+            None => headers = Some(fields),
+            Some(h) => {
+                if fields.len() != h.len() {
+                    return Err(Error::InvalidData {
+                        origin: format!("{origin}:{line}"),
+                        message: format!(
+                            "row has {} fields but the header has {}",
+                            fields.len(),
+                            h.len()
+                        ),
+                    });
+                }
+                records.push((line, fields));
+            }
+        }
+    }
+    let headers = headers.ok_or_else(|| Error::InvalidData {
+        origin: origin.to_owned(),
+        message: "the file is empty; it needs a header row naming joints".into(),
+    })?;
+    for (index, name) in headers.iter().enumerate() {
+        if headers[..index].contains(name) {
+            return Err(Error::InvalidData {
+                origin: format!("{origin}:1"),
+                message: format!("column '{name}' appears twice in the header"),
+            });
+        }
+    }
+    Ok(CsvTable { headers, records })
+}
+
+/// How the columns of a joint CSV map onto a robot.
+#[derive(Debug, Clone, Default)]
+pub struct ColumnMapping {
+    /// `(column, configuration index)` of independent joints.
+    pub joints: Vec<(usize, usize)>,
+    /// Columns naming a fixed or mimic joint: read but not used (the value is implied).
+    pub implied: Vec<(usize, String)>,
+    /// Columns matching no joint: passed through.
+    pub unmatched: Vec<usize>,
+}
+
+/// Reads configurations from a joint CSV. Joints without a column are 0; `angle_scale`
+/// converts angle columns to radians (1 for rad, π/180 for deg).
+pub fn configurations(
+    table: &CsvTable,
+    tree: &KinematicTree,
+    angle_scale: f64,
+    origin: &str,
+) -> Result<(Vec<Vec<f64>>, ColumnMapping)> {
+    let mut mapping = ColumnMapping::default();
+    for (column, name) in table.headers.iter().enumerate() {
+        match tree.joint_id(name) {
+            Ok(joint) => match tree.joint(joint).actuation {
+                Actuation::Independent(dof) => mapping.joints.push((column, dof.0)),
+                Actuation::Mimic { .. } => mapping.implied.push((
+                    column,
+                    format!("'{name}' is a mimic joint; its value follows its master"),
+                )),
+                Actuation::None => mapping
+                    .implied
+                    .push((column, format!("'{name}' is a fixed joint"))),
+            },
+            Err(_) => mapping.unmatched.push(column),
+        }
+    }
+    let mut configurations = Vec::with_capacity(table.records.len());
+    for (line, fields) in &table.records {
+        let mut q = tree.zero_configuration();
+        for &(column, dof) in &mapping.joints {
+            let text = &fields[column];
+            let place = || format!("{origin}:{line}:{}", table.headers[column]);
+            let value: f64 = text.parse().map_err(|_| Error::InvalidData {
+                origin: place(),
+                message: format!("'{text}' is not a number"),
+            })?;
+            if !value.is_finite() {
+                return Err(Error::InvalidData {
+                    origin: place(),
+                    message: format!("'{text}' is not a finite number"),
+                });
+            }
+            let joint = tree.joint(tree.dofs()[dof]);
+            q[dof] = if joint.kind == JointKind::Prismatic {
+                value
+            } else {
+                value * angle_scale
+            };
+        }
+        configurations.push(q);
+    }
+    Ok((configurations, mapping))
+}
+
+/// The table with `x,y,z,r11,…,r33` of each row's pose appended (metres, full precision).
+pub fn append_poses(table: &CsvTable, poses: &[Pose]) -> Result<String> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let mut header = table.headers.clone();
+    header.extend(
+        [
+            "x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33",
+        ]
+        .map(String::from),
+    );
+    let fail = |e: csv::Error| Error::InvalidData {
+        origin: "output".into(),
+        message: e.to_string(),
+    };
+    writer.write_record(&header).map_err(fail)?;
+    for ((_, fields), pose) in table.records.iter().zip(poses) {
+        let mut row = fields.clone();
+        let t = pose.translation.vector;
+        let r = pose.rotation.to_rotation_matrix();
+        row.extend([t.x, t.y, t.z].iter().map(|v| format!("{v}")));
+        for i in 0..3 {
+            for j in 0..3 {
+                row.push(format!("{}", r[(i, j)]));
+            }
+        }
+        writer.write_record(&row).map_err(fail)?;
+    }
+    let bytes = writer.into_inner().map_err(|e| Error::InvalidData {
+        origin: "output".into(),
+        message: e.to_string(),
+    })?;
+    String::from_utf8(bytes).map_err(|e| Error::InvalidData {
+        origin: "output".into(),
+        message: e.to_string(),
+    })
+}

@@ -1,0 +1,185 @@
+//! The MCPC table YAML format (`robots/robonaut/table1.yaml`): the paper's Table 1 layout in
+//! the units the paper prints (degrees and millimetres by default). See `docs/file-formats.md`.
+
+use crate::error::{Error, Result};
+use crate::kinematics::{FrameKind, McpcTable, TableBranch, TableRow, TableTool};
+use serde::Deserialize;
+use std::path::Path;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    robot: String,
+    #[serde(default = "default_base")]
+    base_link: String,
+    units: Units,
+    /// Default limits of revolute joints, in the angle unit.
+    #[serde(default)]
+    joint_limits: Option<[f64; 2]>,
+    branches: Vec<Branch>,
+}
+
+fn default_base() -> String {
+    "base_link".into()
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Units {
+    angle: String,
+    length: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Branch {
+    name: String,
+    #[serde(default)]
+    parent: Option<String>,
+    #[serde(default)]
+    rows: Vec<Row>,
+    #[serde(default)]
+    tool: Option<Tool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Row {
+    joint: String,
+    link: String,
+    #[serde(default, rename = "type")]
+    kind: Option<String>,
+    alpha: f64,
+    beta: f64,
+    #[serde(default)]
+    x: Option<f64>,
+    #[serde(default)]
+    y: Option<f64>,
+    #[serde(default)]
+    limits: Option<[f64; 2]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Tool {
+    link: String,
+    alpha: f64,
+    beta: f64,
+    gamma: f64,
+    x: f64,
+    y: f64,
+    z: f64,
+}
+
+/// Reads an MCPC table file.
+pub fn read_mcpc_table(path: &Path) -> Result<McpcTable> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse_mcpc_table(&text, &path.display().to_string())
+}
+
+/// Parses an MCPC table; `origin` names the source in messages.
+pub fn parse_mcpc_table(text: &str, origin: &str) -> Result<McpcTable> {
+    let file: File = serde_yaml::from_str(text).map_err(|e| {
+        let place = e
+            .location()
+            .map(|l| format!("{origin}:{}:{}", l.line(), l.column()))
+            .unwrap_or_else(|| origin.to_owned());
+        Error::InvalidTable {
+            origin: place,
+            message: e.to_string(),
+        }
+    })?;
+    let bad = |message: String| Error::InvalidTable {
+        origin: origin.to_owned(),
+        message,
+    };
+    let angle = match file.units.angle.as_str() {
+        "deg" | "degree" | "degrees" => std::f64::consts::PI / 180.0,
+        "rad" | "radian" | "radians" => 1.0,
+        other => return Err(bad(format!("units.angle is '{other}'; use deg or rad"))),
+    };
+    let length = match file.units.length.as_str() {
+        "mm" | "millimetre" | "millimeter" => 1e-3,
+        "m" | "metre" | "meter" => 1.0,
+        other => return Err(bad(format!("units.length is '{other}'; use mm or m"))),
+    };
+    let default_limits = file.joint_limits.unwrap_or([
+        -180.0_f64.to_radians() / angle,
+        180.0_f64.to_radians() / angle,
+    ]);
+
+    let mut branches = Vec::new();
+    for branch in file.branches {
+        let mut rows = Vec::new();
+        for row in branch.rows {
+            let kind = match row.kind.as_deref() {
+                None | Some("revolute") => FrameKind::Revolute,
+                Some("prismatic") => FrameKind::Prismatic,
+                Some(other) => {
+                    return Err(bad(format!(
+                        "joint '{}' has type '{other}'; use revolute or prismatic",
+                        row.joint
+                    )))
+                }
+            };
+            let (x, y) = (row.x.unwrap_or(0.0), row.y.unwrap_or(0.0));
+            if kind == FrameKind::Prismatic && (x != 0.0 || y != 0.0) {
+                return Err(bad(format!(
+                    "prismatic joint '{}' has x or y: a prismatic MCPC frame has only alpha and beta (its origin is the previous frame's)",
+                    row.joint
+                )));
+            }
+            if kind == FrameKind::Revolute && (row.x.is_none() || row.y.is_none()) {
+                return Err(bad(format!(
+                    "revolute joint '{}' needs both x and y",
+                    row.joint
+                )));
+            }
+            let limits = match (row.limits, kind) {
+                (Some([lo, hi]), FrameKind::Revolute) => (lo * angle, hi * angle),
+                (Some([lo, hi]), FrameKind::Prismatic) => (lo * length, hi * length),
+                (None, FrameKind::Revolute) => {
+                    (default_limits[0] * angle, default_limits[1] * angle)
+                }
+                (None, FrameKind::Prismatic) => {
+                    return Err(bad(format!("prismatic joint '{}' needs limits", row.joint)))
+                }
+            };
+            rows.push(TableRow {
+                joint: row.joint,
+                link: row.link,
+                kind,
+                alpha: row.alpha * angle,
+                beta: row.beta * angle,
+                x: x * length,
+                y: y * length,
+                limits,
+            });
+        }
+        let tool = branch.tool.map(|t| TableTool {
+            link: t.link,
+            alpha: t.alpha * angle,
+            beta: t.beta * angle,
+            gamma: t.gamma * angle,
+            x: t.x * length,
+            y: t.y * length,
+            z: t.z * length,
+        });
+        branches.push(TableBranch {
+            name: branch.name,
+            parent: branch.parent,
+            rows,
+            tool,
+        });
+    }
+    let table = McpcTable {
+        robot: file.robot,
+        base_link: file.base_link,
+        branches,
+    };
+    table.validate(origin)?;
+    Ok(table)
+}

@@ -1,0 +1,161 @@
+//! An MCPC parameter table in the layout of the paper's Table 1: branches of rows, each row
+//! the MCPC frame of one joint, each arm ending in a tool row. Values in SI units.
+
+use super::mcpc::FrameKind;
+use crate::error::{Error, Result};
+use crate::math::{pose, rot_x, rot_y, rot_z, Pose, Rotation, Vec3};
+
+/// One joint row: the frame of joint `joint`, placed relative to the previous row's moved frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TableRow {
+    /// Joint name in the generated URDF.
+    pub joint: String,
+    /// Name of the link the joint moves.
+    pub link: String,
+    /// Revolute or prismatic.
+    pub kind: FrameKind,
+    /// α (rad).
+    pub alpha: f64,
+    /// β (rad).
+    pub beta: f64,
+    /// x (m), 0 for prismatic rows.
+    pub x: f64,
+    /// y (m), 0 for prismatic rows.
+    pub y: f64,
+    /// Joint limits (rad or m).
+    pub limits: (f64, f64),
+}
+
+impl TableRow {
+    /// `Rx(α)·Ry(β)·Trans(x, y, 0)`: the previous moved frame to this joint's frame.
+    pub fn transform(&self) -> Pose {
+        pose(Vec3::zeros(), rot_x(self.alpha) * rot_y(self.beta))
+            * pose(Vec3::new(self.x, self.y, 0.0), Rotation::identity())
+    }
+}
+
+/// A tool row (six parameters).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TableTool {
+    /// Tool link name.
+    pub link: String,
+    /// α (rad).
+    pub alpha: f64,
+    /// β (rad).
+    pub beta: f64,
+    /// γ (rad).
+    pub gamma: f64,
+    /// x (m).
+    pub x: f64,
+    /// y (m).
+    pub y: f64,
+    /// z (m).
+    pub z: f64,
+}
+
+impl TableTool {
+    /// `Rx(α)·Ry(β)·Rz(γ)·Trans(x, y, z)`.
+    pub fn transform(&self) -> Pose {
+        pose(
+            Vec3::zeros(),
+            rot_x(self.alpha) * rot_y(self.beta) * rot_z(self.gamma),
+        ) * pose(Vec3::new(self.x, self.y, self.z), Rotation::identity())
+    }
+}
+
+/// A branch of the table: joint rows in order and an optional tool.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TableBranch {
+    /// Branch name (`torso`, `left`, `right`, …).
+    pub name: String,
+    /// The branch it hangs from (its last row's moved frame); `None`: the base link.
+    pub parent: Option<String>,
+    /// Joint rows.
+    pub rows: Vec<TableRow>,
+    /// The tool row, if the branch ends in a tool.
+    pub tool: Option<TableTool>,
+}
+
+/// A whole MCPC table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct McpcTable {
+    /// Robot name in the generated URDF.
+    pub robot: String,
+    /// Root link name.
+    pub base_link: String,
+    /// Branches, parents before children.
+    pub branches: Vec<TableBranch>,
+}
+
+impl McpcTable {
+    /// Checks names are unique and parents come first; `origin` names the source file.
+    pub fn validate(&self, origin: &str) -> Result<()> {
+        let bad = |message: String| Error::InvalidTable {
+            origin: origin.to_owned(),
+            message,
+        };
+        let mut links = vec![self.base_link.as_str()];
+        let mut joints: Vec<&str> = Vec::new();
+        for (index, branch) in self.branches.iter().enumerate() {
+            if let Some(parent) = &branch.parent {
+                let found = self.branches[..index].iter().find(|b| &b.name == parent);
+                match found {
+                    None => {
+                        return Err(bad(format!(
+                        "branch '{}' hangs from branch '{parent}', which is not listed before it",
+                        branch.name
+                    )))
+                    }
+                    Some(p) if p.rows.is_empty() => {
+                        return Err(bad(format!(
+                            "branch '{}' hangs from branch '{parent}', which has no joint rows",
+                            branch.name
+                        )))
+                    }
+                    Some(_) => {}
+                }
+            }
+            for row in &branch.rows {
+                let values = [
+                    row.alpha,
+                    row.beta,
+                    row.x,
+                    row.y,
+                    row.limits.0,
+                    row.limits.1,
+                ];
+                if values.iter().any(|v| !v.is_finite()) {
+                    return Err(bad(format!(
+                        "row of joint '{}' has a non-finite value",
+                        row.joint
+                    )));
+                }
+                if row.limits.0 > row.limits.1 {
+                    return Err(bad(format!(
+                        "joint '{}' has lower limit above upper limit",
+                        row.joint
+                    )));
+                }
+                if joints.contains(&row.joint.as_str()) {
+                    return Err(bad(format!("joint name '{}' is used twice", row.joint)));
+                }
+                joints.push(&row.joint);
+                if links.contains(&row.link.as_str()) {
+                    return Err(bad(format!("link name '{}' is used twice", row.link)));
+                }
+                links.push(&row.link);
+            }
+            if let Some(tool) = &branch.tool {
+                let values = [tool.alpha, tool.beta, tool.gamma, tool.x, tool.y, tool.z];
+                if values.iter().any(|v| !v.is_finite()) {
+                    return Err(bad(format!("tool '{}' has a non-finite value", tool.link)));
+                }
+                if links.contains(&tool.link.as_str()) {
+                    return Err(bad(format!("link name '{}' is used twice", tool.link)));
+                }
+                links.push(&tool.link);
+            }
+        }
+        Ok(())
+    }
+}
