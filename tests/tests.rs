@@ -3,5 +3,8 @@
 mod common;
 
 mod branches;
+mod cli;
+mod from_mcpc;
 mod mcpc;
+mod oracle;
 mod urdf_import;

@@ -1,8 +1,9 @@
 //! `treecal inspect`.
 
 use crate::cli::{Format, InspectArgs};
+use treecal::io::{to_json, to_yaml};
 use treecal::report::inspect;
-use treecal::{Error, McpcModel, Result};
+use treecal::{McpcModel, Result};
 
 pub fn run(args: InspectArgs) -> Result<()> {
     let import = crate::robot::load(args.robot.as_deref())?;
@@ -11,16 +12,8 @@ pub fn run(args: InspectArgs) -> Result<()> {
     let report = inspect(&import.tree, &import.warnings, &branches, &model);
     let text = match args.format {
         Format::Text => report.to_text(),
-        Format::Yaml => serde_yaml::to_string(&report).map_err(|e| Error::InvalidData {
-            origin: "inspect".into(),
-            message: e.to_string(),
-        })?,
-        Format::Json => {
-            serde_json::to_string_pretty(&report).map_err(|e| Error::InvalidData {
-                origin: "inspect".into(),
-                message: e.to_string(),
-            })? + "\n"
-        }
+        Format::Yaml => to_yaml(&report)?,
+        Format::Json => to_json(&report)?,
     };
     print!("{text}");
     Ok(())
