@@ -127,3 +127,73 @@ mod tests {
         );
     }
 }
+
+/// A rigid transform stored as a rotation matrix and a translation: the fast form used inside
+/// forward kinematics, where a joint rotation about z touches only two columns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transform {
+    /// Rotation matrix.
+    pub rotation: Mat3,
+    /// Translation.
+    pub translation: Vec3,
+}
+
+impl Transform {
+    /// The identity.
+    pub fn identity() -> Self {
+        Self {
+            rotation: Mat3::identity(),
+            translation: Vec3::zeros(),
+        }
+    }
+
+    /// From a [`Pose`].
+    pub fn from_pose(pose: &Pose) -> Self {
+        Self {
+            rotation: *pose.rotation.to_rotation_matrix().matrix(),
+            translation: pose.translation.vector,
+        }
+    }
+
+    /// To a [`Pose`].
+    pub fn to_pose(&self) -> Pose {
+        let rotation = nalgebra::Rotation3::from_matrix_unchecked(self.rotation);
+        Isometry3::from_parts(
+            Translation3::from(self.translation),
+            UnitQuaternion::from_rotation_matrix(&rotation),
+        )
+    }
+
+    /// `self · other`.
+    #[inline]
+    pub fn then(&self, other: &Transform) -> Transform {
+        Transform {
+            rotation: self.rotation * other.rotation,
+            translation: self.rotation * other.translation + self.translation,
+        }
+    }
+
+    /// `self · Rz(angle)`.
+    #[inline]
+    pub fn rotated_z(&self, angle: f64) -> Transform {
+        let (s, c) = angle.sin_cos();
+        let x = self.rotation.column(0).into_owned();
+        let y = self.rotation.column(1).into_owned();
+        let mut rotation = self.rotation;
+        rotation.set_column(0, &(x * c + y * s));
+        rotation.set_column(1, &(y * c - x * s));
+        Transform {
+            rotation,
+            translation: self.translation,
+        }
+    }
+
+    /// `self · Trans(0, 0, distance)`.
+    #[inline]
+    pub fn translated_z(&self, distance: f64) -> Transform {
+        Transform {
+            rotation: self.rotation,
+            translation: self.translation + self.rotation.column(2) * distance,
+        }
+    }
+}

@@ -1,75 +1,93 @@
 //! Forward kinematics of the MCPC model (paper eq. (3)–(4)).
+//!
+//! Internally frames are [`Transform`]s (rotation matrix + translation): a joint's motion
+//! about z then touches two columns, which is what makes this fast.
 
-use super::mcpc::McpcModel;
+use super::mcpc::{FrameKind, McpcModel};
 use crate::error::Result;
-use crate::math::{pose, rot_z, Pose, Vec3};
+use crate::math::{Pose, Transform};
 use crate::tree::KinematicTree;
 
-/// Moves `pose` by the joint motion Q(θ) of frame `frame` (right-multiplies it).
-#[inline]
-fn apply_motion(model: &McpcModel, frame: usize, value: f64, pose_in: &Pose) -> Pose {
-    match model.frames()[frame].kind {
-        super::FrameKind::Revolute => pose_in * pose(Vec3::zeros(), rot_z(value)),
-        super::FrameKind::Prismatic => {
-            let mut moved = *pose_in;
-            moved.translation.vector += pose_in.rotation * Vec3::new(0.0, 0.0, value);
-            moved
+impl McpcModel {
+    /// `transform · Q(θ)` for the joint of frame `frame`.
+    #[inline]
+    fn moved(&self, frame: usize, q: &[f64], transform: &Transform) -> Transform {
+        let value = self.joint_value(frame, q);
+        match self.frames()[frame].kind {
+            FrameKind::Revolute => transform.rotated_z(value),
+            FrameKind::Prismatic => transform.translated_z(value),
         }
     }
-}
 
-impl McpcModel {
+    /// Every frame Σᵢ in the base frame, before its own joint's motion (fast form).
+    pub fn frame_transforms(&self, q: &[f64]) -> Vec<Transform> {
+        let mut base_from_frame: Vec<Transform> = Vec::with_capacity(self.frames().len());
+        for (index, frame) in self.frames().iter().enumerate() {
+            let transform = match frame.parent {
+                Some(p) => self
+                    .moved(p, q, &base_from_frame[p])
+                    .then(self.frame_constant(index)),
+                None => *self.frame_constant(index),
+            };
+            base_from_frame.push(transform);
+        }
+        base_from_frame
+    }
+
     /// Pose of every MCPC frame Σᵢ in the base (root link) frame at configuration `q`,
     /// before its own joint's motion. `q` has one value per independent tree joint.
     pub fn frame_poses(&self, q: &[f64]) -> Vec<Pose> {
-        let mut base_from_frame: Vec<Pose> = Vec::with_capacity(self.frames().len());
-        for (index, frame) in self.frames().iter().enumerate() {
-            let pose = match frame.parent {
-                Some(p) => {
-                    apply_motion(self, p, self.joint_value(p, q), &base_from_frame[p])
-                        * self.frame_constant(index)
-                }
-                None => *self.frame_constant(index),
-            };
-            base_from_frame.push(pose);
+        self.frame_transforms(q)
+            .iter()
+            .map(Transform::to_pose)
+            .collect()
+    }
+
+    /// The tool frame given the base_from_frame transforms of all frames.
+    #[inline]
+    fn tool_from_frames(&self, tool: usize, q: &[f64], frames: &[Transform]) -> Transform {
+        match self.tools()[tool].parent {
+            Some(last) => self
+                .moved(last, q, &frames[last])
+                .then(self.tool_constant(tool)),
+            None => *self.tool_constant(tool),
         }
-        base_from_frame
     }
 
     /// Pose of tool `tool` in the base frame at configuration `q` (eq. (3)), walking only its
     /// own chain.
     pub fn tool_pose(&self, tool: usize, q: &[f64]) -> Pose {
-        let mut base_from_current = Pose::identity();
+        let mut current = Transform::identity();
         let mut previous: Option<usize> = None;
         for &frame in self.tool_chain(tool) {
             if let Some(p) = previous {
-                base_from_current =
-                    apply_motion(self, p, self.joint_value(p, q), &base_from_current);
+                current = self.moved(p, q, &current);
             }
-            base_from_current *= self.frame_constant(frame);
+            current = current.then(self.frame_constant(frame));
             previous = Some(frame);
         }
         if let Some(p) = previous {
-            base_from_current = apply_motion(self, p, self.joint_value(p, q), &base_from_current);
+            current = self.moved(p, q, &current);
         }
-        base_from_current * self.tool_constant(tool)
+        current.then(self.tool_constant(tool)).to_pose()
     }
 
-    /// Poses of all tools, in [`McpcModel::tools`] order.
+    /// Poses of all tools, in [`McpcModel::tools`] order (eq. (4)); shared frames (the coupled
+    /// branch) are computed once.
     pub fn tool_poses(&self, q: &[f64]) -> Vec<Pose> {
+        let frames = self.frame_transforms(q);
         (0..self.tools().len())
-            .map(|t| self.tool_pose(t, q))
+            .map(|t| self.tool_from_frames(t, q, &frames).to_pose())
             .collect()
     }
 
-    /// Pose of the URDF child link of every frame's joint, from the MCPC model: Σᵢ·Q(θᵢ)·(frame_from_link).
+    /// Pose of the URDF child link of every frame's joint, from the MCPC model:
+    /// Σᵢ·Q(θᵢ)·(frame_from_link).
     pub fn link_poses(&self, q: &[f64]) -> Vec<Pose> {
-        self.frame_poses(q)
+        self.frame_transforms(q)
             .iter()
             .enumerate()
-            .map(|(i, p)| {
-                apply_motion(self, i, self.joint_value(i, q), p) * self.frames()[i].frame_from_link
-            })
+            .map(|(i, t)| self.moved(i, q, t).to_pose() * self.frames()[i].frame_from_link)
             .collect()
     }
 

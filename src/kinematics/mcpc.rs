@@ -17,7 +17,8 @@
 
 use crate::error::{Error, Result};
 use crate::math::{
-    pose, rot_x, rot_y, rot_z, wrap_angle, xyz_angles_from_rotation, Pose, Rotation, Vec3,
+    pose, rot_x, rot_y, rot_z, wrap_angle, xyz_angles_from_rotation, Pose, Rotation, Transform,
+    Vec3,
 };
 use crate::tree::{Actuation, Branches, JointId, JointKind, KinematicTree, LinkId};
 use std::f64::consts::FRAC_PI_2;
@@ -132,9 +133,9 @@ pub struct McpcModel {
     frames: Vec<McpcFrame>,
     tools: Vec<McpcTool>,
     /// `constant_transform` of every frame, cached for forward kinematics.
-    frame_constants: Vec<Pose>,
+    frame_constants: Vec<Transform>,
     /// `constant_transform` of every tool.
-    tool_constants: Vec<Pose>,
+    tool_constants: Vec<Transform>,
     /// For each tool, the frames from the base to it, base side first.
     tool_chains: Vec<Vec<usize>>,
 }
@@ -252,12 +253,12 @@ impl McpcModel {
         self.frame_constants = self
             .frames
             .iter()
-            .map(McpcFrame::constant_transform)
+            .map(|f| Transform::from_pose(&f.constant_transform()))
             .collect();
         self.tool_constants = self
             .tools
             .iter()
-            .map(McpcTool::constant_transform)
+            .map(|t| Transform::from_pose(&t.constant_transform()))
             .collect();
     }
 
@@ -419,13 +420,13 @@ impl McpcModel {
 
     /// Cached `Rz(φ)Rx(α)Ry(β)Trans(x, y, 0)` of frame `frame`.
     #[inline]
-    pub fn frame_constant(&self, frame: usize) -> &Pose {
+    pub fn frame_constant(&self, frame: usize) -> &Transform {
         &self.frame_constants[frame]
     }
 
     /// Cached `Rz(φ)Rx(α)Ry(β)Rz(γ)Trans(x, y, z)` of tool `tool`.
     #[inline]
-    pub fn tool_constant(&self, tool: usize) -> &Pose {
+    pub fn tool_constant(&self, tool: usize) -> &Transform {
         &self.tool_constants[tool]
     }
 }
