@@ -54,3 +54,219 @@ fn mcpc_forward_kinematics_matches_urdf_on_every_repo_robot() {
 fn mcpc_forward_kinematics_matches_urdf_on_robonaut2() {
     check_robot(&robonaut2(), 200);
 }
+
+/// A random branched robot as URDF text: a torso chain and two arms, with axes and origins
+/// drawn to hit the awkward cases (axes exactly or nearly along the previous X, prismatic
+/// joints, fixed joints in between, exact quarter turns, mimic joints).
+fn random_robot(seed: u64) -> String {
+    use rand::RngExt;
+    let mut rng = rng(seed);
+    let mut joints = String::new();
+    let mut links = String::from("<link name=\"base\"/>");
+    let mut counter = 0;
+    let mut movable: Vec<String> = Vec::new();
+    let mut chain = |rng: &mut rand::rngs::ChaCha8Rng,
+                     parent: &str,
+                     prefix: &str,
+                     count: usize,
+                     joints: &mut String,
+                     links: &mut String,
+                     movable: &mut Vec<String>|
+     -> String {
+        let mut parent = parent.to_owned();
+        for _ in 0..count {
+            counter += 1;
+            let child = format!("{prefix}_link{counter}");
+            let kind = match rng.random_range(0..10) {
+                0 => "fixed",
+                1 => "prismatic",
+                2 => "continuous",
+                _ => "revolute",
+            };
+            let quarter = std::f64::consts::FRAC_PI_2;
+            let angle = |rng: &mut rand::rngs::ChaCha8Rng| match rng.random_range(0..3) {
+                0 => quarter * rng.random_range(-2..=2) as f64,
+                1 => 0.0,
+                _ => rng.random_range(-3.1..3.1),
+            };
+            let rpy = [angle(rng), angle(rng), angle(rng)];
+            let xyz: [f64; 3] = std::array::from_fn(|_| {
+                if rng.random_bool(0.3) {
+                    0.0
+                } else {
+                    rng.random_range(-0.4..0.4)
+                }
+            });
+            let axis = match rng.random_range(0..6) {
+                0 => "1 0 0".to_owned(),
+                1 => "-1 0 0".to_owned(),
+                2 => format!(
+                    "1 {} {}",
+                    rng.random_range(-1e-9..1e-9),
+                    rng.random_range(-1e-9..1e-9)
+                ),
+                3 => "0 0 1".to_owned(),
+                4 => "0 2 0".to_owned(),
+                _ => format!(
+                    "{} {} {}",
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(0.1..1.0)
+                ),
+            };
+            let mimic = if kind == "revolute" && !movable.is_empty() && rng.random_bool(0.1) {
+                format!(
+                    "<mimic joint=\"{}\" multiplier=\"{}\" offset=\"{}\"/>",
+                    movable[0],
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-0.5..0.5)
+                )
+            } else {
+                String::new()
+            };
+            *joints += &format!(
+                "<joint name=\"{prefix}_j{counter}\" type=\"{kind}\"><parent link=\"{parent}\"/><child link=\"{child}\"/><origin xyz=\"{} {} {}\" rpy=\"{} {} {}\"/><axis xyz=\"{axis}\"/><limit lower=\"-2\" upper=\"2\" effort=\"1\" velocity=\"1\"/>{mimic}</joint>\n",
+                xyz[0], xyz[1], xyz[2], rpy[0], rpy[1], rpy[2]
+            );
+            *links += &format!("<link name=\"{child}\"/>");
+            if kind != "fixed" && mimic.is_empty() {
+                movable.push(format!("{prefix}_j{counter}"));
+            }
+            parent = child;
+        }
+        parent
+    };
+    let torso = chain(
+        &mut rng,
+        "base",
+        "torso",
+        3,
+        &mut joints,
+        &mut links,
+        &mut movable,
+    );
+    let left = chain(
+        &mut rng,
+        &torso,
+        "left",
+        7,
+        &mut joints,
+        &mut links,
+        &mut movable,
+    );
+    let right = chain(
+        &mut rng,
+        &torso,
+        "right",
+        6,
+        &mut joints,
+        &mut links,
+        &mut movable,
+    );
+    let tools = format!(
+        "<link name=\"left_tool\"/><link name=\"right_tool\"/>
+        <joint name=\"left_tool_joint\" type=\"fixed\"><parent link=\"{left}\"/><child link=\"left_tool\"/><origin xyz=\"0.01 0.02 0.1\" rpy=\"0 1.5707963267948966 0.3\"/></joint>
+        <joint name=\"right_tool_joint\" type=\"fixed\"><parent link=\"{right}\"/><child link=\"right_tool\"/><origin xyz=\"0 0 0.12\" rpy=\"0.2 0 0\"/></joint>"
+    );
+    format!("<robot name=\"random{seed}\">{links}{tools}{joints}</robot>")
+}
+
+/// MCPC forward kinematics equals URDF forward kinematics on 200 random robots built to sit
+/// on and near the MCPC singularity.
+#[test]
+fn mcpc_forward_kinematics_matches_urdf_on_random_robots() {
+    for seed in 0..200 {
+        let text = random_robot(seed);
+        let tree = treecal::parse_urdf(&text, "random").unwrap().tree;
+        let tools = [
+            tree.link_id("left_tool").unwrap(),
+            tree.link_id("right_tool").unwrap(),
+        ];
+        let branches = detect_branches(&tree, Some(&tools)).unwrap();
+        let model = McpcModel::from_tree(&tree, &branches).unwrap();
+        for frame in model.frames() {
+            assert!(
+                frame.beta.abs() <= SINGULARITY_THRESHOLD + 1e-12,
+                "seed {seed}"
+            );
+        }
+        for tool in model.tools() {
+            assert!(
+                tool.beta.abs() <= SINGULARITY_THRESHOLD + 1e-12,
+                "seed {seed}"
+            );
+        }
+        let mut rng = rng(seed + 1000);
+        for _ in 0..20 {
+            let q = random_configuration(&tree, &mut rng);
+            let reference = tree.link_poses(&q).unwrap();
+            for (index, link_pose) in model.link_poses(&q).iter().enumerate() {
+                let child = tree.joint(model.frames()[index].joint).child;
+                assert_pose_eq(
+                    link_pose,
+                    &reference[child.0],
+                    1e-9,
+                    &format!("seed {seed} {}", tree.link(child).name),
+                );
+            }
+            for (index, tool_pose) in model.tool_poses(&q).iter().enumerate() {
+                assert_pose_eq(
+                    tool_pose,
+                    &reference[model.tools()[index].link.0],
+                    1e-9,
+                    &format!("seed {seed} tool"),
+                );
+                assert_pose_eq(
+                    &model.tool_pose(index, &q),
+                    tool_pose,
+                    1e-12,
+                    "tool_pose vs tool_poses",
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn parameter_counts_follow_4r_2p_6t() {
+    let count = |relative: &str| {
+        let tree = load_urdf(&robot(relative)).unwrap().tree;
+        let branches = detect_branches(&tree, None).unwrap();
+        McpcModel::from_tree(&tree, &branches)
+            .unwrap()
+            .parameter_count()
+    };
+    assert_eq!(count("robonaut/robonaut.urdf"), 4 * 13 + 6 * 2);
+    // torso: prismatic lift + revolute yaw; arms 6 + 6 revolute.
+    assert_eq!(
+        count("dual_arm_prismatic/dual_arm_prismatic.urdf"),
+        4 * 13 + 2 + 6 * 2
+    );
+}
+
+/// Reading the parameters out and writing them back changes nothing; writing a changed value
+/// moves the tool.
+#[test]
+fn parameter_vector_round_trip() {
+    let tree = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
+    let branches = detect_branches(&tree, None).unwrap();
+    let mut model = McpcModel::from_tree(&tree, &branches).unwrap();
+    let q = vec![0.2; tree.dof_count()];
+    let before = model.tool_poses(&q);
+    let mut parameters = model.parameters();
+    model.set_parameters(&parameters).unwrap();
+    assert_eq!(model.tool_poses(&q), before);
+    let layout = model.parameter_layout();
+    let last_x = layout
+        .iter()
+        .rposition(|(_, kind)| *kind == treecal::kinematics::ParameterKind::X)
+        .unwrap();
+    parameters[last_x] += 0.01;
+    model.set_parameters(&parameters).unwrap();
+    let moved = model.tool_poses(&q);
+    let shift = (moved[1].translation.vector - before[1].translation.vector).norm();
+    assert!((shift - 0.01).abs() < 1e-12, "{shift}");
+    assert!(model.set_parameters(&parameters[1..]).is_err());
+    parameters[0] = f64::NAN;
+    assert!(model.set_parameters(&parameters).is_err());
+}

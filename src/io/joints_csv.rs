@@ -22,22 +22,26 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
         .flexible(true)
         .from_reader(text.as_bytes());
     let mut headers: Option<Vec<String>> = None;
+    let mut header_line = 1;
     let mut records = Vec::new();
     for record in reader.records() {
         let record = record.map_err(|e| Error::InvalidData {
             origin: match e.position() {
-                Some(p) => format!("{origin}:{}", p.line()),
+                Some(p) => format!("{origin}:{}", record_line(text, p.byte())),
                 None => origin.to_owned(),
             },
             message: format!("not readable as CSV: {e}"),
         })?;
-        let line = record.position().map_or(0, |p| p.line() as usize);
+        let line = record.position().map_or(0, |p| record_line(text, p.byte()));
         let fields: Vec<String> = record.iter().map(str::to_owned).collect();
         if fields.iter().all(String::is_empty) {
             continue;
         }
         match &headers {
-            None => headers = Some(fields),
+            None => {
+                headers = Some(fields);
+                header_line = line;
+            }
             Some(h) => {
                 if fields.len() != h.len() {
                     return Err(Error::InvalidData {
@@ -60,12 +64,42 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
     for (index, name) in headers.iter().enumerate() {
         if headers[..index].contains(name) {
             return Err(Error::InvalidData {
-                origin: format!("{origin}:1"),
+                origin: format!("{origin}:{header_line}"),
                 message: format!("column '{name}' appears twice in the header"),
             });
         }
     }
     Ok(CsvTable { headers, records })
+}
+
+/// The 1-based line on which the record at reader byte offset `byte` starts.
+///
+/// The csv crate takes a record's position before skipping what precedes it (blank lines,
+/// `#` comment lines, the `\n` of a `\r\n`), so its `line()` is too small after any of those.
+/// This skips the same bytes csv-core does at the start of a record, then counts line breaks.
+fn record_line(text: &str, byte: u64) -> usize {
+    let bytes = text.as_bytes();
+    let mut start = usize::try_from(byte).map_or(bytes.len(), |b| b.min(bytes.len()));
+    loop {
+        match bytes.get(start) {
+            Some(b'\r' | b'\n') => start += 1,
+            Some(b'#') => {
+                start = bytes[start..]
+                    .iter()
+                    .position(|&b| b == b'\n')
+                    .map_or(bytes.len(), |i| start + i + 1)
+            }
+            _ => break,
+        }
+    }
+    let before = &bytes[..start];
+    // A line break is `\n`, or a `\r` not followed by `\n`.
+    let breaks = before
+        .iter()
+        .enumerate()
+        .filter(|&(i, &b)| b == b'\n' || (b == b'\r' && bytes.get(i + 1) != Some(&b'\n')))
+        .count();
+    breaks + 1
 }
 
 /// How the columns of a joint CSV map onto a robot.

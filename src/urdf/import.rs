@@ -140,10 +140,13 @@ impl Importer<'_> {
         let root = match roots.as_slice() {
             [root] => *root,
             [] => {
-                return Err(Error::InvalidRobot {
-                    origin: self.origin.to_owned(),
-                    message: "every link has a parent joint, so the joints form a cycle; a URDF must be a tree with one root link".into(),
-                })
+                return Err(self.cycle_error(
+                    robot,
+                    &parent_joint_of,
+                    &link_index,
+                    0,
+                    "every link has a parent joint, so there is no root link",
+                ));
             }
             many => {
                 let names: Vec<&str> = many.iter().map(|&l| robot.links[l].name.as_str()).collect();
@@ -172,18 +175,18 @@ impl Importer<'_> {
             for &l in &order {
                 seen[l] = true;
             }
-            let stuck: Vec<&str> = (0..robot.links.len())
-                .filter(|&l| !seen[l])
-                .map(|l| robot.links[l].name.as_str())
-                .collect();
-            return Err(Error::InvalidRobot {
-                origin: self.origin.to_owned(),
-                message: format!(
-                    "links {} form a cycle and cannot be reached from the root link '{}'",
-                    stuck.join(", "),
+            // Walking up the parent joints from any unreached link must end on a cycle.
+            let stuck = (0..robot.links.len()).find(|&l| !seen[l]).unwrap_or(0);
+            return Err(self.cycle_error(
+                robot,
+                &parent_joint_of,
+                &link_index,
+                stuck,
+                &format!(
+                    "some links cannot be reached from the root link '{}'",
                     robot.links[root].name
                 ),
-            });
+            ));
         }
         let mut new_index = vec![0usize; robot.links.len()];
         for (position, &link) in order.iter().enumerate() {
@@ -234,6 +237,61 @@ impl Importer<'_> {
 
         let tree = KinematicTree::from_parts(robot.name.clone(), links, joints, dofs)?;
         Ok(UrdfImport { tree, warnings })
+    }
+
+    /// An error naming the joints of the cycle found by walking parent joints up from link
+    /// `start`, located at the first of them in the file.
+    fn cycle_error(
+        &self,
+        robot: &urdf_rs::Robot,
+        parent_joint_of: &[Option<usize>],
+        link_index: &HashMap<&str, usize>,
+        start: usize,
+        context: &str,
+    ) -> Error {
+        let mut step_of = vec![None; parent_joint_of.len()];
+        let mut walked = Vec::new();
+        let mut link = start;
+        while step_of[link].is_none() {
+            step_of[link] = Some(walked.len());
+            let Some(joint) = parent_joint_of[link] else {
+                break;
+            };
+            walked.push(joint);
+            link = link_index[robot.joints[joint].parent.link.as_str()];
+        }
+        // Child → parent order; turn it round and start at the joint written first.
+        let mut cycle = walked.split_off(step_of[link].unwrap_or(walked.len()));
+        cycle.reverse();
+        if let Some(first) = cycle
+            .iter()
+            .enumerate()
+            .min_by_key(|(_, &j)| j)
+            .map(|(i, _)| i)
+        {
+            cycle.rotate_left(first);
+        }
+        let Some(&first) = cycle.first() else {
+            return Error::InvalidRobot {
+                origin: self.origin.to_owned(),
+                message: format!("{context}; a URDF must be a tree with one root link"),
+            };
+        };
+        let joints: Vec<String> = cycle
+            .iter()
+            .map(|&j| format!("'{}'", robot.joints[j].name))
+            .collect();
+        let mut path = vec![robot.joints[first].parent.link.as_str()];
+        path.extend(cycle.iter().map(|&j| robot.joints[j].child.link.as_str()));
+        self.invalid(
+            "joint",
+            &robot.joints[first].name,
+            format!(
+                "{context}: joints {} form a cycle ({}); a URDF must be a tree with one root link",
+                joints.join(", "),
+                path.join(" → ")
+            ),
+        )
     }
 
     fn joint(
