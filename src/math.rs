@@ -53,21 +53,41 @@ pub fn rotation_from_rpy(roll: f64, pitch: f64, yaw: f64) -> Rotation {
 }
 
 /// The URDF roll, pitch, yaw of a rotation (inverse of [`rotation_from_rpy`]).
+///
+/// Accurate to rounding everywhere, gimbal lock included: the usual `pitch = −asin(r31)`
+/// loses half the digits near pitch = ±90° (1e-8 rad), which is where MCPC-generated joints
+/// often sit. Yaw comes from the first column, the yaw is undone, and roll and pitch are read
+/// from well-conditioned entries of what remains, so the three angles reproduce the rotation
+/// even where yaw and roll are not separately determined.
 pub fn rpy_from_rotation(rotation: &Rotation) -> [f64; 3] {
-    let (roll, pitch, yaw) = rotation.euler_angles();
-    [roll, pitch, yaw]
+    let m = *rotation.to_rotation_matrix().matrix();
+    let yaw = if m[(1, 0)] == 0.0 && m[(0, 0)] == 0.0 {
+        0.0
+    } else {
+        m[(1, 0)].atan2(m[(0, 0)])
+    };
+    // Ry(pitch)·Rx(roll) = Rz(−yaw)·R.
+    let rest = *rot_z(-yaw).to_rotation_matrix().matrix() * m;
+    let pitch = (-rest[(2, 0)]).atan2(rest[(0, 0)]);
+    let roll = (-rest[(1, 2)]).atan2(rest[(1, 1)]);
+    [wrap_angle(roll), pitch, wrap_angle(yaw)]
 }
 
 /// Intrinsic X-Y-Z angles `(a, b, c)` with `R = Rx(a) · Ry(b) · Rz(c)`, the MCPC tool
 /// convention (paper eq. (2)). `b` lies in [−π/2, π/2]; near |b| = π/2 the split between
 /// `a` and `c` is arbitrary, which is why MCPC frames are re-parametrised away from there.
 pub fn xyz_angles_from_rotation(rotation: &Rotation) -> [f64; 3] {
-    let m = rotation.to_rotation_matrix();
-    let m = m.matrix();
-    let b = m[(0, 2)].clamp(-1.0, 1.0).asin();
-    let a = (-m[(1, 2)]).atan2(m[(2, 2)]);
-    let c = (-m[(0, 1)]).atan2(m[(0, 0)]);
-    [a, b, c]
+    // As in `rpy_from_rotation`: c from the first row, then a and b from R·Rz(−c) = Rx(a)·Ry(b).
+    let m = *rotation.to_rotation_matrix().matrix();
+    let c = if m[(0, 1)] == 0.0 && m[(0, 0)] == 0.0 {
+        0.0
+    } else {
+        (-m[(0, 1)]).atan2(m[(0, 0)])
+    };
+    let rest = m * *rot_z(-c).to_rotation_matrix().matrix();
+    let b = rest[(0, 2)].atan2(rest[(0, 0)]);
+    let a = rest[(2, 1)].atan2(rest[(1, 1)]);
+    [wrap_angle(a), b, wrap_angle(c)]
 }
 
 /// The angle in radians of the rotation that takes `a` to `b`.
@@ -104,6 +124,28 @@ mod tests {
         assert_relative_eq!(back[0], r, epsilon = 1e-12);
         assert_relative_eq!(back[1], p, epsilon = 1e-12);
         assert_relative_eq!(back[2], y, epsilon = 1e-12);
+    }
+
+    /// Near and at gimbal lock the angles still reproduce the rotation to rounding.
+    #[test]
+    fn angle_extraction_is_accurate_at_gimbal_lock() {
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        for offset in [0.0, 1e-12, 1e-9, 1e-7, 1e-4, -1e-9] {
+            for (r, y) in [(0.3, -1.1), (2.0, 0.0), (-3.0, 3.0)] {
+                let rotation = rotation_from_rpy(r, half_pi + offset, y);
+                let [r2, p2, y2] = rpy_from_rotation(&rotation);
+                assert!(
+                    rotation.angle_to(&rotation_from_rpy(r2, p2, y2)) < 1e-14,
+                    "{offset}"
+                );
+                let rotation = rot_x(r) * rot_y(-half_pi + offset) * rot_z(y);
+                let [a, b, c] = xyz_angles_from_rotation(&rotation);
+                assert!(
+                    rotation.angle_to(&(rot_x(a) * rot_y(b) * rot_z(c))) < 1e-14,
+                    "{offset}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -49,6 +49,8 @@ struct Row {
     link: String,
     #[serde(default, rename = "type")]
     kind: Option<String>,
+    #[serde(default)]
+    phi: f64,
     alpha: f64,
     beta: f64,
     #[serde(default)]
@@ -63,6 +65,8 @@ struct Row {
 #[serde(deny_unknown_fields)]
 struct Tool {
     link: String,
+    #[serde(default)]
+    phi: f64,
     alpha: f64,
     beta: f64,
     gamma: f64,
@@ -152,6 +156,7 @@ pub fn parse_mcpc_table(text: &str, origin: &str) -> Result<McpcTable> {
                 joint: row.joint,
                 link: row.link,
                 kind,
+                phi: row.phi * angle,
                 alpha: row.alpha * angle,
                 beta: row.beta * angle,
                 x: x * length,
@@ -161,6 +166,7 @@ pub fn parse_mcpc_table(text: &str, origin: &str) -> Result<McpcTable> {
         }
         let tool = branch.tool.map(|t| TableTool {
             link: t.link,
+            phi: t.phi * angle,
             alpha: t.alpha * angle,
             beta: t.beta * angle,
             gamma: t.gamma * angle,
@@ -182,4 +188,85 @@ pub fn parse_mcpc_table(text: &str, origin: &str) -> Result<McpcTable> {
     };
     table.validate(origin)?;
     Ok(table)
+}
+
+/// Writes a table in the YAML format [`parse_mcpc_table`] reads, in degrees and millimetres,
+/// numbers at full precision; `header` lines become comments at the top.
+pub fn mcpc_table_to_yaml(table: &McpcTable, header: &[String]) -> String {
+    use std::fmt::Write;
+    let deg = |v: f64| number(v.to_degrees());
+    let mm = |v: f64| number(v * 1e3);
+    let mut out = String::new();
+    for line in header {
+        let _ = writeln!(out, "# {line}");
+    }
+    let _ = writeln!(out, "robot: {}", quoted(&table.robot));
+    let _ = writeln!(out, "base_link: {}", quoted(&table.base_link));
+    let _ = writeln!(out, "units: {{angle: deg, length: mm}}");
+    let _ = writeln!(out, "branches:");
+    for branch in &table.branches {
+        let _ = writeln!(out, "  - name: {}", quoted(&branch.name));
+        if let Some(parent) = &branch.parent {
+            let _ = writeln!(out, "    parent: {}", quoted(parent));
+        }
+        let _ = writeln!(
+            out,
+            "    rows:{}",
+            if branch.rows.is_empty() { " []" } else { "" }
+        );
+        for row in &branch.rows {
+            let (limits, position) = match row.kind {
+                FrameKind::Revolute => (
+                    format!("[{}, {}]", deg(row.limits.0), deg(row.limits.1)),
+                    format!(", x: {}, y: {}", mm(row.x), mm(row.y)),
+                ),
+                FrameKind::Prismatic => (
+                    format!("[{}, {}]", mm(row.limits.0), mm(row.limits.1)),
+                    String::new(),
+                ),
+            };
+            let kind = match row.kind {
+                FrameKind::Revolute => "revolute",
+                FrameKind::Prismatic => "prismatic",
+            };
+            let _ = writeln!(
+                out,
+                "      - {{joint: {}, link: {}, type: {kind}, phi: {}, alpha: {}, beta: {}{position}, limits: {limits}}}",
+                quoted(&row.joint),
+                quoted(&row.link),
+                deg(row.phi),
+                deg(row.alpha),
+                deg(row.beta),
+            );
+        }
+        if let Some(t) = &branch.tool {
+            let _ = writeln!(
+                out,
+                "    tool: {{link: {}, phi: {}, alpha: {}, beta: {}, gamma: {}, x: {}, y: {}, z: {}}}",
+                quoted(&t.link),
+                deg(t.phi),
+                deg(t.alpha),
+                deg(t.beta),
+                deg(t.gamma),
+                mm(t.x),
+                mm(t.y),
+                mm(t.z)
+            );
+        }
+    }
+    out
+}
+
+/// Shortest round-trip decimal; float noise below 1e-12 (deg or mm) written as 0.
+fn number(value: f64) -> String {
+    if value.abs() < 1e-12 {
+        "0".into()
+    } else {
+        format!("{value}")
+    }
+}
+
+/// A YAML string scalar, quoted so that names like `r2/left_palm` or `yes` stay strings.
+fn quoted(text: &str) -> String {
+    format!("\"{}\"", text.replace('\\', "\\\\").replace('"', "\\\""))
 }

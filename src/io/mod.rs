@@ -5,7 +5,7 @@ pub mod mcpc_table;
 pub mod write;
 
 pub use joints_csv::{append_poses, configurations, parse_csv, ColumnMapping, CsvTable};
-pub use mcpc_table::{parse_mcpc_table, read_mcpc_table};
+pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
 pub use write::write_atomically;
 
 use crate::error::{Error, Result};

@@ -10,7 +10,7 @@
 //!
 //! where `Q` is the previous joint's motion (rotation about, or translation along, its z).
 //! `φ` is a constant, not a parameter: the zero-offset choice that keeps every nominal |β|
-//! at or below 45° so the model never sits on the MCPC singularity β = ±90° (where α and the
+//! at or below 60° so the model never sits on the MCPC singularity β = ±90° (where α and the
 //! rotation about the new axis become the same motion and the identification Jacobian loses
 //! rank). Prismatic joints keep only (α, β): their origin is placed at the previous frame's
 //! origin, since the position of a translation axis has no effect. See `docs/mcpc.md`.
@@ -23,8 +23,28 @@ use crate::math::{
 use crate::tree::{Actuation, Branches, JointId, JointKind, KinematicTree, LinkId};
 use std::f64::consts::FRAC_PI_2;
 
-/// |β| above this (45°) triggers the re-parametrisation by φ = 90°.
-pub const SINGULARITY_THRESHOLD: f64 = std::f64::consts::FRAC_PI_4;
+/// |β| above this (60°) triggers the re-parametrisation by φ = 90°, after which |β| < 30°.
+///
+/// Any |β| up to 60° keeps cos β ≥ 0.5, far from the singularity; 60° rather than 45° because
+/// 45° axes are common in real robots and a nominal value exactly at the threshold would make
+/// the choice hinge on rounding.
+pub const SINGULARITY_THRESHOLD: f64 = std::f64::consts::FRAC_PI_3;
+
+/// `Rz(φ)·Rx(α)·Ry(β)·Trans(x, y, 0)`: a joint frame in the previous moved frame (eq. (1)).
+pub fn frame_transform(phi: f64, alpha: f64, beta: f64, x: f64, y: f64) -> Pose {
+    pose(
+        Vec3::new(0.0, 0.0, 0.0),
+        rot_z(phi) * rot_x(alpha) * rot_y(beta),
+    ) * pose(Vec3::new(x, y, 0.0), Rotation::identity())
+}
+
+/// `Rz(φ)·Rx(α)·Ry(β)·Rz(γ)·Trans(x, y, z)`: a tool frame in the last moved frame (eq. (2)).
+pub fn tool_transform(phi: f64, alpha: f64, beta: f64, gamma: f64, x: f64, y: f64, z: f64) -> Pose {
+    pose(
+        Vec3::new(0.0, 0.0, 0.0),
+        rot_z(phi) * rot_x(alpha) * rot_y(beta) * rot_z(gamma),
+    ) * pose(Vec3::new(x, y, z), Rotation::identity())
+}
 
 /// Whether an MCPC frame's joint rotates or translates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -77,10 +97,7 @@ pub struct McpcFrame {
 impl McpcFrame {
     /// `prev_from_frame` without the previous joint's motion: Rz(φ)·Rx(α)·Ry(β)·Trans(x, y, 0).
     pub fn constant_transform(&self) -> Pose {
-        pose(
-            Vec3::zeros(),
-            rot_z(self.phi) * rot_x(self.alpha) * rot_y(self.beta),
-        ) * pose(Vec3::new(self.x, self.y, 0.0), Rotation::identity())
+        frame_transform(self.phi, self.alpha, self.beta, self.x, self.y)
     }
 
     /// The joint's motion Q(θ): rotation about z or translation along z.
@@ -120,10 +137,9 @@ pub struct McpcTool {
 impl McpcTool {
     /// Rz(φ)·Rx(α)·Ry(β)·Rz(γ)·Trans(x, y, z).
     pub fn constant_transform(&self) -> Pose {
-        pose(
-            Vec3::zeros(),
-            rot_z(self.phi) * rot_x(self.alpha) * rot_y(self.beta) * rot_z(self.gamma),
-        ) * pose(Vec3::new(self.x, self.y, self.z), Rotation::identity())
+        tool_transform(
+            self.phi, self.alpha, self.beta, self.gamma, self.x, self.y, self.z,
+        )
     }
 }
 
@@ -446,13 +462,14 @@ const BASE: Placed = Placed {
     twist: 0.0,
 };
 
-/// α, β with `Rx(α)·Ry(β)·e_z = axis`; α is 0 where the axis lies along ±x (undefined there).
+/// α, β with `Rx(α)·Ry(β)·e_z = axis`. Only used where |β| ≤ 60°, so α is well defined; the
+/// guard keeps an axis exactly along ±x from giving atan2(±0, −0) = ±π.
 fn axis_angles(axis: &Vec3) -> (f64, f64) {
-    let beta = axis.x.clamp(-1.0, 1.0).asin();
-    let alpha = if axis.y.hypot(axis.z) < 1e-12 {
+    let beta = axis.x.atan2(axis.y.hypot(axis.z));
+    let alpha = if axis.y == 0.0 && axis.z == 0.0 {
         0.0
     } else {
-        (-axis.y).atan2(axis.z)
+        wrap_angle((-axis.y).atan2(axis.z))
     };
     (alpha, beta)
 }
@@ -502,9 +519,18 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
             let turned = reference * rot_z(FRAC_PI_2);
             let (alpha, beta) = axis_angles(&(turned.inverse() * axis_root));
             let rotation = turned * rot_x(alpha) * rot_y(beta);
-            let plain = reference * rot_x(alpha_ref) * rot_y(beta_ref);
-            let relative = (plain.inverse() * rotation).to_rotation_matrix();
-            let twist = relative[(1, 0)].atan2(relative[(0, 0)]);
+            // Later rows are expressed relative to the frame whose x axis is the previous joint
+            // axis (−z for β > 0, +z for β < 0) projected onto the plane normal to this axis: the
+            // plain MCPC frame when the axis is exactly along the previous X (Table 1's β = 90°
+            // rows), and well conditioned near there, where the plain α is not.
+            let previous_axis = reference * Vec3::z();
+            let towards = previous_axis * -beta_ref.signum();
+            let reference_x = (towards - axis_root * towards.dot(&axis_root)).normalize();
+            let actual_x = rotation * Vec3::x();
+            let twist = reference_x
+                .cross(&actual_x)
+                .dot(&axis_root)
+                .atan2(reference_x.dot(&actual_x));
             (-previous.twist + FRAC_PI_2, alpha, beta, rotation, twist)
         };
         let origin = match kind {

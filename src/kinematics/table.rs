@@ -1,9 +1,9 @@
 //! An MCPC parameter table in the layout of the paper's Table 1: branches of rows, each row
 //! the MCPC frame of one joint, each arm ending in a tool row. Values in SI units.
 
-use super::mcpc::FrameKind;
+use super::mcpc::{frame_transform, tool_transform, FrameKind};
 use crate::error::{Error, Result};
-use crate::math::{pose, rot_x, rot_y, rot_z, Pose, Rotation, Vec3};
+use crate::math::Pose;
 
 /// One joint row: the frame of joint `joint`, placed relative to the previous row's moved frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -14,6 +14,8 @@ pub struct TableRow {
     pub link: String,
     /// Revolute or prismatic.
     pub kind: FrameKind,
+    /// Constant rotation about the previous joint axis (rad); 0 in the paper's tables.
+    pub phi: f64,
     /// α (rad).
     pub alpha: f64,
     /// β (rad).
@@ -27,10 +29,9 @@ pub struct TableRow {
 }
 
 impl TableRow {
-    /// `Rx(α)·Ry(β)·Trans(x, y, 0)`: the previous moved frame to this joint's frame.
+    /// `Rz(φ)·Rx(α)·Ry(β)·Trans(x, y, 0)`: the previous moved frame to this joint's frame.
     pub fn transform(&self) -> Pose {
-        pose(Vec3::zeros(), rot_x(self.alpha) * rot_y(self.beta))
-            * pose(Vec3::new(self.x, self.y, 0.0), Rotation::identity())
+        frame_transform(self.phi, self.alpha, self.beta, self.x, self.y)
     }
 }
 
@@ -39,6 +40,8 @@ impl TableRow {
 pub struct TableTool {
     /// Tool link name.
     pub link: String,
+    /// Constant rotation about the last joint axis (rad); 0 in the paper's tables.
+    pub phi: f64,
     /// α (rad).
     pub alpha: f64,
     /// β (rad).
@@ -54,12 +57,11 @@ pub struct TableTool {
 }
 
 impl TableTool {
-    /// `Rx(α)·Ry(β)·Rz(γ)·Trans(x, y, z)`.
+    /// `Rz(φ)·Rx(α)·Ry(β)·Rz(γ)·Trans(x, y, z)`.
     pub fn transform(&self) -> Pose {
-        pose(
-            Vec3::zeros(),
-            rot_x(self.alpha) * rot_y(self.beta) * rot_z(self.gamma),
-        ) * pose(Vec3::new(self.x, self.y, self.z), Rotation::identity())
+        tool_transform(
+            self.phi, self.alpha, self.beta, self.gamma, self.x, self.y, self.z,
+        )
     }
 }
 
@@ -146,7 +148,9 @@ impl McpcTable {
                 links.push(&row.link);
             }
             if let Some(tool) = &branch.tool {
-                let values = [tool.alpha, tool.beta, tool.gamma, tool.x, tool.y, tool.z];
+                let values = [
+                    tool.phi, tool.alpha, tool.beta, tool.gamma, tool.x, tool.y, tool.z,
+                ];
                 if values.iter().any(|v| !v.is_finite()) {
                     return Err(bad(format!("tool '{}' has a non-finite value", tool.link)));
                 }
@@ -157,5 +161,94 @@ impl McpcTable {
             }
         }
         Ok(())
+    }
+}
+
+impl McpcTable {
+    /// The table of an MCPC model: one branch per detected branch, rows in chain order, φ
+    /// where the model needed it. Generating a URDF from it reproduces the model's tool poses
+    /// and joint frames (mimic relations and joints off the branches are not part of a table).
+    pub fn from_model(
+        tree: &crate::tree::KinematicTree,
+        branches: &crate::tree::Branches,
+        model: &super::McpcModel,
+    ) -> Result<Self> {
+        use crate::tree::JointKind;
+        let mut out = Vec::new();
+        let mut listed: Vec<usize> = Vec::new();
+        for branch in branches.all() {
+            let mut rows = Vec::new();
+            for joint in &branch.joints {
+                let index = model
+                    .frame_of_joint(*joint)
+                    .ok_or_else(|| Error::InvalidTable {
+                        origin: "MCPC model".into(),
+                        message: format!("joint '{}' has no MCPC frame", tree.joint(*joint).name),
+                    })?;
+                if listed.contains(&index) {
+                    return Err(Error::InvalidTable {
+                        origin: "MCPC model".into(),
+                        message: format!(
+                            "joint '{}' belongs to two arms; a table needs every arm to start at the torso",
+                            tree.joint(*joint).name
+                        ),
+                    });
+                }
+                listed.push(index);
+                let frame = &model.frames()[index];
+                let source = tree.joint(*joint);
+                let limits = match (source.kind, source.limits) {
+                    (_, Some(l)) if l.lower.is_finite() && l.upper.is_finite() => {
+                        (l.lower, l.upper)
+                    }
+                    (JointKind::Prismatic, _) => (-1.0, 1.0),
+                    _ => (-std::f64::consts::PI, std::f64::consts::PI),
+                };
+                rows.push(TableRow {
+                    joint: source.name.clone(),
+                    link: tree.link(source.child).name.clone(),
+                    kind: frame.kind,
+                    phi: frame.phi,
+                    alpha: frame.alpha,
+                    beta: frame.beta,
+                    x: frame.x,
+                    y: frame.y,
+                    limits,
+                });
+            }
+            let tool = branch
+                .tool
+                .and_then(|t| model.tool_of_link(t))
+                .map(|index| {
+                    let t = &model.tools()[index];
+                    TableTool {
+                        link: tree.link(t.link).name.clone(),
+                        phi: t.phi,
+                        alpha: t.alpha,
+                        beta: t.beta,
+                        gamma: t.gamma,
+                        x: t.x,
+                        y: t.y,
+                        z: t.z,
+                    }
+                });
+            let parent = (branch.role != crate::tree::BranchRole::Coupled
+                && !branches.coupled.joints.is_empty())
+            .then(|| branches.coupled.name.clone());
+            if rows.is_empty() && tool.is_none() {
+                continue;
+            }
+            out.push(TableBranch {
+                name: branch.name.clone(),
+                parent,
+                rows,
+                tool,
+            });
+        }
+        Ok(McpcTable {
+            robot: tree.name().to_owned(),
+            base_link: tree.link(tree.root()).name.clone(),
+            branches: out,
+        })
     }
 }

@@ -367,7 +367,7 @@ impl InspectReport {
                 row.branch, row.row, row.name, row.phi_deg, row.alpha_deg, row.beta_deg,
                 cell(row.gamma_deg), cell(row.x_mm), cell(row.y_mm), cell(row.z_mm));
         }
-        let _ = writeln!(out, "  φ is a constant (not a parameter): the rotation about the previous joint axis chosen so that |β| ≤ 45°.");
+        let _ = writeln!(out, "  φ is a constant (not a parameter): the rotation about the previous joint axis chosen so that |β| ≤ 60°.");
         if self.mcpc.rows.iter().any(|r| r.reparametrised) {
             let _ = writeln!(out, "  * re-parametrised: the joint axis lies (nearly) along the previous X axis (β near ±90°, the MCPC");
             let _ = writeln!(out, "    singularity), so φ turns the previous frame by 90°; later rows' φ undo the turn.");

@@ -33,11 +33,73 @@ pub fn load_urdf(path: &Path) -> Result<UrdfImport> {
 
 /// Converts URDF text; `origin` names the source in messages (a file path or `<string>`).
 pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
+    check_nesting(text, origin)?;
     let robot = urdf_rs::read_from_string(text).map_err(|e| Error::UrdfParse {
         origin: origin.to_owned(),
         message: e.to_string(),
     })?;
     Importer { text, origin }.convert(&robot)
+}
+
+/// The deepest element nesting accepted. Real URDFs nest about six deep; urdf-rs and its XML
+/// parser recurse once per level and overflow the stack (an abort, not an error) a few
+/// thousand levels down.
+const MAX_NESTING: usize = 256;
+
+/// Fails if elements nest deeper than [`MAX_NESTING`], naming the line where they do.
+///
+/// A light scan, not a parser: comments, CDATA, processing instructions and declarations are
+/// skipped and quoted attribute values may contain `>`; anything malformed is left to urdf-rs.
+fn check_nesting(text: &str, origin: &str) -> Result<()> {
+    let mut depth = 0usize;
+    let mut from = 0;
+    while let Some(found) = text[from..].find('<') {
+        let at = from + found;
+        let rest = &text[at..];
+        let past = |end: &str| rest.find(end).map(|e| at + e + end.len());
+        let next = if rest.starts_with("<!--") {
+            past("-->")
+        } else if rest.starts_with("<![CDATA[") {
+            past("]]>")
+        } else if rest.starts_with("<?") {
+            past("?>")
+        } else if rest.starts_with("<!") {
+            past(">")
+        } else {
+            // A start or end tag: its '>' is the first one outside quotes.
+            let mut quote = None;
+            let close = rest.bytes().enumerate().skip(1).find_map(|(k, b)| {
+                match (quote, b) {
+                    (Some(q), _) if b == q => quote = None,
+                    (None, b'"' | b'\'') => quote = Some(b),
+                    (None, b'>') => return Some(k),
+                    _ => {}
+                }
+                None
+            });
+            close.map(|k| {
+                if rest.starts_with("</") {
+                    depth = depth.saturating_sub(1);
+                } else if rest.as_bytes()[k - 1] != b'/' {
+                    depth += 1;
+                }
+                at + k + 1
+            })
+        };
+        if depth > MAX_NESTING {
+            return Err(Error::UrdfParse {
+                origin: format!("{origin}:{}", text[..at].matches('\n').count() + 1),
+                message: format!(
+                    "elements are nested more than {MAX_NESTING} levels deep; a URDF needs only a few levels"
+                ),
+            });
+        }
+        match next {
+            Some(next) => from = next,
+            None => break,
+        }
+    }
+    Ok(())
 }
 
 struct Importer<'a> {
@@ -437,8 +499,9 @@ impl Importer<'_> {
                         "joint",
                         &name,
                         format!(
-                            "mimic joints {} follow each other in a cycle",
-                            visited.join(" → ")
+                            "mimic joints {} → {} follow each other in a cycle; one of them must be independent",
+                            visited.join(" → "),
+                            mimic.joint
                         ),
                     ));
                 }

@@ -20,6 +20,8 @@ pub enum Command {
     Fk(FkArgs),
     /// Generate a URDF from an MCPC parameter table (paper Table 1 layout, YAML).
     FromMcpc(FromMcpcArgs),
+    /// Write a robot's MCPC parameter table (YAML, the format from-mcpc reads).
+    ToMcpc(ToMcpcArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -85,4 +87,20 @@ pub struct FromMcpcArgs {
     /// The URDF file to write (written atomically).
     #[arg(short, long, value_name = "OUT.urdf")]
     pub output: PathBuf,
+}
+
+/// Arguments of `treecal to-mcpc`.
+#[derive(Args)]
+#[command(
+    after_help = "The table lists the detected (or named) branches only, with the constant phi of every row; `treecal from-mcpc` turns it back into a URDF whose tool poses and joint axes equal the original's. Mimic relations and joints off the branches are not part of a table; continuous joints get limits of +-180 deg.\n\nExample:\n  treecal to-mcpc robots/humanoid/humanoid.urdf -o humanoid_mcpc.yaml"
+)]
+pub struct ToMcpcArgs {
+    /// The robot's URDF file [default: the built-in Robonaut].
+    pub robot: Option<PathBuf>,
+    /// Tool links ending the arms, comma-separated (see `inspect --help`).
+    #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
+    pub tools: Option<Vec<String>>,
+    /// The YAML file to write [default: standard output].
+    #[arg(short, long, value_name = "OUT.yaml")]
+    pub output: Option<PathBuf>,
 }

@@ -8,6 +8,7 @@ mod fk;
 mod from_mcpc;
 mod inspect;
 mod robot;
+mod to_mcpc;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -18,6 +19,7 @@ fn main() -> ExitCode {
         cli::Command::Inspect(a) => inspect::run(a),
         cli::Command::Fk(a) => fk::run(a),
         cli::Command::FromMcpc(a) => from_mcpc::run(a),
+        cli::Command::ToMcpc(a) => to_mcpc::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
