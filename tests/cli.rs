@@ -687,3 +687,62 @@ fn fk_mimic_and_fixed_columns_are_reported_unused() {
         assert!((number(cell) - want).abs() <= 1e-12, "{cell} vs {want}");
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// to-mcpc
+
+/// `to-mcpc` then `from-mcpc` gives a robot whose tool poses equal the original's.
+#[test]
+fn to_mcpc_then_from_mcpc_reproduces_the_tools() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("humanoid.yaml");
+    let urdf = dir.path().join("humanoid_mcpc.urdf");
+    let run = treecal(&[
+        "to-mcpc",
+        "robots/humanoid/humanoid.urdf",
+        "-o",
+        path_str(&table),
+    ]);
+    assert_success(&run, "to-mcpc");
+    let text = std::fs::read_to_string(&table).unwrap();
+    assert!(text.starts_with("# MCPC table of humanoid.urdf"), "{text}");
+    assert!(
+        text.contains("phi: 90"),
+        "a re-parametrised row shows its phi\n{text}"
+    );
+    let run = treecal(&["from-mcpc", path_str(&table), "-o", path_str(&urdf)]);
+    assert_success(&run, "from-mcpc");
+
+    let original = load_urdf(&robot("humanoid/humanoid.urdf")).unwrap().tree;
+    let regenerated = load_urdf(&urdf).unwrap().tree;
+    let mut rng = rng(11);
+    for _ in 0..20 {
+        let q = random_configuration(&original, &mut rng);
+        let q_again: Vec<f64> = regenerated
+            .dofs()
+            .iter()
+            .map(|j| {
+                let name = &regenerated.joint(*j).name;
+                original.joint_value(original.joint_id(name).unwrap(), &q)
+            })
+            .collect();
+        for tool in ["l_hand", "r_hand"] {
+            let expected = original
+                .link_pose(original.link_id(tool).unwrap(), &q)
+                .unwrap();
+            let got = regenerated
+                .link_pose(regenerated.link_id(tool).unwrap(), &q_again)
+                .unwrap();
+            assert_pose_eq(&got, &expected, 1e-9, tool);
+        }
+    }
+}
+
+#[test]
+fn to_mcpc_of_the_built_in_robot_goes_to_stdout() {
+    let run = treecal(&["to-mcpc"]);
+    assert_success(&run, "to-mcpc");
+    assert!(run.stdout.contains("joint: \"left_joint2\""), "{run}");
+    let table = treecal::io::parse_mcpc_table(&run.stdout, "stdout").unwrap();
+    assert_eq!(table.branches.len(), 3);
+}
