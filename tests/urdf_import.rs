@@ -999,8 +999,14 @@ fn undeclared_xacro_prefix_is_a_clear_error_or_ignored() {
         revolute("j1", "base_link", "l1"),
     ));
     match parse(&text) {
-        Ok(import) => assert_eq!(import.tree.links().len(), 2),
-        Err(e) => assert!(e.to_string().starts_with(ORIGIN), "{e}"),
+        Ok(import) => {
+            eprintln!("loaded with warnings {:?}", import.warnings);
+            assert_eq!(import.tree.links().len(), 2);
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            assert!(e.to_string().starts_with(ORIGIN), "{e}");
+        }
     }
 }
 
@@ -1234,7 +1240,7 @@ fn nan_limit_is_rejected() {
         "<limit lower=\"nan\" upper=\"1\" effort=\"1\" velocity=\"1\"/>",
     );
     let message = err(&text);
-    assert_contains(&message, "joint 'j1' has limits lower=NaN");
+    assert_contains(&message, "joint 'j1' has a NaN limit (lower=NaN");
 }
 
 #[test]
@@ -1547,4 +1553,16 @@ fn randomly_corrupted_urdfs_never_panic() {
         loaded > 10 && rejected > 10,
         "loaded {loaded}, rejected {rejected}"
     );
+}
+
+/// urdf-rs fills a missing `<limit>` with zeros; treecal warns and treats the joint as unbounded
+/// instead of as a joint that cannot move.
+#[test]
+fn missing_limit_is_a_warning_not_a_frozen_joint() {
+    let text = r#"<robot name="r"><link name="a"/><link name="b"/>
+        <joint name="j" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint></robot>"#;
+    let import = treecal::parse_urdf(text, "nolimit.urdf").unwrap();
+    assert_eq!(import.warnings.len(), 1, "{:?}", import.warnings);
+    assert!(import.warnings[0].contains("'j'") && import.warnings[0].contains("no <limit>"));
+    assert!(import.tree.joints()[0].limits.is_none());
 }

@@ -425,8 +425,19 @@ impl Importer<'_> {
         };
         let limits = match kind {
             JointKind::Revolute | JointKind::Prismatic => {
-                let (lower, upper) = (joint.limit.lower, joint.limit.upper);
-                if lower.is_nan() || upper.is_nan() || lower > upper {
+                let limit = &joint.limit;
+                let (lower, upper) = (limit.lower, limit.upper);
+                if lower.is_nan() || upper.is_nan() {
+                    return Err(self.invalid(
+                        "joint",
+                        &joint.name,
+                        format!(
+                            "joint '{}' has a NaN limit (lower={lower} upper={upper})",
+                            joint.name
+                        ),
+                    ));
+                }
+                if lower > upper {
                     return Err(self.invalid(
                         "joint",
                         &joint.name,
@@ -436,7 +447,21 @@ impl Importer<'_> {
                         ),
                     ));
                 }
-                (lower.is_finite() || upper.is_finite()).then_some(Limits { lower, upper })
+                // urdf-rs fills a missing <limit> with zeros; a joint that cannot move at all is
+                // far more likely a missing element than a real limit.
+                let all_zero = [lower, upper, limit.effort, limit.velocity]
+                    .iter()
+                    .all(|v| *v == 0.0);
+                if all_zero {
+                    warnings.push(format!(
+                        "joint '{}' is {} but has no <limit> (or an all-zero one); treating it as unbounded",
+                        joint.name,
+                        kind.urdf_name()
+                    ));
+                    None
+                } else {
+                    (lower.is_finite() || upper.is_finite()).then_some(Limits { lower, upper })
+                }
             }
             _ => None,
         };
