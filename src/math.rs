@@ -239,3 +239,12 @@ impl Transform {
         }
     }
 }
+
+/// The 6-vector pose error `[p_a − p_b; log(R_a·R_bᵀ)]` in the common (base) frame: metres,
+/// then the rotation vector (axis · angle, rad) that takes `b`'s orientation to `a`'s. This is
+/// the error the identification Jacobian predicts (not a difference of Euler angles).
+pub fn pose_error(a: &Pose, b: &Pose) -> nalgebra::Vector6<f64> {
+    let dp = a.translation.vector - b.translation.vector;
+    let dr = (a.rotation * b.rotation.inverse()).scaled_axis();
+    nalgebra::Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
+}

@@ -5,6 +5,7 @@ mod common;
 mod branches;
 mod cli;
 mod from_mcpc;
+mod jacobian;
 mod mcpc;
 mod oracle;
 mod urdf_import;

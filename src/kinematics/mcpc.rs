@@ -154,6 +154,14 @@ pub struct McpcModel {
     tool_constants: Vec<Transform>,
     /// For each tool, the frames from the base to it, base side first.
     tool_chains: Vec<Vec<usize>>,
+    /// Index of each frame's first parameter in the flat vector.
+    frame_offsets: Vec<usize>,
+    /// Index of each tool's first parameter in the flat vector.
+    tool_offsets: Vec<usize>,
+    /// Rotation axes of α and β of each frame, in the previous moved frame (for the Jacobian).
+    frame_axes: Vec<[Vec3; 2]>,
+    /// Rotation axes of α, β and γ of each tool, in the last moved frame.
+    tool_axes: Vec<[Vec3; 3]>,
 }
 
 /// Which parameter of a frame or tool.
@@ -254,18 +262,47 @@ impl McpcModel {
                 chain
             })
             .collect();
+        let mut frame_offsets = Vec::with_capacity(frames.len());
+        let mut offset = 0;
+        for frame in &frames {
+            frame_offsets.push(offset);
+            offset += frame.kind.parameter_count();
+        }
+        let tool_offsets = (0..tools.len()).map(|t| offset + 6 * t).collect();
         let mut model = Self {
             frame_constants: Vec::new(),
             tool_constants: Vec::new(),
+            frame_axes: Vec::new(),
+            tool_axes: Vec::new(),
             frames,
             tools,
             tool_chains,
+            frame_offsets,
+            tool_offsets,
         };
         model.refresh();
         Ok(model)
     }
 
     fn refresh(&mut self) {
+        // d/dα rotates about Rz(φ)·x, d/dβ about Rz(φ)·Rx(α)·y, d/dγ about Rz(φ)·Rx(α)·Ry(β)·z.
+        self.frame_axes = self
+            .frames
+            .iter()
+            .map(|f| {
+                let turn = rot_z(f.phi);
+                [turn * Vec3::x(), turn * rot_x(f.alpha) * Vec3::y()]
+            })
+            .collect();
+        self.tool_axes = self
+            .tools
+            .iter()
+            .map(|t| {
+                let turn = rot_z(t.phi);
+                let tilt = turn * rot_x(t.alpha);
+                [turn * Vec3::x(), tilt * Vec3::y(), tilt * rot_y(t.beta) * Vec3::z()]
+            })
+            .collect();
         self.frame_constants = self
             .frames
             .iter()
@@ -432,6 +469,26 @@ impl McpcModel {
             } => multiplier * q[master.0] + offset,
             Actuation::None => 0.0,
         }
+    }
+
+    /// Index of frame `frame`'s first parameter in the flat parameter vector.
+    pub fn frame_parameter_offset(&self, frame: usize) -> usize {
+        self.frame_offsets[frame]
+    }
+
+    /// Index of tool `tool`'s first parameter in the flat parameter vector.
+    pub fn tool_parameter_offset(&self, tool: usize) -> usize {
+        self.tool_offsets[tool]
+    }
+
+    /// Axes of α and β of frame `frame`, in the previous moved frame.
+    pub(crate) fn frame_axes(&self, frame: usize) -> &[Vec3; 2] {
+        &self.frame_axes[frame]
+    }
+
+    /// Axes of α, β and γ of tool `tool`, in the last moved frame.
+    pub(crate) fn tool_axes(&self, tool: usize) -> &[Vec3; 3] {
+        &self.tool_axes[tool]
     }
 
     /// Cached `Rz(φ)Rx(α)Ry(β)Trans(x, y, 0)` of frame `frame`.

@@ -1,0 +1,74 @@
+//! The analytic identification Jacobian against central finite differences of forward
+//! kinematics, for every parameter of every robot.
+
+use crate::common::*;
+use treecal::kinematics::McpcModel;
+use treecal::math::pose_error;
+use treecal::tree::detect_branches;
+
+fn check(model: &McpcModel, q: &[f64], what: &str) {
+    let step = 1e-6;
+    let parameters = model.parameters();
+    let analytic = model.tool_jacobians(q);
+    let mut perturbed = model.clone();
+    for index in 0..parameters.len() {
+        let mut plus = parameters.clone();
+        plus[index] += step;
+        perturbed.set_parameters(&plus).unwrap();
+        let up = perturbed.tool_poses(q);
+        let mut minus = parameters.clone();
+        minus[index] -= step;
+        perturbed.set_parameters(&minus).unwrap();
+        let down = perturbed.tool_poses(q);
+        for (tool, jacobian) in analytic.iter().enumerate() {
+            let numeric = pose_error(&up[tool], &down[tool]) / (2.0 * step);
+            let column = jacobian.jacobian.column(index);
+            let error = (numeric - column).norm();
+            let scale = column.norm().max(1.0);
+            assert!(
+                error <= 1e-6 * scale,
+                "{what}: tool {tool}, parameter {index} ({:?}): analytic {column:?} numeric {numeric:?}",
+                model.parameter_layout()[index]
+            );
+        }
+    }
+    for (tool, jacobian) in analytic.iter().enumerate() {
+        assert_pose_eq(&jacobian.pose, &model.tool_pose(tool, q), 1e-12, what);
+        let single = model.tool_jacobian(tool, q);
+        assert_eq!(single.jacobian, jacobian.jacobian);
+    }
+}
+
+#[test]
+fn jacobian_matches_finite_differences_on_every_robot() {
+    for path in all_repo_robots().into_iter().chain([robonaut2()]) {
+        let tree = treecal::load_urdf(&path).unwrap().tree;
+        let branches = detect_branches(&tree, None).unwrap();
+        let model = McpcModel::from_tree(&tree, &branches).unwrap();
+        let mut rng = rng(21);
+        for _ in 0..5 {
+            let q = random_configuration(&tree, &mut rng);
+            check(&model, &q, &path.display().to_string());
+        }
+    }
+}
+
+/// Off the nominal geometry too: a model whose parameters are all perturbed.
+#[test]
+fn jacobian_matches_finite_differences_on_a_perturbed_model() {
+    use rand::RngExt;
+    let tree = treecal::load_urdf(&robot("dual_arm_prismatic/dual_arm_prismatic.urdf")).unwrap().tree;
+    let branches = detect_branches(&tree, None).unwrap();
+    let mut model = McpcModel::from_tree(&tree, &branches).unwrap();
+    let mut rng = rng(5);
+    let perturbed: Vec<f64> = model
+        .parameters()
+        .iter()
+        .map(|p| p + rng.random_range(-0.05..0.05))
+        .collect();
+    model.set_parameters(&perturbed).unwrap();
+    for _ in 0..5 {
+        let q = random_configuration(&tree, &mut rng);
+        check(&model, &q, "perturbed dual arm");
+    }
+}
