@@ -92,6 +92,9 @@ pub struct McpcFrame {
     /// Whether φ includes the 90° turn that moves this frame off the β = ±90° singularity
     /// (otherwise φ only undoes an earlier turn, or is 0).
     pub reparametrised: bool,
+    /// This frame's rotation about its z relative to the plain MCPC frame (rad); the next
+    /// row's φ undoes it (0 unless `reparametrised`).
+    pub twist: f64,
 }
 
 impl McpcFrame {
@@ -135,6 +138,34 @@ pub struct McpcTool {
 }
 
 impl McpcTool {
+    /// The tool whose frame sits at `last_from_tool` in the last moved frame `P = Σ_n·Q(θ_n)`
+    /// (the base if `parent` is `None`). `twist` is the last frame's rotation about its z
+    /// relative to the plain MCPC frame ([`McpcFrame::twist`]); φ undoes it, plus 90° where
+    /// the tool would otherwise sit near the X-Y-Z angle singularity |β| = 90°.
+    pub fn from_relative_pose(link: LinkId, parent: Option<usize>, twist: f64, last_from_tool: &Pose) -> Self {
+        let rotation = rot_z(twist) * last_from_tool.rotation;
+        let [a, b, c] = xyz_angles_from_rotation(&rotation);
+        let reparametrised = b.abs() > SINGULARITY_THRESHOLD;
+        let (phi, [alpha, beta, gamma]) = if reparametrised {
+            (-twist + FRAC_PI_2, xyz_angles_from_rotation(&(rot_z(-FRAC_PI_2) * rotation)))
+        } else {
+            (-twist, [a, b, c])
+        };
+        let offset = last_from_tool.rotation.inverse() * last_from_tool.translation.vector;
+        McpcTool {
+            link,
+            parent,
+            phi: wrap_angle(phi),
+            alpha,
+            beta,
+            gamma,
+            x: offset.x,
+            y: offset.y,
+            z: offset.z,
+            reparametrised,
+        }
+    }
+
     /// Rz(φ)·Rx(α)·Ry(β)·Rz(γ)·Trans(x, y, z).
     pub fn constant_transform(&self) -> Pose {
         tool_transform(
@@ -615,6 +646,7 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
             y,
             frame_from_link: root_from_frame.inverse() * root_from_link[joint.child.0],
             reparametrised,
+            twist,
         });
         placed.push(Placed {
             rotation,
@@ -627,33 +659,8 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
     for tool_link in branches.tools() {
         let parent = parent_frame(&frames, tool_link);
         let previous = parent.map_or(BASE, |p| placed[p]);
-        let root_from_tool = root_from_link[tool_link.0];
-        let reference = previous.rotation * rot_z(-previous.twist);
-        let [a, b, c] = xyz_angles_from_rotation(&(reference.inverse() * root_from_tool.rotation));
-        let reparametrised = b.abs() > SINGULARITY_THRESHOLD;
-        let (phi, [alpha, beta, gamma]) = if !reparametrised {
-            (-previous.twist, [a, b, c])
-        } else {
-            let turned = reference * rot_z(FRAC_PI_2);
-            (
-                -previous.twist + FRAC_PI_2,
-                xyz_angles_from_rotation(&(turned.inverse() * root_from_tool.rotation)),
-            )
-        };
-        let offset = root_from_tool.rotation.inverse()
-            * (root_from_tool.translation.vector - previous.origin);
-        tools.push(McpcTool {
-            link: tool_link,
-            parent,
-            phi: wrap_angle(phi),
-            alpha,
-            beta,
-            gamma,
-            x: offset.x,
-            y: offset.y,
-            z: offset.z,
-            reparametrised,
-        });
+        let last_from_tool = pose(previous.origin, previous.rotation).inverse() * root_from_link[tool_link.0];
+        tools.push(McpcTool::from_relative_pose(tool_link, parent, previous.twist, &last_from_tool));
     }
     McpcModel::new(frames, tools)
 }
