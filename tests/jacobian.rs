@@ -57,7 +57,9 @@ fn jacobian_matches_finite_differences_on_every_robot() {
 #[test]
 fn jacobian_matches_finite_differences_on_a_perturbed_model() {
     use rand::RngExt;
-    let tree = treecal::load_urdf(&robot("dual_arm_prismatic/dual_arm_prismatic.urdf")).unwrap().tree;
+    let tree = treecal::load_urdf(&robot("dual_arm_prismatic/dual_arm_prismatic.urdf"))
+        .unwrap()
+        .tree;
     let branches = detect_branches(&tree, None).unwrap();
     let mut model = McpcModel::from_tree(&tree, &branches).unwrap();
     let mut rng = rng(5);
@@ -67,6 +69,28 @@ fn jacobian_matches_finite_differences_on_a_perturbed_model() {
         .map(|p| p + rng.random_range(-0.05..0.05))
         .collect();
     model.set_parameters(&perturbed).unwrap();
+    // And seen from a measurement frame away from the base.
+    let world_from_base = treecal::math::pose(
+        treecal::math::Vec3::new(1.5, -0.3, 0.2),
+        treecal::math::rotation_from_rpy(0.3, -0.2, 2.0),
+    );
+    model.set_world_from_base(&world_from_base);
+    let base_model = {
+        let mut m = model.clone();
+        m.set_world_from_base(&treecal::math::Pose::identity());
+        m
+    };
+    for _ in 0..5 {
+        let q = random_configuration(&tree, &mut rng);
+        for (tool, pose) in model.tool_poses(&q).iter().enumerate() {
+            assert_pose_eq(
+                pose,
+                &(world_from_base * base_model.tool_pose(tool, &q)),
+                1e-12,
+                "world frame",
+            );
+        }
+    }
     for _ in 0..5 {
         let q = random_configuration(&tree, &mut rng);
         check(&model, &q, "perturbed dual arm");

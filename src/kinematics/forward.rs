@@ -19,7 +19,8 @@ impl McpcModel {
         }
     }
 
-    /// Every frame Σᵢ in the base frame, before its own joint's motion (fast form).
+    /// Every frame Σᵢ in the measurement frame ([`McpcModel::world_from_base`], the base frame
+    /// unless set), before its own joint's motion (fast form).
     pub fn frame_transforms(&self, q: &[f64]) -> Vec<Transform> {
         let mut base_from_frame: Vec<Transform> = Vec::with_capacity(self.frames().len());
         for (index, frame) in self.frames().iter().enumerate() {
@@ -27,7 +28,9 @@ impl McpcModel {
                 Some(p) => self
                     .moved(p, q, &base_from_frame[p])
                     .then(self.frame_constant(index)),
-                None => *self.frame_constant(index),
+                None => self
+                    .world_from_base_transform()
+                    .then(self.frame_constant(index)),
             };
             base_from_frame.push(transform);
         }
@@ -50,14 +53,16 @@ impl McpcModel {
             Some(last) => self
                 .moved(last, q, &frames[last])
                 .then(self.tool_constant(tool)),
-            None => *self.tool_constant(tool),
+            None => self
+                .world_from_base_transform()
+                .then(self.tool_constant(tool)),
         }
     }
 
     /// Pose of tool `tool` in the base frame at configuration `q` (eq. (3)), walking only its
     /// own chain.
     pub fn tool_pose(&self, tool: usize, q: &[f64]) -> Pose {
-        let mut current = Transform::identity();
+        let mut current = *self.world_from_base_transform();
         let mut previous: Option<usize> = None;
         for &frame in self.tool_chain(tool) {
             if let Some(p) = previous {

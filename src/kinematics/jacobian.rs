@@ -34,7 +34,7 @@ impl McpcModel {
                     FrameKind::Prismatic => frames[p].translated_z(value),
                 }
             }
-            None => Transform::identity(),
+            None => *self.world_from_base_transform(),
         }
     }
 
@@ -62,7 +62,11 @@ impl McpcModel {
             let [alpha_axis, beta_axis] = self.frame_axes(frame);
             let offset = self.frame_parameter_offset(frame);
             rotation_column(offset, previous.rotation * alpha_axis, previous.translation);
-            rotation_column(offset + 1, previous.rotation * beta_axis, previous.translation);
+            rotation_column(
+                offset + 1,
+                previous.rotation * beta_axis,
+                previous.translation,
+            );
         }
         let [alpha_axis, beta_axis, gamma_axis] = self.tool_axes(tool);
         let offset = self.tool_parameter_offset(tool);

@@ -142,12 +142,20 @@ impl McpcTool {
     /// (the base if `parent` is `None`). `twist` is the last frame's rotation about its z
     /// relative to the plain MCPC frame ([`McpcFrame::twist`]); φ undoes it, plus 90° where
     /// the tool would otherwise sit near the X-Y-Z angle singularity |β| = 90°.
-    pub fn from_relative_pose(link: LinkId, parent: Option<usize>, twist: f64, last_from_tool: &Pose) -> Self {
+    pub fn from_relative_pose(
+        link: LinkId,
+        parent: Option<usize>,
+        twist: f64,
+        last_from_tool: &Pose,
+    ) -> Self {
         let rotation = rot_z(twist) * last_from_tool.rotation;
         let [a, b, c] = xyz_angles_from_rotation(&rotation);
         let reparametrised = b.abs() > SINGULARITY_THRESHOLD;
         let (phi, [alpha, beta, gamma]) = if reparametrised {
-            (-twist + FRAC_PI_2, xyz_angles_from_rotation(&(rot_z(-FRAC_PI_2) * rotation)))
+            (
+                -twist + FRAC_PI_2,
+                xyz_angles_from_rotation(&(rot_z(-FRAC_PI_2) * rotation)),
+            )
         } else {
             (-twist, [a, b, c])
         };
@@ -193,6 +201,8 @@ pub struct McpcModel {
     frame_axes: Vec<[Vec3; 2]>,
     /// Rotation axes of α, β and γ of each tool, in the last moved frame.
     tool_axes: Vec<[Vec3; 3]>,
+    /// Where the base (root link) frame is in the measurement (world) frame; identity unless set.
+    world_from_base: Transform,
 }
 
 /// Which parameter of a frame or tool.
@@ -310,6 +320,7 @@ impl McpcModel {
             tool_chains,
             frame_offsets,
             tool_offsets,
+            world_from_base: Transform::identity(),
         };
         model.refresh();
         Ok(model)
@@ -331,7 +342,11 @@ impl McpcModel {
             .map(|t| {
                 let turn = rot_z(t.phi);
                 let tilt = turn * rot_x(t.alpha);
-                [turn * Vec3::x(), tilt * Vec3::y(), tilt * rot_y(t.beta) * Vec3::z()]
+                [
+                    turn * Vec3::x(),
+                    tilt * Vec3::y(),
+                    tilt * rot_y(t.beta) * Vec3::z(),
+                ]
             })
             .collect();
         self.frame_constants = self
@@ -502,6 +517,23 @@ impl McpcModel {
         }
     }
 
+    /// The pose of the base (root link) frame in the measurement frame: a constant, not a
+    /// parameter (the MCPC parameters are complete, so small errors in it are absorbed by the
+    /// first frames' parameters). Forward kinematics and Jacobians are in this frame.
+    pub fn world_from_base(&self) -> Pose {
+        self.world_from_base.to_pose()
+    }
+
+    /// Sets [`Self::world_from_base`].
+    pub fn set_world_from_base(&mut self, world_from_base: &Pose) {
+        self.world_from_base = Transform::from_pose(world_from_base);
+    }
+
+    /// [`Self::world_from_base`] in the fast form.
+    pub(crate) fn world_from_base_transform(&self) -> &Transform {
+        &self.world_from_base
+    }
+
     /// Index of frame `frame`'s first parameter in the flat parameter vector.
     pub fn frame_parameter_offset(&self, frame: usize) -> usize {
         self.frame_offsets[frame]
@@ -659,8 +691,14 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
     for tool_link in branches.tools() {
         let parent = parent_frame(&frames, tool_link);
         let previous = parent.map_or(BASE, |p| placed[p]);
-        let last_from_tool = pose(previous.origin, previous.rotation).inverse() * root_from_link[tool_link.0];
-        tools.push(McpcTool::from_relative_pose(tool_link, parent, previous.twist, &last_from_tool));
+        let last_from_tool =
+            pose(previous.origin, previous.rotation).inverse() * root_from_link[tool_link.0];
+        tools.push(McpcTool::from_relative_pose(
+            tool_link,
+            parent,
+            previous.twist,
+            &last_from_tool,
+        ));
     }
     McpcModel::new(frames, tools)
 }

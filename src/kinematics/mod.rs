@@ -5,8 +5,8 @@ mod jacobian;
 pub mod mcpc;
 pub mod table;
 
+pub use jacobian::ToolJacobian;
 pub use mcpc::{
     FrameKind, McpcFrame, McpcModel, McpcTool, ParameterKind, ParameterOwner, SINGULARITY_THRESHOLD,
 };
-pub use jacobian::ToolJacobian;
 pub use table::{McpcTable, TableBranch, TableRow, TableTool};
