@@ -1,9 +1,11 @@
 #![doc = include_str!("../README.md")]
 
+pub mod calibration;
 pub mod error;
 pub mod io;
 pub mod kinematics;
 pub mod math;
+pub mod measurement;
 pub mod report;
 pub mod tree;
 pub mod urdf;

@@ -92,7 +92,9 @@ pub struct McpcFrame {
     /// Whether φ includes the 90° turn that moves this frame off the β = ±90° singularity
     /// (otherwise φ only undoes an earlier turn, or is 0).
     pub reparametrised: bool,
-    /// This frame's rotation about its z relative to the plain MCPC frame (rad); the next
+    /// This frame's rotation about its z relative to the reference frame later rows are
+    /// expressed in (the plain MCPC frame, or for a re-parametrised row the frame whose x is
+    /// the previous joint axis projected normal to this one; see `docs/mcpc.md`) (rad); the next
     /// row's φ undoes it (0 unless `reparametrised`).
     pub twist: f64,
 }
@@ -140,7 +142,7 @@ pub struct McpcTool {
 impl McpcTool {
     /// The tool whose frame sits at `last_from_tool` in the last moved frame `P = Σ_n·Q(θ_n)`
     /// (the base if `parent` is `None`). `twist` is the last frame's rotation about its z
-    /// relative to the plain MCPC frame ([`McpcFrame::twist`]); φ undoes it, plus 90° where
+    /// relative to its reference frame ([`McpcFrame::twist`]); φ undoes it, plus 90° where
     /// the tool would otherwise sit near the X-Y-Z angle singularity |β| = 90°.
     pub fn from_relative_pose(
         link: LinkId,
@@ -572,7 +574,7 @@ impl McpcModel {
 struct Placed {
     rotation: Rotation,
     origin: Vec3,
-    /// Rotation about z of this frame relative to the plain MCPC construction (see `docs/mcpc.md`).
+    /// Rotation about z of this frame relative to its reference frame ([`McpcFrame::twist`]).
     twist: f64,
 }
 

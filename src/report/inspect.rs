@@ -280,8 +280,18 @@ fn clean(value: f64) -> f64 {
 
 fn cell(value: Option<f64>) -> String {
     match value {
-        Some(v) => format!("{v:.3}"),
+        Some(v) => fixed(v),
         None => "\\".into(),
+    }
+}
+
+/// Three decimals, without the "-0.000" that tiny negative values would print as.
+fn fixed(value: f64) -> String {
+    let text = format!("{value:.3}");
+    if text == "-0.000" {
+        "0.000".into()
+    } else {
+        text
     }
 }
 
@@ -363,14 +373,26 @@ impl InspectReport {
         );
         for row in &self.mcpc.rows {
             let mark = if row.reparametrised { " *" } else { "" };
-            let _ = writeln!(out, "  {:<10} {:>3}  {:<width$} {:>9.3} {:>10.3} {:>10.3} {:>10} {:>10} {:>10} {:>10}{mark}",
-                row.branch, row.row, row.name, row.phi_deg, row.alpha_deg, row.beta_deg,
-                cell(row.gamma_deg), cell(row.x_mm), cell(row.y_mm), cell(row.z_mm));
+            let _ = writeln!(
+                out,
+                "  {:<10} {:>3}  {:<width$} {:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}{mark}",
+                row.branch,
+                row.row,
+                row.name,
+                fixed(row.phi_deg),
+                fixed(row.alpha_deg),
+                fixed(row.beta_deg),
+                cell(row.gamma_deg),
+                cell(row.x_mm),
+                cell(row.y_mm),
+                cell(row.z_mm)
+            );
         }
         let _ = writeln!(out, "  φ is a constant (not a parameter): the rotation about the previous joint axis chosen so that |β| ≤ 60°.");
         if self.mcpc.rows.iter().any(|r| r.reparametrised) {
             let _ = writeln!(out, "  * re-parametrised: the joint axis lies (nearly) along the previous X axis (β near ±90°, the MCPC");
-            let _ = writeln!(out, "    singularity), so φ turns the previous frame by 90°; later rows' φ undo the turn.");
+            let _ = writeln!(out, "    singularity; for a tool row, the gimbal lock of its X-Y-Z angles), so φ turns the previous frame");
+            let _ = writeln!(out, "    by 90°; later rows' φ undo the turn.");
         }
         let _ = writeln!(out, "  parameters: {}", self.mcpc.parameter_formula);
         out

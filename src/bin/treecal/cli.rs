@@ -45,7 +45,8 @@ pub enum AngleUnit {
 pub struct InspectArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     pub robot: Option<PathBuf>,
-    /// Tool links ending the arms, comma-separated (left first for two arms). Without this, the
+    /// Tool links ending the arms, comma-separated. Left and right are told apart by names, else by
+    /// the tips' y (+y is left); the order given only decides when neither does. Without this, the
     /// two arm end links are found automatically and the rule that decided is printed.
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,

@@ -1,0 +1,476 @@
+//! Iterative identification (paper eq. (26)–(29)), made robust.
+//!
+//! Each iteration linearises the weighted residuals `r = W·(pose_error(measured, predicted) − D_f)`
+//! around the current parameters, scales the Jacobian's columns to unit norm (so millimetres
+//! and radians are comparable), and takes the minimum-norm Gauss–Newton step through the SVD,
+//! keeping only singular values above `rank_tolerance · σ_max`: combinations of parameters the
+//! data cannot determine are reported and left where they started (at their nominal values).
+//! When the Gauss–Newton step does not reduce the cost, the step is damped
+//! (Levenberg–Marquardt) until it does. Not converging is an outcome in the report, not an
+//! error. See `docs/identification.md`.
+
+use crate::error::{Error, Result};
+use crate::kinematics::McpcModel;
+use crate::math::{pose_error, Pose};
+use crate::measurement::{Measurement, Observation};
+use nalgebra::{DMatrix, DVector, Vector6};
+
+/// How the model predicts the observed tool poses at a configuration.
+pub trait Predictor {
+    /// Poses of all tools (in `model.tools()` order) at configuration `q`.
+    fn predict(&self, model: &McpcModel, q: &[f64]) -> Vec<Pose>;
+}
+
+/// The rigid MCPC forward kinematics.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Rigid;
+
+impl Predictor for Rigid {
+    fn predict(&self, model: &McpcModel, q: &[f64]) -> Vec<Pose> {
+        model.tool_poses(q)
+    }
+}
+
+/// Settings of the identification.
+#[derive(Debug, Clone)]
+pub struct IdentificationOptions {
+    /// Iteration limit.
+    pub max_iterations: usize,
+    /// Expected position error of a measurement (m): position rows are divided by it.
+    pub position_sigma: f64,
+    /// Expected rotation error of a measurement (rad): rotation rows are divided by it.
+    pub rotation_sigma: f64,
+    /// Singular values below this times the largest are treated as zero (unidentifiable).
+    pub rank_tolerance: f64,
+    /// Stop when the scaled step is below this (relative to the scaled parameters + 1).
+    pub step_tolerance: f64,
+    /// Stop when an accepted step lowers the cost by less than this fraction.
+    pub cost_tolerance: f64,
+}
+
+impl Default for IdentificationOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 50,
+            position_sigma: 1e-4,
+            rotation_sigma: 1e-4,
+            rank_tolerance: 1e-10,
+            step_tolerance: 1e-12,
+            cost_tolerance: 1e-14,
+        }
+    }
+}
+
+/// Why the iteration stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Termination {
+    /// The step became negligible.
+    StepConverged,
+    /// The cost stopped decreasing measurably.
+    CostConverged,
+    /// No damped step lowered the cost: a (local) minimum at the noise floor.
+    NoDecrease,
+    /// The iteration limit was reached first.
+    MaxIterations,
+}
+
+/// A direction in parameter space the data cannot determine: `(parameter index, weight)`,
+/// largest weights first, normalised to unit length in parameter units (rad, m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Combination {
+    /// Parameter indices (into the model's flat vector) and their weights.
+    pub terms: Vec<(usize, f64)>,
+}
+
+/// What the identification did and found.
+#[derive(Debug, Clone)]
+pub struct IdentificationReport {
+    /// The identified parameters (whole vector; parameters not free are unchanged).
+    pub parameters: Vec<f64>,
+    /// Indices of the parameters that were free.
+    pub free: Vec<usize>,
+    /// Accepted iterations.
+    pub iterations: usize,
+    /// Cost ½‖r‖² (weighted) before the first and after each accepted iteration.
+    pub costs: Vec<f64>,
+    /// Why it stopped.
+    pub termination: Termination,
+    /// Numerical rank of the scaled Jacobian at the solution.
+    pub rank: usize,
+    /// Scaled singular values at the solution, largest first.
+    pub singular_values: Vec<f64>,
+    /// σ_max / σ_min over the retained singular values.
+    pub condition_number: f64,
+    /// Parameter combinations the data cannot determine (kept at their starting values).
+    pub unidentifiable: Vec<Combination>,
+    /// RMS of the position residuals at the solution (m).
+    pub residual_rms_position: f64,
+    /// RMS of the rotation residuals at the solution (rad), over pose observations.
+    pub residual_rms_rotation: f64,
+}
+
+/// The stacked, weighted residual and its Jacobian over the free parameters.
+struct Linearisation {
+    residual: DVector<f64>,
+    jacobian: DMatrix<f64>,
+}
+
+fn rows_of(measurements: &[Measurement]) -> usize {
+    measurements.iter().map(|m| m.observation.rows()).sum()
+}
+
+/// Raw (unweighted) residual of one measurement: measured ⊖ predicted − offset.
+fn raw_residual(
+    measured: &Observation,
+    predicted: &Pose,
+    offset: Option<&Vector6<f64>>,
+) -> Vector6<f64> {
+    let mut error = match measured {
+        Observation::Pose(pose) => pose_error(pose, predicted),
+        Observation::Position(p) => {
+            let d = p - predicted.translation.vector;
+            Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
+        }
+    };
+    if let Some(offset) = offset {
+        error -= offset;
+    }
+    error
+}
+
+fn linearise(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+    with_jacobian: bool,
+) -> Linearisation {
+    let rows = rows_of(measurements);
+    let mut residual = DVector::zeros(rows);
+    let mut jacobian = DMatrix::zeros(if with_jacobian { rows } else { 0 }, free.len());
+    let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
+    let mut row = 0;
+    for (index, m) in measurements.iter().enumerate() {
+        let predicted = predictor.predict(model, &m.q);
+        let error = raw_residual(
+            &m.observation,
+            &predicted[m.tool],
+            offsets.map(|o| &o[index]),
+        );
+        let count = m.observation.rows();
+        for k in 0..count {
+            residual[row + k] = error[k] * weights[k / 3];
+        }
+        if with_jacobian {
+            // The rigid Jacobian also serves deflection-aware predictors: the deflection's
+            // dependence on the parameters is second order.
+            let tool = model.tool_jacobian(m.tool, &m.q);
+            for (column, &parameter) in free.iter().enumerate() {
+                for k in 0..count {
+                    jacobian[(row + k, column)] = tool.jacobian[(k, parameter)] * weights[k / 3];
+                }
+            }
+        }
+        row += count;
+    }
+    Linearisation { residual, jacobian }
+}
+
+fn residual_rms(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+) -> (f64, f64) {
+    let (mut position, mut rotation, mut poses) = (0.0, 0.0, 0usize);
+    for (index, m) in measurements.iter().enumerate() {
+        let predicted = predictor.predict(model, &m.q);
+        let error = raw_residual(
+            &m.observation,
+            &predicted[m.tool],
+            offsets.map(|o| &o[index]),
+        );
+        position += error.fixed_rows::<3>(0).norm_squared();
+        if let Observation::Pose(_) = m.observation {
+            rotation += error.fixed_rows::<3>(3).norm_squared();
+            poses += 1;
+        }
+    }
+    let n = measurements.len().max(1) as f64;
+    (
+        (position / n).sqrt(),
+        if poses > 0 {
+            (rotation / poses as f64).sqrt()
+        } else {
+            0.0
+        },
+    )
+}
+
+/// Identifies the `free` parameters of `model` from `measurements`.
+///
+/// `offsets`, if given, holds one predicted flexibility error per measurement (eq. (26): the
+/// residual is `measured ⊖ predicted − D_f`); `predictor` is how the model predicts the tool
+/// poses (rigid FK, or a deflected FK). Errors only for inputs that make no sense (a tool
+/// index out of range, a configuration of the wrong size, non-finite values, too few rows).
+pub fn identify(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+) -> Result<IdentificationReport> {
+    validate(model, measurements, offsets, free, options)?;
+    let mut current = model.clone();
+    let mut parameters = current.parameters();
+    let mut lin = linearise(
+        &current,
+        measurements,
+        offsets,
+        predictor,
+        free,
+        options,
+        true,
+    );
+    let mut cost = 0.5 * lin.residual.norm_squared();
+    let mut costs = vec![cost];
+    let mut damping = 0.0;
+    let mut iterations = 0;
+    let mut termination = Termination::MaxIterations;
+
+    while iterations < options.max_iterations {
+        let scales = column_scales(&lin.jacobian);
+        let scaled = scale_columns(&lin.jacobian, &scales);
+        let svd = scaled.clone().svd(true, true);
+        let (Some(u), Some(v_t)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
+            break;
+        };
+        let sigma_max = svd.singular_values.max();
+        let threshold = options.rank_tolerance * sigma_max;
+        let projected = u.transpose() * &lin.residual;
+
+        let mut accepted = false;
+        for _attempt in 0..30 {
+            let mut step_scaled = DVector::zeros(free.len());
+            for (i, &s) in svd.singular_values.iter().enumerate() {
+                if s > threshold {
+                    let gain = s / (s * s + damping);
+                    step_scaled += v_t.row(i).transpose() * (gain * projected[i]);
+                }
+            }
+            let step: DVector<f64> = step_scaled.component_div(&scales);
+            let mut trial = parameters.clone();
+            for (k, &p) in free.iter().enumerate() {
+                trial[p] += step[k];
+            }
+            let mut candidate = current.clone();
+            candidate.set_parameters(&trial)?;
+            let trial_lin = linearise(
+                &candidate,
+                measurements,
+                offsets,
+                predictor,
+                free,
+                options,
+                false,
+            );
+            let trial_cost = 0.5 * trial_lin.residual.norm_squared();
+            if trial_cost < cost || (trial_cost == cost && step_scaled.norm() == 0.0) {
+                let decrease = cost - trial_cost;
+                let scaled_parameters: f64 = free
+                    .iter()
+                    .zip(scales.iter())
+                    .map(|(&p, s)| (trial[p] * s).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                current = candidate;
+                parameters = trial;
+                cost = trial_cost;
+                costs.push(cost);
+                iterations += 1;
+                damping *= 0.1;
+                accepted = true;
+                if step_scaled.norm() <= options.step_tolerance * (1.0 + scaled_parameters) {
+                    termination = Termination::StepConverged;
+                } else if decrease <= options.cost_tolerance * (costs[costs.len() - 2]) {
+                    termination = Termination::CostConverged;
+                }
+                break;
+            }
+            damping = if damping == 0.0 {
+                1e-6 * sigma_max * sigma_max
+            } else {
+                damping * 10.0
+            };
+        }
+        if !accepted {
+            termination = Termination::NoDecrease;
+            break;
+        }
+        if termination != Termination::MaxIterations {
+            break;
+        }
+        lin = linearise(
+            &current,
+            measurements,
+            offsets,
+            predictor,
+            free,
+            options,
+            true,
+        );
+    }
+
+    // Identifiability at the solution.
+    let lin = linearise(
+        &current,
+        measurements,
+        offsets,
+        predictor,
+        free,
+        options,
+        true,
+    );
+    let scales = column_scales(&lin.jacobian);
+    let svd = scale_columns(&lin.jacobian, &scales).svd(false, true);
+    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
+    order.sort_by(|&a, &b| svd.singular_values[b].total_cmp(&svd.singular_values[a]));
+    let singular_values: Vec<f64> = order.iter().map(|&i| svd.singular_values[i]).collect();
+    let sigma_max = singular_values.first().copied().unwrap_or(0.0);
+    let threshold = options.rank_tolerance * sigma_max;
+    let rank = singular_values.iter().filter(|&&s| s > threshold).count();
+    let condition_number = match singular_values.get(rank.saturating_sub(1)) {
+        Some(&smallest) if rank > 0 && smallest > 0.0 => sigma_max / smallest,
+        _ => f64::INFINITY,
+    };
+    let mut unidentifiable = Vec::new();
+    if let Some(v_t) = svd.v_t.as_ref() {
+        // Null-space directions: the rows of Vᵀ for small singular values, plus any rows
+        // beyond the number of singular values (more parameters than residual rows).
+        let mut null_rows: Vec<usize> = order[rank..].to_vec();
+        null_rows.extend(svd.singular_values.len()..v_t.nrows());
+        for i in null_rows {
+            let direction: DVector<f64> = v_t.row(i).transpose().component_div(&scales);
+            unidentifiable.push(combination(&direction, free));
+        }
+    }
+    if free.len() > rows_of(measurements) {
+        // Vᵀ is thin: describe the missing directions by completing the basis.
+        for extra in unidentifiable.len()..free.len() - rank {
+            let _ = extra;
+        }
+    }
+    let (residual_rms_position, residual_rms_rotation) =
+        residual_rms(&current, measurements, offsets, predictor);
+    Ok(IdentificationReport {
+        parameters,
+        free: free.to_vec(),
+        iterations,
+        costs,
+        termination,
+        rank,
+        singular_values,
+        condition_number,
+        unidentifiable,
+        residual_rms_position,
+        residual_rms_rotation,
+    })
+}
+
+fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
+    let norm = direction.norm().max(f64::MIN_POSITIVE);
+    let largest = direction.amax() / norm;
+    let mut terms: Vec<(usize, f64)> = direction
+        .iter()
+        .enumerate()
+        .map(|(k, w)| (free[k], w / norm))
+        .filter(|(_, w)| w.abs() >= 0.1 * largest)
+        .collect();
+    terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    Combination { terms }
+}
+
+fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
+    DVector::from_iterator(
+        jacobian.ncols(),
+        jacobian.column_iter().map(|c| {
+            let n = c.norm();
+            if n > 0.0 {
+                n
+            } else {
+                1.0
+            }
+        }),
+    )
+}
+
+fn scale_columns(jacobian: &DMatrix<f64>, scales: &DVector<f64>) -> DMatrix<f64> {
+    let mut scaled = jacobian.clone();
+    for (mut column, s) in scaled.column_iter_mut().zip(scales.iter()) {
+        column /= *s;
+    }
+    scaled
+}
+
+fn validate(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    free: &[usize],
+    options: &IdentificationOptions,
+) -> Result<()> {
+    let bad = |message: String| Error::InvalidData {
+        origin: "identification".into(),
+        message,
+    };
+    if measurements.is_empty() {
+        return Err(bad("no measurements".into()));
+    }
+    if !(options.position_sigma > 0.0 && options.rotation_sigma > 0.0) {
+        return Err(bad(
+            "position_sigma and rotation_sigma must be positive".into()
+        ));
+    }
+    let count = model.parameter_count();
+    if let Some(&p) = free.iter().find(|&&p| p >= count) {
+        return Err(bad(format!(
+            "free parameter {p} does not exist (the model has {count})"
+        )));
+    }
+    if let Some(offsets) = offsets {
+        if offsets.len() != measurements.len() {
+            return Err(bad(format!(
+                "{} flexibility offsets for {} measurements",
+                offsets.len(),
+                measurements.len()
+            )));
+        }
+    }
+    for (index, m) in measurements.iter().enumerate() {
+        if m.tool >= model.tools().len() {
+            return Err(bad(format!(
+                "measurement {index} names tool {} of {}",
+                m.tool,
+                model.tools().len()
+            )));
+        }
+        let finite = m.q.iter().all(|v| v.is_finite())
+            && match &m.observation {
+                Observation::Pose(p) => p
+                    .translation
+                    .vector
+                    .iter()
+                    .chain(p.rotation.coords.iter())
+                    .all(|v| v.is_finite()),
+                Observation::Position(p) => p.iter().all(|v| v.is_finite()),
+            };
+        if !finite {
+            return Err(bad(format!("measurement {index} has a non-finite value")));
+        }
+    }
+    Ok(())
+}
