@@ -5,6 +5,7 @@ mod common;
 mod branches;
 mod cli;
 mod from_mcpc;
+mod identification;
 mod jacobian;
 mod mcpc;
 mod oracle;

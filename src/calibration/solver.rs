@@ -54,7 +54,7 @@ impl Default for IdentificationOptions {
             max_iterations: 50,
             position_sigma: 1e-4,
             rotation_sigma: 1e-4,
-            rank_tolerance: 1e-10,
+            rank_tolerance: 1e-8,
             step_tolerance: 1e-12,
             cost_tolerance: 1e-14,
         }
@@ -245,23 +245,37 @@ pub fn identify(
     while iterations < options.max_iterations {
         let scales = column_scales(&lin.jacobian);
         let scaled = scale_columns(&lin.jacobian, &scales);
-        let svd = scaled.clone().svd(true, true);
+        let svd = scaled.svd(true, true);
         let (Some(u), Some(v_t)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
             break;
         };
         let sigma_max = svd.singular_values.max();
         let threshold = options.rank_tolerance * sigma_max;
         let projected = u.transpose() * &lin.residual;
-
-        let mut accepted = false;
-        for _attempt in 0..30 {
-            let mut step_scaled = DVector::zeros(free.len());
+        let step_for = |damping: f64| -> DVector<f64> {
+            let mut step = DVector::zeros(free.len());
             for (i, &s) in svd.singular_values.iter().enumerate() {
                 if s > threshold {
-                    let gain = s / (s * s + damping);
-                    step_scaled += v_t.row(i).transpose() * (gain * projected[i]);
+                    step += v_t.row(i).transpose() * (s / (s * s + damping) * projected[i]);
                 }
             }
+            step
+        };
+        // Converged when the full Gauss–Newton step is negligible against the parameters.
+        let scaled_parameters = free
+            .iter()
+            .zip(scales.iter())
+            .map(|(&p, s)| (parameters[p] * s).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if step_for(0.0).norm() <= options.step_tolerance * (1.0 + scaled_parameters) {
+            termination = Termination::StepConverged;
+            break;
+        }
+
+        let mut accepted = false;
+        for _attempt in 0..40 {
+            let step_scaled = step_for(damping);
             let step: DVector<f64> = step_scaled.component_div(&scales);
             let mut trial = parameters.clone();
             for (k, &p) in free.iter().enumerate() {
@@ -279,14 +293,8 @@ pub fn identify(
                 false,
             );
             let trial_cost = 0.5 * trial_lin.residual.norm_squared();
-            if trial_cost < cost || (trial_cost == cost && step_scaled.norm() == 0.0) {
-                let decrease = cost - trial_cost;
-                let scaled_parameters: f64 = free
-                    .iter()
-                    .zip(scales.iter())
-                    .map(|(&p, s)| (trial[p] * s).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
+            if trial_cost < cost {
+                let previous = cost;
                 current = candidate;
                 parameters = trial;
                 cost = trial_cost;
@@ -294,9 +302,7 @@ pub fn identify(
                 iterations += 1;
                 damping *= 0.1;
                 accepted = true;
-                if step_scaled.norm() <= options.step_tolerance * (1.0 + scaled_parameters) {
-                    termination = Termination::StepConverged;
-                } else if decrease <= options.cost_tolerance * (costs[costs.len() - 2]) {
+                if previous - cost <= options.cost_tolerance * previous {
                     termination = Termination::CostConverged;
                 }
                 break;
@@ -336,7 +342,14 @@ pub fn identify(
         true,
     );
     let scales = column_scales(&lin.jacobian);
-    let svd = scale_columns(&lin.jacobian, &scales).svd(false, true);
+    // With fewer rows than parameters the thin SVD has no basis for the rest of the null
+    // space; zero rows complete it without changing anything else.
+    let mut scaled = scale_columns(&lin.jacobian, &scales);
+    if scaled.nrows() < scaled.ncols() {
+        let columns = scaled.ncols();
+        scaled = scaled.resize_vertically(columns, 0.0);
+    }
+    let svd = scaled.svd(false, true);
     let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
     order.sort_by(|&a, &b| svd.singular_values[b].total_cmp(&svd.singular_values[a]));
     let singular_values: Vec<f64> = order.iter().map(|&i| svd.singular_values[i]).collect();
@@ -349,19 +362,10 @@ pub fn identify(
     };
     let mut unidentifiable = Vec::new();
     if let Some(v_t) = svd.v_t.as_ref() {
-        // Null-space directions: the rows of Vᵀ for small singular values, plus any rows
-        // beyond the number of singular values (more parameters than residual rows).
-        let mut null_rows: Vec<usize> = order[rank..].to_vec();
-        null_rows.extend(svd.singular_values.len()..v_t.nrows());
-        for i in null_rows {
+        // Null-space directions: the rows of Vᵀ for the small singular values.
+        for &i in &order[rank..] {
             let direction: DVector<f64> = v_t.row(i).transpose().component_div(&scales);
             unidentifiable.push(combination(&direction, free));
-        }
-    }
-    if free.len() > rows_of(measurements) {
-        // Vᵀ is thin: describe the missing directions by completing the basis.
-        for extra in unidentifiable.len()..free.len() - rank {
-            let _ = extra;
         }
     }
     let (residual_rms_position, residual_rms_rotation) =
@@ -394,13 +398,19 @@ fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
     Combination { terms }
 }
 
+/// Column norms, floored at 1e-6 of the largest: a column that is zero but for rounding (a
+/// rotation about an axis through the tool point, say) must stay negligible after scaling,
+/// not be blown up into a unit column of noise.
 fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
+    let norms: Vec<f64> = jacobian.column_iter().map(|c| c.norm()).collect();
+    let floor = norms.iter().copied().fold(0.0, f64::max) * 1e-6;
     DVector::from_iterator(
-        jacobian.ncols(),
-        jacobian.column_iter().map(|c| {
-            let n = c.norm();
-            if n > 0.0 {
+        norms.len(),
+        norms.into_iter().map(|n| {
+            if n > floor {
                 n
+            } else if floor > 0.0 {
+                floor
             } else {
                 1.0
             }

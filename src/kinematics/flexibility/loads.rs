@@ -1,0 +1,283 @@
+//! Static gravity loads from the tips inward, and the deformations they cause (paper eq. (18),
+//! (19), (21)) at one configuration.
+//!
+//! Everything is computed in the base (root link) frame at the nominal, undeflected pose, and
+//! expressed in a joint or beam frame only where a stiffness applies: first-order theory.
+
+use super::beam::point_load_deflection;
+use super::model::{FlexibilityModel, Place, SegmentEnd};
+use crate::error::{Error, Result};
+use crate::kinematics::{FrameKind, McpcModel};
+use crate::math::{Mat3, Transform, Vec3};
+use crate::tree::KinematicTree;
+use nalgebra::Vector6;
+
+/// The deflection of one joint (eq. (18)–(19)) and the load that causes it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointDeformation {
+    /// The joint origin (origin of Σᵢ·Q(θᵢ)) in the base frame, m.
+    pub origin: Vec3,
+    /// Weight of everything the joint carries, base frame, N.
+    pub force: Vec3,
+    /// Moment of that weight about the joint origin, base frame, N·m.
+    pub moment: Vec3,
+    /// `d_joint` of eq. (19) in the moved joint frame Σᵢ·Q(θᵢ): `[0, 0, 0, Δα, Δβ, Δθ]`.
+    pub local: Vector6<f64>,
+    /// The small rotation of everything after the joint, about the joint origin, base frame, rad.
+    pub rotation: Vec3,
+}
+
+/// The deflection of one link segment (corrected eq. (21)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SegmentDeformation {
+    /// The clamped end (the proximal joint origin), base frame, m.
+    pub start: Vec3,
+    /// The free end, base frame, m.
+    pub end: Vec3,
+    /// The beam frame (x along the segment) in the base frame.
+    pub base_from_beam: Mat3,
+    /// `d_link` of eq. (21) in the beam frame: `[Δx, Δy, Δz, Δα, Δβ, Δγ]` of the free end.
+    pub local: Vector6<f64>,
+    /// Translation of the free end, base frame, m.
+    pub translation: Vec3,
+    /// Small rotation of the free end (about it), base frame, rad.
+    pub rotation: Vec3,
+}
+
+/// The flexibility deformations `d_f` of eq. (23) at one configuration, placed in the base frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Deformations {
+    /// One per MCPC frame, in [`McpcModel::frames`] order.
+    pub joints: Vec<JointDeformation>,
+    /// One per segment, in [`FlexibilityModel::segments`] order.
+    pub segments: Vec<SegmentDeformation>,
+}
+
+/// Deformations with the nominal frames they were computed at.
+pub(crate) struct Evaluation {
+    pub(crate) deformations: Deformations,
+    /// Σᵢ·Q(θᵢ) of every frame, base frame.
+    pub(crate) moved: Vec<Transform>,
+    /// Every tool frame, base frame.
+    pub(crate) tools: Vec<Transform>,
+}
+
+impl FlexibilityModel {
+    /// The joint and link deformations `d_f` at configuration `q`, with their loads.
+    pub fn deformations(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        q: &[f64],
+    ) -> Result<Deformations> {
+        Ok(self.evaluate(tree, model, q)?.deformations)
+    }
+
+    /// Checks that `tree` and `model` are the shape this model was built for.
+    fn check(&self, tree: &KinematicTree, model: &McpcModel, q: &[f64]) -> Result<()> {
+        tree.check_configuration(q)?;
+        let fits = tree.links().len() == self.link_count
+            && model.frames().len() == self.joint_compliance.len()
+            && model.tools().len() == self.segment_to_tool.len();
+        if fits {
+            Ok(())
+        } else {
+            Err(Error::InvalidData {
+                origin: "flexibility model".into(),
+                message: "the tree or MCPC model differs from the one the flexibility model was built from; build it again".into(),
+            })
+        }
+    }
+
+    pub(crate) fn evaluate(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        q: &[f64],
+    ) -> Result<Evaluation> {
+        self.check(tree, model, q)?;
+        let frames = model.frame_transforms(q);
+        let moved: Vec<Transform> = frames
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let value = model.joint_value(i, q);
+                match model.frames()[i].kind {
+                    FrameKind::Revolute => t.rotated_z(value),
+                    FrameKind::Prismatic => t.translated_z(value),
+                }
+            })
+            .collect();
+        let tools: Vec<Transform> = model
+            .tools()
+            .iter()
+            .enumerate()
+            .map(|(t, tool)| match tool.parent {
+                Some(p) => moved[p].then(model.tool_constant(t)),
+                None => *model.tool_constant(t),
+            })
+            .collect();
+        let tree_poses = if self.uses_tree {
+            Some(tree.link_poses(q)?)
+        } else {
+            None
+        };
+
+        // Where every mass is; then, from the tips inward, the weight each joint carries as a
+        // force and a moment about the base origin (moved to any point p as N − p × F).
+        let positions: Vec<Vec3> = self
+            .masses
+            .iter()
+            .map(|m| match m.place {
+                Place::Body(frame, point) => moved[frame].rotation * point + moved[frame].translation,
+                Place::Tool(tool, point) => tools[tool].rotation * point + tools[tool].translation,
+                Place::Tree {
+                    frame,
+                    body_link,
+                    link,
+                    point,
+                } => {
+                    let poses = tree_poses.as_deref().unwrap_or_default();
+                    let body_from_link = poses[body_link.0].inverse() * poses[link.0];
+                    let in_frame = model.frames()[frame].frame_from_link
+                        * body_from_link
+                        * nalgebra::Point3::from(point);
+                    moved[frame].rotation * in_frame.coords + moved[frame].translation
+                }
+            })
+            .collect();
+        let frame_count = frames.len();
+        let mut force = vec![Vec3::zeros(); frame_count];
+        let mut torque = vec![Vec3::zeros(); frame_count];
+        let mut tool_force = vec![Vec3::zeros(); tools.len()];
+        let mut tool_torque = vec![Vec3::zeros(); tools.len()];
+        for (mass, position) in self.masses.iter().zip(&positions) {
+            let weight = self.gravity * mass.mass;
+            force[mass.frame] += weight;
+            torque[mass.frame] += position.cross(&weight);
+            if let Place::Tool(tool, _) = mass.place {
+                tool_force[tool] += weight;
+                tool_torque[tool] += position.cross(&weight);
+            }
+        }
+        // Frames come parents first, so children are complete before they are added on.
+        for i in (0..frame_count).rev() {
+            if let Some(p) = model.frames()[i].parent {
+                let (f, t) = (force[i], torque[i]);
+                force[p] += f;
+                torque[p] += t;
+            }
+        }
+
+        let joints = (0..frame_count)
+            .map(|i| {
+                let origin = moved[i].translation;
+                let moment = torque[i] - origin.cross(&force[i]);
+                let rotation_matrix = moved[i].rotation;
+                let local_moment = rotation_matrix.transpose() * moment;
+                let (bending, torsion) = self.joint_compliance[i];
+                let local_rotation = Vec3::new(
+                    bending * local_moment.x,
+                    bending * local_moment.y,
+                    torsion * local_moment.z,
+                );
+                JointDeformation {
+                    origin,
+                    force: force[i],
+                    moment,
+                    local: Vector6::new(
+                        0.0,
+                        0.0,
+                        0.0,
+                        local_rotation.x,
+                        local_rotation.y,
+                        local_rotation.z,
+                    ),
+                    rotation: rotation_matrix * local_rotation,
+                }
+            })
+            .collect();
+
+        let mut segments: Vec<SegmentDeformation> = self
+            .segments
+            .iter()
+            .map(|segment| {
+                let start = moved[segment.frame].translation;
+                let (end, tip_force, tip_torque) = match segment.end {
+                    SegmentEnd::Frame(j) => (frames[j].translation, force[j], torque[j]),
+                    SegmentEnd::Tool(t) => (tools[t].translation, tool_force[t], tool_torque[t]),
+                };
+                let base_from_beam = beam_frame(
+                    &(end - start),
+                    &moved[segment.frame].rotation,
+                    segment.reference_axis,
+                );
+                let length = (end - start).norm();
+                let local = point_load_deflection(
+                    length,
+                    &segment.compliance,
+                    length,
+                    &(base_from_beam.transpose() * tip_force),
+                    &(base_from_beam.transpose() * (tip_torque - end.cross(&tip_force))),
+                );
+                SegmentDeformation {
+                    start,
+                    end,
+                    base_from_beam,
+                    local,
+                    translation: Vec3::zeros(),
+                    rotation: Vec3::zeros(),
+                }
+            })
+            .collect();
+        // Self-weight: each link's weight at its centre of mass projected on its segment, with
+        // the moment of the offset (see docs/flexibility.md).
+        for (mass, position) in self.masses.iter().zip(&positions) {
+            let Some(index) = mass.segment else {
+                continue;
+            };
+            let segment = &mut segments[index];
+            let axis = segment.base_from_beam.column(0).into_owned();
+            let length = (segment.end - segment.start).norm();
+            let station = (position - segment.start).dot(&axis).clamp(0.0, length);
+            let on_axis = segment.start + axis * station;
+            let weight = self.gravity * mass.mass;
+            let to_beam = segment.base_from_beam.transpose();
+            segment.local += point_load_deflection(
+                length,
+                &self.segments[index].compliance,
+                station,
+                &(to_beam * weight),
+                &(to_beam * (position - on_axis).cross(&weight)),
+            );
+        }
+        for segment in &mut segments {
+            segment.translation = segment.base_from_beam * segment.local.fixed_rows::<3>(0);
+            segment.rotation = segment.base_from_beam * segment.local.fixed_rows::<3>(3);
+        }
+        Ok(Evaluation {
+            deformations: Deformations { joints, segments },
+            moved,
+            tools,
+        })
+    }
+}
+
+/// The beam frame of a segment along `along` (base frame): x along the segment, z the moved
+/// frame's `reference` column made perpendicular to x, y = z × x. A zero-length segment gets
+/// the moved frame itself (its deflection is zero anyway).
+fn beam_frame(along: &Vec3, moved: &Mat3, reference: usize) -> Mat3 {
+    let Some(x) = along.try_normalize(1e-12) else {
+        return *moved;
+    };
+    // The reference axis was chosen as the most perpendicular at build time; should a changed
+    // model make it parallel, the next axis serves.
+    let z = [reference, (reference + 1) % 3, (reference + 2) % 3]
+        .into_iter()
+        .find_map(|k| {
+            let axis = moved.column(k).into_owned();
+            (axis - x * axis.dot(&x)).try_normalize(1e-6)
+        })
+        .unwrap_or_else(|| moved.column(2).into_owned());
+    Mat3::from_columns(&[x, z.cross(&x), z])
+}

@@ -1,0 +1,237 @@
+//! Identification: simulated round trips, rank-deficient data, position-only data.
+
+use crate::common::*;
+use rand::RngExt;
+use treecal::calibration::{identify, IdentificationOptions, Rigid, Termination};
+use treecal::kinematics::McpcModel;
+use treecal::measurement::{Measurement, Observation};
+use treecal::tree::{detect_branches, KinematicTree};
+
+pub fn robonaut() -> (KinematicTree, McpcModel) {
+    let tree = treecal::load_urdf(&robot("robonaut/robonaut.urdf"))
+        .unwrap()
+        .tree;
+    let branches = detect_branches(&tree, None).unwrap();
+    let model = McpcModel::from_tree(&tree, &branches).unwrap();
+    (tree, model)
+}
+
+/// The paper's section 5.2 errors: every angle parameter off by up to ±0.05 rad, every length
+/// by up to ±5 cm.
+pub fn perturbed(model: &McpcModel, seed: u64) -> McpcModel {
+    let mut rng = rng(seed);
+    let layout = model.parameter_layout();
+    let values: Vec<f64> = model
+        .parameters()
+        .iter()
+        .zip(&layout)
+        .map(|(v, (_, kind))| {
+            v + if kind.is_angle() {
+                rng.random_range(-0.05..0.05)
+            } else {
+                rng.random_range(-0.05..0.05)
+            }
+        })
+        .collect();
+    let mut truth = model.clone();
+    truth.set_parameters(&values).unwrap();
+    truth
+}
+
+/// Full-pose measurements of every tool at `count` random configurations, noise-free.
+pub fn measure(
+    tree: &KinematicTree,
+    truth: &McpcModel,
+    count: usize,
+    seed: u64,
+    position_only: bool,
+) -> Vec<Measurement> {
+    let mut rng = rng(seed);
+    let mut measurements = Vec::new();
+    for _ in 0..count {
+        let q = random_configuration(tree, &mut rng);
+        for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
+            let observation = if position_only {
+                Observation::Position(pose.translation.vector)
+            } else {
+                Observation::Pose(pose)
+            };
+            measurements.push(Measurement {
+                tool,
+                q: q.clone(),
+                observation,
+            });
+        }
+    }
+    measurements
+}
+
+fn all(model: &McpcModel) -> Vec<usize> {
+    (0..model.parameter_count()).collect()
+}
+
+#[test]
+fn noise_free_round_trip_recovers_every_parameter() {
+    let (tree, nominal) = robonaut();
+    for seed in 0..5 {
+        let truth = perturbed(&nominal, seed);
+        let measurements = measure(&tree, &truth, 20, 100 + seed, false);
+        let report = identify(
+            &nominal,
+            &measurements,
+            None,
+            &Rigid,
+            &all(&nominal),
+            &IdentificationOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(report.rank, 64, "seed {seed}: {:?}", report.singular_values);
+        assert!(report.unidentifiable.is_empty());
+        assert!(
+            report.iterations <= 6,
+            "seed {seed}: {} iterations, costs {:?}",
+            report.iterations,
+            report.costs
+        );
+        for (index, (got, want)) in report.parameters.iter().zip(truth.parameters()).enumerate() {
+            assert!(
+                (got - want).abs() < 1e-8,
+                "seed {seed}: parameter {index}: {got} vs {want}"
+            );
+        }
+        assert!(report.residual_rms_position < 1e-9 && report.residual_rms_rotation < 1e-9);
+        eprintln!(
+            "seed {seed}: {} iterations, {:?}, condition {:.3e}",
+            report.iterations, report.termination, report.condition_number
+        );
+    }
+}
+
+/// Too few configurations: the rank is reported below the parameter count, the missing
+/// combinations are listed, and the parameters off the identifiable subspace stay nominal.
+#[test]
+fn too_few_configurations_report_unidentifiable_combinations() {
+    let (tree, nominal) = robonaut();
+    let truth = perturbed(&nominal, 1);
+    let measurements = measure(&tree, &truth, 4, 7, false); // 8 poses · 6 rows = 48 < 64
+    let report = identify(
+        &nominal,
+        &measurements,
+        None,
+        &Rigid,
+        &all(&nominal),
+        &IdentificationOptions::default(),
+    )
+    .unwrap();
+    assert!(report.rank <= 48, "rank {}", report.rank);
+    assert_eq!(report.unidentifiable.len(), 64 - report.rank);
+    // The data are still fitted exactly: the model explains what was measured.
+    assert!(
+        report.residual_rms_position < 1e-8,
+        "{}",
+        report.residual_rms_position
+    );
+    assert!(report.parameters.iter().all(|p| p.is_finite()));
+}
+
+/// A single target per tool: the tool's orientation parameters cannot all be determined; the
+/// rank analysis says so (three combinations per tool) and the fit is still exact.
+#[test]
+fn position_only_data_lose_the_tool_orientation() {
+    let (tree, nominal) = robonaut();
+    let truth = perturbed(&nominal, 2);
+    let measurements = measure(&tree, &truth, 40, 8, true);
+    let report = identify(
+        &nominal,
+        &measurements,
+        None,
+        &Rigid,
+        &all(&nominal),
+        &IdentificationOptions::default(),
+    )
+    .unwrap();
+    eprintln!(
+        "position only: {:?} after {} iterations, costs {:?}, rank {}",
+        report.termination, report.iterations, report.costs, report.rank
+    );
+    assert_eq!(
+        report.rank,
+        64 - 6,
+        "singular values {:?}",
+        report.singular_values
+    );
+    assert_eq!(report.unidentifiable.len(), 6);
+    let tool_start = nominal.tool_parameter_offset(0);
+    for combination in &report.unidentifiable {
+        // Every missing direction involves tool parameters.
+        assert!(
+            combination.terms.iter().any(|(p, _)| *p >= tool_start),
+            "{combination:?}"
+        );
+    }
+    assert!(
+        report.residual_rms_position < 1e-9,
+        "{}",
+        report.residual_rms_position
+    );
+    // Tool points are predicted exactly at new configurations.
+    let mut identified = nominal.clone();
+    identified.set_parameters(&report.parameters).unwrap();
+    let mut rng = rng(99);
+    for _ in 0..10 {
+        let q = random_configuration(&tree, &mut rng);
+        for (a, b) in identified.tool_poses(&q).iter().zip(truth.tool_poses(&q)) {
+            assert!((a.translation.vector - b.translation.vector).norm() < 1e-8);
+        }
+    }
+}
+
+#[test]
+fn bad_inputs_are_errors_not_panics() {
+    let (tree, nominal) = robonaut();
+    let mut measurements = measure(&tree, &nominal, 2, 1, false);
+    let options = IdentificationOptions::default();
+    assert!(identify(&nominal, &[], None, &Rigid, &all(&nominal), &options).is_err());
+    assert!(identify(&nominal, &measurements, None, &Rigid, &[999], &options).is_err());
+    measurements[0].tool = 7;
+    assert!(identify(
+        &nominal,
+        &measurements,
+        None,
+        &Rigid,
+        &all(&nominal),
+        &options
+    )
+    .is_err());
+    measurements[0].tool = 0;
+    measurements[0].q[0] = f64::NAN;
+    let message = identify(
+        &nominal,
+        &measurements,
+        None,
+        &Rigid,
+        &all(&nominal),
+        &options,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(message.contains("non-finite"), "{message}");
+}
+
+/// Starting at the truth, nothing moves and the outcome says why it stopped.
+#[test]
+fn starting_at_the_solution_terminates_immediately() {
+    let (tree, nominal) = robonaut();
+    let measurements = measure(&tree, &nominal, 20, 3, false);
+    let report = identify(
+        &nominal,
+        &measurements,
+        None,
+        &Rigid,
+        &all(&nominal),
+        &IdentificationOptions::default(),
+    )
+    .unwrap();
+    assert!(report.iterations <= 1);
+    assert_ne!(report.termination, Termination::MaxIterations);
+}
