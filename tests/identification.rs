@@ -16,6 +16,11 @@ pub fn robonaut() -> (KinematicTree, McpcModel) {
     (tree, model)
 }
 
+/// Paper section 5.2: ±0.05 rad on angles.
+pub const ANGLE_ERROR: f64 = 0.05;
+/// Paper section 5.2: ±5 cm on lengths.
+pub const LENGTH_ERROR: f64 = 0.05;
+
 /// The paper's section 5.2 errors: every angle parameter off by up to ±0.05 rad, every length
 /// by up to ±5 cm.
 pub fn perturbed(model: &McpcModel, seed: u64) -> McpcModel {

@@ -1,0 +1,129 @@
+//! What the deformations do to the tools: the linear map D_f = J_f·d_f (paper eq. (20),
+//! (22)–(24)) and the deflected forward kinematics that inserts them as rigid transforms.
+
+use super::loads::Evaluation;
+use super::model::FlexibilityModel;
+use crate::error::Result;
+use crate::kinematics::{FrameKind, McpcModel};
+use crate::math::{Mat3, Pose, Transform, Vec3};
+use crate::tree::KinematicTree;
+use nalgebra::{Rotation3, Vector6};
+
+impl FlexibilityModel {
+    /// The flexibility error `D_f` of every tool at configuration `q`, in [`McpcModel::tools`]
+    /// order (eq. (23)–(24)): `[dp; δθ]` in the base frame, metres and radians, the convention
+    /// of [`crate::math::pose_error`]`(deflected, nominal)` and of the identification Jacobian.
+    ///
+    /// Each joint rotation δ about origin o adds `[δ × (p − o); δ]` and each segment whose free
+    /// end e moves by (u, ψ) adds `[u + ψ × (p − e); ψ]`, for tool position p: the columns of
+    /// J_f times d_f. Costs one MCPC forward kinematics plus O(frames + masses + segments).
+    pub fn tool_deflections(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        q: &[f64],
+    ) -> Result<Vec<Vector6<f64>>> {
+        let evaluation = self.evaluate(tree, model, q)?;
+        let joints = &evaluation.deformations.joints;
+        let segments = &evaluation.deformations.segments;
+        Ok(evaluation
+            .tools
+            .iter()
+            .enumerate()
+            .map(|(tool, transform)| {
+                let tip = transform.translation;
+                let mut position = Vec3::zeros();
+                let mut rotation = Vec3::zeros();
+                for &frame in model.tool_chain(tool) {
+                    let joint = &joints[frame];
+                    position += joint.rotation.cross(&(tip - joint.origin));
+                    rotation += joint.rotation;
+                }
+                let on_path = model
+                    .tool_chain(tool)
+                    .iter()
+                    .filter_map(|&frame| self.segment_to_frame[frame])
+                    .chain(self.segment_to_tool[tool]);
+                for index in on_path {
+                    let segment = &segments[index];
+                    position += segment.translation + segment.rotation.cross(&(tip - segment.end));
+                    rotation += segment.rotation;
+                }
+                Vector6::new(
+                    position.x, position.y, position.z, rotation.x, rotation.y, rotation.z,
+                )
+            })
+            .collect())
+    }
+
+    /// The tool poses at configuration `q` with every deformation inserted into the chain as
+    /// an exact small rigid transform: each joint's rotation right after its motion, each
+    /// segment's (translation, rotation) at its free end. Agrees with
+    /// [`Self::tool_deflections`] to first order in the compliances.
+    pub fn deflected_tool_poses(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        q: &[f64],
+    ) -> Result<Vec<Pose>> {
+        let evaluation = self.evaluate(tree, model, q)?;
+        let Evaluation {
+            deformations,
+            moved,
+            ..
+        } = &evaluation;
+        // A segment's deformation as a transform in its proximal moved frame (nominal axes).
+        let segment_transform = |index: Option<usize>| -> Transform {
+            let Some(index) = index else {
+                return Transform::identity();
+            };
+            let segment = &deformations.segments[index];
+            let frame = &moved[self.segments[index].frame];
+            let to_local = frame.rotation.transpose();
+            let end = to_local * (segment.end - frame.translation);
+            let rotation = exp(&(to_local * segment.rotation));
+            Transform {
+                rotation,
+                translation: end + to_local * segment.translation - rotation * end,
+            }
+        };
+        let mut deflected: Vec<Transform> = Vec::with_capacity(model.frames().len());
+        for (i, frame) in model.frames().iter().enumerate() {
+            let sigma = match frame.parent {
+                Some(p) => deflected[p]
+                    .then(&segment_transform(self.segment_to_frame[i]))
+                    .then(model.frame_constant(i)),
+                None => *model.frame_constant(i),
+            };
+            let value = model.joint_value(i, q);
+            let after_motion = match frame.kind {
+                FrameKind::Revolute => sigma.rotated_z(value),
+                FrameKind::Prismatic => sigma.translated_z(value),
+            };
+            let local = deformations.joints[i].local.fixed_rows::<3>(3).into_owned();
+            deflected.push(after_motion.then(&Transform {
+                rotation: exp(&local),
+                translation: Vec3::zeros(),
+            }));
+        }
+        Ok(model
+            .tools()
+            .iter()
+            .enumerate()
+            .map(|(t, tool)| {
+                let transform = match tool.parent {
+                    Some(p) => deflected[p]
+                        .then(&segment_transform(self.segment_to_tool[t]))
+                        .then(model.tool_constant(t)),
+                    None => *model.tool_constant(t),
+                };
+                transform.to_pose()
+            })
+            .collect())
+    }
+}
+
+/// The rotation matrix of rotation vector `v` (axis · angle).
+fn exp(v: &Vec3) -> Mat3 {
+    Rotation3::new(*v).into_inner()
+}
