@@ -31,11 +31,12 @@ pub fn perturbed(model: &McpcModel, seed: u64) -> McpcModel {
         .iter()
         .zip(&layout)
         .map(|(v, (_, kind))| {
-            v + if kind.is_angle() {
-                rng.random_range(-0.05..0.05)
+            let range = if kind.is_angle() {
+                ANGLE_ERROR
             } else {
-                rng.random_range(-0.05..0.05)
-            }
+                LENGTH_ERROR
+            };
+            v + rng.random_range(-range..range)
         })
         .collect();
     let mut truth = model.clone();

@@ -1,0 +1,26 @@
+//! The flexibility error model (paper section 3): how far gravity bends the robot's joints and
+//! links, and what that does to the tools.
+//!
+//! - [`stiffness`]: the data (gravity, payloads, joint and link stiffness), SI units.
+//! - `names`: which body each URDF link belongs to; what names in the data mean.
+//! - `model`: [`FlexibilityModel::new`] builds bodies, segments and point masses once.
+//! - `loads`: the static force balance from the tips inward and the deformations `d_f`
+//!   (eq. (18)–(19), (21)) at one configuration: [`FlexibilityModel::deformations`].
+//! - [`beam`]: the Euler–Bernoulli cantilever formulas (eq. (21), corrected).
+//! - `apply`: the linear map `D_f = J_f·d_f` (eq. (20)–(24)),
+//!   [`FlexibilityModel::tool_deflections`], and the deflected forward kinematics,
+//!   [`FlexibilityModel::deflected_tool_poses`].
+//!
+//! The model, its sign conventions and the comparison with the paper: `docs/flexibility.md`.
+
+mod apply;
+pub mod beam;
+mod loads;
+mod model;
+pub(crate) mod names;
+pub mod stiffness;
+
+pub use beam::{point_load_deflection, uniform_load_deflection, BeamCompliance};
+pub use loads::{Deformations, JointDeformation, SegmentDeformation};
+pub use model::{FlexibilityModel, Segment, SegmentEnd};
+pub use stiffness::{JointStiffness, LinkStiffness, Payload, Stiffness, STANDARD_GRAVITY};
