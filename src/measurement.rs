@@ -31,4 +31,7 @@ pub struct Measurement {
     pub q: Vec<f64>,
     /// What was measured.
     pub observation: Observation,
+    /// The calibration stage the measurement was taken for (e.g. `torso` for configurations
+    /// with the arms locked), if labelled.
+    pub stage: Option<String>,
 }

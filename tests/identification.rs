@@ -66,6 +66,7 @@ pub fn measure(
                 tool,
                 q: q.clone(),
                 observation,
+                stage: None,
             });
         }
     }
@@ -240,4 +241,134 @@ fn starting_at_the_solution_terminates_immediately() {
     .unwrap();
     assert!(report.iterations <= 1);
     assert_ne!(report.termination, Termination::MaxIterations);
+}
+
+/// Stage-1 data: the torso moves, each arm stays locked at one of `locks` configurations.
+fn torso_measurements(
+    tree: &KinematicTree,
+    truth: &McpcModel,
+    count: usize,
+    locks: usize,
+    seed: u64,
+) -> Vec<Measurement> {
+    let branches = detect_branches(tree, None).unwrap();
+    let mut rng = rng(seed);
+    let locked: Vec<Vec<f64>> = (0..locks)
+        .map(|_| random_configuration(tree, &mut rng))
+        .collect();
+    let torso_dofs: Vec<usize> = branches
+        .coupled
+        .joints
+        .iter()
+        .filter_map(|j| tree.dof_of(*j))
+        .map(|d| d.0)
+        .collect();
+    let mut measurements = Vec::new();
+    for index in 0..count {
+        let mut q = locked[index % locks].clone();
+        let free = random_configuration(tree, &mut rng);
+        for &d in &torso_dofs {
+            q[d] = free[d];
+        }
+        for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
+            measurements.push(Measurement {
+                tool,
+                q: q.clone(),
+                observation: Observation::Pose(pose),
+                stage: Some("torso".into()),
+            });
+        }
+    }
+    measurements
+}
+
+/// The paper's staging (torso with arms locked, then the arms) and the simultaneous plan give
+/// the same parameters on noise-free data: the truth.
+#[test]
+fn staged_and_simultaneous_plans_agree() {
+    use treecal::calibration::{calibrate, Plan};
+    let (tree, nominal) = robonaut();
+    let branches = detect_branches(&tree, None).unwrap();
+    let truth = perturbed(&nominal, 4);
+    let mut measurements = torso_measurements(&tree, &truth, 12, 2, 40);
+    for mut m in measure(&tree, &truth, 20, 41, false) {
+        m.stage = Some("arms".into());
+        measurements.push(m);
+    }
+    let options = IdentificationOptions::default();
+    let staged = calibrate(
+        &branches,
+        &nominal,
+        &measurements,
+        None,
+        &Rigid,
+        &Plan::staged(),
+        &options,
+    )
+    .unwrap();
+    let simultaneous = calibrate(
+        &branches,
+        &nominal,
+        &measurements,
+        None,
+        &Rigid,
+        &Plan::simultaneous(),
+        &options,
+    )
+    .unwrap();
+    assert_eq!(staged.stages.len(), 2);
+    assert_eq!(staged.stages[0].locked_tools, 4, "two locks × two arms");
+    let torso = &staged.stages[0].identification;
+    assert_eq!(
+        torso.rank,
+        8 + 4 * 6,
+        "torso + locked tools: {:?}",
+        torso.singular_values
+    );
+    for stage in &staged.stages {
+        assert!(
+            stage.identification.iterations <= 6,
+            "{}: {}",
+            stage.name,
+            stage.identification.iterations
+        );
+    }
+    let want = truth.parameters();
+    for (index, ((a, b), w)) in staged
+        .model
+        .parameters()
+        .iter()
+        .zip(simultaneous.model.parameters())
+        .zip(&want)
+        .enumerate()
+    {
+        assert!((a - w).abs() < 1e-8, "staged parameter {index}: {a} vs {w}");
+        assert!(
+            (b - w).abs() < 1e-8,
+            "simultaneous parameter {index}: {b} vs {w}"
+        );
+    }
+}
+
+#[test]
+fn a_stage_without_its_measurements_is_an_error() {
+    use treecal::calibration::{calibrate, Plan};
+    let (tree, nominal) = robonaut();
+    let branches = detect_branches(&tree, None).unwrap();
+    let measurements = measure(&tree, &nominal, 5, 1, false);
+    let message = calibrate(
+        &branches,
+        &nominal,
+        &measurements,
+        None,
+        &Rigid,
+        &Plan::staged(),
+        &IdentificationOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        message.contains("stage 'torso'") && message.contains("labelled 'torso'"),
+        "{message}"
+    );
 }

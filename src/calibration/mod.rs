@@ -1,10 +1,13 @@
 //! Identification of MCPC parameters from measurements (paper section 4, done robustly).
 //!
+//! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
 
+pub mod plan;
 pub mod solver;
 
+pub use plan::{calibrate, CalibrationReport, ParameterSet, Plan, Stage, StageReport};
 pub use solver::{
     identify, Combination, IdentificationOptions, IdentificationReport, Predictor, Rigid,
     Termination,

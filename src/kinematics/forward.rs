@@ -9,9 +9,9 @@ use crate::math::{Pose, Transform};
 use crate::tree::KinematicTree;
 
 impl McpcModel {
-    /// `transform · Q(θ)` for the joint of frame `frame`.
+    /// `transform · Q(θ)` for the joint of frame `frame` at configuration `q`.
     #[inline]
-    fn moved(&self, frame: usize, q: &[f64], transform: &Transform) -> Transform {
+    pub(crate) fn moved(&self, frame: usize, q: &[f64], transform: &Transform) -> Transform {
         let value = self.joint_value(frame, q);
         match self.frames()[frame].kind {
             FrameKind::Revolute => transform.rotated_z(value),

@@ -27,13 +27,7 @@ impl McpcModel {
     /// The previous frame moved by its joint, `P = Σ_p·Q(θ_p)`, for frame or tool parent `parent`.
     fn moved_parent(&self, parent: Option<usize>, q: &[f64], frames: &[Transform]) -> Transform {
         match parent {
-            Some(p) => {
-                let value = self.joint_value(p, q);
-                match self.frames()[p].kind {
-                    FrameKind::Revolute => frames[p].rotated_z(value),
-                    FrameKind::Prismatic => frames[p].translated_z(value),
-                }
-            }
+            Some(p) => self.moved(p, q, &frames[p]),
             None => *self.world_from_base_transform(),
         }
     }

@@ -1,10 +1,12 @@
 //! Kinematic models built on the tree: the MCPC model and its forward kinematics.
 
+pub mod flexibility;
 mod forward;
 mod jacobian;
 pub mod mcpc;
 pub mod table;
 
+pub use flexibility::{FlexibilityModel, Stiffness};
 pub use jacobian::ToolJacobian;
 pub use mcpc::{
     FrameKind, McpcFrame, McpcModel, McpcTool, ParameterKind, ParameterOwner, SINGULARITY_THRESHOLD,

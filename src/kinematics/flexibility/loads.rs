@@ -129,7 +129,9 @@ impl FlexibilityModel {
             .masses
             .iter()
             .map(|m| match m.place {
-                Place::Body(frame, point) => moved[frame].rotation * point + moved[frame].translation,
+                Place::Body(frame, point) => {
+                    moved[frame].rotation * point + moved[frame].translation
+                }
                 Place::Tool(tool, point) => tools[tool].rotation * point + tools[tool].translation,
                 Place::Tree {
                     frame,

@@ -140,10 +140,9 @@ impl FlexibilityModel {
                     &mut segment_to_frame[j],
                     model.frame_constant(j).translation,
                 ),
-                SegmentEnd::Tool(t) => (
-                    &mut segment_to_tool[t],
-                    model.tool_constant(t).translation,
-                ),
+                SegmentEnd::Tool(t) => {
+                    (&mut segment_to_tool[t], model.tool_constant(t).translation)
+                }
             };
             *slot = Some(segments.len());
             let stiffness = body_stiffness[frame].map_or(stiffness.link_default, |(_, s)| s);

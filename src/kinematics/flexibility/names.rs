@@ -130,7 +130,9 @@ impl<'a> Names<'a> {
         }
         if let Ok(id) = self.tree.joint_id(name) {
             return self.model.frame_of_joint(id).ok_or_else(|| {
-                format!("joint '{name}' is not on a calibrated branch, so it moves no beam; remove it")
+                format!(
+                    "joint '{name}' is not on a calibrated branch, so it moves no beam; remove it"
+                )
             });
         }
         let candidates = self

@@ -1,0 +1,285 @@
+//! Calibration plans: which parameters are identified from which measurements, in which order
+//! (paper section 5.3.1). A plan is data; the paper's staging is the [`Plan::staged`] preset.
+
+use super::solver::{identify, IdentificationOptions, IdentificationReport, Predictor};
+use crate::error::{Error, Result};
+use crate::kinematics::{McpcModel, McpcTool, ParameterOwner};
+use crate::measurement::Measurement;
+use crate::tree::Branches;
+use nalgebra::Vector6;
+
+/// Which parameters a stage identifies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ParameterSet {
+    /// The coupled branch (torso), from configurations with the arm joints locked: each
+    /// locked arm with its tool acts as one rigid tool whose six parameters are identified
+    /// alongside as nuisance parameters.
+    Coupled,
+    /// Every arm's frames and tool, with the coupled branch fixed.
+    Arms,
+    /// Everything at once.
+    All,
+}
+
+/// One stage of a plan.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Stage {
+    /// Name shown in reports.
+    pub name: String,
+    /// What it identifies.
+    pub parameters: ParameterSet,
+    /// Which measurements it uses: those whose `stage` label equals this, or all if `None`.
+    #[serde(default)]
+    pub measurements: Option<String>,
+}
+
+/// An ordered list of stages.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Plan {
+    /// The stages, run in order, each starting from the previous one's result.
+    pub stages: Vec<Stage>,
+}
+
+impl Plan {
+    /// The paper's staging: the torso from measurements labelled `torso` (arms locked), then
+    /// the arms from measurements labelled `arms`.
+    pub fn staged() -> Self {
+        Plan {
+            stages: vec![
+                Stage {
+                    name: "torso".into(),
+                    parameters: ParameterSet::Coupled,
+                    measurements: Some("torso".into()),
+                },
+                Stage {
+                    name: "arms".into(),
+                    parameters: ParameterSet::Arms,
+                    measurements: Some("arms".into()),
+                },
+            ],
+        }
+    }
+
+    /// Every parameter from every measurement at once.
+    pub fn simultaneous() -> Self {
+        Plan {
+            stages: vec![Stage {
+                name: "all".into(),
+                parameters: ParameterSet::All,
+                measurements: None,
+            }],
+        }
+    }
+}
+
+/// The outcome of one stage.
+#[derive(Debug, Clone)]
+pub struct StageReport {
+    /// The stage's name.
+    pub name: String,
+    /// How many measurements it used.
+    pub measurements: usize,
+    /// For a coupled stage, the number of rigid locked-arm tools it identified alongside.
+    pub locked_tools: usize,
+    /// The solver's report (parameter indices refer to the stage's own model for a coupled
+    /// stage, to the full model otherwise).
+    pub identification: IdentificationReport,
+}
+
+/// The outcome of a plan.
+#[derive(Debug, Clone)]
+pub struct CalibrationReport {
+    /// The calibrated model.
+    pub model: McpcModel,
+    /// One report per stage.
+    pub stages: Vec<StageReport>,
+}
+
+/// Runs `plan`: every stage starts from the previous stage's model. `offsets` (one predicted
+/// flexibility error per measurement, eq. (26)) is optional.
+pub fn calibrate(
+    branches: &Branches,
+    model: &McpcModel,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+    plan: &Plan,
+    options: &IdentificationOptions,
+) -> Result<CalibrationReport> {
+    if plan.stages.is_empty() {
+        return Err(Error::InvalidData {
+            origin: "plan".into(),
+            message: "the plan has no stages".into(),
+        });
+    }
+    let coupled_frames: Vec<usize> = branches
+        .coupled
+        .joints
+        .iter()
+        .filter_map(|j| model.frame_of_joint(*j))
+        .collect();
+    let mut current = model.clone();
+    let mut reports = Vec::new();
+    for stage in &plan.stages {
+        let selected: Vec<usize> = (0..measurements.len())
+            .filter(|&i| {
+                stage.measurements.is_none() || measurements[i].stage == stage.measurements
+            })
+            .collect();
+        if selected.is_empty() {
+            return Err(Error::InvalidData {
+                origin: format!("stage '{}'", stage.name),
+                message: format!(
+                    "no measurements labelled '{}'; label them (a `stage` column) or use the simultaneous plan",
+                    stage.measurements.as_deref().unwrap_or("")
+                ),
+            });
+        }
+        let data: Vec<Measurement> = selected.iter().map(|&i| measurements[i].clone()).collect();
+        let data_offsets: Option<Vec<Vector6<f64>>> =
+            offsets.map(|o| selected.iter().map(|&i| o[i]).collect());
+        let report = match stage.parameters {
+            ParameterSet::Coupled => {
+                let (stage_model, stage_data, locked_tools) =
+                    locked_arm_model(&current, &coupled_frames, &data, &stage.name)?;
+                let free: Vec<usize> = (0..stage_model.parameter_count()).collect();
+                let identification = identify(
+                    &stage_model,
+                    &stage_data,
+                    data_offsets.as_deref(),
+                    &RigidOnly,
+                    &free,
+                    options,
+                )?;
+                // Copy the torso frames back into the full model.
+                let mut values = current.parameters();
+                for (stage_frame, &frame) in coupled_frames.iter().enumerate() {
+                    let count = current.frames()[frame].kind.parameter_count();
+                    let from = stage_model.frame_parameter_offset(stage_frame);
+                    let to = current.frame_parameter_offset(frame);
+                    values[to..to + count]
+                        .copy_from_slice(&identification.parameters[from..from + count]);
+                }
+                current.set_parameters(&values)?;
+                StageReport {
+                    name: stage.name.clone(),
+                    measurements: data.len(),
+                    locked_tools,
+                    identification,
+                }
+            }
+            ParameterSet::Arms | ParameterSet::All => {
+                let free: Vec<usize> = current
+                    .parameter_layout()
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, (owner, _))| {
+                        stage.parameters == ParameterSet::All
+                            || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
+                    })
+                    .map(|(i, _)| i)
+                    .collect();
+                let identification = identify(
+                    &current,
+                    &data,
+                    data_offsets.as_deref(),
+                    predictor,
+                    &free,
+                    options,
+                )?;
+                current.set_parameters(&identification.parameters)?;
+                StageReport {
+                    name: stage.name.clone(),
+                    measurements: data.len(),
+                    locked_tools: 0,
+                    identification,
+                }
+            }
+        };
+        reports.push(report);
+    }
+    Ok(CalibrationReport {
+        model: current,
+        stages: reports,
+    })
+}
+
+/// The rigid predictor for the coupled stage's reduced model (deflection-aware predictors are
+/// defined on the full model; the coupled stage uses the offsets instead).
+struct RigidOnly;
+
+impl Predictor for RigidOnly {
+    fn predict(&self, model: &McpcModel, q: &[f64]) -> Vec<crate::math::Pose> {
+        model.tool_poses(q)
+    }
+}
+
+/// The coupled-stage model: the torso frames plus one rigid tool per distinct (tool, locked arm
+/// configuration), and the measurements re-pointed at those tools. Whether the locked tools
+/// are determined by the data is left to the solver's rank analysis.
+fn locked_arm_model(
+    model: &McpcModel,
+    coupled_frames: &[usize],
+    data: &[Measurement],
+    stage: &str,
+) -> Result<(McpcModel, Vec<Measurement>, usize)> {
+    let frames: Vec<_> = coupled_frames
+        .iter()
+        .map(|&f| model.frames()[f].clone())
+        .collect();
+    for (index, frame) in frames.iter().enumerate() {
+        if frame.parent.is_some_and(|p| p >= index) || coupled_frames[index] != index {
+            return Err(Error::InvalidData {
+                origin: format!("stage '{stage}'"),
+                message: "the coupled branch's frames must come first in the model".into(),
+            });
+        }
+    }
+    let last = coupled_frames.last().copied();
+    // Arm joint values of a measurement: every frame not in the coupled branch on its chain.
+    let arm_values = |m: &Measurement| -> Vec<f64> {
+        model
+            .tool_chain(m.tool)
+            .iter()
+            .filter(|f| !coupled_frames.contains(f))
+            .map(|&f| model.joint_value(f, &m.q))
+            .collect()
+    };
+    let mut groups: Vec<(usize, Vec<f64>, Vec<f64>)> = Vec::new(); // (tool, arm values, one q)
+    let mut stage_data = Vec::with_capacity(data.len());
+    for m in data {
+        let values = arm_values(m);
+        let group = match groups.iter().position(|(tool, v, _)| {
+            *tool == m.tool && v.iter().zip(&values).all(|(a, b)| (a - b).abs() <= 1e-9)
+        }) {
+            Some(g) => g,
+            None => {
+                groups.push((m.tool, values, m.q.clone()));
+                groups.len() - 1
+            }
+        };
+        let mut moved = m.clone();
+        moved.tool = group;
+        stage_data.push(moved);
+    }
+    let mut tools = Vec::with_capacity(groups.len());
+    for (tool, _, q) in &groups {
+        let world_from_tool = model.tool_pose(*tool, q);
+        let world_from_last = match last {
+            Some(f) => model.moved(f, q, &model.frame_transforms(q)[f]).to_pose(),
+            None => model.world_from_base(),
+        };
+        let twist = last.map_or(0.0, |f| model.frames()[f].twist);
+        let link = model.tools()[*tool].link;
+        tools.push(McpcTool::from_relative_pose(
+            link,
+            last,
+            twist,
+            &(world_from_last.inverse() * world_from_tool),
+        ));
+    }
+    let mut stage_model = McpcModel::new(frames, tools)?;
+    stage_model.set_world_from_base(&model.world_from_base());
+    Ok((stage_model, stage_data, groups.len()))
+}

@@ -1,0 +1,254 @@
+//! The stiffness YAML format (`robots/robonaut/stiffness.yaml`): gravity, payloads, joint and
+//! link stiffness for the flexibility model. Units are in the key names (SI throughout); every
+//! key is optional and defaults to [`Stiffness::default`]. See `docs/flexibility.md`.
+
+use crate::error::{Error, Result};
+use crate::kinematics::flexibility::names::Names;
+use crate::kinematics::flexibility::stiffness::{mass_problem, stiffness_problem};
+use crate::kinematics::flexibility::{JointStiffness, LinkStiffness, Payload, Stiffness};
+use crate::kinematics::McpcModel;
+use crate::math::Vec3;
+use crate::tree::KinematicTree;
+use serde::{Deserialize, Deserializer};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    #[serde(default, deserialize_with = "finite_vector")]
+    gravity_m_per_s2: Option<[f64; 3]>,
+    #[serde(default)]
+    self_weight: Option<bool>,
+    #[serde(default)]
+    payloads: BTreeMap<String, PayloadEntry>,
+    #[serde(default)]
+    joints: Option<Joints>,
+    #[serde(default)]
+    links: Option<Links>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PayloadEntry {
+    #[serde(deserialize_with = "mass")]
+    mass_kg: f64,
+    #[serde(default, deserialize_with = "finite_vector")]
+    center_of_mass_m: Option<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Joints {
+    #[serde(default)]
+    default: JointEntry,
+    #[serde(default)]
+    overrides: BTreeMap<String, JointEntry>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct JointEntry {
+    #[serde(default, deserialize_with = "stiffness")]
+    bending_nm_per_rad: Option<f64>,
+    #[serde(default, deserialize_with = "stiffness")]
+    torsion_nm_per_rad: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Links {
+    #[serde(default)]
+    default: LinkEntry,
+    #[serde(default)]
+    overrides: BTreeMap<String, LinkEntry>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct LinkEntry {
+    #[serde(default, deserialize_with = "stiffness")]
+    ea_n: Option<f64>,
+    #[serde(default, deserialize_with = "stiffness")]
+    ei_y_nm2: Option<f64>,
+    #[serde(default, deserialize_with = "stiffness")]
+    ei_z_nm2: Option<f64>,
+    #[serde(default, deserialize_with = "stiffness")]
+    gi_p_nm2: Option<f64>,
+}
+
+// Checking numbers while deserialising lets serde_yaml attach the line, column and key path.
+fn stiffness<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Option<f64>, D::Error> {
+    let value = f64::deserialize(deserializer)?;
+    match stiffness_problem(value) {
+        Some(problem) => Err(serde::de::Error::custom(format!("stiffness {problem}"))),
+        None => Ok(Some(value)),
+    }
+}
+
+fn mass<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Error> {
+    let value = f64::deserialize(deserializer)?;
+    match mass_problem(value) {
+        Some(problem) => Err(serde::de::Error::custom(problem)),
+        None => Ok(value),
+    }
+}
+
+fn finite_vector<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Option<[f64; 3]>, D::Error> {
+    let value = <[f64; 3]>::deserialize(deserializer)?;
+    if value.iter().all(|v| v.is_finite()) {
+        Ok(Some(value))
+    } else {
+        Err(serde::de::Error::custom(format!(
+            "{value:?} is not a vector of three finite numbers"
+        )))
+    }
+}
+
+/// Reads a stiffness file for the robot `tree` with MCPC model `model` (names are checked
+/// against them).
+pub fn read_stiffness(path: &Path, tree: &KinematicTree, model: &McpcModel) -> Result<Stiffness> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse_stiffness(&text, &path.display().to_string(), tree, model)
+}
+
+/// Parses a stiffness file; `origin` names the source in messages, which carry
+/// `origin:line:column` where the problem is.
+pub fn parse_stiffness(
+    text: &str,
+    origin: &str,
+    tree: &KinematicTree,
+    model: &McpcModel,
+) -> Result<Stiffness> {
+    let file: File = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
+        origin: e
+            .location()
+            .map(|l| format!("{origin}:{}:{}", l.line(), l.column()))
+            .unwrap_or_else(|| origin.to_owned()),
+        message: e.to_string(),
+    })?;
+    // serde_yaml keeps no positions for map keys, so a bad name is found in the text again.
+    let at = |path: &[&str], name: &str, message: String| Error::InvalidData {
+        origin: match locate(text, path, name) {
+            Some((line, column)) => format!("{origin}:{line}:{column}"),
+            None => origin.to_owned(),
+        },
+        message: format!("{}: {message}", path.join(".")),
+    };
+    let names = Names::new(tree, model);
+    let defaults = Stiffness::default();
+
+    let mut payloads = Vec::new();
+    for (link, entry) in file.payloads {
+        names.tool(&link).map_err(|m| at(&["payloads"], &link, m))?;
+        payloads.push(Payload {
+            link,
+            mass: entry.mass_kg,
+            center_of_mass: entry.center_of_mass_m.map_or_else(Vec3::zeros, Vec3::from),
+        });
+    }
+
+    let joints = file.joints.unwrap_or(Joints {
+        default: JointEntry::default(),
+        overrides: BTreeMap::new(),
+    });
+    let joint_default = joint_stiffness(&joints.default, &defaults.joint_default);
+    let mut joint_overrides = Vec::new();
+    for (name, entry) in joints.overrides {
+        names
+            .joint(&name)
+            .map_err(|m| at(&["joints", "overrides"], &name, m))?;
+        joint_overrides.push((name, joint_stiffness(&entry, &joint_default)));
+    }
+
+    let links = file.links.unwrap_or(Links {
+        default: LinkEntry::default(),
+        overrides: BTreeMap::new(),
+    });
+    let link_default = link_stiffness(&links.default, &defaults.link_default);
+    let mut link_overrides = Vec::new();
+    let mut bodies: BTreeMap<usize, String> = BTreeMap::new();
+    for (name, entry) in links.overrides {
+        let path = ["links", "overrides"];
+        let frame = names.body(&name).map_err(|m| at(&path, &name, m))?;
+        if let Some(other) = bodies.insert(frame, name.clone()) {
+            return Err(at(
+                &path,
+                &name,
+                format!("'{other}' and '{name}' name the same body; give its stiffness once"),
+            ));
+        }
+        link_overrides.push((name, link_stiffness(&entry, &link_default)));
+    }
+
+    let stiffness = Stiffness {
+        gravity: file.gravity_m_per_s2.map_or(defaults.gravity, Vec3::from),
+        self_weight: file.self_weight.unwrap_or(defaults.self_weight),
+        payloads,
+        joint_default,
+        joint_overrides,
+        link_default,
+        link_overrides,
+    };
+    stiffness.validate().map_err(|e| Error::InvalidData {
+        origin: origin.to_owned(),
+        message: e.to_string(),
+    })?;
+    Ok(stiffness)
+}
+
+fn joint_stiffness(entry: &JointEntry, fallback: &JointStiffness) -> JointStiffness {
+    JointStiffness {
+        bending: entry.bending_nm_per_rad.unwrap_or(fallback.bending),
+        torsion: entry.torsion_nm_per_rad.unwrap_or(fallback.torsion),
+    }
+}
+
+fn link_stiffness(entry: &LinkEntry, fallback: &LinkStiffness) -> LinkStiffness {
+    LinkStiffness {
+        axial: entry.ea_n.unwrap_or(fallback.axial),
+        bending_y: entry.ei_y_nm2.unwrap_or(fallback.bending_y),
+        bending_z: entry.ei_z_nm2.unwrap_or(fallback.bending_z),
+        torsion: entry.gi_p_nm2.unwrap_or(fallback.torsion),
+    }
+}
+
+/// 1-based line and column of mapping key `name` found after the keys `path`, in order
+/// (block or flow style, outside comments).
+fn locate(text: &str, path: &[&str], name: &str) -> Option<(usize, usize)> {
+    let mut from = 0;
+    for key in path.iter().chain([&name]) {
+        from = find_key(text, from, key)?;
+    }
+    let line_start = text[..from].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[..from].matches('\n').count() + 1;
+    Some((line, text[line_start..from].chars().count() + 1))
+}
+
+/// Byte offset of the next `key:` (bare or quoted) at or after `from`, not inside a comment.
+fn find_key(text: &str, from: usize, key: &str) -> Option<usize> {
+    let candidates = [
+        format!("{key}:"),
+        format!("\"{key}\":"),
+        format!("'{key}':"),
+    ];
+    let mut best: Option<usize> = None;
+    for candidate in &candidates {
+        let mut search = from;
+        while let Some(found) = text[search..].find(candidate.as_str()) {
+            let at = search + found;
+            let line_start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+            let before = text[line_start..at].chars().last();
+            let in_comment = text[line_start..at].contains('#');
+            if !in_comment && before.is_none_or(|c| c.is_whitespace() || c == '{' || c == ',') {
+                best = Some(best.map_or(at, |b| b.min(at)));
+                break;
+            }
+            search = at + candidate.len();
+        }
+    }
+    best
+}
