@@ -1,0 +1,171 @@
+//! A closed-form start for the iteration: where the measurement frame is relative to the
+//! robot base, and where each measured tool frame is relative to its arm's last joint.
+//!
+//! A laser tracker measures in its own frame, and the frame it reports for a tool (for
+//! example the three-target frame of the paper's section 5.3.1) can be hundreds of
+//! millimetres and tens of degrees away from the URDF tool link. Linearising that far from
+//! the truth can fail, so before iterating: (1) fit the measurement frame to the measured
+//! positions by the Kabsch/Horn method, (2) fit each tool's constant transform by averaging
+//! `last_frame⁻¹ · measured` over its measurements, and repeat a few times, since each fit
+//! improves the other.
+
+use crate::error::{Error, Result};
+use crate::kinematics::{McpcModel, McpcTool};
+use crate::math::{pose, Mat3, Pose, Rotation, Vec3};
+use crate::measurement::{Measurement, Observation};
+use nalgebra::{Rotation3, UnitQuaternion};
+
+/// What the initial guess changed.
+#[derive(Debug, Clone)]
+pub struct InitialGuess {
+    /// The model to start the iteration from.
+    pub model: McpcModel,
+    /// The estimated pose of the robot base in the measurement frame.
+    pub world_from_base: Pose,
+    /// RMS distance between measured and predicted positions before the guess (m).
+    pub rms_before: f64,
+    /// The same after the guess (m).
+    pub rms_after: f64,
+}
+
+fn measured_position(m: &Measurement) -> Vec3 {
+    match &m.observation {
+        Observation::Pose(p) => p.translation.vector,
+        Observation::Position(p) => *p,
+    }
+}
+
+fn position_rms(model: &McpcModel, measurements: &[Measurement]) -> f64 {
+    let sum: f64 = measurements
+        .iter()
+        .map(|m| {
+            (model.tool_pose(m.tool, &m.q).translation.vector - measured_position(m)).norm_squared()
+        })
+        .sum();
+    (sum / measurements.len().max(1) as f64).sqrt()
+}
+
+/// The rotation closest (Frobenius) to `m`, via SVD; `None` if `m` is degenerate.
+fn nearest_rotation(m: &Mat3) -> Option<Rotation> {
+    let svd = m.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let mut d = Mat3::identity();
+    if (u * v_t).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    Some(UnitQuaternion::from_rotation_matrix(
+        &Rotation3::from_matrix_unchecked(u * d * v_t),
+    ))
+}
+
+/// Kabsch/Horn: the rigid transform `T` minimising `Σ ‖T·from_i − to_i‖²`; `None` when the
+/// points do not fix a rotation (fewer than three, or all on a line).
+pub fn fit_rigid_transform(from: &[Vec3], to: &[Vec3]) -> Option<Pose> {
+    if from.len() < 3 || from.len() != to.len() {
+        return None;
+    }
+    let n = from.len() as f64;
+    let from_mean = from.iter().sum::<Vec3>() / n;
+    let to_mean = to.iter().sum::<Vec3>() / n;
+    let mut covariance = Mat3::zeros();
+    for (a, b) in from.iter().zip(to) {
+        covariance += (b - to_mean) * (a - from_mean).transpose();
+    }
+    let singular = covariance.singular_values();
+    if singular[1] <= 1e-12 * singular[0].max(f64::MIN_POSITIVE) {
+        return None;
+    }
+    let rotation = nearest_rotation(&covariance)?;
+    Some(pose(to_mean - rotation * from_mean, rotation))
+}
+
+/// Fits the measurement frame and every measured tool's frame in closed form (see the module
+/// documentation); `rounds` alternations (3 is plenty).
+pub fn initial_guess(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    rounds: usize,
+) -> Result<InitialGuess> {
+    if measurements.is_empty() {
+        return Err(Error::InvalidData {
+            origin: "initial guess".into(),
+            message: "no measurements".into(),
+        });
+    }
+    let rms_before = position_rms(model, measurements);
+    let mut current = model.clone();
+    for _ in 0..rounds.max(1) {
+        // (1) The measurement frame, from positions predicted in the base frame.
+        let mut in_base = current.clone();
+        in_base.set_world_from_base(&Pose::identity());
+        let predicted: Vec<Vec3> = measurements
+            .iter()
+            .map(|m| in_base.tool_pose(m.tool, &m.q).translation.vector)
+            .collect();
+        let measured: Vec<Vec3> = measurements.iter().map(measured_position).collect();
+        if let Some(world_from_base) = fit_rigid_transform(&predicted, &measured) {
+            current.set_world_from_base(&world_from_base);
+        }
+        // (2) Each tool's transform from its last moved frame.
+        let mut tools = current.tools().to_vec();
+        for (index, tool) in tools.iter_mut().enumerate() {
+            let own: Vec<&Measurement> = measurements.iter().filter(|m| m.tool == index).collect();
+            if own.is_empty() {
+                continue;
+            }
+            let last_poses: Vec<Pose> = own
+                .iter()
+                .map(|m| match tool.parent {
+                    Some(f) => current
+                        .moved(f, &m.q, &current.frame_transforms(&m.q)[f])
+                        .to_pose(),
+                    None => current.world_from_base(),
+                })
+                .collect();
+            let current_relative = tool.constant_transform();
+            let poses: Vec<Pose> = own
+                .iter()
+                .zip(&last_poses)
+                .filter_map(|(m, last)| match &m.observation {
+                    Observation::Pose(p) => Some(last.inverse() * p),
+                    Observation::Position(_) => None,
+                })
+                .collect();
+            let relative = if poses.len() == own.len() {
+                // Full poses: mean translation, chordal mean rotation.
+                let translation =
+                    poses.iter().map(|p| p.translation.vector).sum::<Vec3>() / poses.len() as f64;
+                let sum: Mat3 = poses
+                    .iter()
+                    .map(|p| *p.rotation.to_rotation_matrix().matrix())
+                    .sum();
+                match nearest_rotation(&sum) {
+                    Some(rotation) => pose(translation, rotation),
+                    None => current_relative,
+                }
+            } else {
+                // Positions: least-squares point in the last frame, orientation kept.
+                let point = own
+                    .iter()
+                    .zip(&last_poses)
+                    .map(|(m, last)| last.inverse() * nalgebra::Point3::from(measured_position(m)))
+                    .map(|p| p.coords)
+                    .sum::<Vec3>()
+                    / own.len() as f64;
+                pose(point, current_relative.rotation)
+            };
+            let twist = tool.parent.map_or(0.0, |f| current.frames()[f].twist);
+            *tool = McpcTool::from_relative_pose(tool.link, tool.parent, twist, &relative);
+        }
+        let world_from_base = current.world_from_base();
+        current = McpcModel::new(current.frames().to_vec(), tools)?;
+        current.set_world_from_base(&world_from_base);
+    }
+    let rms_after = position_rms(&current, measurements);
+    Ok(InitialGuess {
+        world_from_base: current.world_from_base(),
+        model: current,
+        rms_before,
+        rms_after,
+    })
+}
