@@ -4,6 +4,7 @@ mod common;
 
 mod branches;
 mod cli;
+mod flexibility;
 mod from_mcpc;
 mod identification;
 mod jacobian;

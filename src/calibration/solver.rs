@@ -241,22 +241,22 @@ pub fn identify(
     let mut damping = 0.0;
     let mut iterations = 0;
     let mut termination = Termination::MaxIterations;
+    // The analysis of the linearisation at `current` once the loop ends, if still valid.
+    let mut final_analysis: Option<Analysis> = None;
 
     while iterations < options.max_iterations {
-        let scales = column_scales(&lin.jacobian);
-        let scaled = scale_columns(&lin.jacobian, &scales);
-        let svd = scaled.svd(true, true);
-        let (Some(u), Some(v_t)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
-            break;
-        };
-        let sigma_max = svd.singular_values.max();
+        let analysis = analyse(&lin);
+        let sigma_max = analysis.singular_values.iter().copied().fold(0.0, f64::max);
         let threshold = options.rank_tolerance * sigma_max;
-        let projected = u.transpose() * &lin.residual;
+        // Minimum-norm (damped) Gauss–Newton step in scaled units over the retained singular
+        // directions: Σ vᵢ (vᵢᵀ g) / (σᵢ² + λ), with g = J_sᵀ r.
         let step_for = |damping: f64| -> DVector<f64> {
             let mut step = DVector::zeros(free.len());
-            for (i, &s) in svd.singular_values.iter().enumerate() {
-                if s > threshold {
-                    step += v_t.row(i).transpose() * (s / (s * s + damping) * projected[i]);
+            for (i, &sigma) in analysis.singular_values.iter().enumerate() {
+                if sigma > threshold {
+                    let v = analysis.v_t.row(i).transpose();
+                    let along = v.dot(&analysis.gradient) / (sigma * sigma + damping);
+                    step += v * along;
                 }
             }
             step
@@ -264,19 +264,20 @@ pub fn identify(
         // Converged when the full Gauss–Newton step is negligible against the parameters.
         let scaled_parameters = free
             .iter()
-            .zip(scales.iter())
+            .zip(analysis.scales.iter())
             .map(|(&p, s)| (parameters[p] * s).powi(2))
             .sum::<f64>()
             .sqrt();
         if step_for(0.0).norm() <= options.step_tolerance * (1.0 + scaled_parameters) {
             termination = Termination::StepConverged;
+            final_analysis = Some(analysis);
             break;
         }
 
         let mut accepted = false;
         for _attempt in 0..40 {
             let step_scaled = step_for(damping);
-            let step: DVector<f64> = step_scaled.component_div(&scales);
+            let step: DVector<f64> = step_scaled.component_div(&analysis.scales);
             let mut trial = parameters.clone();
             for (k, &p) in free.iter().enumerate() {
                 trial[p] += step[k];
@@ -315,9 +316,7 @@ pub fn identify(
         }
         if !accepted {
             termination = Termination::NoDecrease;
-            break;
-        }
-        if termination != Termination::MaxIterations {
+            final_analysis = Some(analysis);
             break;
         }
         lin = linearise(
@@ -329,30 +328,19 @@ pub fn identify(
             options,
             true,
         );
+        if termination != Termination::MaxIterations {
+            break;
+        }
     }
 
     // Identifiability at the solution.
-    let lin = linearise(
-        &current,
-        measurements,
-        offsets,
-        predictor,
-        free,
-        options,
-        true,
-    );
-    let scales = column_scales(&lin.jacobian);
-    // With fewer rows than parameters the thin SVD has no basis for the rest of the null
-    // space; zero rows complete it without changing anything else.
-    let mut scaled = scale_columns(&lin.jacobian, &scales);
-    if scaled.nrows() < scaled.ncols() {
-        let columns = scaled.ncols();
-        scaled = scaled.resize_vertically(columns, 0.0);
-    }
-    let svd = scaled.svd(false, true);
-    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
-    order.sort_by(|&a, &b| svd.singular_values[b].total_cmp(&svd.singular_values[a]));
-    let singular_values: Vec<f64> = order.iter().map(|&i| svd.singular_values[i]).collect();
+    let analysis = match final_analysis {
+        Some(analysis) => analysis,
+        None => analyse(&lin),
+    };
+    let mut order: Vec<usize> = (0..analysis.singular_values.len()).collect();
+    order.sort_by(|&a, &b| analysis.singular_values[b].total_cmp(&analysis.singular_values[a]));
+    let singular_values: Vec<f64> = order.iter().map(|&i| analysis.singular_values[i]).collect();
     let sigma_max = singular_values.first().copied().unwrap_or(0.0);
     let threshold = options.rank_tolerance * sigma_max;
     let rank = singular_values.iter().filter(|&&s| s > threshold).count();
@@ -360,14 +348,20 @@ pub fn identify(
         Some(&smallest) if rank > 0 && smallest > 0.0 => sigma_max / smallest,
         _ => f64::INFINITY,
     };
-    let mut unidentifiable = Vec::new();
-    if let Some(v_t) = svd.v_t.as_ref() {
-        // Null-space directions: the rows of Vᵀ for the small singular values.
-        for &i in &order[rank..] {
-            let direction: DVector<f64> = v_t.row(i).transpose().component_div(&scales);
-            unidentifiable.push(combination(&direction, free));
-        }
-    }
+    // Null-space directions: the rows of Vᵀ for the small singular values.
+    let unidentifiable = order[rank..]
+        .iter()
+        .map(|&i| {
+            combination(
+                &analysis
+                    .v_t
+                    .row(i)
+                    .transpose()
+                    .component_div(&analysis.scales),
+                free,
+            )
+        })
+        .collect();
     let (residual_rms_position, residual_rms_rotation) =
         residual_rms(&current, measurements, offsets, predictor);
     Ok(IdentificationReport {
@@ -383,6 +377,40 @@ pub fn identify(
         residual_rms_position,
         residual_rms_rotation,
     })
+}
+
+/// The column-scaled Jacobian's singular values and right singular vectors, and the scaled
+/// gradient `g = J_sᵀ·r`.
+struct Analysis {
+    scales: DVector<f64>,
+    singular_values: DVector<f64>,
+    v_t: DMatrix<f64>,
+    gradient: DVector<f64>,
+}
+
+/// Column scaling, then the SVD of the small triangle `R` of `J_s = Q·R` (same singular values
+/// and `V` as `J_s`, at a fraction of the cost). With fewer rows than columns, zero rows
+/// complete the matrix so that `V` spans the whole null space.
+fn analyse(lin: &Linearisation) -> Analysis {
+    let scales = column_scales(&lin.jacobian);
+    let scaled = scale_columns(&lin.jacobian, &scales);
+    let gradient = scaled.tr_mul(&lin.residual);
+    let columns = scaled.ncols();
+    let square = if scaled.nrows() >= columns {
+        scaled.qr().r()
+    } else {
+        scaled.resize_vertically(columns, 0.0)
+    };
+    let svd = square.svd(false, true);
+    let v_t = svd
+        .v_t
+        .unwrap_or_else(|| DMatrix::identity(columns, columns));
+    Analysis {
+        scales,
+        singular_values: svd.singular_values,
+        v_t,
+        gradient,
+    }
 }
 
 fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {

@@ -16,7 +16,7 @@ use std::path::Path;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct File {
-    #[serde(default, deserialize_with = "finite_vector")]
+    #[serde(default, deserialize_with = "checked::gravity_m_per_s2")]
     gravity_m_per_s2: Option<[f64; 3]>,
     #[serde(default)]
     self_weight: Option<bool>,
@@ -33,7 +33,7 @@ struct File {
 struct PayloadEntry {
     #[serde(deserialize_with = "mass")]
     mass_kg: f64,
-    #[serde(default, deserialize_with = "finite_vector")]
+    #[serde(default, deserialize_with = "checked::center_of_mass_m")]
     center_of_mass_m: Option<[f64; 3]>,
 }
 
@@ -49,9 +49,9 @@ struct Joints {
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct JointEntry {
-    #[serde(default, deserialize_with = "stiffness")]
+    #[serde(default, deserialize_with = "checked::bending_nm_per_rad")]
     bending_nm_per_rad: Option<f64>,
-    #[serde(default, deserialize_with = "stiffness")]
+    #[serde(default, deserialize_with = "checked::torsion_nm_per_rad")]
     torsion_nm_per_rad: Option<f64>,
 }
 
@@ -67,40 +67,78 @@ struct Links {
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct LinkEntry {
-    #[serde(default, deserialize_with = "stiffness")]
+    #[serde(default, deserialize_with = "checked::ea_n")]
     ea_n: Option<f64>,
-    #[serde(default, deserialize_with = "stiffness")]
+    #[serde(default, deserialize_with = "checked::ei_y_nm2")]
     ei_y_nm2: Option<f64>,
-    #[serde(default, deserialize_with = "stiffness")]
+    #[serde(default, deserialize_with = "checked::ei_z_nm2")]
     ei_z_nm2: Option<f64>,
-    #[serde(default, deserialize_with = "stiffness")]
+    #[serde(default, deserialize_with = "checked::gi_p_nm2")]
     gi_p_nm2: Option<f64>,
 }
 
 // Checking numbers while deserialising lets serde_yaml attach the line, column and key path.
-fn stiffness<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Option<f64>, D::Error> {
+fn positive<'de, D: Deserializer<'de>>(
+    deserializer: D,
+    key: &str,
+) -> Result<Option<f64>, D::Error> {
     let value = f64::deserialize(deserializer)?;
     match stiffness_problem(value) {
-        Some(problem) => Err(serde::de::Error::custom(format!("stiffness {problem}"))),
+        Some(problem) => Err(serde::de::Error::custom(format!("{key} {problem}"))),
         None => Ok(Some(value)),
     }
+}
+
+/// One checked reader per key, so that messages name the key.
+mod checked {
+    use serde::Deserializer;
+
+    macro_rules! positive {
+        ($($key:ident),*) => {$(
+            pub(super) fn $key<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+                super::positive(d, stringify!($key))
+            }
+        )*};
+    }
+    positive!(
+        bending_nm_per_rad,
+        torsion_nm_per_rad,
+        ea_n,
+        ei_y_nm2,
+        ei_z_nm2,
+        gi_p_nm2
+    );
+
+    macro_rules! finite_vector {
+        ($($key:ident),*) => {$(
+            pub(super) fn $key<'de, D: Deserializer<'de>>(
+                d: D,
+            ) -> Result<Option<[f64; 3]>, D::Error> {
+                super::finite_vector(d, stringify!($key))
+            }
+        )*};
+    }
+    finite_vector!(gravity_m_per_s2, center_of_mass_m);
 }
 
 fn mass<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Error> {
     let value = f64::deserialize(deserializer)?;
     match mass_problem(value) {
-        Some(problem) => Err(serde::de::Error::custom(problem)),
+        Some(problem) => Err(serde::de::Error::custom(format!("mass_kg {problem}"))),
         None => Ok(value),
     }
 }
 
-fn finite_vector<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Option<[f64; 3]>, D::Error> {
+fn finite_vector<'de, D: Deserializer<'de>>(
+    deserializer: D,
+    key: &str,
+) -> Result<Option<[f64; 3]>, D::Error> {
     let value = <[f64; 3]>::deserialize(deserializer)?;
     if value.iter().all(|v| v.is_finite()) {
         Ok(Some(value))
     } else {
         Err(serde::de::Error::custom(format!(
-            "{value:?} is not a vector of three finite numbers"
+            "{key} is {value:?}; must be three finite numbers"
         )))
     }
 }
@@ -123,13 +161,7 @@ pub fn parse_stiffness(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<Stiffness> {
-    let file: File = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
-        origin: e
-            .location()
-            .map(|l| format!("{origin}:{}:{}", l.line(), l.column()))
-            .unwrap_or_else(|| origin.to_owned()),
-        message: e.to_string(),
-    })?;
+    let file: File = serde_yaml::from_str(text).map_err(|e| yaml_error(text, origin, &e))?;
     // serde_yaml keeps no positions for map keys, so a bad name is found in the text again.
     let at = |path: &[&str], name: &str, message: String| Error::InvalidData {
         origin: match locate(text, path, name) {
@@ -216,6 +248,76 @@ fn link_stiffness(entry: &LinkEntry, fallback: &LinkStiffness) -> LinkStiffness 
     }
 }
 
+/// Keys whose values are checked while deserialising (see `checked`).
+const CHECKED_KEYS: [&str; 9] = [
+    "bending_nm_per_rad",
+    "torsion_nm_per_rad",
+    "ea_n",
+    "ei_y_nm2",
+    "ei_z_nm2",
+    "gi_p_nm2",
+    "gravity_m_per_s2",
+    "center_of_mass_m",
+    "mass_kg",
+];
+
+/// A serde_yaml error as an [`Error`] at `origin:line:column`.
+///
+/// serde_yaml places errors raised after a value was read (our range checks) and unknown keys
+/// at the start of the enclosing mapping, which in block style can be lines away (or 1:1 for
+/// top-level keys); the key is looked up from there so that the place is the key's own line.
+fn yaml_error(text: &str, origin: &str, error: &serde_yaml::Error) -> Error {
+    let mut message = error.to_string();
+    let Some(location) = error.location() else {
+        return Error::InvalidData {
+            origin: origin.to_owned(),
+            message,
+        };
+    };
+    let suffix = format!(" at line {} column {}", location.line(), location.column());
+    if message.ends_with(&suffix) {
+        message.truncate(message.len() - suffix.len());
+    }
+    let key = CHECKED_KEYS
+        .iter()
+        .find(|k| message.contains(&format!("{k} is ")))
+        .map(|k| k.to_string())
+        .or_else(|| {
+            let rest = message.split("unknown field `").nth(1)?;
+            Some(rest.split('`').next()?.to_owned())
+        });
+    let mark = offset_of(text, location.line(), location.column());
+    let (line, column) = key
+        .and_then(|k| find_key(text, mark, &k))
+        .map_or((location.line(), location.column()), |at| {
+            line_and_column(text, at)
+        });
+    Error::InvalidData {
+        origin: format!("{origin}:{line}:{column}"),
+        message,
+    }
+}
+
+/// Byte offset of 1-based `line` and `column` (in characters) in `text`.
+fn offset_of(text: &str, line: usize, column: usize) -> usize {
+    let line_start = text
+        .match_indices('\n')
+        .nth(line.saturating_sub(2))
+        .map_or(0, |(i, _)| i + 1);
+    let line_start = if line <= 1 { 0 } else { line_start };
+    text[line_start..]
+        .char_indices()
+        .nth(column.saturating_sub(1))
+        .map_or(text.len(), |(i, _)| line_start + i)
+}
+
+/// 1-based line and column (in characters) of byte offset `at`.
+fn line_and_column(text: &str, at: usize) -> (usize, usize) {
+    let line_start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[..at].matches('\n').count() + 1;
+    (line, text[line_start..at].chars().count() + 1)
+}
+
 /// 1-based line and column of mapping key `name` found after the keys `path`, in order
 /// (block or flow style, outside comments).
 fn locate(text: &str, path: &[&str], name: &str) -> Option<(usize, usize)> {
@@ -223,9 +325,7 @@ fn locate(text: &str, path: &[&str], name: &str) -> Option<(usize, usize)> {
     for key in path.iter().chain([&name]) {
         from = find_key(text, from, key)?;
     }
-    let line_start = text[..from].rfind('\n').map_or(0, |i| i + 1);
-    let line = text[..from].matches('\n').count() + 1;
-    Some((line, text[line_start..from].chars().count() + 1))
+    Some(line_and_column(text, from))
 }
 
 /// Byte offset of the next `key:` (bare or quoted) at or after `from`, not inside a comment.

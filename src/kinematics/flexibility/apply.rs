@@ -16,7 +16,9 @@ impl FlexibilityModel {
     ///
     /// Each joint rotation δ about origin o adds `[δ × (p − o); δ]` and each segment whose free
     /// end e moves by (u, ψ) adds `[u + ψ × (p − e); ψ]`, for tool position p: the columns of
-    /// J_f times d_f. Costs one MCPC forward kinematics plus O(frames + masses + segments).
+    /// J_f times d_f. "Base frame" is the frame the model's poses are in (the measurement frame
+    /// if [`McpcModel::set_world_from_base`] was used); gravity is turned into it. Costs one MCPC
+    /// forward kinematics plus O(frames + masses + segments + tools × chain length).
     pub fn tool_deflections(
         &self,
         tree: &KinematicTree,
@@ -93,7 +95,9 @@ impl FlexibilityModel {
                 Some(p) => deflected[p]
                     .then(&segment_transform(self.segment_to_frame[i]))
                     .then(model.frame_constant(i)),
-                None => *model.frame_constant(i),
+                None => model
+                    .world_from_base_transform()
+                    .then(model.frame_constant(i)),
             };
             let value = model.joint_value(i, q);
             let after_motion = match frame.kind {
@@ -115,7 +119,9 @@ impl FlexibilityModel {
                     Some(p) => deflected[p]
                         .then(&segment_transform(self.segment_to_tool[t]))
                         .then(model.tool_constant(t)),
-                    None => *model.tool_constant(t),
+                    None => model
+                        .world_from_base_transform()
+                        .then(model.tool_constant(t)),
                 };
                 transform.to_pose()
             })

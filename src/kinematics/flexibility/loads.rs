@@ -45,6 +45,9 @@ pub struct SegmentDeformation {
 }
 
 /// The flexibility deformations `d_f` of eq. (23) at one configuration, placed in the base frame.
+///
+/// "Base frame" here and in the fields is the frame the MCPC model's poses are in: the root
+/// link frame, or the measurement frame if [`McpcModel::set_world_from_base`] moved it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Deformations {
     /// One per MCPC frame, in [`McpcModel::frames`] order.
@@ -114,9 +117,13 @@ impl FlexibilityModel {
             .enumerate()
             .map(|(t, tool)| match tool.parent {
                 Some(p) => moved[p].then(model.tool_constant(t)),
-                None => *model.tool_constant(t),
+                None => model
+                    .world_from_base_transform()
+                    .then(model.tool_constant(t)),
             })
             .collect();
+        // Frames are in the model's measurement frame; gravity is given in the root frame.
+        let gravity = model.world_from_base_transform().rotation * self.gravity;
         let tree_poses = if self.uses_tree {
             Some(tree.link_poses(q)?)
         } else {
@@ -154,7 +161,7 @@ impl FlexibilityModel {
         let mut tool_force = vec![Vec3::zeros(); tools.len()];
         let mut tool_torque = vec![Vec3::zeros(); tools.len()];
         for (mass, position) in self.masses.iter().zip(&positions) {
-            let weight = self.gravity * mass.mass;
+            let weight = gravity * mass.mass;
             force[mass.frame] += weight;
             torque[mass.frame] += position.cross(&weight);
             if let Place::Tool(tool, _) = mass.place {
@@ -243,7 +250,7 @@ impl FlexibilityModel {
             let length = (segment.end - segment.start).norm();
             let station = (position - segment.start).dot(&axis).clamp(0.0, length);
             let on_axis = segment.start + axis * station;
-            let weight = self.gravity * mass.mass;
+            let weight = gravity * mass.mass;
             let to_beam = segment.base_from_beam.transpose();
             segment.local += point_load_deflection(
                 length,

@@ -89,8 +89,8 @@ impl<'a> Names<'a> {
                 )
             }),
             Err(_) => Err(format!(
-                "unknown joint '{name}'{}; use the name of a calibrated joint",
-                did_you_mean(name, self.frame_joint_names())
+                "unknown joint '{name}'{}",
+                hint_or_list(name, self.frame_joint_names().collect(), "calibrated joints")
             )),
         }
     }
@@ -106,9 +106,8 @@ impl<'a> Names<'a> {
                 )
             }),
             Err(_) => Err(format!(
-                "unknown link '{name}'{}; payloads go at the tool links ({})",
-                did_you_mean(name, tools.iter().copied()),
-                tools.join(", ")
+                "unknown link '{name}'{}",
+                hint_or_list(name, tools, "payloads go at the tool links")
             )),
         }
     }
@@ -142,10 +141,15 @@ impl<'a> Names<'a> {
             .zip(&self.membership)
             .filter(|(_, m)| matches!(m, Membership::Body { rigid: true, .. }))
             .map(|(l, _)| l.name.as_str())
-            .chain(self.frame_joint_names());
+            .chain(self.frame_joint_names())
+            .collect();
         Err(format!(
-            "unknown link or joint '{name}'{}; name a link of a calibrated body or the joint that moves it",
-            did_you_mean(name, candidates)
+            "unknown link or joint '{name}'{}",
+            hint_or_list(
+                name,
+                candidates,
+                "name a link of a calibrated body or the joint that moves it"
+            )
         ))
     }
 
@@ -158,5 +162,15 @@ impl<'a> Names<'a> {
             .map(|&j| self.tree.joint(j))
             .find(|j| j.kind.is_movable())
             .map_or_else(|| "the base".into(), |j| format!("joint '{}'", j.name))
+    }
+}
+
+/// "; did you mean 'x'?" when a candidate is close, else "; {what}: a, b, c".
+fn hint_or_list(name: &str, candidates: Vec<&str>, what: &str) -> String {
+    let hint = did_you_mean(name, candidates.iter().copied());
+    if hint.is_empty() {
+        format!("; {what}: {}", candidates.join(", "))
+    } else {
+        hint
     }
 }

@@ -131,7 +131,10 @@ impl Stiffness {
         }
         for payload in &self.payloads {
             if let Some(message) = mass_problem(payload.mass) {
-                return Err(bad(format!("payload at '{}': {message}", payload.link)));
+                return Err(bad(format!(
+                    "payload at '{}': mass {message}",
+                    payload.link
+                )));
             }
             if !payload.center_of_mass.iter().all(|c| c.is_finite()) {
                 return Err(bad(format!(
@@ -170,12 +173,8 @@ impl Stiffness {
 
 /// What is wrong with a stiffness value, if anything: it must be > 0; `+∞` (rigid) is allowed.
 pub(crate) fn stiffness_problem(value: f64) -> Option<String> {
-    if value.is_nan() {
-        Some("is NaN; give a positive number (or .inf for rigid)".into())
-    } else if value <= 0.0 {
-        Some(format!(
-            "is {value}; stiffness must be positive (use .inf for rigid)"
-        ))
+    if value.is_nan() || value <= 0.0 {
+        Some(format!("is {value}; must be positive (use .inf for rigid)"))
     } else {
         None
     }
@@ -184,9 +183,7 @@ pub(crate) fn stiffness_problem(value: f64) -> Option<String> {
 /// What is wrong with a mass, if anything: it must be finite and ≥ 0.
 pub(crate) fn mass_problem(value: f64) -> Option<String> {
     if !value.is_finite() || value < 0.0 {
-        Some(format!(
-            "mass {value} kg is not a finite non-negative number"
-        ))
+        Some(format!("is {value}; must be a finite number ≥ 0 (kg)"))
     } else {
         None
     }

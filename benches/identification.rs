@@ -1,0 +1,83 @@
+//! Identification benchmarks on the built-in Robonaut (robots/robonaut/robonaut.urdf).
+//!
+//! Targets (issue 3): the full identification Jacobian of both tools (64 parameters) for one
+//! configuration under 2 µs; one full calibration on 20 and on 100 configurations under 5 ms
+//! and 17 ms.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use std::hint::black_box;
+use treecal::calibration::{identify, IdentificationOptions, Rigid};
+use treecal::measurement::{Measurement, Observation};
+use treecal::{detect_branches, load_urdf, KinematicTree, McpcModel};
+
+fn robonaut() -> (KinematicTree, McpcModel) {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/robonaut/robonaut.urdf");
+    let tree = load_urdf(&path).expect("robonaut.urdf loads").tree;
+    let branches = detect_branches(&tree, None).expect("branches");
+    let model = McpcModel::from_tree(&tree, &branches).expect("model");
+    (tree, model)
+}
+
+/// The paper's section 5.2 truth (±0.05 rad, ±5 cm) and noise-free full-pose measurements.
+fn problem(tree: &KinematicTree, nominal: &McpcModel, configurations: usize) -> Vec<Measurement> {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let values: Vec<f64> = nominal
+        .parameters()
+        .iter()
+        .map(|v| v + rng.random_range(-0.05..0.05))
+        .collect();
+    let mut truth = nominal.clone();
+    truth.set_parameters(&values).expect("parameters");
+    let mut measurements = Vec::new();
+    for _ in 0..configurations {
+        let q: Vec<f64> = (0..tree.dof_count())
+            .map(|_| rng.random_range(-2.9..2.9))
+            .collect();
+        for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
+            measurements.push(Measurement {
+                tool,
+                q: q.clone(),
+                observation: Observation::Pose(pose),
+                stage: None,
+            });
+        }
+    }
+    measurements
+}
+
+fn benchmarks(c: &mut Criterion) {
+    let (tree, model) = robonaut();
+    let q: Vec<f64> = (0..tree.dof_count())
+        .map(|i| 0.1 * i as f64 - 0.5)
+        .collect();
+    c.bench_function("jacobian_both_tools_robonaut", |b| {
+        b.iter(|| model.tool_jacobians(black_box(&q)))
+    });
+    let free: Vec<usize> = (0..model.parameter_count()).collect();
+    let options = IdentificationOptions::default();
+    for configurations in [20, 100] {
+        let measurements = problem(&tree, &model, configurations);
+        c.bench_function(
+            &format!("calibrate_robonaut_{configurations}_configurations"),
+            |b| {
+                b.iter(|| {
+                    identify(
+                        &model,
+                        black_box(&measurements),
+                        None,
+                        &Rigid,
+                        &free,
+                        &options,
+                    )
+                    .expect("identify")
+                })
+            },
+        );
+    }
+}
+
+criterion_group!(benches, benchmarks);
+criterion_main!(benches);
