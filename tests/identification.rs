@@ -170,6 +170,8 @@ fn position_only_data_lose_the_tool_orientation() {
     assert_eq!(report.unidentifiable.len(), 6);
     let tool_start = nominal.tool_parameter_offset(0);
     for combination in &report.unidentifiable {
+        let words = combination.describe(&nominal, &tree);
+        assert!(words.contains("_tool "), "{words}");
         // Every missing direction involves tool parameters.
         assert!(
             combination.terms.iter().any(|(p, _)| *p >= tool_start),

@@ -83,6 +83,17 @@ pub struct Combination {
     pub terms: Vec<(usize, f64)>,
 }
 
+impl Combination {
+    /// The combination in words, e.g. `left_tool alpha (+0.71) with left_tool gamma (−0.71)`.
+    pub fn describe(&self, model: &McpcModel, tree: &crate::tree::KinematicTree) -> String {
+        self.terms
+            .iter()
+            .map(|(p, w)| format!("{} ({w:+.2})", model.parameter_name(tree, *p)))
+            .collect::<Vec<_>>()
+            .join(" with ")
+    }
+}
+
 /// What the identification did and found.
 #[derive(Debug, Clone)]
 pub struct IdentificationReport {

@@ -422,6 +422,19 @@ impl McpcModel {
         layout
     }
 
+    /// A readable name of parameter `index`, e.g. `left_joint1 alpha` or `left_tool z`.
+    pub fn parameter_name(&self, tree: &KinematicTree, index: usize) -> String {
+        match self.parameter_layout().get(index) {
+            Some((ParameterOwner::Frame(f), kind)) => {
+                format!("{} {}", tree.joint(self.frames[*f].joint).name, kind.name())
+            }
+            Some((ParameterOwner::Tool(t), kind)) => {
+                format!("{} {}", tree.link(self.tools[*t].link).name, kind.name())
+            }
+            None => format!("parameter {index}"),
+        }
+    }
+
     /// The flat parameter vector (rad, m) in [`Self::parameter_layout`] order.
     pub fn parameters(&self) -> Vec<f64> {
         self.parameter_layout()
