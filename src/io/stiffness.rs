@@ -21,11 +21,11 @@ struct File {
     #[serde(default)]
     self_weight: Option<bool>,
     #[serde(default)]
-    payloads: BTreeMap<String, PayloadEntry>,
+    payloads: Entries<PayloadEntry>,
     #[serde(default)]
-    joints: Option<Joints>,
+    joints: Joints,
     #[serde(default)]
-    links: Option<Links>,
+    links: Links,
 }
 
 #[derive(Deserialize)]
@@ -37,13 +37,13 @@ struct PayloadEntry {
     center_of_mass_m: Option<[f64; 3]>,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct Joints {
     #[serde(default)]
     default: JointEntry,
     #[serde(default)]
-    overrides: BTreeMap<String, JointEntry>,
+    overrides: Entries<JointEntry>,
 }
 
 #[derive(Deserialize, Default)]
@@ -55,13 +55,13 @@ struct JointEntry {
     torsion_nm_per_rad: Option<f64>,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct Links {
     #[serde(default)]
     default: LinkEntry,
     #[serde(default)]
-    overrides: BTreeMap<String, LinkEntry>,
+    overrides: Entries<LinkEntry>,
 }
 
 #[derive(Deserialize, Default)]
@@ -75,6 +75,44 @@ struct LinkEntry {
     ei_z_nm2: Option<f64>,
     #[serde(default, deserialize_with = "checked::gi_p_nm2")]
     gi_p_nm2: Option<f64>,
+}
+
+/// A mapping from names to entries, in file order; a name given twice is an error (a plain map
+/// would keep the last one silently).
+struct Entries<T>(Vec<(String, T)>);
+
+impl<T> Default for Entries<T> {
+    fn default() -> Self {
+        Self(Vec::new())
+    }
+}
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for Entries<T> {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor<T>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> serde::de::Visitor<'de> for Visitor<T> {
+            type Value = Entries<T>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a mapping from names to entries")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> Result<Self::Value, A::Error> {
+                let mut entries: Vec<(String, T)> = Vec::new();
+                while let Some((name, value)) = map.next_entry::<String, T>()? {
+                    if entries.iter().any(|(n, _)| *n == name) {
+                        return Err(serde::de::Error::custom(format!(
+                            "duplicate key `{name}`; give each name once"
+                        )));
+                    }
+                    entries.push((name, value));
+                }
+                Ok(Entries(entries))
+            }
+        }
+        deserializer.deserialize_map(Visitor(std::marker::PhantomData))
+    }
 }
 
 // Checking numbers while deserialising lets serde_yaml attach the line, column and key path.
@@ -174,7 +212,7 @@ pub fn parse_stiffness(
     let defaults = Stiffness::default();
 
     let mut payloads = Vec::new();
-    for (link, entry) in file.payloads {
+    for (link, entry) in file.payloads.0 {
         names.tool(&link).map_err(|m| at(&["payloads"], &link, m))?;
         payloads.push(Payload {
             link,
@@ -183,27 +221,21 @@ pub fn parse_stiffness(
         });
     }
 
-    let joints = file.joints.unwrap_or(Joints {
-        default: JointEntry::default(),
-        overrides: BTreeMap::new(),
-    });
+    let joints = file.joints;
     let joint_default = joint_stiffness(&joints.default, &defaults.joint_default);
     let mut joint_overrides = Vec::new();
-    for (name, entry) in joints.overrides {
+    for (name, entry) in joints.overrides.0 {
         names
             .joint(&name)
             .map_err(|m| at(&["joints", "overrides"], &name, m))?;
         joint_overrides.push((name, joint_stiffness(&entry, &joint_default)));
     }
 
-    let links = file.links.unwrap_or(Links {
-        default: LinkEntry::default(),
-        overrides: BTreeMap::new(),
-    });
+    let links = file.links;
     let link_default = link_stiffness(&links.default, &defaults.link_default);
     let mut link_overrides = Vec::new();
     let mut bodies: BTreeMap<usize, String> = BTreeMap::new();
-    for (name, entry) in links.overrides {
+    for (name, entry) in links.overrides.0 {
         let path = ["links", "overrides"];
         let frame = names.body(&name).map_err(|m| at(&path, &name, m))?;
         if let Some(other) = bodies.insert(frame, name.clone()) {
@@ -282,20 +314,30 @@ fn yaml_error(text: &str, origin: &str, error: &serde_yaml::Error) -> Error {
         .iter()
         .find(|k| message.contains(&format!("{k} is ")))
         .map(|k| k.to_string())
-        .or_else(|| {
-            let rest = message.split("unknown field `").nth(1)?;
-            Some(rest.split('`').next()?.to_owned())
-        });
+        .or_else(|| quoted_after(&message, "unknown field `"));
+    let duplicate = quoted_after(&message, "duplicate key `");
     let mark = offset_of(text, location.line(), location.column());
-    let (line, column) = key
-        .and_then(|k| find_key(text, mark, &k))
-        .map_or((location.line(), location.column()), |at| {
-            line_and_column(text, at)
-        });
+    let found = match (key, duplicate) {
+        (Some(key), _) => find_key(text, mark, &key),
+        // The second occurrence is the one to remove.
+        (None, Some(key)) => {
+            find_key(text, mark, &key).and_then(|first| find_key(text, first + key.len(), &key))
+        }
+        (None, None) => None,
+    };
+    let (line, column) = found.map_or((location.line(), location.column()), |at| {
+        line_and_column(text, at)
+    });
     Error::InvalidData {
         origin: format!("{origin}:{line}:{column}"),
         message,
     }
+}
+
+/// The text between `opening` (which ends in a backtick) and the next backtick in `message`.
+fn quoted_after(message: &str, opening: &str) -> Option<String> {
+    let rest = message.split(opening).nth(1)?;
+    Some(rest.split('`').next()?.to_owned())
 }
 
 /// Byte offset of 1-based `line` and `column` (in characters) in `text`.

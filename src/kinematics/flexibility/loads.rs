@@ -124,10 +124,11 @@ impl FlexibilityModel {
             .collect();
         // Frames are in the model's measurement frame; gravity is given in the root frame.
         let gravity = model.world_from_base_transform().rotation * self.gravity;
+        // Only masses behind joints outside the model need the tree (head, fingers).
         let tree_poses = if self.uses_tree {
-            Some(tree.link_poses(q)?)
+            tree.link_poses(q)?
         } else {
-            None
+            Vec::new()
         };
 
         // Where every mass is; then, from the tips inward, the weight each joint carries as a
@@ -146,8 +147,7 @@ impl FlexibilityModel {
                     link,
                     point,
                 } => {
-                    let poses = tree_poses.as_deref().unwrap_or_default();
-                    let body_from_link = poses[body_link.0].inverse() * poses[link.0];
+                    let body_from_link = tree_poses[body_link.0].inverse() * tree_poses[link.0];
                     let in_frame = model.frames()[frame].frame_from_link
                         * body_from_link
                         * nalgebra::Point3::from(point);

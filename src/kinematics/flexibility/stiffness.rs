@@ -87,7 +87,7 @@ pub struct Stiffness {
     pub gravity: Vec3,
     /// Whether the links' own weights (URDF `<inertial>` masses) load the structure.
     pub self_weight: bool,
-    /// Masses carried at tool links.
+    /// Masses carried at tool links (several at one tool add up).
     pub payloads: Vec<Payload>,
     /// Stiffness of every calibrated joint not in `joint_overrides`.
     pub joint_default: JointStiffness,
