@@ -10,8 +10,10 @@ pub mod plan;
 pub mod solver;
 
 pub use initial_guess::{fit_rigid_transform, initial_guess, InitialGuess};
-pub use plan::{calibrate, CalibrationReport, ParameterSet, Plan, Stage, StageReport};
+pub use plan::{
+    calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
+};
 pub use solver::{
-    identify, Combination, IdentificationOptions, IdentificationReport, Predictor, Rigid,
-    Termination,
+    identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,
+    IdentificationReport, Predictor, Rigid, Termination,
 };

@@ -1,7 +1,10 @@
 //! Calibration plans: which parameters are identified from which measurements, in which order
 //! (paper section 5.3.1). A plan is data; the paper's staging is the [`Plan::staged`] preset.
 
-use super::solver::{identify, IdentificationOptions, IdentificationReport, Predictor};
+use super::solver::{
+    identify, Deflected, DeflectedWithDerivative, IdentificationOptions, IdentificationReport,
+    Predictor, Rigid,
+};
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool, ParameterOwner};
 use crate::measurement::Measurement;
@@ -92,18 +95,35 @@ pub struct StageReport {
 pub struct CalibrationReport {
     /// The calibrated model.
     pub model: McpcModel,
-    /// One report per stage.
+    /// One report per stage (of the last cycle).
     pub stages: Vec<StageReport>,
+    /// How many times the plan ran: 1, except for staged plans with exact flexibility
+    /// compensation, which repeat until the parameters stop changing (at most [`MAX_CYCLES`]).
+    pub cycles: usize,
 }
 
-/// Runs `plan`: every stage starts from the previous stage's model. `offsets` (one predicted
-/// flexibility error per measurement, eq. (26)) is optional.
+/// The most times a staged plan with exact flexibility compensation is repeated.
+pub const MAX_CYCLES: usize = 30;
+
+/// How flexibility enters a calibration.
+#[derive(Debug, Clone, Copy)]
+pub enum Compensation<'a> {
+    /// Ignore it: the rigid model explains the measurements.
+    None,
+    /// The paper's eq. (26): subtract the linear flexibility error `D_f = J_f·d_f`, computed
+    /// once at the starting parameters.
+    Linear(Deflected<'a>),
+    /// Predict the deflected tool poses (the deformations inserted into the chain) at the
+    /// current parameters in every iteration: exact where the flexibility model is right.
+    Exact(Deflected<'a>),
+}
+
+/// Runs `plan`: every stage starts from the previous stage's model.
 pub fn calibrate(
     branches: &Branches,
     model: &McpcModel,
     measurements: &[Measurement],
-    offsets: Option<&[Vector6<f64>]>,
-    predictor: &dyn Predictor,
+    compensation: Compensation<'_>,
     plan: &Plan,
     options: &IdentificationOptions,
 ) -> Result<CalibrationReport> {
@@ -119,89 +139,160 @@ pub fn calibrate(
         .iter()
         .filter_map(|j| model.frame_of_joint(*j))
         .collect();
+    // Eq. (26): the linear D_f of every measurement, once, at the starting model.
+    let linear_offsets: Option<Vec<Vector6<f64>>> = match compensation {
+        Compensation::Linear(source) => Some(
+            measurements
+                .iter()
+                .map(|m| {
+                    Ok(source
+                        .flexibility
+                        .tool_deflections(source.tree, model, &m.q)?[m.tool])
+                })
+                .collect::<Result<_>>()?,
+        ),
+        _ => None,
+    };
     let mut current = model.clone();
+    // With exact compensation, a staged plan is repeated: the coupled stage needs the
+    // deflections of arms that only the later stage calibrates.
+    let staged = plan
+        .stages
+        .iter()
+        .any(|s| s.parameters == ParameterSet::Coupled);
+    let max_cycles = if staged && matches!(compensation, Compensation::Exact(_)) {
+        MAX_CYCLES
+    } else {
+        1
+    };
     let mut reports = Vec::new();
-    for stage in &plan.stages {
-        let selected: Vec<usize> = (0..measurements.len())
-            .filter(|&i| {
-                stage.measurements.is_none() || measurements[i].stage == stage.measurements
-            })
-            .collect();
-        if selected.is_empty() {
-            return Err(Error::InvalidData {
-                origin: format!("stage '{}'", stage.name),
-                message: format!(
-                    "no measurements labelled '{}'; label them (a `stage` column) or use the simultaneous plan",
-                    stage.measurements.as_deref().unwrap_or("")
-                ),
-            });
+    let mut cycles = 0;
+    while cycles < max_cycles {
+        cycles += 1;
+        let before = current.parameters();
+        reports.clear();
+        for stage in &plan.stages {
+            let selected: Vec<usize> = (0..measurements.len())
+                .filter(|&i| {
+                    stage.measurements.is_none() || measurements[i].stage == stage.measurements
+                })
+                .collect();
+            if selected.is_empty() {
+                return Err(Error::InvalidData {
+                    origin: format!("stage '{}'", stage.name),
+                    message: format!(
+                        "no measurements labelled '{}'; label them (a `stage` column) or use the simultaneous plan",
+                        stage.measurements.as_deref().unwrap_or("")
+                    ),
+                });
+            }
+            let data: Vec<Measurement> =
+                selected.iter().map(|&i| measurements[i].clone()).collect();
+            let report = match stage.parameters {
+                ParameterSet::Coupled => {
+                    let mut rounds = 0;
+                    loop {
+                        rounds += 1;
+                        // The reduced model cannot carry the flexibility model, so its deflections
+                        // enter as offsets: fixed for Linear, recomputed at the current torso for
+                        // Exact until they stop changing.
+                        let offsets: Option<Vec<Vector6<f64>>> = match compensation {
+                            Compensation::None => None,
+                            Compensation::Linear(_) => linear_offsets
+                                .as_ref()
+                                .map(|o| selected.iter().map(|&i| o[i]).collect()),
+                            Compensation::Exact(source) => Some(
+                                data.iter()
+                                    .map(|m| Ok(source.offsets(&current, &m.q)?[m.tool]))
+                                    .collect::<Result<_>>()?,
+                            ),
+                        };
+                        let (stage_model, stage_data, locked_tools) =
+                            locked_arm_model(&current, &coupled_frames, &data, &stage.name)?;
+                        let free: Vec<usize> = (0..stage_model.parameter_count()).collect();
+                        let identification = identify(
+                            &stage_model,
+                            &stage_data,
+                            offsets.as_deref(),
+                            &RigidOnly,
+                            &free,
+                            options,
+                        )?;
+                        // Copy the torso frames back into the full model.
+                        let before = current.parameters();
+                        let mut values = before.clone();
+                        for (stage_frame, &frame) in coupled_frames.iter().enumerate() {
+                            let count = current.frames()[frame].kind.parameter_count();
+                            let from = stage_model.frame_parameter_offset(stage_frame);
+                            let to = current.frame_parameter_offset(frame);
+                            values[to..to + count]
+                                .copy_from_slice(&identification.parameters[from..from + count]);
+                        }
+                        current.set_parameters(&values)?;
+                        let change = values
+                            .iter()
+                            .zip(&before)
+                            .map(|(a, b)| (a - b).abs())
+                            .fold(0.0, f64::max);
+                        let again = matches!(compensation, Compensation::Exact(_))
+                            && change > 1e-13
+                            && rounds < 8;
+                        if !again {
+                            break StageReport {
+                                name: stage.name.clone(),
+                                measurements: data.len(),
+                                locked_tools,
+                                identification,
+                            };
+                        }
+                    }
+                }
+                ParameterSet::Arms | ParameterSet::All => {
+                    let free: Vec<usize> = current
+                        .parameter_layout()
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, (owner, _))| {
+                            stage.parameters == ParameterSet::All
+                                || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
+                        })
+                        .map(|(i, _)| i)
+                        .collect();
+                    let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
+                        .as_ref()
+                        .map(|o| selected.iter().map(|&i| o[i]).collect());
+                    let identification = match compensation {
+                        Compensation::Exact(source) => {
+                            let predictor = DeflectedWithDerivative::new(source);
+                            identify(&current, &data, None, &predictor, &free, options)?
+                        }
+                        _ => identify(&current, &data, offsets.as_deref(), &Rigid, &free, options)?,
+                    };
+                    current.set_parameters(&identification.parameters)?;
+                    StageReport {
+                        name: stage.name.clone(),
+                        measurements: data.len(),
+                        locked_tools: 0,
+                        identification,
+                    }
+                }
+            };
+            reports.push(report);
         }
-        let data: Vec<Measurement> = selected.iter().map(|&i| measurements[i].clone()).collect();
-        let data_offsets: Option<Vec<Vector6<f64>>> =
-            offsets.map(|o| selected.iter().map(|&i| o[i]).collect());
-        let report = match stage.parameters {
-            ParameterSet::Coupled => {
-                let (stage_model, stage_data, locked_tools) =
-                    locked_arm_model(&current, &coupled_frames, &data, &stage.name)?;
-                let free: Vec<usize> = (0..stage_model.parameter_count()).collect();
-                let identification = identify(
-                    &stage_model,
-                    &stage_data,
-                    data_offsets.as_deref(),
-                    &RigidOnly,
-                    &free,
-                    options,
-                )?;
-                // Copy the torso frames back into the full model.
-                let mut values = current.parameters();
-                for (stage_frame, &frame) in coupled_frames.iter().enumerate() {
-                    let count = current.frames()[frame].kind.parameter_count();
-                    let from = stage_model.frame_parameter_offset(stage_frame);
-                    let to = current.frame_parameter_offset(frame);
-                    values[to..to + count]
-                        .copy_from_slice(&identification.parameters[from..from + count]);
-                }
-                current.set_parameters(&values)?;
-                StageReport {
-                    name: stage.name.clone(),
-                    measurements: data.len(),
-                    locked_tools,
-                    identification,
-                }
-            }
-            ParameterSet::Arms | ParameterSet::All => {
-                let free: Vec<usize> = current
-                    .parameter_layout()
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, (owner, _))| {
-                        stage.parameters == ParameterSet::All
-                            || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
-                    })
-                    .map(|(i, _)| i)
-                    .collect();
-                let identification = identify(
-                    &current,
-                    &data,
-                    data_offsets.as_deref(),
-                    predictor,
-                    &free,
-                    options,
-                )?;
-                current.set_parameters(&identification.parameters)?;
-                StageReport {
-                    name: stage.name.clone(),
-                    measurements: data.len(),
-                    locked_tools: 0,
-                    identification,
-                }
-            }
-        };
-        reports.push(report);
+        let change = current
+            .parameters()
+            .iter()
+            .zip(&before)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        if change <= 1e-12 {
+            break;
+        }
     }
     Ok(CalibrationReport {
         model: current,
         stages: reports,
+        cycles,
     })
 }
 
@@ -210,8 +301,8 @@ pub fn calibrate(
 struct RigidOnly;
 
 impl Predictor for RigidOnly {
-    fn predict(&self, model: &McpcModel, q: &[f64]) -> Vec<crate::math::Pose> {
-        model.tool_poses(q)
+    fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<crate::math::Pose>> {
+        Ok(model.tool_poses(q))
     }
 }
 

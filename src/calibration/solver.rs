@@ -10,7 +10,7 @@
 //! error. See `docs/identification.md`.
 
 use crate::error::{Error, Result};
-use crate::kinematics::McpcModel;
+use crate::kinematics::{McpcModel, ToolJacobian};
 use crate::math::{pose_error, Pose};
 use crate::measurement::{Measurement, Observation};
 use nalgebra::{DMatrix, DVector, Vector6};
@@ -18,7 +18,12 @@ use nalgebra::{DMatrix, DVector, Vector6};
 /// How the model predicts the observed tool poses at a configuration.
 pub trait Predictor {
     /// Poses of all tools (in `model.tools()` order) at configuration `q`.
-    fn predict(&self, model: &McpcModel, q: &[f64]) -> Vec<Pose>;
+    fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Pose>>;
+
+    /// Poses and identification Jacobians of all tools at `q`; by default the rigid ones.
+    fn jacobians(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<ToolJacobian>> {
+        Ok(model.tool_jacobians(q))
+    }
 }
 
 /// The rigid MCPC forward kinematics.
@@ -26,8 +31,133 @@ pub trait Predictor {
 pub struct Rigid;
 
 impl Predictor for Rigid {
-    fn predict(&self, model: &McpcModel, q: &[f64]) -> Vec<Pose> {
-        model.tool_poses(q)
+    fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Pose>> {
+        Ok(model.tool_poses(q))
+    }
+}
+
+/// The MCPC forward kinematics with the flexibility model's deflections inserted into the
+/// chain, re-evaluated at the current parameters: exact flexibility compensation.
+#[derive(Debug, Clone, Copy)]
+pub struct Deflected<'a> {
+    /// The tree the flexibility model was built for.
+    pub tree: &'a crate::tree::KinematicTree,
+    /// The flexibility model (built for the same MCPC model structure).
+    pub flexibility: &'a crate::kinematics::FlexibilityModel,
+}
+
+impl Predictor for Deflected<'_> {
+    fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Pose>> {
+        self.flexibility.deflected_tool_poses(self.tree, model, q)
+    }
+
+    /// The Jacobian on the deflected chain: parameter changes move the bent robot, but how the
+    /// deflections themselves change with the parameters (through the lever arms of the loads)
+    /// is left out. [`DeflectedWithDerivative`] adds it.
+    fn jacobians(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<ToolJacobian>> {
+        Ok(model.jacobians_on(&self.flexibility.deflected_chain(self.tree, model, q)?))
+    }
+}
+
+impl Deflected<'_> {
+    /// The deflection of every tool at `q`: `deflected ⊖ rigid` (exact, not the linear map).
+    pub fn offsets(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Vector6<f64>>> {
+        let deflected = self.flexibility.deflected_tool_poses(self.tree, model, q)?;
+        Ok(deflected
+            .iter()
+            .zip(model.tool_poses(q))
+            .map(|(d, r)| pose_error(d, &r))
+            .collect())
+    }
+}
+
+/// Exact flexibility compensation with a Jacobian that includes how the deflections change
+/// with the parameters. At 5000 N·m/rad and 20 kg the deflections are centimetres and
+/// degrees, and a 5 cm error in a lever arm changes them by a good fraction, so the Jacobian
+/// on the deflected chain alone ([`Deflected`]) makes the iteration converge only linearly.
+/// The missing part — the exact derivative of the deflected poses (forward differences) minus
+/// the deflected-chain Jacobian — is computed per configuration and reused while the
+/// parameters stay within 1e-4 of where it was computed (its own change is second order), so
+/// it is computed about twice per calibration: at the start and near the solution.
+#[derive(Debug)]
+pub struct DeflectedWithDerivative<'a> {
+    source: Deflected<'a>,
+    /// Per configuration: where the correction was computed (q, parameters) and the correction.
+    cache: std::cell::RefCell<Vec<Correction>>,
+}
+
+/// A cached Jacobian correction: configuration, parameters, `J_exact − J_chain` per tool.
+type Correction = (Vec<f64>, Vec<f64>, Vec<DMatrix<f64>>);
+
+impl<'a> DeflectedWithDerivative<'a> {
+    /// Wraps a deflected predictor.
+    pub fn new(source: Deflected<'a>) -> Self {
+        Self {
+            source,
+            cache: std::cell::RefCell::new(Vec::new()),
+        }
+    }
+
+    /// `J_exact − J_chain` at `q`, from the cache or computed now.
+    fn correction(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        chain: &[ToolJacobian],
+    ) -> Result<Vec<DMatrix<f64>>> {
+        let parameters = model.parameters();
+        // Reuse while the parameters are within 1e-4 (rad, m) of where it was computed.
+        let close = |at: &[f64]| {
+            at.iter()
+                .zip(&parameters)
+                .all(|(a, b)| (a - b).abs() <= 1e-4)
+        };
+        if let Some((_, _, found)) = self
+            .cache
+            .borrow()
+            .iter()
+            .find(|(k, at, _)| k.as_slice() == q && close(at))
+        {
+            return Ok(found.clone());
+        }
+        let step = 1e-7;
+        let base = self.source.predict(model, q)?;
+        let mut correction: Vec<DMatrix<f64>> = chain.iter().map(|c| -c.jacobian.clone()).collect();
+        let mut shifted = model.clone();
+        for index in 0..parameters.len() {
+            let mut values = parameters.clone();
+            values[index] += step;
+            shifted.set_parameters(&values)?;
+            for (tool, pose) in self.source.predict(&shifted, q)?.iter().enumerate() {
+                let column = pose_error(pose, &base[tool]) / step;
+                let mut target = correction[tool].column_mut(index);
+                target += column;
+            }
+        }
+        let mut cache = self.cache.borrow_mut();
+        cache.retain(|(k, _, _)| k.as_slice() != q);
+        cache.push((q.to_vec(), parameters, correction.clone()));
+        Ok(correction)
+    }
+}
+
+impl Predictor for DeflectedWithDerivative<'_> {
+    fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Pose>> {
+        self.source.predict(model, q)
+    }
+
+    /// The deflected-chain Jacobian plus the (frozen) effect of the deflections' own change.
+    fn jacobians(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<ToolJacobian>> {
+        let chain = self.source.jacobians(model, q)?;
+        let correction = self.correction(model, q, &chain)?;
+        Ok(chain
+            .into_iter()
+            .zip(correction)
+            .map(|(tool, extra)| ToolJacobian {
+                pose: tool.pose,
+                jacobian: tool.jacobian + extra,
+            })
+            .collect())
     }
 }
 
@@ -158,36 +288,57 @@ fn linearise(
     free: &[usize],
     options: &IdentificationOptions,
     with_jacobian: bool,
-) -> Linearisation {
+) -> Result<Linearisation> {
     let rows = rows_of(measurements);
     let mut residual = DVector::zeros(rows);
     let mut jacobian = DMatrix::zeros(if with_jacobian { rows } else { 0 }, free.len());
     let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
     let mut row = 0;
+    // Measurements of several tools at one configuration share one evaluation.
+    let mut cached: Option<(&[f64], Vec<ToolJacobian>)> = None;
+    let mut cached_poses: Option<(&[f64], Vec<Pose>)> = None;
     for (index, m) in measurements.iter().enumerate() {
-        let predicted = predictor.predict(model, &m.q);
-        let error = raw_residual(
-            &m.observation,
-            &predicted[m.tool],
-            offsets.map(|o| &o[index]),
-        );
         let count = m.observation.rows();
-        for k in 0..count {
-            residual[row + k] = error[k] * weights[k / 3];
-        }
-        if with_jacobian {
-            // The rigid Jacobian also serves deflection-aware predictors: the deflection's
-            // dependence on the parameters is second order.
-            let tool = model.tool_jacobian(m.tool, &m.q);
+        let predicted = if with_jacobian {
+            if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
+                cached = Some((&m.q, predictor.jacobians(model, &m.q)?));
+            }
+            let tools = cached
+                .as_ref()
+                .map(|(_, j)| j)
+                .ok_or_else(|| Error::InvalidData {
+                    origin: "identification".into(),
+                    message: "no Jacobian".into(),
+                })?;
+            let tool = &tools[m.tool];
             for (column, &parameter) in free.iter().enumerate() {
                 for k in 0..count {
                     jacobian[(row + k, column)] = tool.jacobian[(k, parameter)] * weights[k / 3];
                 }
             }
+            tool.pose
+        } else {
+            if cached_poses
+                .as_ref()
+                .is_none_or(|(q, _)| *q != m.q.as_slice())
+            {
+                cached_poses = Some((&m.q, predictor.predict(model, &m.q)?));
+            }
+            cached_poses
+                .as_ref()
+                .map(|(_, p)| p[m.tool])
+                .ok_or_else(|| Error::InvalidData {
+                    origin: "identification".into(),
+                    message: "no prediction".into(),
+                })?
+        };
+        let error = raw_residual(&m.observation, &predicted, offsets.map(|o| &o[index]));
+        for k in 0..count {
+            residual[row + k] = error[k] * weights[k / 3];
         }
         row += count;
     }
-    Linearisation { residual, jacobian }
+    Ok(Linearisation { residual, jacobian })
 }
 
 fn residual_rms(
@@ -195,10 +346,10 @@ fn residual_rms(
     measurements: &[Measurement],
     offsets: Option<&[Vector6<f64>]>,
     predictor: &dyn Predictor,
-) -> (f64, f64) {
+) -> Result<(f64, f64)> {
     let (mut position, mut rotation, mut poses) = (0.0, 0.0, 0usize);
     for (index, m) in measurements.iter().enumerate() {
-        let predicted = predictor.predict(model, &m.q);
+        let predicted = predictor.predict(model, &m.q)?;
         let error = raw_residual(
             &m.observation,
             &predicted[m.tool],
@@ -211,14 +362,12 @@ fn residual_rms(
         }
     }
     let n = measurements.len().max(1) as f64;
-    (
-        (position / n).sqrt(),
-        if poses > 0 {
-            (rotation / poses as f64).sqrt()
-        } else {
-            0.0
-        },
-    )
+    let rotation_rms = if poses > 0 {
+        (rotation / poses as f64).sqrt()
+    } else {
+        0.0
+    };
+    Ok(((position / n).sqrt(), rotation_rms))
 }
 
 /// Identifies the `free` parameters of `model` from `measurements`.
@@ -246,7 +395,7 @@ pub fn identify(
         free,
         options,
         true,
-    );
+    )?;
     let mut cost = 0.5 * lin.residual.norm_squared();
     let mut costs = vec![cost];
     let mut damping = 0.0;
@@ -303,7 +452,7 @@ pub fn identify(
                 free,
                 options,
                 false,
-            );
+            )?;
             let trial_cost = 0.5 * trial_lin.residual.norm_squared();
             if trial_cost < cost {
                 let previous = cost;
@@ -338,7 +487,7 @@ pub fn identify(
             free,
             options,
             true,
-        );
+        )?;
         if termination != Termination::MaxIterations {
             break;
         }
@@ -374,7 +523,7 @@ pub fn identify(
         })
         .collect();
     let (residual_rms_position, residual_rms_rotation) =
-        residual_rms(&current, measurements, offsets, predictor);
+        residual_rms(&current, measurements, offsets, predictor)?;
     Ok(IdentificationReport {
         parameters,
         free: free.to_vec(),

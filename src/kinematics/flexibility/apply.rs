@@ -4,7 +4,7 @@
 use super::loads::Evaluation;
 use super::model::FlexibilityModel;
 use crate::error::Result;
-use crate::kinematics::{FrameKind, McpcModel};
+use crate::kinematics::{ChainFrames, FrameKind, McpcModel};
 use crate::math::{Mat3, Pose, Transform, Vec3};
 use crate::tree::KinematicTree;
 use nalgebra::{Rotation3, Vector6};
@@ -68,6 +68,22 @@ impl FlexibilityModel {
         model: &McpcModel,
         q: &[f64],
     ) -> Result<Vec<Pose>> {
+        Ok(self
+            .deflected_chain(tree, model, q)?
+            .tools
+            .iter()
+            .map(Transform::to_pose)
+            .collect())
+    }
+
+    /// The whole deflected chain at configuration `q` (see [`Self::deflected_tool_poses`]):
+    /// what the identification Jacobian needs to stay accurate on a bending robot.
+    pub fn deflected_chain(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        q: &[f64],
+    ) -> Result<ChainFrames> {
         let evaluation = self.evaluate(tree, model, q)?;
         let Evaluation {
             deformations,
@@ -89,16 +105,16 @@ impl FlexibilityModel {
                 translation: end + to_local * segment.translation - rotation * end,
             }
         };
-        let mut deflected: Vec<Transform> = Vec::with_capacity(model.frames().len());
+        let count = model.frames().len();
+        let mut deflected: Vec<Transform> = Vec::with_capacity(count);
+        let mut previous: Vec<Transform> = Vec::with_capacity(count);
+        let mut frames: Vec<Transform> = Vec::with_capacity(count);
         for (i, frame) in model.frames().iter().enumerate() {
-            let sigma = match frame.parent {
-                Some(p) => deflected[p]
-                    .then(&segment_transform(self.segment_to_frame[i]))
-                    .then(model.frame_constant(i)),
-                None => model
-                    .world_from_base_transform()
-                    .then(model.frame_constant(i)),
+            let before = match frame.parent {
+                Some(p) => deflected[p].then(&segment_transform(self.segment_to_frame[i])),
+                None => *model.world_from_base_transform(),
             };
+            let sigma = before.then(model.frame_constant(i));
             let value = model.joint_value(i, q);
             let after_motion = match frame.kind {
                 FrameKind::Revolute => sigma.rotated_z(value),
@@ -109,23 +125,29 @@ impl FlexibilityModel {
                 rotation: exp(&local),
                 translation: Vec3::zeros(),
             }));
+            previous.push(before);
+            frames.push(sigma);
         }
-        Ok(model
+        let tool_previous: Vec<Transform> = model
             .tools()
             .iter()
             .enumerate()
-            .map(|(t, tool)| {
-                let transform = match tool.parent {
-                    Some(p) => deflected[p]
-                        .then(&segment_transform(self.segment_to_tool[t]))
-                        .then(model.tool_constant(t)),
-                    None => model
-                        .world_from_base_transform()
-                        .then(model.tool_constant(t)),
-                };
-                transform.to_pose()
+            .map(|(t, tool)| match tool.parent {
+                Some(p) => deflected[p].then(&segment_transform(self.segment_to_tool[t])),
+                None => *model.world_from_base_transform(),
             })
-            .collect())
+            .collect();
+        let tools = tool_previous
+            .iter()
+            .enumerate()
+            .map(|(t, before)| before.then(model.tool_constant(t)))
+            .collect();
+        Ok(ChainFrames {
+            previous,
+            frames,
+            tool_previous,
+            tools,
+        })
     }
 }
 
