@@ -18,9 +18,24 @@ pub fn robot(relative: &str) -> PathBuf {
     repo().join("robots").join(relative)
 }
 
-/// The shared NASA Robonaut 2 description, read in place.
+/// The shared NASA Robonaut 2 description, read in place (never copied into the repository):
+/// `$TREECAL_SHARED_DIR/robots/…`, else `../shared/robots/…` next to the checkout, else
+/// `/work/shared/robots/…`.
 pub fn robonaut2() -> PathBuf {
-    repo().join("../shared/robots/robonaut2/robonaut2.urdf")
+    let relative = "robots/robonaut2/robonaut2.urdf";
+    let mut candidates: Vec<PathBuf> = Vec::new();
+    if let Some(dir) = std::env::var_os("TREECAL_SHARED_DIR") {
+        candidates.push(PathBuf::from(dir).join(relative));
+    }
+    candidates.push(repo().join("../shared").join(relative));
+    candidates.push(PathBuf::from("/work/shared").join(relative));
+    match candidates.iter().find(|c| c.is_file()) {
+        Some(found) => found.clone(),
+        None => panic!(
+            "the shared Robonaut 2 description was not found at any of {candidates:?}; \
+             set TREECAL_SHARED_DIR to the folder that holds robots/robonaut2/robonaut2.urdf"
+        ),
+    }
 }
 
 /// Every URDF in `robots/` (recursively).
