@@ -7,6 +7,7 @@ pub mod kinematics;
 pub mod math;
 pub mod measurement;
 pub mod report;
+pub mod sim;
 pub mod tree;
 pub mod urdf;
 

@@ -4,10 +4,13 @@ mod common;
 
 mod branches;
 mod cli;
+mod collision;
 mod flexibility;
 mod from_mcpc;
 mod identification;
 mod jacobian;
 mod mcpc;
 mod oracle;
+mod plot;
+mod simulate;
 mod urdf_import;

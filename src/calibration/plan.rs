@@ -165,6 +165,11 @@ pub fn calibrate(
     } else {
         1
     };
+    // One predictor for all stages and cycles, so its Jacobian corrections are reused.
+    let exact_predictor = match compensation {
+        Compensation::Exact(source) => Some(DeflectedWithDerivative::new(source)),
+        _ => None,
+    };
     let mut reports = Vec::new();
     let mut cycles = 0;
     while cycles < max_cycles {
@@ -262,10 +267,12 @@ pub fn calibrate(
                         .as_ref()
                         .map(|o| selected.iter().map(|&i| o[i]).collect());
                     let identification = match compensation {
-                        Compensation::Exact(source) => {
-                            let predictor = DeflectedWithDerivative::new(source);
-                            identify(&current, &data, None, &predictor, &free, options)?
-                        }
+                        Compensation::Exact(_) => match &exact_predictor {
+                            Some(predictor) => {
+                                identify(&current, &data, None, predictor, &free, options)?
+                            }
+                            None => identify(&current, &data, None, &Rigid, &free, options)?,
+                        },
                         _ => identify(&current, &data, offsets.as_deref(), &Rigid, &free, options)?,
                     };
                     current.set_parameters(&identification.parameters)?;

@@ -1,0 +1,529 @@
+//! SVG plots of per-configuration errors, in the style of the paper's Fig. 7–12.
+//!
+//! One plot has the configurations 1..n on the x axis and an error magnitude on the y axis from
+//! 0, one line with point markers per series (before calibration, after calibration, ...), a
+//! legend and a title. The SVG comes back as a string; writing it is the caller's job.
+//!
+//! Text is emitted as SVG `<text>` elements in a generic `sans-serif` family, so no font is read
+//! here or needed to view the file; layout uses plotters' built-in width estimate (its `ttf`
+//! feature, which would read system fonts, is off).
+
+use crate::error::{Error, Result};
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+/// One curve: a value per configuration, in configuration order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    /// Legend text, e.g. "before calibration".
+    pub label: String,
+    /// One non-negative value per configuration.
+    pub values: Vec<f64>,
+}
+
+/// A per-configuration error plot such as the paper's Fig. 7 (x axis: configuration 1..n).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ErrorPlot {
+    /// Title above the plot.
+    pub title: String,
+    /// Y-axis label with its unit, e.g. "position error (mm)".
+    pub y_label: String,
+    /// The curves; all of the same length.
+    pub series: Vec<Series>,
+}
+
+const WIDTH: u32 = 800;
+const HEIGHT: u32 = 450;
+const FONT: FontFamily = FontFamily::SansSerif;
+// plotters font sizes; the SVG backend writes `font-size` as these divided by 1.24.
+const TITLE_SIZE: f64 = 22.0;
+const AXIS_DESC_SIZE: f64 = 17.0;
+const LABEL_SIZE: f64 = 15.0;
+const TITLE_HEIGHT: u32 = 34;
+const LEGEND_ROW_HEIGHT: u32 = 22;
+const LEGEND_SAMPLE: i32 = 30;
+const LEGEND_GAP: i32 = 28;
+const X_LABEL_AREA: u32 = 50;
+const MARGIN_RIGHT: u32 = 24;
+// Colour-blind-safe (Okabe–Ito) colours of different lightness; marker shapes differ as well,
+// so the series stay apart when printed in greyscale.
+const COLOURS: [RGBColor; 6] = [
+    RGBColor(0x00, 0x72, 0xB2),
+    RGBColor(0xD5, 0x5E, 0x00),
+    RGBColor(0x00, 0x9E, 0x73),
+    RGBColor(0xCC, 0x79, 0xA7),
+    RGBColor(0x56, 0xB4, 0xE9),
+    RGBColor(0x33, 0x33, 0x33),
+];
+const GRID: RGBColor = RGBColor(0xDD, 0xDD, 0xDD);
+
+#[derive(Debug, Clone, Copy)]
+enum Marker {
+    Circle,
+    Square,
+    TriangleUp,
+    Diamond,
+    TriangleDown,
+    Cross,
+}
+
+const MARKERS: [Marker; 6] = [
+    Marker::Circle,
+    Marker::Square,
+    Marker::TriangleUp,
+    Marker::Diamond,
+    Marker::TriangleDown,
+    Marker::Cross,
+];
+// Markers closer than this (pixels) are drawn only on every k-th configuration.
+const MARKER_SPACING: f64 = 12.0;
+
+/// Renders `plot` as an 800×450 SVG document.
+///
+/// Fails, naming the series and index, on an empty plot, series of different lengths, and
+/// non-finite or negative values (errors are magnitudes and the y axis starts at 0).
+pub fn error_plot_svg(plot: &ErrorPlot) -> Result<String> {
+    let configurations = validate(plot)?;
+    let max = plot
+        .series
+        .iter()
+        .flat_map(|series| series.values.iter().copied())
+        .fold(0.0, f64::max);
+    let y_axis = YAxis::covering(max).ok_or_else(|| {
+        invalid(
+            plot,
+            format!("the largest value {max:e} is outside the range a plot can label"),
+        )
+    })?;
+    render(plot, configurations, &y_axis).map_err(|e| invalid(plot, format!("drawing failed: {e}")))
+}
+
+fn invalid(plot: &ErrorPlot, message: String) -> Error {
+    Error::InvalidData {
+        origin: format!("plot '{}'", plot.title),
+        message,
+    }
+}
+
+/// Checks the data and returns the number of configurations.
+fn validate(plot: &ErrorPlot) -> Result<usize> {
+    let Some(first) = plot.series.first() else {
+        return Err(invalid(plot, "nothing to plot: no series".into()));
+    };
+    let configurations = first.values.len();
+    if configurations == 0 {
+        return Err(invalid(
+            plot,
+            format!("nothing to plot: series '{}' has no values", first.label),
+        ));
+    }
+    for series in &plot.series {
+        if series.values.len() != configurations {
+            return Err(invalid(
+                plot,
+                format!(
+                    "series '{}' has {} values but series '{}' has {}; every series needs one \
+                     value per configuration",
+                    series.label,
+                    series.values.len(),
+                    first.label,
+                    configurations
+                ),
+            ));
+        }
+        for (index, &value) in series.values.iter().enumerate() {
+            let problem = if !value.is_finite() {
+                format!("the non-finite value {value}")
+            } else if value < 0.0 {
+                format!("the negative value {value} (errors are magnitudes; the axis starts at 0)")
+            } else {
+                continue;
+            };
+            return Err(invalid(
+                plot,
+                format!(
+                    "series '{}' has {problem} at index {index} (configuration {})",
+                    series.label,
+                    index + 1
+                ),
+            ));
+        }
+    }
+    Ok(configurations)
+}
+
+/// The y axis: 0 to a round top value in 4–6 round steps, with labels built from integers so
+/// that they are exact ("0.3", not "0.30000000000000004").
+struct YAxis {
+    top: f64,
+    ticks: Vec<(f64, String)>,
+}
+
+impl YAxis {
+    /// The axis for data whose largest value is `max` (≥ 0); `None` beyond 1e±300.
+    fn covering(max: f64) -> Option<YAxis> {
+        if max == 0.0 {
+            // All zero: any range shows the points on the axis; 0 to 1 reads best.
+            return Some(YAxis::from_step(20, -2, 5));
+        }
+        if !(1e-300..=1e300).contains(&max) {
+            return None;
+        }
+        // A step is `mantissa · 10^exponent`, the mantissa 10, 20, 25 or 50 (1, 2, 2.5, 5 in
+        // tenths) so that every tick is an integer times a power of ten.
+        let mut exponent = (max / 6.0).log10().floor() as i32 - 2;
+        loop {
+            for mantissa in [10_u64, 20, 25, 50] {
+                let step = mantissa as f64 * 10f64.powi(exponent);
+                // A hair of tolerance so that a value equal to a tick in exact arithmetic does
+                // not get an extra, empty interval.
+                let intervals = (max / step * (1.0 - 1e-12)).ceil().max(1.0);
+                if intervals <= 6.0 {
+                    return Some(YAxis::from_step(mantissa, exponent, intervals as u64));
+                }
+            }
+            exponent += 1;
+        }
+    }
+
+    /// Ticks at `k · mantissa · 10^exponent` for k = 0..=intervals.
+    fn from_step(mantissa: u64, exponent: i32, intervals: u64) -> YAxis {
+        let integers: Vec<u64> = (0..=intervals).map(|k| k * mantissa).collect();
+        let top_digits = integers[integers.len() - 1].to_string().len() as i32;
+        // Fixed notation between steps of 0.001 and tops below a million, as "2.0e-7" otherwise.
+        let scientific = exponent + 1 < -3 || top_digits + exponent > 6;
+        let labels = if scientific {
+            scientific_labels(&integers, exponent)
+        } else {
+            fixed_labels(&integers, exponent)
+        };
+        let ticks = integers
+            .iter()
+            .zip(labels)
+            .map(|(&n, label)| (scaled(n, exponent), label))
+            .collect::<Vec<_>>();
+        YAxis {
+            top: ticks[ticks.len() - 1].0,
+            ticks,
+        }
+    }
+
+    fn label(&self, value: f64) -> String {
+        self.ticks
+            .iter()
+            .min_by(|a, b| (a.0 - value).abs().total_cmp(&(b.0 - value).abs()))
+            .map(|tick| tick.1.clone())
+            .unwrap_or_default()
+    }
+}
+
+/// `n · 10^exponent`, dividing by an exact power of ten where possible.
+fn scaled(n: u64, exponent: i32) -> f64 {
+    if exponent >= 0 {
+        n as f64 * 10f64.powi(exponent)
+    } else {
+        n as f64 / 10f64.powi(-exponent)
+    }
+}
+
+/// Decimal labels with the same number of decimals on every tick ("0.0", "0.5", "1.0").
+fn fixed_labels(integers: &[u64], exponent: i32) -> Vec<String> {
+    let shift = (-exponent).max(0) as usize;
+    let digits: Vec<String> = integers
+        .iter()
+        .map(|&n| {
+            if exponent > 0 && n != 0 {
+                format!("{n}{}", "0".repeat(exponent as usize))
+            } else {
+                format!("{n:0>width$}", width = shift + 1)
+            }
+        })
+        .collect();
+    let decimals = digits
+        .iter()
+        .map(|d| d[d.len() - shift..].trim_end_matches('0').len())
+        .max()
+        .unwrap_or(0);
+    digits
+        .iter()
+        .map(|d| {
+            let (whole, fraction) = d.split_at(d.len() - shift);
+            if decimals == 0 {
+                whole.to_string()
+            } else {
+                format!("{whole}.{}", &fraction[..decimals])
+            }
+        })
+        .collect()
+}
+
+/// Scientific labels with the same number of mantissa decimals on every tick ("2.0e-7").
+fn scientific_labels(integers: &[u64], exponent: i32) -> Vec<String> {
+    let parts: Vec<Option<(String, i32)>> = integers
+        .iter()
+        .map(|&n| {
+            (n != 0).then(|| {
+                let digits = n.to_string();
+                let fraction = digits[1..].trim_end_matches('0').to_string();
+                (
+                    format!("{}{fraction}", &digits[..1]),
+                    exponent + digits.len() as i32 - 1,
+                )
+            })
+        })
+        .collect();
+    let decimals = parts
+        .iter()
+        .flatten()
+        .map(|(m, _)| m.len() - 1)
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    parts
+        .into_iter()
+        .map(|part| match part {
+            None => "0".to_string(),
+            Some((mantissa, power)) => {
+                format!("{}.{:0<decimals$}e{power}", &mantissa[..1], &mantissa[1..])
+            }
+        })
+        .collect()
+}
+
+/// X ticks: every configuration while the labels fit, else every 2nd, 5th, 10th, ... (and 1).
+fn x_ticks(configurations: usize, plot_width: u32) -> Vec<f64> {
+    let digits = configurations.to_string().len() as f64;
+    let room_per_label = digits * 8.0 + 14.0;
+    let per_configuration = f64::from(plot_width) / configurations as f64;
+    let step = [1_u64, 2, 5]
+        .iter()
+        .flat_map(|&m| (0..19).map(move |e| m * 10_u64.pow(e)))
+        .filter(|&s| s as f64 * per_configuration >= room_per_label)
+        .min()
+        .unwrap_or(u64::MAX);
+    let mut ticks: Vec<usize> = (1..=configurations)
+        .filter(|&c| c as u64 % step == 0)
+        .collect();
+    // "1" marks the start; it would crowd "2" when every second configuration is labelled.
+    if step != 2 && ticks.first() != Some(&1) {
+        ticks.insert(0, 1);
+    }
+    ticks.into_iter().map(|c| c as f64).collect()
+}
+
+/// A linear axis with the tick positions given, and no minor ticks.
+///
+/// plotters' own `with_key_points` wrapper has no label formatter for `f64`, so the mesh cannot
+/// be drawn with it; this is that wrapper with one.
+struct TickedAxis {
+    linear: RangedCoordf64,
+    ticks: Vec<f64>,
+}
+
+impl TickedAxis {
+    fn new(range: std::ops::Range<f64>, ticks: Vec<f64>) -> TickedAxis {
+        TickedAxis {
+            linear: range.into(),
+            ticks,
+        }
+    }
+}
+
+impl Ranged for TickedAxis {
+    // Labels always come from our own formatters; Debug is only the fallback plotters requires.
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        self.linear.map(value, limit)
+    }
+
+    fn key_points<Hint: KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
+        if hint.weight().allow_light_points() {
+            Vec::new()
+        } else {
+            self.ticks.clone()
+        }
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.linear.range()
+    }
+}
+
+/// Draws one marker centred on `at`, in pixels of `area`.
+///
+/// Markers are outlines, as in MATLAB's figures: where two series coincide (after calibration
+/// with and without flexibility compensation, when the robot is stiff) both shapes stay visible.
+fn draw_marker<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    kind: Marker,
+    at: (i32, i32),
+    colour: RGBColor,
+) -> DrawResult<(), DB> {
+    let line = colour.stroke_width(2);
+    let origin = EmptyElement::at(at);
+    // Outlines repeat their first edge so that the stroke joins at the first corner too.
+    let outline = |corners: [(i32, i32); 4]| {
+        let mut points = corners.to_vec();
+        points.extend_from_slice(&corners[..2]);
+        points.dedup();
+        PathElement::new(points, line)
+    };
+    match kind {
+        Marker::Circle => area.draw(&(origin + Circle::new((0, 0), 4, line))),
+        // (An SVG `<rect>` from plotters ignores the stroke width.)
+        Marker::Square => area.draw(&(origin + outline([(-4, -4), (4, -4), (4, 4), (-4, 4)]))),
+        Marker::TriangleUp => area.draw(&(origin + outline([(0, -6), (5, 3), (-5, 3), (0, -6)]))),
+        Marker::Diamond => area.draw(&(origin + outline([(0, -6), (5, 0), (0, 6), (-5, 0)]))),
+        Marker::TriangleDown => area.draw(&(origin + outline([(0, 6), (-5, -3), (5, -3), (0, 6)]))),
+        Marker::Cross => area.draw(&(origin + Cross::new((0, 0), 4, line))),
+    }
+}
+
+fn style_of(index: usize) -> (RGBColor, Marker) {
+    // Colour and marker advance together; past six series the markers shift by one per round,
+    // which keeps 36 combinations distinct.
+    (
+        COLOURS[index % COLOURS.len()],
+        MARKERS[(index + index / COLOURS.len()) % MARKERS.len()],
+    )
+}
+
+type DrawResult<T, DB = SVGBackend<'static>> =
+    std::result::Result<T, DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+fn render(plot: &ErrorPlot, configurations: usize, y_axis: &YAxis) -> DrawResult<String> {
+    let mut svg = String::new();
+    {
+        // The backend borrows `svg` until it is dropped.
+        let root = SVGBackend::with_string(&mut svg, (WIDTH, HEIGHT)).into_drawing_area();
+        draw_on(&root, plot, configurations, y_axis)?;
+        root.present()?;
+    }
+    Ok(svg)
+}
+
+fn draw_on(
+    root: &DrawingArea<SVGBackend<'_>, Shift>,
+    plot: &ErrorPlot,
+    configurations: usize,
+    y_axis: &YAxis,
+) -> DrawResult<()> {
+    root.fill(&WHITE)?;
+
+    // Title, shrunk when it would not fit the width.
+    let (title_width, _) =
+        root.estimate_text_size(&plot.title, &(FONT, TITLE_SIZE).into_text_style(root))?;
+    let room = f64::from(WIDTH - 40);
+    let title_size = if f64::from(title_width) > room {
+        (TITLE_SIZE * room / f64::from(title_width)).max(9.0)
+    } else {
+        TITLE_SIZE
+    };
+    let centred = Pos::new(HPos::Center, VPos::Center);
+    root.draw_text(
+        &plot.title,
+        &TextStyle::from((FONT, title_size).into_font()).pos(centred),
+        ((WIDTH / 2) as i32, (TITLE_HEIGHT / 2 + 4) as i32),
+    )?;
+
+    // The legend sits between title and plot, so it never hides data.
+    let label_font = (FONT, LABEL_SIZE).into_text_style(root);
+    let mut rows: Vec<Vec<(usize, i32)>> = vec![vec![]];
+    let mut row_width = 0;
+    for (index, series) in plot.series.iter().enumerate() {
+        let (text_width, _) = root.estimate_text_size(&series.label, &label_font)?;
+        let width = LEGEND_SAMPLE + 6 + text_width as i32;
+        let needed = if row_width == 0 {
+            width
+        } else {
+            row_width + LEGEND_GAP + width
+        };
+        if row_width > 0 && needed > (WIDTH - 40) as i32 {
+            rows.push(vec![]);
+            row_width = width;
+        } else {
+            row_width = needed;
+        }
+        rows.last_mut()
+            .expect("rows start non-empty")
+            .push((index, width));
+    }
+    let legend_height = rows.len() as u32 * LEGEND_ROW_HEIGHT + 6;
+    let (_, below_title) = root.split_vertically(TITLE_HEIGHT);
+    let (legend, chart_area) = below_title.split_vertically(legend_height);
+    let left_centred = Pos::new(HPos::Left, VPos::Center);
+    for (row_index, row) in rows.iter().enumerate() {
+        let total: i32 =
+            row.iter().map(|(_, w)| w).sum::<i32>() + LEGEND_GAP * (row.len() as i32 - 1);
+        let mut x = (WIDTH as i32 - total) / 2;
+        let y = (row_index as u32 * LEGEND_ROW_HEIGHT + LEGEND_ROW_HEIGHT / 2 + 4) as i32;
+        for &(index, width) in row {
+            let (colour, kind) = style_of(index);
+            legend.draw(&Rectangle::new(
+                [(x, y - 1), (x + LEGEND_SAMPLE, y + 1)],
+                colour.filled(),
+            ))?;
+            draw_marker(&legend, kind, (x + LEGEND_SAMPLE / 2, y), colour)?;
+            legend.draw_text(
+                &plot.series[index].label,
+                &label_font.pos(left_centred),
+                (x + LEGEND_SAMPLE + 6, y),
+            )?;
+            x += width + LEGEND_GAP;
+        }
+    }
+
+    // Room for the widest y tick label, the tick, and the rotated axis description.
+    let mut widest_tick = 0;
+    for (_, label) in &y_axis.ticks {
+        widest_tick = widest_tick.max(root.estimate_text_size(label, &label_font)?.0);
+    }
+    let y_label_area = widest_tick + 44;
+    let plot_width = WIDTH - y_label_area - MARGIN_RIGHT - 8;
+    let last = configurations as f64;
+    let mut chart = ChartBuilder::on(&chart_area)
+        .margin_top(10)
+        .margin_left(8)
+        .margin_right(MARGIN_RIGHT)
+        .margin_bottom(6)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(y_label_area)
+        .build_cartesian_2d(
+            TickedAxis::new(0.5..last + 0.5, x_ticks(configurations, plot_width)),
+            TickedAxis::new(0.0..y_axis.top, y_axis.ticks.iter().map(|t| t.0).collect()),
+        )?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .bold_line_style(GRID)
+        .x_desc("configuration")
+        .y_desc(&plot.y_label)
+        .axis_desc_style((FONT, AXIS_DESC_SIZE))
+        .label_style((FONT, LABEL_SIZE))
+        .x_label_formatter(&|x| format!("{}", x.round() as i64))
+        .y_label_formatter(&|y| y_axis.label(*y))
+        .draw()?;
+
+    let spacing = f64::from(plot_width) / configurations as f64;
+    let marker_every = (MARKER_SPACING / spacing).ceil().max(1.0) as usize;
+    for (index, series) in plot.series.iter().enumerate() {
+        let (colour, kind) = style_of(index);
+        let points: Vec<(f64, f64)> = series
+            .values
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| ((i + 1) as f64, v))
+            .collect();
+        chart.draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))?;
+        // Markers go on the whole picture in pixels: one drawing routine serves the legend too.
+        for point in points.iter().step_by(marker_every) {
+            draw_marker(root, kind, chart.backend_coord(point), colour)?;
+        }
+    }
+    Ok(())
+}

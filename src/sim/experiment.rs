@@ -1,0 +1,440 @@
+//! The paper's section 5.2 simulation: a true robot with random parameter errors and gravity
+//! deflections, measured by a noisy laser tracker, calibrated without and with flexibility
+//! compensation, and judged on the identification and on separate validation configurations.
+
+use super::collision::CollisionChecker;
+use super::noise::{observe, NoiseModel, Targets, TARGET_SPACING};
+use super::sampling::{sample_configurations, SamplingOptions};
+use super::truth::{true_model, ErrorRanges};
+use crate::calibration::{
+    calibrate, CalibrationReport, Compensation, Deflected, IdentificationOptions, Plan,
+};
+use crate::error::Result;
+use crate::kinematics::{FlexibilityModel, McpcModel};
+use crate::math::Pose;
+use crate::measurement::Measurement;
+use crate::tree::{Branches, KinematicTree};
+use nalgebra::DMatrix;
+use rand::rngs::ChaCha8Rng;
+use rand::SeedableRng;
+use serde::Serialize;
+
+/// Settings of one simulated calibration.
+#[derive(Debug, Clone)]
+pub struct SimulationOptions {
+    /// Configurations measured for the arms (the paper uses 20).
+    pub poses: usize,
+    /// Configurations measured for the torso with the arms locked (staged plan).
+    pub torso_poses: usize,
+    /// How many locked arm configurations the torso configurations use.
+    pub locks: usize,
+    /// Separate configurations the results are validated on.
+    pub validation_poses: usize,
+    /// Parameter errors of the true robot.
+    pub errors: ErrorRanges,
+    /// Tracker noise.
+    pub noise: NoiseModel,
+    /// Targets per tool.
+    pub targets: Targets,
+    /// The calibration plan.
+    pub plan: Plan,
+    /// The compensating model's compliance relative to the truth's (1 = exact, 1.1 = 10 % too
+    /// compliant).
+    pub model_compliance_factor: f64,
+    /// The master seed; trial `k` uses a seed derived from it.
+    pub seed: u64,
+}
+
+impl Default for SimulationOptions {
+    fn default() -> Self {
+        Self {
+            poses: 20,
+            torso_poses: 10,
+            locks: 2,
+            validation_poses: 20,
+            errors: ErrorRanges::default(),
+            noise: NoiseModel::at901(),
+            targets: Targets::Three,
+            plan: Plan::staged(),
+            model_compliance_factor: 1.0,
+            seed: 0,
+        }
+    }
+}
+
+/// Everything a trial needs that does not change between trials.
+pub struct Setup<'a> {
+    /// The robot.
+    pub tree: &'a KinematicTree,
+    /// Its branches.
+    pub branches: &'a Branches,
+    /// The nominal MCPC model.
+    pub nominal: &'a McpcModel,
+    /// The truth's flexibility.
+    pub truth_flexibility: &'a FlexibilityModel,
+    /// The flexibility the compensating calibration assumes.
+    pub model_flexibility: &'a FlexibilityModel,
+    /// Self-collision checks for sampling (none: every configuration within limits).
+    pub checker: Option<&'a CollisionChecker>,
+}
+
+/// Maximum and mean errors over a set of configurations.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ErrorStats {
+    /// Largest position error (mm).
+    pub max_position_mm: f64,
+    /// Mean position error (mm).
+    pub mean_position_mm: f64,
+    /// Largest orientation error (deg).
+    pub max_orientation_deg: f64,
+    /// Mean orientation error (deg).
+    pub mean_orientation_deg: f64,
+}
+
+impl ErrorStats {
+    fn of(position_mm: &[f64], orientation_deg: &[f64]) -> Self {
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+        Self {
+            max_position_mm: max(position_mm),
+            mean_position_mm: mean(position_mm),
+            max_orientation_deg: max(orientation_deg),
+            mean_orientation_deg: mean(orientation_deg),
+        }
+    }
+}
+
+/// Per-configuration errors of one arm against the true (deflected, noise-free) tool pose.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ArmErrors {
+    /// The arm (branch name).
+    pub arm: String,
+    /// Nominal model.
+    pub before: ErrorStats,
+    /// Calibrated without flexibility compensation (rigid prediction).
+    pub rigid: ErrorStats,
+    /// Calibrated with compensation (deflected prediction).
+    pub compensated: ErrorStats,
+    /// % of the mean position error removed, rigid / compensated.
+    pub position_removed_percent: [f64; 2],
+    /// % of the mean orientation error removed, rigid / compensated.
+    pub orientation_removed_percent: [f64; 2],
+    /// Position errors per configuration (mm): before, rigid, compensated.
+    pub position_mm: [Vec<f64>; 3],
+    /// Orientation errors per configuration (deg): before, rigid, compensated.
+    pub orientation_deg: [Vec<f64>; 3],
+}
+
+/// The outcome of one calibration run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// Plan repetitions.
+    pub cycles: usize,
+    /// Per stage: name, iterations, termination, rank, parameter count.
+    pub stages: Vec<(String, usize, String, usize, usize)>,
+}
+
+/// One simulated calibration.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrialReport {
+    /// The trial's own seed.
+    pub seed: u64,
+    /// Errors on the arm-stage identification configurations, per arm.
+    pub identification: Vec<ArmErrors>,
+    /// Errors on the validation configurations, per arm.
+    pub validation: Vec<ArmErrors>,
+    /// RMS validation position error that the measurement noise alone predicts for the
+    /// compensated calibration (mm): from σ²·(JᵀJ)⁻¹ propagated to the validation poses.
+    pub noise_floor_position_mm: f64,
+    /// How the rigid calibration went.
+    pub rigid_run: RunSummary,
+    /// How the compensated calibration went.
+    pub compensated_run: RunSummary,
+}
+
+/// The seed of trial `trial`, independent of how trials are spread over threads.
+pub fn trial_seed(master: u64, trial: usize) -> u64 {
+    // SplitMix64 of (master, trial): well-mixed, version-stable.
+    let mut z = master ^ (trial as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Runs trial `trial` of a simulation.
+pub fn run_trial(
+    setup: &Setup<'_>,
+    options: &SimulationOptions,
+    trial: usize,
+) -> Result<TrialReport> {
+    let seed = trial_seed(options.seed, trial);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let tree = setup.tree;
+    let truth = true_model(setup.nominal, &options.errors, &mut rng)?;
+    let sampling = SamplingOptions::default();
+
+    // Torso configurations: arms locked at a few random configurations, the torso moving.
+    let torso_dofs: Vec<usize> = setup
+        .branches
+        .coupled
+        .joints
+        .iter()
+        .filter_map(|j| tree.dof_of(*j))
+        .map(|d| d.0)
+        .collect();
+    let locks = sample_configurations(
+        tree,
+        setup.checker,
+        options.locks.max(1),
+        &mut rng,
+        &sampling,
+        &[],
+    )?;
+    let mut torso_configurations = Vec::with_capacity(options.torso_poses);
+    for index in 0..options.torso_poses {
+        let lock = &locks[index % locks.len()];
+        let fixed: Vec<(usize, f64)> = (0..tree.dof_count())
+            .filter(|d| !torso_dofs.contains(d))
+            .map(|d| (d, lock[d]))
+            .collect();
+        torso_configurations.extend(sample_configurations(
+            tree,
+            setup.checker,
+            1,
+            &mut rng,
+            &sampling,
+            &fixed,
+        )?);
+    }
+    let arm_configurations =
+        sample_configurations(tree, setup.checker, options.poses, &mut rng, &sampling, &[])?;
+    let validation = sample_configurations(
+        tree,
+        setup.checker,
+        options.validation_poses,
+        &mut rng,
+        &sampling,
+        &[],
+    )?;
+
+    // Measure the deflected truth.
+    let mut measurements = Vec::new();
+    let mut measure =
+        |configurations: &[Vec<f64>], stage: &str, rng: &mut ChaCha8Rng| -> Result<()> {
+            for q in configurations {
+                let poses = setup
+                    .truth_flexibility
+                    .deflected_tool_poses(tree, &truth, q)?;
+                for (tool, pose) in poses.iter().enumerate() {
+                    measurements.push(Measurement {
+                        tool,
+                        q: q.clone(),
+                        observation: observe(pose, options.targets, &options.noise, rng),
+                        stage: Some(stage.into()),
+                    });
+                }
+            }
+            Ok(())
+        };
+    measure(&torso_configurations, "torso", &mut rng)?;
+    measure(&arm_configurations, "arms", &mut rng)?;
+
+    let identification_options = identification_options(&options.noise, options.targets);
+    let source = Deflected {
+        tree,
+        flexibility: setup.model_flexibility,
+    };
+    let rigid = calibrate(
+        setup.branches,
+        setup.nominal,
+        &measurements,
+        Compensation::None,
+        &options.plan,
+        &identification_options,
+    )?;
+    let compensated = calibrate(
+        setup.branches,
+        setup.nominal,
+        &measurements,
+        Compensation::Exact(source),
+        &options.plan,
+        &identification_options,
+    )?;
+
+    let errors = |configurations: &[Vec<f64>]| -> Result<Vec<ArmErrors>> {
+        arm_errors(
+            setup,
+            &truth,
+            &rigid.model,
+            &compensated.model,
+            configurations,
+        )
+    };
+    let noise_floor_position_mm = noise_floor(
+        &compensated.model,
+        &measurements,
+        &identification_options,
+        &options.noise,
+        &validation,
+    );
+    Ok(TrialReport {
+        seed,
+        identification: errors(&arm_configurations)?,
+        validation: errors(&validation)?,
+        noise_floor_position_mm,
+        rigid_run: summary(&rigid),
+        compensated_run: summary(&compensated),
+    })
+}
+
+/// Row weights that match the tracker: σ at a typical distance for positions, and the
+/// orientation noise of a three-target frame (`√2·σ / spacing`).
+fn identification_options(noise: &NoiseModel, targets: Targets) -> IdentificationOptions {
+    let mut options = IdentificationOptions::default();
+    if !noise.is_none() {
+        // σ at the base, about where the tools are.
+        let sigma = noise.sigma(&crate::math::Vec3::zeros());
+        options.position_sigma = sigma;
+        options.rotation_sigma = match targets {
+            Targets::Three => std::f64::consts::SQRT_2 * sigma / TARGET_SPACING,
+            Targets::One => options.rotation_sigma,
+        };
+    }
+    options
+}
+
+fn summary(report: &CalibrationReport) -> RunSummary {
+    RunSummary {
+        cycles: report.cycles,
+        stages: report
+            .stages
+            .iter()
+            .map(|s| {
+                (
+                    s.name.clone(),
+                    s.identification.iterations,
+                    format!("{:?}", s.identification.termination),
+                    s.identification.rank,
+                    s.identification.free.len(),
+                )
+            })
+            .collect(),
+    }
+}
+
+fn arm_errors(
+    setup: &Setup<'_>,
+    truth: &McpcModel,
+    rigid: &McpcModel,
+    compensated: &McpcModel,
+    configurations: &[Vec<f64>],
+) -> Result<Vec<ArmErrors>> {
+    let tools = setup.nominal.tools().len();
+    let mut position = vec![[Vec::new(), Vec::new(), Vec::new()]; tools];
+    let mut orientation = vec![[Vec::new(), Vec::new(), Vec::new()]; tools];
+    for q in configurations {
+        let actual = setup
+            .truth_flexibility
+            .deflected_tool_poses(setup.tree, truth, q)?;
+        let predictions: [Vec<Pose>; 3] = [
+            setup.nominal.tool_poses(q),
+            rigid.tool_poses(q),
+            setup
+                .model_flexibility
+                .deflected_tool_poses(setup.tree, compensated, q)?,
+        ];
+        for tool in 0..tools {
+            for (k, predicted) in predictions.iter().enumerate() {
+                let d = actual[tool].translation.vector - predicted[tool].translation.vector;
+                position[tool][k].push(d.norm() * 1e3);
+                orientation[tool][k].push(
+                    actual[tool]
+                        .rotation
+                        .angle_to(&predicted[tool].rotation)
+                        .to_degrees(),
+                );
+            }
+        }
+    }
+    Ok((0..tools)
+        .map(|tool| {
+            let stats: Vec<ErrorStats> = (0..3)
+                .map(|k| ErrorStats::of(&position[tool][k], &orientation[tool][k]))
+                .collect();
+            let removed = |before: f64, after: f64| {
+                if before > 0.0 {
+                    100.0 * (1.0 - after / before)
+                } else {
+                    0.0
+                }
+            };
+            let arm = setup
+                .branches
+                .arms
+                .iter()
+                .find(|a| a.tool == Some(setup.nominal.tools()[tool].link))
+                .map(|a| a.name.clone())
+                .unwrap_or_else(|| format!("tool {tool}"));
+            ArmErrors {
+                arm,
+                before: stats[0],
+                rigid: stats[1],
+                compensated: stats[2],
+                position_removed_percent: [
+                    removed(stats[0].mean_position_mm, stats[1].mean_position_mm),
+                    removed(stats[0].mean_position_mm, stats[2].mean_position_mm),
+                ],
+                orientation_removed_percent: [
+                    removed(stats[0].mean_orientation_deg, stats[1].mean_orientation_deg),
+                    removed(stats[0].mean_orientation_deg, stats[2].mean_orientation_deg),
+                ],
+                position_mm: position[tool].clone(),
+                orientation_deg: orientation[tool].clone(),
+            }
+        })
+        .collect())
+}
+
+/// RMS position error at the validation poses that the measurement noise alone causes:
+/// the parameter covariance σ²·(JᵀWJ)⁺ of the identification data, propagated through the
+/// validation Jacobians (mm).
+fn noise_floor(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    options: &IdentificationOptions,
+    noise: &NoiseModel,
+    validation: &[Vec<f64>],
+) -> f64 {
+    if noise.is_none() || validation.is_empty() {
+        return 0.0;
+    }
+    let n = model.parameter_count();
+    let mut information = DMatrix::<f64>::zeros(n, n);
+    for m in measurements {
+        let jacobian = &model.tool_jacobian(m.tool, &m.q).jacobian;
+        for row in 0..m.observation.rows() {
+            let sigma = if row < 3 {
+                options.position_sigma
+            } else {
+                options.rotation_sigma
+            };
+            let r = jacobian.row(row) / sigma;
+            information += r.transpose() * r;
+        }
+    }
+    let tolerance = 1e-12 * information.norm();
+    let covariance = match information.pseudo_inverse(tolerance) {
+        Ok(c) => c,
+        Err(_) => return f64::NAN,
+    };
+    let mut sum = 0.0;
+    let mut count = 0.0;
+    for q in validation {
+        for tool in model.tool_jacobians(q) {
+            let position = tool.jacobian.rows(0, 3);
+            sum += (position * &covariance * position.transpose()).trace();
+            count += 1.0;
+        }
+    }
+    (sum / count).sqrt() * 1e3
+}

@@ -1,0 +1,458 @@
+//! Self-collision checks (src/sim/collision.rs) and the configuration sampler
+//! (src/sim/sampling.rs), on tiny hand-written robots whose answers can be worked out by hand
+//! and on the repository's robots.
+
+use crate::common::*;
+use treecal::sim::collision::{CollisionChecker, CollisionOptions};
+use treecal::sim::sampling::{sample_configurations, SamplingOptions};
+use treecal::tree::{KinematicTree, LinkId};
+use treecal::urdf::load_urdf;
+
+const CUBE: &str = r#"<box size="0.2 0.2 0.2"/>"#;
+
+/// A `<link>` with `<collision>` shapes given as (xyz, rpy, geometry).
+fn link(name: &str, shapes: &[(&str, &str, &str)]) -> String {
+    let mut text = format!("  <link name=\"{name}\">\n");
+    for (xyz, rpy, geometry) in shapes {
+        text += &format!(
+            "    <collision><origin xyz=\"{xyz}\" rpy=\"{rpy}\"/><geometry>{geometry}</geometry></collision>\n"
+        );
+    }
+    text + "  </link>\n"
+}
+
+/// A `<joint>`; movable joints get limits [-3, 3] (revolute) or [0, 1] (prismatic).
+fn joint(name: &str, kind: &str, parent: &str, child: &str, xyz: &str, axis: &str) -> String {
+    let limit = match kind {
+        "revolute" => r#"<limit lower="-3" upper="3" effort="1" velocity="1"/>"#,
+        "prismatic" => r#"<limit lower="0" upper="1" effort="1" velocity="1"/>"#,
+        _ => "",
+    };
+    format!(
+        "  <joint name=\"{name}\" type=\"{kind}\"><parent link=\"{parent}\"/><child link=\"{child}\"/>\
+         <origin xyz=\"{xyz}\" rpy=\"0 0 0\"/><axis xyz=\"{axis}\"/>{limit}</joint>\n"
+    )
+}
+
+fn build(parts: &[String]) -> KinematicTree {
+    let text = format!("<robot name=\"test\">\n{}</robot>\n", parts.concat());
+    treecal::parse_urdf(&text, "test.urdf")
+        .unwrap_or_else(|e| panic!("{e}\n{text}"))
+        .tree
+}
+
+fn names(tree: &KinematicTree, pairs: &[(LinkId, LinkId)]) -> Vec<(String, String)> {
+    pairs
+        .iter()
+        .map(|&(a, b)| (tree.link(a).name.clone(), tree.link(b).name.clone()))
+        .collect()
+}
+
+fn pairs_at(checker: &CollisionChecker, tree: &KinematicTree, q: &[f64]) -> Vec<(String, String)> {
+    names(tree, &checker.colliding_pairs(&tree.link_poses(q).unwrap()))
+}
+
+fn collides(checker: &CollisionChecker, tree: &KinematicTree, q: &[f64]) -> bool {
+    checker.in_collision(&tree.link_poses(q).unwrap())
+}
+
+fn with_margin(tree: &KinematicTree, margin: f64) -> CollisionChecker {
+    CollisionChecker::with_options(tree, &CollisionOptions { margin }).unwrap()
+}
+
+/// Two 0.2 m cubes on separate branches of a base without geometry: `a` at the origin on a
+/// revolute joint about z, `b` starting 1 m away along x on a prismatic joint that moves it
+/// towards `a` by q[1]. The faces meet at q[1] = 1 − 0.1 − 0.1 = 0.8 while `a` is square to x;
+/// turned by 45°, `a`'s edge reaches x = 0.1·√2 and they meet at q[1] = 0.9 − 0.1·√2 ≈ 0.7586.
+fn sliding_boxes(b_geometry: &str) -> KinematicTree {
+    build(&[
+        link("base", &[]),
+        link("a", &[("0 0 0", "0 0 0", CUBE)]),
+        link("b", &[("0 0 0", "0 0 0", b_geometry)]),
+        joint("spin", "revolute", "base", "a", "0 0 0", "0 0 1"),
+        joint("slide", "prismatic", "base", "b", "1 0 0", "-1 0 0"),
+    ])
+}
+
+#[test]
+fn boxes_collide_only_past_the_hand_computed_threshold() {
+    let tree = sliding_boxes(CUBE);
+    let checker = CollisionChecker::new(&tree).unwrap();
+    assert_eq!(checker.pair_count(), 1);
+    assert_eq!(checker.skipped_meshes(), 0);
+    let ab = vec![("a".to_owned(), "b".to_owned())];
+    // Apart, then overlapping.
+    assert!(!collides(&checker, &tree, &[0.0, 0.0]));
+    assert!(pairs_at(&checker, &tree, &[0.0, 0.0]).is_empty());
+    assert!(collides(&checker, &tree, &[0.0, 0.9]));
+    assert_eq!(pairs_at(&checker, &tree, &[0.0, 0.9]), ab);
+    // Either side of the faces meeting at 0.8.
+    assert!(!collides(&checker, &tree, &[0.0, 0.799]));
+    assert!(collides(&checker, &tree, &[0.0, 0.801]));
+    // Turned by 45°, `a` reaches further: either side of 0.9 − 0.1·√2.
+    let threshold = 0.9 - 0.1 * 2f64.sqrt();
+    let quarter = std::f64::consts::FRAC_PI_4;
+    assert!(!collides(&checker, &tree, &[quarter, threshold - 1e-3]));
+    assert!(collides(&checker, &tree, &[quarter, threshold + 1e-3]));
+    assert!(!collides(&checker, &tree, &[0.0, threshold + 1e-3]));
+}
+
+#[test]
+fn adjacent_links_may_touch_but_links_two_joints_apart_may_not() {
+    // `arm` overlaps `base` and hangs from it by one joint; `hand` hangs from `arm` at the same
+    // place, so it overlaps both but is two joints from `base`.
+    let tree = build(&[
+        link("base", &[("0 0 0", "0 0 0", CUBE)]),
+        link("arm", &[("0 0 0", "0 0 0", CUBE)]),
+        link("hand", &[("0 0 0", "0 0 0", CUBE)]),
+        joint("shoulder", "revolute", "base", "arm", "0 0 0.15", "0 0 1"),
+        joint("wrist", "revolute", "arm", "hand", "0 0 0", "0 0 1"),
+    ]);
+    let checker = CollisionChecker::new(&tree).unwrap();
+    assert_eq!(
+        names(&tree, &checker.pairs().collect::<Vec<_>>()),
+        [("base".to_owned(), "hand".to_owned())]
+    );
+    assert_eq!(
+        pairs_at(&checker, &tree, &[0.3, -0.2]),
+        [("base".to_owned(), "hand".to_owned())]
+    );
+}
+
+#[test]
+fn links_welded_by_fixed_joints_are_one_body() {
+    // base ⊕ cover (fixed) — upper ⊕ plate (fixed) — lower: every neighbour overlaps or touches.
+    let tree = build(&[
+        link("base", &[("0 0 0", "0 0 0", CUBE)]),
+        link("cover", &[("0 0 0", "0 0 0", CUBE)]),
+        link("upper", &[("0 0 0", "0 0 0", CUBE)]),
+        link("plate", &[("0 0 0", "0 0 0", CUBE)]),
+        link("lower", &[("0 0 0", "0 0 0", CUBE)]),
+        joint("cover_weld", "fixed", "base", "cover", "0 0 0.15", "1 0 0"),
+        joint("lift", "revolute", "base", "upper", "0 0 0.5", "0 0 1"),
+        joint("plate_weld", "fixed", "upper", "plate", "0 0 0.1", "1 0 0"),
+        joint("elbow", "revolute", "plate", "lower", "0 0 0.05", "0 0 1"),
+    ]);
+    let checker = CollisionChecker::new(&tree).unwrap();
+    // Only links of `base`'s body against links of `lower`'s body, two movable joints apart.
+    assert_eq!(
+        names(&tree, &checker.pairs().collect::<Vec<_>>()),
+        [
+            ("base".to_owned(), "lower".to_owned()),
+            ("cover".to_owned(), "lower".to_owned())
+        ]
+    );
+    assert!(!collides(&checker, &tree, &[0.0, 0.0]));
+    assert!(!collides(&checker, &tree, &[1.0, -2.0]));
+}
+
+/// A thin rod (cylinder along URDF z, 1 m long) on a joint about x, a cube above the origin on
+/// the z axis and one beside it on the y axis, each on its own branch.
+fn rod_and_cubes(rod_rpy: &str) -> KinematicTree {
+    build(&[
+        link("base", &[]),
+        link(
+            "rod",
+            &[(
+                "0 0 0",
+                rod_rpy,
+                r#"<cylinder radius="0.01" length="1.0"/>"#,
+            )],
+        ),
+        link("above", &[("0 0 0", "0 0 0", CUBE)]),
+        link("beside", &[("0 0 0", "0 0 0", CUBE)]),
+        joint("tilt", "revolute", "base", "rod", "0 0 0", "1 0 0"),
+        joint(
+            "above_joint",
+            "revolute",
+            "base",
+            "above",
+            "0 0 0.4",
+            "0 0 1",
+        ),
+        joint(
+            "beside_joint",
+            "revolute",
+            "base",
+            "beside",
+            "0 0.4 0",
+            "0 0 1",
+        ),
+    ])
+}
+
+/// URDF cylinders run along z and parry's along y: forgetting the turn swaps every answer here.
+#[test]
+fn cylinders_lie_along_urdf_z() {
+    let rod_above = vec![("rod".to_owned(), "above".to_owned())];
+    let rod_beside = vec![("rod".to_owned(), "beside".to_owned())];
+    let tree = rod_and_cubes("0 0 0");
+    let checker = CollisionChecker::new(&tree).unwrap();
+    let quarter = std::f64::consts::FRAC_PI_2;
+    assert_eq!(pairs_at(&checker, &tree, &[0.0, 0.0, 0.0]), rod_above);
+    // Tilted a quarter turn about x, the rod lies along ∓y and reaches the other cube.
+    assert_eq!(pairs_at(&checker, &tree, &[quarter, 0.0, 0.0]), rod_beside);
+    assert_eq!(pairs_at(&checker, &tree, &[-quarter, 0.0, 0.0]), rod_beside);
+    // Half-way it misses both (its tip is at 0.35 m along both axes, outside both cubes).
+    assert!(pairs_at(&checker, &tree, &[quarter / 2.0, 0.0, 0.0]).is_empty());
+    // The <origin> rpy of the shape turns it too: rolled 90° about x, it lies along y at zero.
+    let tree = rod_and_cubes("1.5707963267948966 0 0");
+    let checker = CollisionChecker::new(&tree).unwrap();
+    assert_eq!(pairs_at(&checker, &tree, &[0.0, 0.0, 0.0]), rod_beside);
+}
+
+#[test]
+fn margin_counts_near_misses_as_collisions() {
+    // At q = 0.75 the cubes' faces are 0.05 m apart.
+    let tree = sliding_boxes(CUBE);
+    let q = [0.0, 0.75];
+    assert!(!collides(&with_margin(&tree, 0.0), &tree, &q));
+    assert!(!collides(&with_margin(&tree, 0.04), &tree, &q));
+    assert!(collides(&with_margin(&tree, 0.06), &tree, &q));
+    assert_eq!(with_margin(&tree, 0.06).pair_count(), 1);
+    // A sphere of radius 0.1 in place of cube `b`: 0.05 m apart at the same q; a capsule too.
+    for b in [
+        r#"<sphere radius="0.1"/>"#,
+        r#"<cylinder radius="0.1" length="0.3"/>"#,
+        r#"<capsule radius="0.1" length="0.3"/>"#,
+    ] {
+        let tree = sliding_boxes(b);
+        assert!(!collides(&with_margin(&tree, 0.0), &tree, &q), "{b}");
+        assert!(!collides(&with_margin(&tree, 0.04), &tree, &q), "{b}");
+        assert!(collides(&with_margin(&tree, 0.06), &tree, &q), "{b}");
+        assert!(
+            collides(&with_margin(&tree, 0.0), &tree, &[0.0, 0.81]),
+            "{b}"
+        );
+    }
+    for bad in [-0.01, f64::NAN, f64::INFINITY] {
+        let error = CollisionChecker::with_options(&tree, &CollisionOptions { margin: bad })
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("collision margin"), "{error}");
+    }
+}
+
+#[test]
+fn bad_shapes_are_errors_and_meshes_are_counted() {
+    let tree = sliding_boxes(r#"<box size="0.2 -0.2 0.2"/>"#);
+    let error = CollisionChecker::new(&tree).unwrap_err().to_string();
+    assert!(
+        error.contains("link 'b'") && error.contains("box size y"),
+        "{error}"
+    );
+    let tree = sliding_boxes(r#"<mesh filename="package://robot/b.stl"/>"#);
+    let checker = CollisionChecker::new(&tree).unwrap();
+    assert_eq!(checker.skipped_meshes(), 1);
+    assert_eq!(checker.pair_count(), 0);
+    assert!(!collides(&checker, &tree, &[0.0, 0.9]));
+}
+
+/// Poses with NaN in them (a NaN joint value) count as colliding instead of reaching parry.
+#[test]
+fn non_finite_poses_count_as_colliding() {
+    let tree = sliding_boxes(CUBE);
+    let checker = CollisionChecker::new(&tree).unwrap();
+    assert!(collides(&checker, &tree, &[0.0, f64::NAN]));
+}
+
+/// The zero configuration of every robot in robots/ and of Robonaut 2, with what it collides.
+#[test]
+fn robots_at_the_zero_configuration() {
+    let mut robots = all_repo_robots();
+    robots.push(robonaut2());
+    for path in robots {
+        let tree = load_urdf(&path).unwrap().tree;
+        let checker = CollisionChecker::new(&tree).unwrap();
+        let colliding = pairs_at(&checker, &tree, &tree.zero_configuration());
+        let file = path.file_name().unwrap().to_string_lossy().into_owned();
+        eprintln!(
+            "{file}: {} pairs checked, {} meshes skipped, colliding at zero: {colliding:?}",
+            checker.pair_count(),
+            checker.skipped_meshes()
+        );
+        let expected: Vec<(String, String)> = match file.as_str() {
+            // Table 1's left arm folds back on itself at zero (rows 1–3 are parallel joints
+            // with y = −135, −135, +245 mm), so left_link3's tube lies over left_link1's.
+            "robonaut.urdf" => vec![("left_link1".into(), "left_link3".into())],
+            _ => vec![],
+        };
+        assert_eq!(colliding, expected, "{file}");
+        if file == "robonaut2.urdf" {
+            // Only the two ankle cylinders are primitives; the rest are meshes, not loaded yet.
+            assert_eq!(checker.skipped_meshes(), 69);
+            assert_eq!(checker.pair_count(), 1);
+        }
+    }
+}
+
+#[test]
+fn sampler_keeps_to_limits_and_fixed_values() {
+    let tree = load_urdf(&robot("humanoid/humanoid.urdf")).unwrap().tree;
+    let checker = CollisionChecker::new(&tree).unwrap();
+    let dof = |name: &str| tree.dof_of(tree.joint_id(name).unwrap()).unwrap().0;
+    let fixed = [(dof("l_elbow"), -1.0), (dof("r_wrist_roll"), 2.5)];
+    let options = SamplingOptions {
+        limits_margin: 0.05,
+        ..Default::default()
+    };
+    let samples =
+        sample_configurations(&tree, Some(&checker), 50, &mut rng(3), &options, &fixed).unwrap();
+    assert_eq!(samples.len(), 50);
+    let limits = tree.dof_limits();
+    for q in &samples {
+        assert_eq!(q.len(), tree.dof_count());
+        for (i, (value, limit)) in q.iter().zip(&limits).enumerate() {
+            if let Some(&(_, held)) = fixed.iter().find(|(d, _)| *d == i) {
+                assert_eq!(*value, held);
+            } else if let Some(l) = limit {
+                assert!(
+                    *value >= l.lower + 0.05 && *value < l.upper - 0.05,
+                    "{i}: {value}"
+                );
+            } else {
+                assert!((-std::f64::consts::PI..std::f64::consts::PI).contains(value));
+            }
+        }
+        assert!(!collides(&checker, &tree, q));
+    }
+    // The continuous left wrist roll is drawn over a full turn.
+    let roll: Vec<f64> = samples.iter().map(|q| q[dof("l_wrist_roll")]).collect();
+    assert!(roll.iter().any(|&v| v < -2.0) && roll.iter().any(|&v| v > 2.0));
+}
+
+#[test]
+fn sampler_rejects_colliding_configurations() {
+    let tree = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
+    let checker = CollisionChecker::new(&tree).unwrap();
+    let options = SamplingOptions::default();
+    let free =
+        sample_configurations(&tree, Some(&checker), 300, &mut rng(5), &options, &[]).unwrap();
+    assert!(free.iter().all(|q| !collides(&checker, &tree, q)));
+    // Without the checker the same draws include collisions, so the rejection did something.
+    let any = sample_configurations(&tree, None, 300, &mut rng(5), &options, &[]).unwrap();
+    let colliding = any.iter().filter(|q| collides(&checker, &tree, q)).count();
+    eprintln!(
+        "robonaut.urdf: {:.1} % of uniform configurations are free of self-collision",
+        100.0 * (300 - colliding) as f64 / 300.0
+    );
+    assert!(colliding > 100, "{colliding} of 300");
+}
+
+#[test]
+fn sampler_is_deterministic_for_a_seed() {
+    let tree = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
+    let checker = CollisionChecker::new(&tree).unwrap();
+    let options = SamplingOptions::default();
+    let draw = |seed| {
+        sample_configurations(&tree, Some(&checker), 20, &mut rng(seed), &options, &[]).unwrap()
+    };
+    assert_eq!(draw(11), draw(11));
+    assert_ne!(draw(11), draw(12));
+}
+
+#[test]
+fn sampler_explains_a_robot_that_always_collides() {
+    // Two cubes on joints about their own z axes, 5 cm apart: they overlap at every angle.
+    let tree = build(&[
+        link("base", &[]),
+        link("a", &[("0 0 0", "0 0 0", CUBE)]),
+        link("b", &[("0 0 0", "0 0 0", CUBE)]),
+        joint("ja", "revolute", "base", "a", "0 0 0", "0 0 1"),
+        joint("jb", "revolute", "base", "b", "0.05 0 0", "0 0 1"),
+    ]);
+    let checker = CollisionChecker::new(&tree).unwrap();
+    let options = SamplingOptions {
+        max_attempts_per_sample: 20,
+        ..Default::default()
+    };
+    let error = sample_configurations(&tree, Some(&checker), 3, &mut rng(0), &options, &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("could not find a self-collision-free configuration in 20 attempts")
+            && error.contains("sample 1 of 3")
+            && error.contains("at the zero configuration: a–b"),
+        "{error}"
+    );
+}
+
+/// Robonaut's stage-1 poses (arms locked, torso moving) cannot lock the left arm at zero: its
+/// links 1 and 3 overlap there whatever the torso does.
+#[test]
+fn robonaut_arms_locked_at_zero_always_collide() {
+    let tree = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
+    let checker = CollisionChecker::new(&tree).unwrap();
+    let arm_dofs: Vec<usize> = (0..tree.dof_count())
+        .filter(|&dof| !tree.joint(tree.dofs()[dof]).name.starts_with("torso"))
+        .collect();
+    assert_eq!(arm_dofs.len(), 11);
+    let arms: Vec<(usize, f64)> = arm_dofs.iter().map(|&dof| (dof, 0.0)).collect();
+    let options = SamplingOptions {
+        max_attempts_per_sample: 50,
+        ..Default::default()
+    };
+    let error = sample_configurations(&tree, Some(&checker), 1, &mut rng(0), &options, &arms)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("zero configuration with the fixed joints: left_link1–left_link3"),
+        "{error}"
+    );
+    // Locked at a collision-free arm configuration instead, the torso samples fine.
+    let free = sample_configurations(&tree, Some(&checker), 1, &mut rng(1), &options, &[])
+        .unwrap()
+        .remove(0);
+    let arms: Vec<(usize, f64)> = arm_dofs.iter().map(|&dof| (dof, free[dof])).collect();
+    let torso = sample_configurations(&tree, Some(&checker), 10, &mut rng(2), &options, &arms);
+    assert_eq!(torso.unwrap().len(), 10);
+}
+
+#[test]
+fn sampler_rejects_bad_requests() {
+    let tree = sliding_boxes(CUBE);
+    let options = SamplingOptions::default();
+    let error = |options: &SamplingOptions, fixed: &[(usize, f64)]| {
+        sample_configurations(&tree, None, 1, &mut rng(0), options, fixed)
+            .unwrap_err()
+            .to_string()
+    };
+    assert!(error(&options, &[(2, 0.0)]).contains("index 2 is out of range"));
+    assert!(error(&options, &[(1, 1.5)]).contains("outside its limits"));
+    assert!(error(&options, &[(0, 0.1), (0, 0.2)]).contains("fixed twice"));
+    assert!(error(&options, &[(0, f64::NAN)]).contains("finite"));
+    let wide = SamplingOptions {
+        limits_margin: 0.6,
+        ..Default::default()
+    };
+    assert!(error(&wide, &[]).contains("leaves nothing to sample of joint 'slide'"));
+    let none = SamplingOptions {
+        max_attempts_per_sample: 0,
+        ..Default::default()
+    };
+    assert!(error(&none, &[]).contains("at least 1"));
+    // A prismatic joint without limits has no range, unless it is held.
+    let tree = build(&[
+        link("base", &[]),
+        link("carriage", &[]),
+        "  <joint name=\"rail\" type=\"prismatic\"><parent link=\"base\"/><child link=\"carriage\"/>\
+         <axis xyz=\"1 0 0\"/></joint>\n"
+            .to_owned(),
+    ]);
+    let error = sample_configurations(&tree, None, 1, &mut rng(0), &options, &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("prismatic joint 'rail' has no limits"),
+        "{error}"
+    );
+    let held = sample_configurations(&tree, None, 2, &mut rng(0), &options, &[(0, 0.3)]);
+    assert_eq!(held.unwrap(), [[0.3], [0.3]]);
+    // A checker built for another robot.
+    let other = CollisionChecker::new(&sliding_boxes(CUBE)).unwrap();
+    let robonaut = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
+    let error = sample_configurations(&robonaut, Some(&other), 1, &mut rng(0), &options, &[])
+        .unwrap_err()
+        .to_string();
+    assert!(error.contains("built for a robot with 3 links"), "{error}");
+}
