@@ -746,3 +746,110 @@ fn to_mcpc_of_the_built_in_robot_goes_to_stdout() {
     let table = treecal::io::parse_mcpc_table(&run.stdout, "stdout").unwrap();
     assert_eq!(table.branches.len(), 3);
 }
+
+// ---------------------------------------------------------------------------------------------
+// simulate
+
+#[test]
+fn simulate_same_seed_gives_identical_results() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let measurements = dir.path().join("m.csv");
+    let run = treecal(&[
+        "simulate",
+        "--out",
+        path_str(&a),
+        "--write-measurements",
+        path_str(&measurements),
+    ]);
+    assert_success(&run, "simulate");
+    assert!(run.stdout.contains("| left_arm | position (mm) |"), "{run}");
+    let run = treecal(&["simulate", "--out", path_str(&b)]);
+    assert_success(&run, "simulate again");
+    let first = std::fs::read(a.join("results.json")).unwrap();
+    assert_eq!(first, std::fs::read(b.join("results.json")).unwrap());
+    for file in [
+        "summary.md",
+        "left_arm_position.svg",
+        "right_arm_orientation.svg",
+    ] {
+        assert!(a.join(file).is_file(), "{file}");
+    }
+    let csv = std::fs::read_to_string(&measurements).unwrap();
+    assert!(
+        csv.starts_with("id,stage,tool,torso_joint1,"),
+        "{}",
+        &csv[..80]
+    );
+    assert_eq!(csv.lines().count(), 1 + 2 * (20 + 10));
+    let run = treecal(&["simulate", "--seed", "1", "--out", path_str(&b)]);
+    assert_success(&run, "another seed");
+    assert_ne!(first, std::fs::read(b.join("results.json")).unwrap());
+}
+
+#[test]
+fn simulate_without_noise_removes_the_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = treecal(&[
+        "simulate",
+        "--noise",
+        "0",
+        "--plan",
+        "simultaneous",
+        "--out",
+        path_str(dir.path()),
+    ]);
+    assert_success(&run, "noise-free");
+    let results: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("results.json")).unwrap())
+            .unwrap();
+    for arm in results["trials"][0]["validation"].as_array().unwrap() {
+        let removed = arm["position_removed_percent"][1].as_f64().unwrap();
+        assert!(removed > 99.99, "{removed}");
+    }
+}
+
+#[test]
+fn simulate_rejects_bad_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = path_str(dir.path());
+    let run = treecal(&["simulate", "--poses", "-3", "--out", out]);
+    assert!(!run.success && run.stderr.contains("--poses"), "{run}");
+    assert_error(
+        &treecal(&["simulate", "--robot", "nosuch.urdf", "--out", out]),
+        &["nosuch.urdf"],
+        "unknown robot",
+    );
+    assert_error(
+        &treecal(&[
+            "simulate",
+            "--robot",
+            "robots/humanoid/humanoid.urdf",
+            "--stiffness",
+            "robots/robonaut/stiffness.yaml",
+            "--out",
+            out,
+        ]),
+        &["stiffness.yaml"],
+        "stiffness of another robot",
+    );
+    assert_error(
+        &treecal(&["simulate", "--noise", "loud", "--out", out]),
+        &["--noise", "loud"],
+        "bad noise",
+    );
+    assert_error(
+        &treecal(&["simulate", "--targets", "2", "--out", out]),
+        &["--targets"],
+        "two targets",
+    );
+    assert_error(
+        &treecal(&["simulate", "--model-stiffness-scale", "0", "--out", out]),
+        &["--model-stiffness-scale"],
+        "zero scale",
+    );
+    assert!(
+        !dir.path().join("results.json").exists(),
+        "no output after errors"
+    );
+}

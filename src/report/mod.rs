@@ -2,5 +2,6 @@
 
 pub mod inspect;
 pub mod plot;
+pub mod simulate;
 
 pub use inspect::{inspect, InspectReport};

@@ -38,9 +38,6 @@ pub struct SimulationOptions {
     pub targets: Targets,
     /// The calibration plan.
     pub plan: Plan,
-    /// The compensating model's compliance relative to the truth's (1 = exact, 1.1 = 10 % too
-    /// compliant).
-    pub model_compliance_factor: f64,
     /// The master seed; trial `k` uses a seed derived from it.
     pub seed: u64,
 }
@@ -56,7 +53,6 @@ impl Default for SimulationOptions {
             noise: NoiseModel::at901(),
             targets: Targets::Three,
             plan: Plan::staged(),
-            model_compliance_factor: 1.0,
             seed: 0,
         }
     }
@@ -150,6 +146,9 @@ pub struct TrialReport {
     pub rigid_run: RunSummary,
     /// How the compensated calibration went.
     pub compensated_run: RunSummary,
+    /// The simulated measurements (torso stage, then arms stage).
+    #[serde(skip)]
+    pub measurements: Vec<Measurement>,
 }
 
 /// The seed of trial `trial`, independent of how trials are spread over threads.
@@ -284,6 +283,7 @@ pub fn run_trial(
         noise_floor_position_mm,
         rigid_run: summary(&rigid),
         compensated_run: summary(&compensated),
+        measurements,
     })
 }
 

@@ -22,6 +22,9 @@ pub enum Command {
     FromMcpc(FromMcpcArgs),
     /// Write a robot's MCPC parameter table (YAML, the format from-mcpc reads).
     ToMcpc(ToMcpcArgs),
+    /// Simulate the paper's section 5.2 experiment: calibrate a randomly wrong, gravity-loaded
+    /// robot from noisy laser-tracker data, without and with flexibility compensation.
+    Simulate(SimulateArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -104,4 +107,75 @@ pub struct ToMcpcArgs {
     /// The YAML file to write [default: standard output].
     #[arg(short, long, value_name = "OUT.yaml")]
     pub output: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum PlanChoice {
+    /// The paper's staging: the torso with the arms locked, then the arms.
+    Staged,
+    /// Every parameter from every measurement at once.
+    Simultaneous,
+}
+
+/// Arguments of `treecal simulate`.
+#[derive(Args)]
+#[command(
+    after_help = "Without --robot, the built-in Robonaut and its stiffness file (robots/robonaut/stiffness.yaml: joints 5000 N·m/rad, 20 kg per tool) are used.\n\nOutputs in --out: summary.md (the tables), results.json (every number), and SVG plots of the per-configuration errors of trial 1 (as the paper's Fig. 7-8).\n\nExamples:\n  treecal simulate\n  treecal simulate --trials 100 --plan simultaneous\n  treecal simulate --noise 0 --model-stiffness-scale 1.1"
+)]
+pub struct SimulateArgs {
+    /// The robot's URDF file [default: the built-in Robonaut].
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Stiffness YAML (gravity, payloads, joint and link stiffness) [default: the built-in
+    /// Robonaut's; required with --robot].
+    #[arg(long)]
+    pub stiffness: Option<PathBuf>,
+    /// Tool links ending the arms (see `inspect --help`).
+    #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
+    pub tools: Option<Vec<String>>,
+    /// Configurations measured for the arms.
+    #[arg(long, default_value_t = 20, allow_negative_numbers = true)]
+    pub poses: u32,
+    /// Configurations measured for the torso with the arms locked (used by both plans).
+    #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
+    pub torso_poses: u32,
+    /// Separate configurations the results are validated on.
+    #[arg(long, default_value_t = 20, allow_negative_numbers = true)]
+    pub validation_poses: u32,
+    /// Simulated calibrations, each with a new true robot.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    pub trials: u32,
+    /// Master seed; the same seed gives the same results.json.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Tracker noise: 0 (none), at901 (15 µm + 6 µm/m per coordinate), or CONSTANT+PER_METRE in µm.
+    #[arg(long, default_value = "at901")]
+    pub noise: String,
+    /// Targets per tool: 3 (a frame, as in the paper's section 5.3.1) or 1 (a position).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
+    pub targets: u8,
+    /// Calibration plan.
+    #[arg(long, value_enum, default_value = "staged")]
+    pub plan: PlanChoice,
+    /// Half-width of the true robot's angle errors (rad).
+    #[arg(long, default_value_t = 0.05)]
+    pub angle_error: f64,
+    /// Half-width of the true robot's length errors (m).
+    #[arg(long, default_value_t = 0.05)]
+    pub length_error: f64,
+    /// Payload at every tool (kg), overriding the stiffness file.
+    #[arg(long)]
+    pub payload: Option<f64>,
+    /// Bending and torsion stiffness of every joint (N·m/rad), overriding the stiffness file.
+    #[arg(long)]
+    pub joint_stiffness: Option<f64>,
+    /// Stiffness the compensating model assumes, relative to the truth's (1.1 = 10 % too stiff).
+    #[arg(long, default_value_t = 1.0)]
+    pub model_stiffness_scale: f64,
+    /// Output folder.
+    #[arg(long, default_value = "out/simulate")]
+    pub out: PathBuf,
+    /// Also write trial 1's simulated measurements as CSV (docs/file-formats.md).
+    #[arg(long, value_name = "FILE")]
+    pub write_measurements: Option<PathBuf>,
 }

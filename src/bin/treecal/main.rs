@@ -8,6 +8,7 @@ mod fk;
 mod from_mcpc;
 mod inspect;
 mod robot;
+mod simulate;
 mod to_mcpc;
 
 use clap::Parser;
@@ -20,6 +21,7 @@ fn main() -> ExitCode {
         cli::Command::Fk(a) => fk::run(a),
         cli::Command::FromMcpc(a) => from_mcpc::run(a),
         cli::Command::ToMcpc(a) => to_mcpc::run(a),
+        cli::Command::Simulate(a) => simulate::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

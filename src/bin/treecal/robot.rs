@@ -8,6 +8,9 @@ use treecal::{detect_branches, Branches, Result};
 /// commands work from any directory.
 pub const BUILT_IN_ROBONAUT: &str = include_str!("../../../robots/robonaut/robonaut.urdf");
 
+/// The built-in Robonaut's stiffness file (the paper's section 5.2 set-up).
+pub const BUILT_IN_STIFFNESS: &str = include_str!("../../../robots/robonaut/stiffness.yaml");
+
 /// Loads `path`, or the built-in Robonaut when `None`; prints loader warnings on stderr.
 pub fn load(path: Option<&Path>) -> Result<UrdfImport> {
     let import = match path {

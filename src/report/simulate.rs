@@ -1,0 +1,133 @@
+//! Tables of a simulation in the layout of the paper's Table 3.
+
+use crate::sim::experiment::{ArmErrors, TrialReport};
+use crate::sim::monte_carlo::{ArmSummary, SimulationSummary};
+use std::fmt::Write;
+
+fn trial_table(out: &mut String, title: &str, arms: &[ArmErrors]) {
+    let _ = writeln!(out, "### {title}\n");
+    let _ = writeln!(
+        out,
+        "| arm | error | before max | before mean | rigid max | rigid mean | compensated max | compensated mean | removed (rigid) | removed (compensated) |"
+    );
+    let _ = writeln!(
+        out,
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
+    );
+    for arm in arms {
+        let _ = writeln!(
+            out,
+            "| {} | position (mm) | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} % | {:.3} % |",
+            arm.arm,
+            arm.before.max_position_mm,
+            arm.before.mean_position_mm,
+            arm.rigid.max_position_mm,
+            arm.rigid.mean_position_mm,
+            arm.compensated.max_position_mm,
+            arm.compensated.mean_position_mm,
+            arm.position_removed_percent[0],
+            arm.position_removed_percent[1]
+        );
+        let _ = writeln!(
+            out,
+            "| {} | orientation (deg) | {:.4} | {:.4} | {:.4} | {:.4} | {:.5} | {:.5} | {:.2} % | {:.3} % |",
+            arm.arm,
+            arm.before.max_orientation_deg,
+            arm.before.mean_orientation_deg,
+            arm.rigid.max_orientation_deg,
+            arm.rigid.mean_orientation_deg,
+            arm.compensated.max_orientation_deg,
+            arm.compensated.mean_orientation_deg,
+            arm.orientation_removed_percent[0],
+            arm.orientation_removed_percent[1]
+        );
+    }
+    out.push('\n');
+}
+
+fn summary_table(out: &mut String, title: &str, arms: &[ArmSummary]) {
+    let _ = writeln!(out, "### {title} (mean ± standard deviation over trials)\n");
+    let _ = writeln!(
+        out,
+        "| arm | error | before mean | rigid mean | compensated mean | removed (rigid) | removed (compensated) |"
+    );
+    let _ = writeln!(out, "| --- | --- | ---: | ---: | ---: | ---: | ---: |");
+    for arm in arms {
+        let _ = writeln!(
+            out,
+            "| {} | position (mm) | {:.3} ± {:.3} | {:.3} ± {:.3} | {:.4} ± {:.4} | {:.2} ± {:.2} % | {:.3} ± {:.3} % |",
+            arm.arm,
+            arm.before_position_mm.mean,
+            arm.before_position_mm.std,
+            arm.after_position_mm[0].mean,
+            arm.after_position_mm[0].std,
+            arm.after_position_mm[1].mean,
+            arm.after_position_mm[1].std,
+            arm.position_removed_percent[0].mean,
+            arm.position_removed_percent[0].std,
+            arm.position_removed_percent[1].mean,
+            arm.position_removed_percent[1].std
+        );
+        let _ = writeln!(
+            out,
+            "| {} | orientation (deg) | {:.4} ± {:.4} | {:.4} ± {:.4} | {:.5} ± {:.5} | {:.2} ± {:.2} % | {:.3} ± {:.3} % |",
+            arm.arm,
+            arm.before_orientation_deg.mean,
+            arm.before_orientation_deg.std,
+            arm.after_orientation_deg[0].mean,
+            arm.after_orientation_deg[0].std,
+            arm.after_orientation_deg[1].mean,
+            arm.after_orientation_deg[1].std,
+            arm.orientation_removed_percent[0].mean,
+            arm.orientation_removed_percent[0].std,
+            arm.orientation_removed_percent[1].mean,
+            arm.orientation_removed_percent[1].std
+        );
+    }
+    out.push('\n');
+}
+
+/// The Markdown summary: per-arm tables of the first trial (paper Table 3 layout: maximum and
+/// mean error before and after, without and with flexibility compensation) and, for more than
+/// one trial, mean ± standard deviation over trials.
+pub fn simulation_markdown(
+    header: &str,
+    trials: &[TrialReport],
+    summary: &SimulationSummary,
+) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "# treecal simulate\n\n{header}\n");
+    let _ = writeln!(
+        out,
+        "Errors are against the true (deflected, noise-free) tool poses. \"rigid\": calibrated ignoring flexibility, predicted rigidly; \"compensated\": calibrated and predicted with the flexibility model. \"removed\": share of the mean error removed.\n"
+    );
+    if let Some(first) = trials.first() {
+        let _ = writeln!(out, "## Trial 1 (seed {})\n", first.seed);
+        trial_table(
+            &mut out,
+            "Identification configurations",
+            &first.identification,
+        );
+        trial_table(&mut out, "Validation configurations", &first.validation);
+        let _ = writeln!(
+            out,
+            "Measurement noise alone predicts an RMS validation position error of {:.4} mm.\n",
+            first.noise_floor_position_mm
+        );
+    }
+    if trials.len() > 1 {
+        let _ = writeln!(out, "## All {} trials\n", summary.trials);
+        summary_table(
+            &mut out,
+            "Identification configurations",
+            &summary.identification,
+        );
+        summary_table(&mut out, "Validation configurations", &summary.validation);
+        let _ = writeln!(
+            out,
+            "Noise floor (RMS validation position error predicted from the noise): {:.4} ± {:.4} mm.\n",
+            summary.noise_floor_position_mm.mean, summary.noise_floor_position_mm.std
+        );
+    }
+    out
+}
