@@ -105,6 +105,10 @@ pub struct CalibrationReport {
 /// The most times a staged plan with exact flexibility compensation is repeated.
 pub const MAX_CYCLES: usize = 30;
 
+/// A repeated plan stops when no parameter moved by more than this in a cycle (rad or m): a
+/// nanometre, far below any instrument's noise.
+pub const CYCLE_TOLERANCE: f64 = 1e-9;
+
 /// How flexibility enters a calibration.
 #[derive(Debug, Clone, Copy)]
 pub enum Compensation<'a> {
@@ -292,7 +296,7 @@ pub fn calibrate(
             .zip(&before)
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
-        if change <= 1e-12 {
+        if change <= CYCLE_TOLERANCE {
             break;
         }
     }

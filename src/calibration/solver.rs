@@ -77,7 +77,7 @@ impl Deflected<'_> {
 /// on the deflected chain alone ([`Deflected`]) makes the iteration converge only linearly.
 /// The missing part — the exact derivative of the deflected poses (forward differences) minus
 /// the deflected-chain Jacobian — is computed per configuration and reused while the
-/// parameters stay within 1e-4 of where it was computed (its own change is second order), so
+/// parameters stay within 1e-3 of where it was computed (its own change is second order), so
 /// it is computed about twice per calibration: at the start and near the solution.
 #[derive(Debug)]
 pub struct DeflectedWithDerivative<'a> {
@@ -106,11 +106,11 @@ impl<'a> DeflectedWithDerivative<'a> {
         chain: &[ToolJacobian],
     ) -> Result<Vec<DMatrix<f64>>> {
         let parameters = model.parameters();
-        // Reuse while the parameters are within 1e-4 (rad, m) of where it was computed.
+        // Reuse while the parameters are within 1e-3 (rad, m) of where it was computed.
         let close = |at: &[f64]| {
             at.iter()
                 .zip(&parameters)
-                .all(|(a, b)| (a - b).abs() <= 1e-4)
+                .all(|(a, b)| (a - b).abs() <= 1e-3)
         };
         if let Some((_, _, found)) = self
             .cache
