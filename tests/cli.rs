@@ -3,78 +3,11 @@
 //! Every test runs the real binary (`CARGO_BIN_EXE_treecal`) and looks at exit status, stdout
 //! and stderr, as a user would.
 
+use crate::common::cli::*;
 use crate::common::*;
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Stdio};
 use treecal::load_urdf;
-
-/// What one run of the binary produced.
-struct Run {
-    success: bool,
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-impl std::fmt::Display for Run {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "exit code {:?}\n--- stdout ---\n{}\n--- stderr ---\n{}",
-            self.code, self.stdout, self.stderr
-        )
-    }
-}
-
-/// Runs `treecal args…` in `dir` (the repository root when `None`).
-fn treecal_in(dir: Option<&Path>, args: &[&str]) -> Run {
-    let root = repo();
-    let output = Command::new(env!("CARGO_BIN_EXE_treecal"))
-        .args(args)
-        .current_dir(dir.unwrap_or(&root))
-        .stdin(Stdio::null())
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run treecal: {e}"));
-    Run {
-        success: output.status.success(),
-        code: output.status.code(),
-        stdout: String::from_utf8(output.stdout).expect("stdout is not UTF-8"),
-        stderr: String::from_utf8(output.stderr).expect("stderr is not UTF-8"),
-    }
-}
-
-/// Runs `treecal args…` in the repository root.
-fn treecal(args: &[&str]) -> Run {
-    treecal_in(None, args)
-}
-
-#[track_caller]
-fn assert_success(run: &Run, what: &str) {
-    assert!(run.success, "{what}: expected success\n{run}");
-}
-
-/// Asserts a clean failure: non-zero exit, one `treecal: error:` line naming `needles`.
-#[track_caller]
-fn assert_error(run: &Run, needles: &[&str], what: &str) {
-    assert!(!run.success, "{what}: expected failure\n{run}");
-    assert_eq!(run.code, Some(1), "{what}: exit code\n{run}");
-    assert!(
-        run.stderr.starts_with("treecal: error: "),
-        "{what}: stderr should start with 'treecal: error: '\n{run}"
-    );
-    for needle in needles {
-        assert!(
-            run.stderr.contains(needle),
-            "{what}: stderr should contain {needle:?}\n{run}"
-        );
-    }
-    assert!(!run.stderr.contains("panicked"), "{what}: panic\n{run}");
-}
-
-fn path_str(path: &Path) -> &str {
-    path.to_str().expect("temporary path is not UTF-8")
-}
 
 // ---------------------------------------------------------------------------------------------
 // help

@@ -2,6 +2,7 @@
 //! the generator makes of Table 1, shows Table 1 again under `inspect`, has the table's forward
 //! kinematics, passes urdfdom's `check_urdf`; bad tables are refused with clear messages.
 
+use crate::common::cli::*;
 use crate::common::*;
 use serde_json::Value;
 use std::path::Path;
@@ -10,44 +11,6 @@ use treecal::io::{parse_mcpc_table, read_mcpc_table};
 use treecal::kinematics::{FrameKind, McpcTable, SINGULARITY_THRESHOLD};
 use treecal::math::{pose, rot_z, translation, Pose, Vec3};
 use treecal::{parse_urdf, urdf_from_mcpc_table};
-
-/// What one run of the binary produced.
-struct Run {
-    success: bool,
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-impl std::fmt::Display for Run {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "exit code {:?}\n--- stdout ---\n{}\n--- stderr ---\n{}",
-            self.code, self.stdout, self.stderr
-        )
-    }
-}
-
-/// Runs `treecal args…` in the repository root.
-fn treecal(args: &[&str]) -> Run {
-    let output = Command::new(env!("CARGO_BIN_EXE_treecal"))
-        .args(args)
-        .current_dir(repo())
-        .stdin(Stdio::null())
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run treecal: {e}"));
-    Run {
-        success: output.status.success(),
-        code: output.status.code(),
-        stdout: String::from_utf8(output.stdout).expect("stdout is not UTF-8"),
-        stderr: String::from_utf8(output.stderr).expect("stderr is not UTF-8"),
-    }
-}
-
-fn path_str(path: &Path) -> &str {
-    path.to_str().expect("temporary path is not UTF-8")
-}
 
 const TABLE1: &str = "robots/robonaut/table1.yaml";
 const ROBONAUT: &str = "robots/robonaut/robonaut.urdf";

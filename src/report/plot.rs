@@ -449,9 +449,10 @@ fn draw_on(
         } else {
             row_width = needed;
         }
-        rows.last_mut()
-            .expect("rows start non-empty")
-            .push((index, width));
+        // `rows` starts with one empty row, so there is always a last one.
+        if let Some(row) = rows.last_mut() {
+            row.push((index, width));
+        }
     }
     let legend_height = rows.len() as u32 * LEGEND_ROW_HEIGHT + 6;
     let (_, below_title) = root.split_vertically(TITLE_HEIGHT);
