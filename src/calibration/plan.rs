@@ -243,7 +243,10 @@ pub fn calibrate(
                             .zip(&before)
                             .map(|(a, b)| (a - b).abs())
                             .fold(0.0, f64::max);
+                        // Repeat with refreshed offsets only when the whole plan is not being
+                        // repeated anyway (the outer cycles refresh them too, more cheaply).
                         let again = matches!(compensation, Compensation::Exact(_))
+                            && max_cycles == 1
                             && change > 1e-13
                             && rounds < 8;
                         if !again {

@@ -186,7 +186,7 @@ impl Default for IdentificationOptions {
             rotation_sigma: 1e-4,
             rank_tolerance: 1e-8,
             step_tolerance: 1e-12,
-            cost_tolerance: 1e-14,
+            cost_tolerance: 1e-10,
         }
     }
 }
