@@ -245,6 +245,30 @@ fn starting_at_the_solution_terminates_immediately() {
     assert_ne!(report.termination, Termination::MaxIterations);
 }
 
+/// Stage-1 configurations: the torso joints random, every other joint at one of `locks`
+/// random lock configurations (drawn first), in turn.
+fn torso_configurations(
+    tree: &KinematicTree,
+    count: usize,
+    locks: usize,
+    rng: &mut rand::rngs::ChaCha8Rng,
+) -> Vec<Vec<f64>> {
+    let torso_dofs = detect_branches(tree, None).unwrap().coupled.dofs(tree);
+    let locked: Vec<Vec<f64>> = (0..locks)
+        .map(|_| random_configuration(tree, rng))
+        .collect();
+    (0..count)
+        .map(|index| {
+            let mut q = locked[index % locks].clone();
+            let free = random_configuration(tree, rng);
+            for &d in &torso_dofs {
+                q[d] = free[d];
+            }
+            q
+        })
+        .collect()
+}
+
 /// Stage-1 data: the torso moves, each arm stays locked at one of `locks` configurations.
 fn torso_measurements(
     tree: &KinematicTree,
@@ -253,25 +277,8 @@ fn torso_measurements(
     locks: usize,
     seed: u64,
 ) -> Vec<Measurement> {
-    let branches = detect_branches(tree, None).unwrap();
-    let mut rng = rng(seed);
-    let locked: Vec<Vec<f64>> = (0..locks)
-        .map(|_| random_configuration(tree, &mut rng))
-        .collect();
-    let torso_dofs: Vec<usize> = branches
-        .coupled
-        .joints
-        .iter()
-        .filter_map(|j| tree.dof_of(*j))
-        .map(|d| d.0)
-        .collect();
     let mut measurements = Vec::new();
-    for index in 0..count {
-        let mut q = locked[index % locks].clone();
-        let free = random_configuration(tree, &mut rng);
-        for &d in &torso_dofs {
-            q[d] = free[d];
-        }
+    for q in torso_configurations(tree, count, locks, &mut rng(seed)) {
         for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
             measurements.push(Measurement {
                 tool,
@@ -552,26 +559,7 @@ fn noise_free_round_trip_with_flexibility() {
     let arms: Vec<Vec<f64>> = (0..20)
         .map(|_| random_configuration(&tree, &mut draw))
         .collect();
-    let torso_dofs: Vec<usize> = branches
-        .coupled
-        .joints
-        .iter()
-        .filter_map(|j| tree.dof_of(*j))
-        .map(|d| d.0)
-        .collect();
-    let locks: Vec<Vec<f64>> = (0..2)
-        .map(|_| random_configuration(&tree, &mut draw))
-        .collect();
-    let torso: Vec<Vec<f64>> = (0..12)
-        .map(|i| {
-            let mut q = locks[i % 2].clone();
-            let free = random_configuration(&tree, &mut draw);
-            for &d in &torso_dofs {
-                q[d] = free[d];
-            }
-            q
-        })
-        .collect();
+    let torso = torso_configurations(&tree, 12, 2, &mut draw);
     let mut measurements = measure_deflected(&tree, &truth, &flexibility, &torso, Some("torso"));
     measurements.extend(measure_deflected(
         &tree,

@@ -3,7 +3,7 @@
 
 use super::solver::{
     identify, Deflected, DeflectedWithDerivative, IdentificationOptions, IdentificationReport,
-    Predictor, Rigid,
+    Rigid,
 };
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool, ParameterOwner};
@@ -223,7 +223,8 @@ pub fn calibrate(
                             &stage_model,
                             &stage_data,
                             offsets.as_deref(),
-                            &RigidOnly,
+                            // The reduced model is rigid; its deflections come as offsets.
+                            &Rigid,
                             &free,
                             options,
                         )?;
@@ -308,16 +309,6 @@ pub fn calibrate(
         stages: reports,
         cycles,
     })
-}
-
-/// The rigid predictor for the coupled stage's reduced model (deflection-aware predictors are
-/// defined on the full model; the coupled stage uses the offsets instead).
-struct RigidOnly;
-
-impl Predictor for RigidOnly {
-    fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<crate::math::Pose>> {
-        Ok(model.tool_poses(q))
-    }
 }
 
 /// The coupled-stage model: the torso frames plus one rigid tool per distinct (tool, locked arm

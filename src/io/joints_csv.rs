@@ -167,7 +167,6 @@ pub fn configurations(
 
 /// The table with `x,y,z,r11,…,r33` of each row's pose appended (metres, full precision).
 pub fn append_poses(table: &CsvTable, poses: &[Pose]) -> Result<String> {
-    let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = table.headers.clone();
     header.extend(
         [
@@ -175,11 +174,7 @@ pub fn append_poses(table: &CsvTable, poses: &[Pose]) -> Result<String> {
         ]
         .map(String::from),
     );
-    let fail = |e: csv::Error| Error::InvalidData {
-        origin: "output".into(),
-        message: e.to_string(),
-    };
-    writer.write_record(&header).map_err(fail)?;
+    let mut rows = vec![header];
     for ((_, fields), pose) in table.records.iter().zip(poses) {
         let mut row = fields.clone();
         let t = pose.translation.vector;
@@ -190,14 +185,7 @@ pub fn append_poses(table: &CsvTable, poses: &[Pose]) -> Result<String> {
                 row.push(format!("{}", r[(i, j)]));
             }
         }
-        writer.write_record(&row).map_err(fail)?;
+        rows.push(row);
     }
-    let bytes = writer.into_inner().map_err(|e| Error::InvalidData {
-        origin: "output".into(),
-        message: e.to_string(),
-    })?;
-    String::from_utf8(bytes).map_err(|e| Error::InvalidData {
-        origin: "output".into(),
-        message: e.to_string(),
-    })
+    super::csv_text(&rows, "output")
 }

@@ -23,18 +23,13 @@ pub fn measurements_to_csv(
             message: "full poses and single positions cannot be written to one file".into(),
         });
     }
-    let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header: Vec<String> = vec!["id".into(), "stage".into(), "tool".into()];
     header.extend(tree.dofs().iter().map(|j| tree.joint(*j).name.clone()));
     header.extend(["x", "y", "z"].map(String::from));
     if poses > 0 {
         header.extend(["qw", "qx", "qy", "qz"].map(String::from));
     }
-    let fail = |e: csv::Error| Error::InvalidData {
-        origin: "measurement CSV".into(),
-        message: e.to_string(),
-    };
-    writer.write_record(&header).map_err(fail)?;
+    let mut rows = vec![header];
     for (index, m) in measurements.iter().enumerate() {
         let tool = model
             .tools()
@@ -66,14 +61,7 @@ pub fn measurements_to_csv(
             }
             Observation::Position(p) => row.extend([p.x, p.y, p.z].iter().map(|v| format!("{v}"))),
         }
-        writer.write_record(&row).map_err(fail)?;
+        rows.push(row);
     }
-    let bytes = writer.into_inner().map_err(|e| Error::InvalidData {
-        origin: "measurement CSV".into(),
-        message: e.to_string(),
-    })?;
-    String::from_utf8(bytes).map_err(|e| Error::InvalidData {
-        origin: "measurement CSV".into(),
-        message: e.to_string(),
-    })
+    super::csv_text(&rows, "measurement CSV")
 }

@@ -31,3 +31,17 @@ pub fn to_json<T: serde::Serialize>(value: &T) -> Result<String> {
             message: e.to_string(),
         })
 }
+
+/// Rows (header first) as CSV text; `origin` names the output in messages.
+pub(crate) fn csv_text(rows: &[Vec<String>], origin: &str) -> Result<String> {
+    let fail = |message: String| Error::InvalidData {
+        origin: origin.to_owned(),
+        message,
+    };
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    for row in rows {
+        writer.write_record(row).map_err(|e| fail(e.to_string()))?;
+    }
+    let bytes = writer.into_inner().map_err(|e| fail(e.to_string()))?;
+    String::from_utf8(bytes).map_err(|e| fail(e.to_string()))
+}

@@ -173,14 +173,7 @@ pub fn run_trial(
     let sampling = SamplingOptions::default();
 
     // Torso configurations: arms locked at a few random configurations, the torso moving.
-    let torso_dofs: Vec<usize> = setup
-        .branches
-        .coupled
-        .joints
-        .iter()
-        .filter_map(|j| tree.dof_of(*j))
-        .map(|d| d.0)
-        .collect();
+    let torso_dofs = setup.branches.coupled.dofs(tree);
     let locks = sample_configurations(
         tree,
         setup.checker,

@@ -81,6 +81,18 @@ pub struct Branch {
     pub tool: Option<LinkId>,
 }
 
+impl Branch {
+    /// The configuration-vector indices of the branch's independent joints (mimic joints,
+    /// which follow another joint, have none).
+    pub fn dofs(&self, tree: &KinematicTree) -> Vec<usize> {
+        self.joints
+            .iter()
+            .filter_map(|j| tree.dof_of(*j))
+            .map(|d| d.0)
+            .collect()
+    }
+}
+
 /// The coupled branch and the arms of a robot.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Branches {
