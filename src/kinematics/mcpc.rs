@@ -329,38 +329,45 @@ impl McpcModel {
     }
 
     fn refresh(&mut self) {
-        // d/dα rotates about Rz(φ)·x, d/dβ about Rz(φ)·Rx(α)·y, d/dγ about Rz(φ)·Rx(α)·Ry(β)·z.
-        self.frame_axes = self
-            .frames
-            .iter()
-            .map(|f| {
-                let turn = rot_z(f.phi);
-                [turn * Vec3::x(), turn * rot_x(f.alpha) * Vec3::y()]
-            })
-            .collect();
-        self.tool_axes = self
-            .tools
-            .iter()
-            .map(|t| {
-                let turn = rot_z(t.phi);
-                let tilt = turn * rot_x(t.alpha);
-                [
-                    turn * Vec3::x(),
-                    tilt * Vec3::y(),
-                    tilt * rot_y(t.beta) * Vec3::z(),
-                ]
-            })
-            .collect();
-        self.frame_constants = self
-            .frames
-            .iter()
-            .map(|f| Transform::from_pose(&f.constant_transform()))
-            .collect();
-        self.tool_constants = self
-            .tools
-            .iter()
-            .map(|t| Transform::from_pose(&t.constant_transform()))
-            .collect();
+        self.frame_axes.clear();
+        self.frame_constants.clear();
+        for index in 0..self.frames.len() {
+            let (axes, constant) = Self::frame_caches(&self.frames[index]);
+            self.frame_axes.push(axes);
+            self.frame_constants.push(constant);
+        }
+        self.tool_axes.clear();
+        self.tool_constants.clear();
+        for index in 0..self.tools.len() {
+            let (axes, constant) = Self::tool_caches(&self.tools[index]);
+            self.tool_axes.push(axes);
+            self.tool_constants.push(constant);
+        }
+    }
+
+    /// Rotation axes of α and β (d/dα rotates about Rz(φ)·x, d/dβ about Rz(φ)·Rx(α)·y) and
+    /// the constant transform of a frame.
+    fn frame_caches(f: &McpcFrame) -> ([Vec3; 2], Transform) {
+        let turn = rot_z(f.phi);
+        (
+            [turn * Vec3::x(), turn * rot_x(f.alpha) * Vec3::y()],
+            Transform::from_pose(&f.constant_transform()),
+        )
+    }
+
+    /// Rotation axes of α, β and γ (about Rz(φ)·x, Rz(φ)·Rx(α)·y, Rz(φ)·Rx(α)·Ry(β)·z) and
+    /// the constant transform of a tool.
+    fn tool_caches(t: &McpcTool) -> ([Vec3; 3], Transform) {
+        let turn = rot_z(t.phi);
+        let tilt = turn * rot_x(t.alpha);
+        (
+            [
+                turn * Vec3::x(),
+                tilt * Vec3::y(),
+                tilt * rot_y(t.beta) * Vec3::z(),
+            ],
+            Transform::from_pose(&t.constant_transform()),
+        )
     }
 
     /// The MCPC model of `branches` of `tree` at its nominal (URDF) geometry.
@@ -490,32 +497,70 @@ impl McpcModel {
             });
         }
         for ((owner, kind), value) in layout.into_iter().zip(values) {
-            let slot = match owner {
-                ParameterOwner::Frame(i) => {
-                    let f = &mut self.frames[i];
-                    match kind {
-                        ParameterKind::Alpha => &mut f.alpha,
-                        ParameterKind::Beta => &mut f.beta,
-                        ParameterKind::X => &mut f.x,
-                        _ => &mut f.y,
-                    }
-                }
-                ParameterOwner::Tool(i) => {
-                    let t = &mut self.tools[i];
-                    match kind {
-                        ParameterKind::Alpha => &mut t.alpha,
-                        ParameterKind::Beta => &mut t.beta,
-                        ParameterKind::Gamma => &mut t.gamma,
-                        ParameterKind::X => &mut t.x,
-                        ParameterKind::Y => &mut t.y,
-                        ParameterKind::Z => &mut t.z,
-                    }
-                }
-            };
-            *slot = *value;
+            *self.slot(owner, kind) = *value;
         }
         self.refresh();
         Ok(())
+    }
+
+    /// Replaces parameter `index` alone, refreshing only its frame or tool: the cheap way to
+    /// perturb one parameter (finite differences).
+    pub fn set_parameter(&mut self, index: usize, value: f64) -> Result<()> {
+        let Some(&(owner, kind)) = self.parameter_layout().get(index) else {
+            return Err(Error::InvalidTable {
+                origin: "MCPC parameters".into(),
+                message: format!(
+                    "parameter {index} does not exist; the model has {} parameters",
+                    self.parameter_count()
+                ),
+            });
+        };
+        if !value.is_finite() {
+            return Err(Error::InvalidTable {
+                origin: "MCPC parameters".into(),
+                message: format!("parameter {index} is not finite"),
+            });
+        }
+        *self.slot(owner, kind) = value;
+        match owner {
+            ParameterOwner::Frame(i) => {
+                let (axes, constant) = Self::frame_caches(&self.frames[i]);
+                self.frame_axes[i] = axes;
+                self.frame_constants[i] = constant;
+            }
+            ParameterOwner::Tool(i) => {
+                let (axes, constant) = Self::tool_caches(&self.tools[i]);
+                self.tool_axes[i] = axes;
+                self.tool_constants[i] = constant;
+            }
+        }
+        Ok(())
+    }
+
+    /// The field holding parameter `kind` of `owner`.
+    fn slot(&mut self, owner: ParameterOwner, kind: ParameterKind) -> &mut f64 {
+        match owner {
+            ParameterOwner::Frame(i) => {
+                let f = &mut self.frames[i];
+                match kind {
+                    ParameterKind::Alpha => &mut f.alpha,
+                    ParameterKind::Beta => &mut f.beta,
+                    ParameterKind::X => &mut f.x,
+                    _ => &mut f.y,
+                }
+            }
+            ParameterOwner::Tool(i) => {
+                let t = &mut self.tools[i];
+                match kind {
+                    ParameterKind::Alpha => &mut t.alpha,
+                    ParameterKind::Beta => &mut t.beta,
+                    ParameterKind::Gamma => &mut t.gamma,
+                    ParameterKind::X => &mut t.x,
+                    ParameterKind::Y => &mut t.y,
+                    ParameterKind::Z => &mut t.z,
+                }
+            }
+        }
     }
 
     /// The joint value of frame `frame` at configuration `q`.

@@ -7,7 +7,7 @@ use crate::error::Result;
 use crate::kinematics::{ChainFrames, FrameKind, McpcModel};
 use crate::math::{Mat3, Pose, Transform, Vec3};
 use crate::tree::KinematicTree;
-use nalgebra::{Rotation3, Vector6};
+use nalgebra::Vector6;
 
 impl FlexibilityModel {
     /// The flexibility error `D_f` of every tool at configuration `q`, in [`McpcModel::tools`]
@@ -151,7 +151,46 @@ impl FlexibilityModel {
     }
 }
 
-/// The rotation matrix of rotation vector `v` (axis · angle).
+/// The rotation matrix of rotation vector `v` (axis · angle), by Rodrigues' formula
+/// `cos θ·I + a·[v]× + b·v·vᵀ` with `a = sin θ/θ`, `b = (1 − cos θ)/θ²`. Deflections are small:
+/// below 0.05 rad the series of `a`, `b` and `cos θ` to θ⁸ are exact to rounding and skip the
+/// trigonometric calls.
 fn exp(v: &Vec3) -> Mat3 {
-    Rotation3::new(*v).into_inner()
+    let t = v.norm_squared();
+    let (a, b, cos) = if t < 2.5e-3 {
+        let a = 1.0 - t / 6.0 * (1.0 - t / 20.0 * (1.0 - t / 42.0 * (1.0 - t / 72.0)));
+        let b = 0.5 * (1.0 - t / 12.0 * (1.0 - t / 30.0 * (1.0 - t / 56.0 * (1.0 - t / 90.0))));
+        (a, b, 1.0 - t * b)
+    } else {
+        let angle = t.sqrt();
+        let (sin, cos) = angle.sin_cos();
+        (sin / angle, (1.0 - cos) / t, cos)
+    };
+    let (x, y, z) = (v.x, v.y, v.z);
+    Mat3::new(
+        cos + b * x * x,
+        b * x * y - a * z,
+        b * x * z + a * y,
+        b * x * y + a * z,
+        cos + b * y * y,
+        b * y * z - a * x,
+        b * x * z - a * y,
+        b * y * z + a * x,
+        cos + b * z * z,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    #[test]
+    fn exp_matches_nalgebra_on_both_branches() {
+        for &angle in &[0.0, 1e-9, 1e-4, 0.01, 0.0499, 0.0501, 0.3, 2.0, 3.1] {
+            let v = Vec3::new(0.3, -0.5, 0.8).normalize() * angle;
+            let expected = Rotation3::new(v).into_inner();
+            assert!((exp(&v) - expected).amax() < 1e-15, "angle {angle}");
+        }
+    }
 }
