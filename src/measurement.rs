@@ -1,6 +1,8 @@
-//! Measured configurations and what was observed there (data only).
+//! Measured configurations and what was observed there (data only), and the three-target
+//! tool frame of the paper's section 5.3.1.
 
 use crate::math::{Pose, Vec3};
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 
 /// What a measuring instrument reports for one tool at one configuration, in the
 /// measurement frame.
@@ -34,4 +36,66 @@ pub struct Measurement {
     /// The calibration stage the measurement was taken for (e.g. `torso` for configurations
     /// with the arms locked), if labelled.
     pub stage: Option<String>,
+}
+
+/// Spacing of the targets A→B and A→C that [`targets_on`] places on a tool (m).
+pub const TARGET_SPACING: f64 = 0.1;
+
+/// Targets closer than this cannot define a frame: [`targets_problem`] (m).
+pub const MIN_TARGET_SEPARATION: f64 = 1e-3;
+
+/// The angle between AB and AC (or its supplement) below which [`targets_problem`] calls
+/// three targets collinear (rad): 0.5°.
+pub const MIN_TARGET_ANGLE: f64 = 0.5 * std::f64::consts::PI / 180.0;
+
+/// Three targets on a tool frame: A at the origin, B along x, C along y, [`TARGET_SPACING`]
+/// apart; [`frame_from_targets`] turns them back into the same frame.
+pub fn targets_on(tool: &Pose) -> [Vec3; 3] {
+    let a = tool.translation.vector;
+    [
+        a,
+        a + tool.rotation * Vec3::x() * TARGET_SPACING,
+        a + tool.rotation * Vec3::y() * TARGET_SPACING,
+    ]
+}
+
+/// The frame built from three targets as in the paper's section 5.3.1: origin A, X along AB,
+/// Z along AB × AC, Y completing a right-handed frame. `None` for exactly coincident or
+/// collinear targets; [`targets_problem`] applies a measurement-sized tolerance.
+pub fn frame_from_targets(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<Pose> {
+    let x = (b - a).try_normalize(1e-12)?;
+    let z = (b - a).cross(&(c - a)).try_normalize(1e-12)?;
+    let y = z.cross(&x);
+    let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
+    Some(Pose::from_parts(
+        (*a).into(),
+        UnitQuaternion::from_rotation_matrix(&rotation),
+    ))
+}
+
+/// Why three targets (m) define no reliable frame, or `None` when they do: two of them closer
+/// than [`MIN_TARGET_SEPARATION`] (coincident), or AB and AC within [`MIN_TARGET_ANGLE`] of
+/// parallel (collinear).
+pub fn targets_problem(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<String> {
+    let pairs = [("A", "B", a, b), ("A", "C", a, c), ("B", "C", b, c)];
+    for (first, second, p, q) in pairs {
+        let distance = (q - p).norm();
+        if distance < MIN_TARGET_SEPARATION {
+            return Some(format!(
+                "targets {first} and {second} are {:.3} mm apart (coincident; at least {} mm needed)",
+                distance * 1e3,
+                MIN_TARGET_SEPARATION * 1e3
+            ));
+        }
+    }
+    let (ab, ac) = (b - a, c - a);
+    let sine = ab.cross(&ac).norm() / (ab.norm() * ac.norm());
+    if sine < MIN_TARGET_ANGLE.sin() {
+        return Some(format!(
+            "targets A, B, C are collinear (AB and AC are {:.3}° from parallel; at least {}° needed)",
+            sine.clamp(0.0, 1.0).asin().to_degrees(),
+            MIN_TARGET_ANGLE.to_degrees()
+        ));
+    }
+    None
 }

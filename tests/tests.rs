@@ -10,6 +10,7 @@ mod from_mcpc;
 mod identification;
 mod jacobian;
 mod mcpc;
+mod measurements_csv;
 mod oracle;
 mod plot;
 mod simulate;

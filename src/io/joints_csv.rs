@@ -9,6 +9,8 @@ use crate::tree::{Actuation, JointKind, KinematicTree};
 pub struct CsvTable {
     /// Column names, trimmed.
     pub headers: Vec<String>,
+    /// The 1-based line of the header row.
+    pub header_line: usize,
     /// `(line, fields)` of every data row.
     pub records: Vec<(usize, Vec<String>)>,
 }
@@ -69,7 +71,11 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
             });
         }
     }
-    Ok(CsvTable { headers, records })
+    Ok(CsvTable {
+        headers,
+        header_line,
+        records,
+    })
 }
 
 /// The 1-based line on which the record at reader byte offset `byte` starts.

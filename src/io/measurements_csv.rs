@@ -1,67 +1,610 @@
 //! The measurement CSV (see `docs/file-formats.md`): one row per tool observation, with the
-//! joint values of every independent joint, in metres and radians.
+//! values of the joints that move the tool and the observation (a position, a pose, or three
+//! targets A, B, C), in metres and radians or the units the options name.
 
-use crate::error::{Error, Result};
+use super::joints_csv::parse_csv;
+use super::units::{AngleUnit, LengthUnit};
+use crate::error::{did_you_mean, Error, Result};
 use crate::kinematics::McpcModel;
-use crate::measurement::{Measurement, Observation};
-use crate::tree::KinematicTree;
+use crate::math::{Pose, Vec3};
+use crate::measurement::{
+    frame_from_targets, targets_on, targets_problem, Measurement, Observation,
+};
+use crate::tree::{Actuation, JointKind, KinematicTree};
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use std::collections::HashMap;
+use std::path::Path;
 
-/// Writes measurements as CSV: `id,stage,tool,<joint names…>,x,y,z[,qw,qx,qy,qz]`.
+/// How to read a measurement CSV.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MeasurementReadOptions {
+    /// Unit of positions, targets and prismatic joint values (default m).
+    pub length_unit: LengthUnit,
+    /// Unit of revolute and continuous joint values (default rad).
+    pub angle_unit: AngleUnit,
+    /// Columns to skip (e.g. a tracker's timestamp); any other unknown column is an error.
+    pub ignore_columns: Vec<String>,
+    /// A joint value outside its URDF limits is an error (otherwise a warning).
+    pub strict_limits: bool,
+}
+
+/// What each row of a measurement CSV observes; the header's columns decide.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ObservationKind {
+    /// `x,y,z`: one target's position.
+    Position,
+    /// `x,y,z,qw,qx,qy,qz`: a full pose.
+    Pose,
+    /// `ax,…,cz`: three targets A, B, C on the tool, turned into a pose (paper section 5.3.1)
+    /// whose offset from the URDF tool frame is unknown and must be identified.
+    ThreeTargets,
+}
+
+impl ObservationKind {
+    /// The observation columns of this layout, in file order.
+    pub fn columns(self) -> &'static [&'static str] {
+        match self {
+            ObservationKind::Position => &["x", "y", "z"],
+            ObservationKind::Pose => &["x", "y", "z", "qw", "qx", "qy", "qz"],
+            ObservationKind::ThreeTargets => {
+                &["ax", "ay", "az", "bx", "by", "bz", "cx", "cy", "cz"]
+            }
+        }
+    }
+}
+
+/// The measurements of a CSV, with where each came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeasurementSet {
+    /// The measurements in file order (metres, radians).
+    pub measurements: Vec<Measurement>,
+    /// The `id` of each row, or its 1-based data row number as text when there is no `id` column.
+    pub ids: Vec<String>,
+    /// The 1-based file line of each row.
+    pub lines: Vec<usize>,
+    /// What the rows observe.
+    pub observation: ObservationKind,
+    /// Accepted oddities (joint values outside their limits, ignored columns not present),
+    /// each naming its place.
+    pub warnings: Vec<String>,
+}
+
+/// Reads a measurement CSV file; see [`parse_measurements`].
+pub fn read_measurements(
+    path: &Path,
+    tree: &KinematicTree,
+    model: &McpcModel,
+    options: &MeasurementReadOptions,
+) -> Result<MeasurementSet> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse_measurements(&text, &path.display().to_string(), tree, model, options)
+}
+
+/// Columns reserved for the row's identity and observation (never joint names).
+const RESERVED: [&str; 19] = [
+    "id", "stage", "tool", "x", "y", "z", "qw", "qx", "qy", "qz", "ax", "ay", "az", "bx", "by",
+    "bz", "cx", "cy", "cz",
+];
+
+/// The three accepted observation layouts, for messages.
+const LAYOUTS: &str = "x,y,z (a position); x,y,z,qw,qx,qy,qz (a pose); or \
+                       ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C)";
+
+/// Where the columns of a measurement CSV go.
+struct Columns {
+    id: Option<usize>,
+    stage: Option<usize>,
+    tool: usize,
+    /// `(column, dof)` of independent joints.
+    joints: Vec<(usize, usize)>,
+    observation: ObservationKind,
+    /// The observation columns in [`ObservationKind::columns`] order.
+    observed: Vec<usize>,
+}
+
+/// Parses measurement CSV text; `origin` names it in messages (`origin:line:column`).
+pub fn parse_measurements(
+    text: &str,
+    origin: &str,
+    tree: &KinematicTree,
+    model: &McpcModel,
+    options: &MeasurementReadOptions,
+) -> Result<MeasurementSet> {
+    let table = parse_csv(text, origin).map_err(|e| match e {
+        Error::InvalidData { origin, message } if message.starts_with("the file is empty") => {
+            Error::InvalidData {
+                origin,
+                message: "the file is empty; it needs a header row (tool, joint names, \
+                          observation columns) and one row per measurement"
+                    .into(),
+            }
+        }
+        other => other,
+    })?;
+    let mut warnings = Vec::new();
+    let columns = classify(
+        &table.headers,
+        table.header_line,
+        tree,
+        model,
+        options,
+        origin,
+    )?;
+    for name in &options.ignore_columns {
+        if !table.headers.contains(name) {
+            warnings.push(format!(
+                "{origin}: column '{name}' is to be ignored but the file has no such column"
+            ));
+        }
+    }
+    if table.records.is_empty() {
+        return Err(Error::InvalidData {
+            origin: origin.to_owned(),
+            message: "the file has a header but no data rows; add one row per measurement".into(),
+        });
+    }
+    let tool_names: Vec<&str> = model
+        .tools()
+        .iter()
+        .map(|t| tree.link(t.link).name.as_str())
+        .collect();
+    // The independent joints each tool's pose depends on (mimic joints through their masters).
+    let tool_dofs: Vec<Vec<usize>> = model
+        .tools()
+        .iter()
+        .map(|t| {
+            let mut dofs: Vec<usize> = tree
+                .path_from_root(t.link)
+                .into_iter()
+                .filter_map(|j| match tree.joint(j).actuation {
+                    Actuation::Independent(dof) | Actuation::Mimic { master: dof, .. } => {
+                        Some(dof.0)
+                    }
+                    Actuation::None => None,
+                })
+                .collect();
+            dofs.sort_unstable();
+            dofs.dedup();
+            dofs
+        })
+        .collect();
+    let length = options.length_unit;
+    let angle = options.angle_unit;
+    let mut set = MeasurementSet {
+        measurements: Vec::with_capacity(table.records.len()),
+        ids: Vec::with_capacity(table.records.len()),
+        lines: Vec::with_capacity(table.records.len()),
+        observation: columns.observation,
+        warnings,
+    };
+    let mut first_line_of_id: HashMap<String, usize> = HashMap::new();
+    for (row, (line, fields)) in table.records.iter().enumerate() {
+        let line = *line;
+        let place = |column: usize| format!("{origin}:{line}:{}", table.headers[column]);
+        let invalid = |column: usize, message: String| Error::InvalidData {
+            origin: place(column),
+            message,
+        };
+        let id = match columns.id {
+            Some(column) if fields[column].is_empty() => {
+                return Err(invalid(
+                    column,
+                    "the id is empty; give every row an id, or remove the id column".into(),
+                ))
+            }
+            Some(column) => fields[column].clone(),
+            None => (row + 1).to_string(),
+        };
+        if let Some(first) = first_line_of_id.insert(id.clone(), line) {
+            return Err(invalid(
+                columns.id.unwrap_or(0),
+                format!("id '{id}' was already used on line {first}; ids must be unique"),
+            ));
+        }
+        let stage = columns
+            .stage
+            .map(|column| fields[column].clone())
+            .filter(|s| !s.is_empty());
+        let tool_name = &fields[columns.tool];
+        let tool = tool_names
+            .iter()
+            .position(|t| t == tool_name)
+            .ok_or_else(|| {
+                invalid(
+                    columns.tool,
+                    format!(
+                        "'{tool_name}' is not a tool of the model{}; the tools are {}",
+                        did_you_mean(tool_name, tool_names.iter().copied()),
+                        quoted_list(&tool_names)
+                    ),
+                )
+            })?;
+        let mut q = tree.zero_configuration();
+        let mut given = vec![false; q.len()];
+        for &(column, dof) in &columns.joints {
+            if fields[column].is_empty() {
+                continue;
+            }
+            let joint = tree.joint(tree.dofs()[dof]);
+            let (scale, unit) = if joint.kind == JointKind::Prismatic {
+                (length.in_metres(), length.symbol())
+            } else {
+                (angle.in_radians(), angle.symbol())
+            };
+            let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
+            q[dof] = value * scale;
+            given[dof] = true;
+            if let Some(limits) = joint.limits.filter(|_| joint.kind != JointKind::Continuous) {
+                const TOLERANCE: f64 = 1e-9;
+                if q[dof] < limits.lower - TOLERANCE || q[dof] > limits.upper + TOLERANCE {
+                    let message = format!(
+                        "{value} {unit} is outside the limits of joint '{}' [{}, {}] {unit}",
+                        joint.name,
+                        limits.lower / scale,
+                        limits.upper / scale
+                    );
+                    if options.strict_limits {
+                        return Err(invalid(
+                            column,
+                            format!("{message}; correct the value, or accept it with a warning by not asking for strict limits"),
+                        ));
+                    }
+                    set.warnings.push(format!("{}: {message}", place(column)));
+                }
+            }
+        }
+        for &dof in &tool_dofs[tool] {
+            if given[dof] {
+                continue;
+            }
+            let name = &tree.joint(tree.dofs()[dof]).name;
+            let column = columns.joints.iter().find(|(_, d)| *d == dof);
+            return Err(Error::InvalidData {
+                origin: format!("{origin}:{line}:{name}"),
+                message: match column {
+                    Some(_) => format!(
+                        "the value is empty, but tool '{tool_name}' moves with joint '{name}'; give its value"
+                    ),
+                    None => format!(
+                        "the file has no column '{name}', but tool '{tool_name}' moves with that joint; add the column"
+                    ),
+                },
+            });
+        }
+        let mut values = Vec::with_capacity(columns.observed.len());
+        for &column in &columns.observed {
+            let is_length = !table.headers[column].starts_with('q');
+            let unit = if is_length { length.symbol() } else { "" };
+            let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
+            values.push(if is_length {
+                value * length.in_metres()
+            } else {
+                value
+            });
+        }
+        let observation = match columns.observation {
+            ObservationKind::Position => {
+                Observation::Position(Vec3::new(values[0], values[1], values[2]))
+            }
+            ObservationKind::Pose => {
+                let raw = Quaternion::new(values[3], values[4], values[5], values[6]);
+                let norm = raw.norm();
+                if (norm - 1.0).abs() > 1e-3 {
+                    return Err(Error::InvalidData {
+                        origin: format!("{origin}:{line}:qw"),
+                        message: format!(
+                            "the quaternion (qw,qx,qy,qz) = ({}, {}, {}, {}) has norm {norm:.6}, not 1; \
+                             check the column order (w first) and that it is a unit quaternion",
+                            values[3], values[4], values[5], values[6]
+                        ),
+                    });
+                }
+                Observation::Pose(Pose::from_parts(
+                    Translation3::new(values[0], values[1], values[2]),
+                    UnitQuaternion::from_quaternion(raw),
+                ))
+            }
+            ObservationKind::ThreeTargets => {
+                let [a, b, c] =
+                    [0, 3, 6].map(|i| Vec3::new(values[i], values[i + 1], values[i + 2]));
+                // The tolerance check comes first: it also rules out `None` from the frame.
+                let frame = match targets_problem(&a, &b, &c) {
+                    None => frame_from_targets(&a, &b, &c)
+                        .ok_or_else(|| "the targets define no frame".to_owned()),
+                    Some(why) => Err(why),
+                };
+                Observation::Pose(frame.map_err(|why| Error::InvalidData {
+                    origin: format!("{origin}:{line}:ax..cz"),
+                    message: format!(
+                        "collinear or coincident targets: {why}; A, B and C must be three \
+                         distinct reflectors on the tool, not on one line"
+                    ),
+                })?)
+            }
+        };
+        set.measurements.push(Measurement {
+            tool,
+            q,
+            observation,
+            stage,
+        });
+        set.ids.push(id);
+        set.lines.push(line);
+    }
+    Ok(set)
+}
+
+/// A finite number, or what is wrong with the text.
+fn number(text: &str, unit: &str) -> std::result::Result<f64, String> {
+    let unit = if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" in {unit}")
+    };
+    if text.is_empty() {
+        return Err(format!("the value is missing; give a number{unit}"));
+    }
+    match text.parse::<f64>() {
+        Ok(value) if value.is_finite() => Ok(value),
+        Ok(_) => Err(format!(
+            "'{text}' is not a finite number; give a number{unit}"
+        )),
+        Err(_) => Err(format!("'{text}' is not a number; give a number{unit}")),
+    }
+}
+
+fn quoted_list(names: &[&str]) -> String {
+    names
+        .iter()
+        .map(|n| format!("'{n}'"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Sorts the header's columns into identity, joints and observation, or says which is wrong.
+fn classify(
+    headers: &[String],
+    header_line: usize,
+    tree: &KinematicTree,
+    model: &McpcModel,
+    options: &MeasurementReadOptions,
+    origin: &str,
+) -> Result<Columns> {
+    let at = |name: &str| format!("{origin}:{header_line}:{name}");
+    let mut id = None;
+    let mut stage = None;
+    let mut tool = None;
+    let mut joints = Vec::new();
+    let mut observed: HashMap<&str, usize> = HashMap::new();
+    for (column, name) in headers.iter().enumerate() {
+        if options.ignore_columns.contains(name) {
+            continue;
+        }
+        match name.as_str() {
+            "id" => id = Some(column),
+            "stage" => stage = Some(column),
+            "tool" => tool = Some(column),
+            other if RESERVED.contains(&other) => {
+                observed.insert(other, column);
+            }
+            other => match tree.joint_id(other) {
+                Ok(joint) => match tree.joint(joint).actuation {
+                    Actuation::Independent(dof) => joints.push((column, dof.0)),
+                    Actuation::Mimic { master, .. } => {
+                        let master = &tree.joint(tree.dofs()[master.0]).name;
+                        return Err(Error::InvalidData {
+                            origin: at(other),
+                            message: format!(
+                                "'{other}' is a mimic joint that follows '{master}'; give a \
+                                 '{master}' column instead, or ignore this column"
+                            ),
+                        });
+                    }
+                    Actuation::None => {
+                        return Err(Error::InvalidData {
+                            origin: at(other),
+                            message: format!(
+                                "'{other}' is a fixed joint and has no value; remove the \
+                                 column or ignore it"
+                            ),
+                        })
+                    }
+                },
+                Err(_) => {
+                    let candidates = tree
+                        .dofs()
+                        .iter()
+                        .map(|j| tree.joint(*j).name.as_str())
+                        .chain(RESERVED);
+                    return Err(Error::InvalidData {
+                        origin: at(other),
+                        message: format!(
+                            "column '{other}' matches no joint of '{}' and no measurement \
+                             column{}; rename it, or list it among the ignored columns",
+                            tree.name(),
+                            did_you_mean(other, candidates)
+                        ),
+                    });
+                }
+            },
+        }
+    }
+    let tool = tool.ok_or_else(|| {
+        let names: Vec<&str> = model
+            .tools()
+            .iter()
+            .map(|t| tree.link(t.link).name.as_str())
+            .collect();
+        Error::InvalidData {
+            origin: format!("{origin}:{header_line}"),
+            message: format!(
+                "the header has no 'tool' column; add one naming the measured tool link of each \
+                 row (one of {})",
+                quoted_list(&names)
+            ),
+        }
+    })?;
+    let observation = [
+        ObservationKind::Position,
+        ObservationKind::Pose,
+        ObservationKind::ThreeTargets,
+    ]
+    .into_iter()
+    .find(|kind| {
+        kind.columns().len() == observed.len()
+            && kind.columns().iter().all(|c| observed.contains_key(c))
+    })
+    .ok_or_else(|| {
+        let mut present: Vec<(&str, usize)> = observed.iter().map(|(n, c)| (*n, *c)).collect();
+        present.sort_by_key(|(_, c)| *c);
+        let present: Vec<&str> = present.into_iter().map(|(n, _)| n).collect();
+        Error::InvalidData {
+            origin: format!("{origin}:{header_line}"),
+            message: if present.is_empty() {
+                format!("the header has no observation columns; give {LAYOUTS}")
+            } else {
+                format!(
+                    "the observation columns {} are not a complete layout; give exactly {LAYOUTS}",
+                    present.join(",")
+                )
+            },
+        }
+    })?;
+    let observed = observation.columns().iter().map(|c| observed[c]).collect();
+    Ok(Columns {
+        id,
+        stage,
+        tool,
+        joints,
+        observation,
+        observed,
+    })
+}
+
+/// How to write a measurement CSV.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MeasurementWriteOptions {
+    /// Unit of positions, targets and prismatic joint values (default m).
+    pub length_unit: LengthUnit,
+    /// Unit of revolute and continuous joint values (default rad).
+    pub angle_unit: AngleUnit,
+    /// Write each pose as three targets `ax,…,cz` placed by
+    /// [`crate::measurement::targets_on`] (as a tracker exports them) instead of `x,…,qz`.
+    pub three_targets: bool,
+}
+
+/// Writes measurements as CSV in metres and radians:
+/// `id,stage,tool,<joint names…>,x,y,z[,qw,qx,qy,qz]`.
 /// Full poses and single positions cannot be mixed in one file.
 pub fn measurements_to_csv(
     tree: &KinematicTree,
     model: &McpcModel,
     measurements: &[Measurement],
 ) -> Result<String> {
+    measurements_to_csv_with(
+        tree,
+        model,
+        measurements,
+        &MeasurementWriteOptions::default(),
+    )
+}
+
+/// Writes measurements as CSV in the units and layout `options` name; output in units other
+/// than metres and radians starts with a `#` comment naming them.
+pub fn measurements_to_csv_with(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    measurements: &[Measurement],
+    options: &MeasurementWriteOptions,
+) -> Result<String> {
+    let fail = |message: String| Error::InvalidData {
+        origin: "measurement CSV".into(),
+        message,
+    };
     let poses = measurements
         .iter()
         .filter(|m| matches!(m.observation, Observation::Pose(_)))
         .count();
     if poses != 0 && poses != measurements.len() {
-        return Err(Error::InvalidData {
-            origin: "measurement CSV".into(),
-            message: "full poses and single positions cannot be written to one file".into(),
-        });
+        return Err(fail(
+            "full poses and single positions cannot be written to one file".into(),
+        ));
     }
+    if options.three_targets && poses != measurements.len() {
+        return Err(fail(
+            "three targets can only be written for full poses, not for positions".into(),
+        ));
+    }
+    let kind = match (options.three_targets, poses > 0) {
+        (true, _) => ObservationKind::ThreeTargets,
+        (false, true) => ObservationKind::Pose,
+        (false, false) => ObservationKind::Position,
+    };
     let mut header: Vec<String> = vec!["id".into(), "stage".into(), "tool".into()];
     header.extend(tree.dofs().iter().map(|j| tree.joint(*j).name.clone()));
-    header.extend(["x", "y", "z"].map(String::from));
-    if poses > 0 {
-        header.extend(["qw", "qx", "qy", "qz"].map(String::from));
-    }
+    header.extend(kind.columns().iter().map(|c| c.to_string()));
+    let length = options.length_unit.in_metres();
+    let joint_scales: Vec<f64> = tree
+        .dofs()
+        .iter()
+        .map(|j| match tree.joint(*j).kind {
+            JointKind::Prismatic => length,
+            _ => options.angle_unit.in_radians(),
+        })
+        .collect();
+    let text = |v: f64| format!("{v}");
     let mut rows = vec![header];
     for (index, m) in measurements.iter().enumerate() {
         let tool = model
             .tools()
             .get(m.tool)
             .map(|t| tree.link(t.link).name.clone())
-            .ok_or_else(|| Error::InvalidData {
-                origin: "measurement CSV".into(),
-                message: format!(
+            .ok_or_else(|| {
+                fail(format!(
                     "measurement {index} names tool {} of {}",
                     m.tool,
                     model.tools().len()
-                ),
+                ))
             })?;
+        if m.q.len() != joint_scales.len() {
+            return Err(fail(format!(
+                "measurement {index} has {} joint values but the robot has {} independent joints",
+                m.q.len(),
+                joint_scales.len()
+            )));
+        }
         let mut row = vec![
             (index + 1).to_string(),
             m.stage.clone().unwrap_or_default(),
             tool,
         ];
-        row.extend(m.q.iter().map(|v| format!("{v}")));
+        row.extend(m.q.iter().zip(&joint_scales).map(|(v, s)| text(v / s)));
         match &m.observation {
-            Observation::Pose(p) => {
-                let t = p.translation.vector;
-                let q = p.rotation.quaternion();
-                row.extend(
-                    [t.x, t.y, t.z, q.w, q.i, q.j, q.k]
-                        .iter()
-                        .map(|v| format!("{v}")),
-                );
+            Observation::Pose(p) if options.three_targets => {
+                for target in targets_on(p) {
+                    row.extend(target.iter().map(|v| text(v / length)));
+                }
             }
-            Observation::Position(p) => row.extend([p.x, p.y, p.z].iter().map(|v| format!("{v}"))),
+            Observation::Pose(p) => {
+                let t = p.translation.vector / length;
+                let q = p.rotation.quaternion();
+                row.extend([t.x, t.y, t.z, q.w, q.i, q.j, q.k].map(text));
+            }
+            Observation::Position(p) => row.extend((p / length).iter().map(|v| text(*v))),
         }
         rows.push(row);
     }
-    super::csv_text(&rows, "measurement CSV")
+    let body = super::csv_text(&rows, "measurement CSV")?;
+    if options.length_unit == LengthUnit::Metre && options.angle_unit == AngleUnit::Radian {
+        Ok(body)
+    } else {
+        Ok(format!(
+            "# lengths in {}, angles in {}\n{body}",
+            options.length_unit.symbol(),
+            options.angle_unit.symbol()
+        ))
+    }
 }

@@ -3,7 +3,7 @@
 //! compensation, and judged on the identification and on separate validation configurations.
 
 use super::collision::CollisionChecker;
-use super::noise::{observe, NoiseModel, Targets, TARGET_SPACING};
+use super::noise::{observe, NoiseModel, Targets};
 use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, ErrorRanges};
 use crate::calibration::{
@@ -13,6 +13,7 @@ use crate::error::Result;
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::math::Pose;
 use crate::measurement::Measurement;
+use crate::measurement::TARGET_SPACING;
 use crate::tree::{Branches, KinematicTree};
 use nalgebra::DMatrix;
 use rand::rngs::ChaCha8Rng;

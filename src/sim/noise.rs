@@ -1,9 +1,9 @@
-//! Laser-tracker measurement noise and the three-target tool frame (paper section 5.3.1).
+//! Laser-tracker measurement noise; the three-target tool frame it measures is built by
+//! [`crate::measurement::frame_from_targets`] (paper section 5.3.1).
 
 use crate::error::{Error, Result};
 use crate::math::{Pose, Vec3};
-use crate::measurement::Observation;
-use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
+use crate::measurement::{frame_from_targets, targets_on, Observation};
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
@@ -103,33 +103,6 @@ pub enum Targets {
     One,
     /// Three reflectors A, B, C: a frame (origin A, X along AB, Z along AB × AC).
     Three,
-}
-
-/// Spacing of the targets A→B and A→C on the tool (m).
-pub const TARGET_SPACING: f64 = 0.1;
-
-/// The three targets on a tool frame: A at the origin, B along x, C along y.
-pub fn targets_on(tool: &Pose) -> [Vec3; 3] {
-    let a = tool.translation.vector;
-    [
-        a,
-        a + tool.rotation * Vec3::x() * TARGET_SPACING,
-        a + tool.rotation * Vec3::y() * TARGET_SPACING,
-    ]
-}
-
-/// The frame built from three targets as in the paper's section 5.3.1: origin A, X along AB,
-/// Z along AB × AC, Y completing a right-handed frame. `None` for coincident or collinear
-/// targets.
-pub fn frame_from_targets(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<Pose> {
-    let x = (b - a).try_normalize(1e-12)?;
-    let z = (b - a).cross(&(c - a)).try_normalize(1e-12)?;
-    let y = z.cross(&x);
-    let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
-    Some(Pose::from_parts(
-        (*a).into(),
-        UnitQuaternion::from_rotation_matrix(&rotation),
-    ))
 }
 
 /// What the tracker reports for a tool whose true frame is `tool`.

@@ -1,0 +1,645 @@
+//! The measurement CSV: writer → reader round trips, units, the three-target frame, and one
+//! bad-input test per error, each checking that the message names file, line and column.
+
+use crate::common::*;
+use rand::RngExt;
+use treecal::io::{
+    measurements_to_csv, measurements_to_csv_with, parse_measurements, read_measurements,
+    AngleUnit, LengthUnit, MeasurementReadOptions, MeasurementSet, MeasurementWriteOptions,
+    ObservationKind,
+};
+use treecal::kinematics::McpcModel;
+use treecal::math::{Pose, Vec3};
+use treecal::measurement::{targets_on, Measurement, Observation};
+use treecal::tree::{detect_branches, KinematicTree};
+use treecal::Error;
+
+fn load(relative: &str) -> (KinematicTree, McpcModel) {
+    let tree = treecal::load_urdf(&robot(relative)).unwrap().tree;
+    let branches = detect_branches(&tree, None).unwrap();
+    let model = McpcModel::from_tree(&tree, &branches).unwrap();
+    (tree, model)
+}
+
+fn robonaut() -> (KinematicTree, McpcModel) {
+    load("robonaut/robonaut.urdf")
+}
+
+/// Measurements at random configurations, alternating tools, observing the URDF tool frame.
+fn simulated(tree: &KinematicTree, model: &McpcModel, seed: u64, poses: bool) -> Vec<Measurement> {
+    let mut rng = rng(seed);
+    (0..12)
+        .map(|i| {
+            let q = random_configuration(tree, &mut rng);
+            let tool = i % model.tools().len();
+            let pose = tree.link_pose(model.tools()[tool].link, &q).unwrap();
+            Measurement {
+                tool,
+                q,
+                observation: if poses {
+                    Observation::Pose(pose)
+                } else {
+                    Observation::Position(pose.translation.vector)
+                },
+                stage: (i % 3 != 0).then(|| ["torso", "arms"][i % 2].to_owned()),
+            }
+        })
+        .collect()
+}
+
+fn assert_close(a: f64, b: f64, what: &str) {
+    assert!(
+        (a - b).abs() <= 1e-12 * (1.0 + a.abs().max(b.abs())),
+        "{what}: {a} vs {b}"
+    );
+}
+
+fn assert_pose_close(a: &Pose, b: &Pose, what: &str) {
+    for i in 0..3 {
+        assert_close(a.translation.vector[i], b.translation.vector[i], what);
+    }
+    let angle = a.rotation.angle_to(&b.rotation);
+    assert!(angle < 1e-12, "{what}: rotations differ by {angle} rad");
+}
+
+fn assert_same(read: &MeasurementSet, written: &[Measurement]) {
+    assert_eq!(read.measurements.len(), written.len());
+    for (index, (r, w)) in read.measurements.iter().zip(written).enumerate() {
+        assert_eq!(r.tool, w.tool, "row {index}");
+        assert_eq!(r.stage, w.stage, "row {index}");
+        assert_eq!(r.q.len(), w.q.len());
+        for (a, b) in r.q.iter().zip(&w.q) {
+            assert_close(*a, *b, &format!("row {index} q"));
+        }
+        match (&r.observation, &w.observation) {
+            (Observation::Pose(a), Observation::Pose(b)) => {
+                assert_pose_close(a, b, &format!("row {index}"))
+            }
+            (Observation::Position(a), Observation::Position(b)) => {
+                for i in 0..3 {
+                    assert_close(a[i], b[i], &format!("row {index} position"));
+                }
+            }
+            other => panic!("row {index}: observation kinds differ: {other:?}"),
+        }
+    }
+}
+
+fn parse(text: &str, options: &MeasurementReadOptions) -> treecal::Result<MeasurementSet> {
+    let (tree, model) = robonaut();
+    parse_measurements(text, "bad.csv", &tree, &model, options)
+}
+
+/// Parses `text` on Robonaut and returns the error message, which must start with `place`.
+fn error(text: &str, options: &MeasurementReadOptions, place: &str) -> String {
+    let message = match parse(text, options) {
+        Ok(set) => panic!("expected an error at {place}, read {set:?}"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        message.starts_with(&format!("{place}: ")),
+        "the message should start with '{place}: ': {message}"
+    );
+    message
+}
+
+const HEADER: &str = "id,stage,tool,torso_joint1,torso_joint2,left_joint1,left_joint2,left_joint3,left_joint4,left_joint5,left_joint6,x,y,z";
+const ROW: &str = "1,arms,left_tool,0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8,1,2,3";
+
+/// A one-row left-arm file with the cell of column `column` replaced by `value`.
+fn with_cell(column: &str, value: &str) -> String {
+    let index = HEADER.split(',').position(|c| c == column).unwrap();
+    let mut cells: Vec<&str> = ROW.split(',').collect();
+    cells[index] = value;
+    format!("{HEADER}\n# a comment line\n{}\n", cells.join(","))
+}
+
+#[test]
+fn round_trips_positions_and_poses() {
+    for robot in [
+        "robonaut/robonaut.urdf",
+        "dual_arm_prismatic/dual_arm_prismatic.urdf",
+    ] {
+        let (tree, model) = load(robot);
+        for poses in [false, true] {
+            let written = simulated(&tree, &model, 5, poses);
+            let text = measurements_to_csv(&tree, &model, &written).unwrap();
+            let options = MeasurementReadOptions::default();
+            let read = parse_measurements(&text, "round.csv", &tree, &model, &options).unwrap();
+            assert_same(&read, &written);
+            let expected = if poses {
+                ObservationKind::Pose
+            } else {
+                ObservationKind::Position
+            };
+            assert_eq!(read.observation, expected);
+            assert_eq!(
+                read.ids,
+                (1..=12).map(|i| i.to_string()).collect::<Vec<_>>()
+            );
+            assert_eq!(read.lines, (2..=13).collect::<Vec<_>>());
+            assert!(read.warnings.is_empty(), "{:?}", read.warnings);
+        }
+    }
+}
+
+#[test]
+fn round_trips_in_millimetres_degrees_and_three_targets() {
+    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let written = simulated(&tree, &model, 8, true);
+    for three_targets in [false, true] {
+        let write = MeasurementWriteOptions {
+            length_unit: LengthUnit::Millimetre,
+            angle_unit: AngleUnit::Degree,
+            three_targets,
+        };
+        let text = measurements_to_csv_with(&tree, &model, &written, &write).unwrap();
+        assert!(
+            text.starts_with("# lengths in mm, angles in deg\n"),
+            "{text}"
+        );
+        let read_options = MeasurementReadOptions {
+            length_unit: LengthUnit::Millimetre,
+            angle_unit: AngleUnit::Degree,
+            ..Default::default()
+        };
+        let read = parse_measurements(&text, "mm.csv", &tree, &model, &read_options).unwrap();
+        assert_same(&read, &written);
+        assert_eq!(
+            read.lines[0], 3,
+            "the unit comment is line 1, the header line 2"
+        );
+        let kind = if three_targets {
+            ObservationKind::ThreeTargets
+        } else {
+            ObservationKind::Pose
+        };
+        assert_eq!(read.observation, kind);
+        // Read in the wrong units, the same file gives other numbers.
+        let wrong = parse_measurements(&text, "mm.csv", &tree, &model, &Default::default());
+        assert!(wrong.is_err() || wrong.unwrap().measurements != read.measurements);
+    }
+    let positions = simulated(&tree, &model, 9, false);
+    let write = MeasurementWriteOptions {
+        three_targets: true,
+        ..Default::default()
+    };
+    let message = measurements_to_csv_with(&tree, &model, &positions, &write)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("three targets"), "{message}");
+}
+
+#[test]
+fn default_writer_output_is_unchanged() {
+    let (tree, model) = robonaut();
+    let written = simulated(&tree, &model, 2, true);
+    let text = measurements_to_csv(&tree, &model, &written).unwrap();
+    let first = text.lines().next().unwrap();
+    assert!(first.starts_with("id,stage,tool,torso_joint1,"), "{first}");
+    assert!(first.ends_with(",x,y,z,qw,qx,qy,qz"), "{first}");
+    let same = measurements_to_csv_with(&tree, &model, &written, &Default::default()).unwrap();
+    assert_eq!(text, same);
+}
+
+#[test]
+fn unit_flags_scale_lengths_and_angles() {
+    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let text = "tool,torso_lift,torso_yaw,left_j1,left_j2,left_j3,left_j4,left_j5,left_j6,x,y,z\n\
+                left_tool,100,90,0,0,0,0,0,0,1000,-250,2.5\n";
+    let dof = |name: &str| tree.dof_of(tree.joint_id(name).unwrap()).unwrap().0;
+    let cases = [
+        (
+            LengthUnit::Metre,
+            AngleUnit::Radian,
+            100.0,
+            90.0,
+            [1000.0, -250.0, 2.5],
+        ),
+        (
+            LengthUnit::Millimetre,
+            AngleUnit::Radian,
+            0.1,
+            90.0,
+            [1.0, -0.25, 0.0025],
+        ),
+        (
+            LengthUnit::Millimetre,
+            AngleUnit::Degree,
+            0.1,
+            std::f64::consts::FRAC_PI_2,
+            [1.0, -0.25, 0.0025],
+        ),
+        (
+            LengthUnit::Metre,
+            AngleUnit::Degree,
+            100.0,
+            std::f64::consts::FRAC_PI_2,
+            [1000.0, -250.0, 2.5],
+        ),
+    ];
+    for (length_unit, angle_unit, lift, yaw, position) in cases {
+        let options = MeasurementReadOptions {
+            length_unit,
+            angle_unit,
+            ..Default::default()
+        };
+        let set = parse_measurements(text, "units.csv", &tree, &model, &options).unwrap();
+        let m = &set.measurements[0];
+        assert_close(m.q[dof("torso_lift")], lift, "prismatic joint");
+        assert_close(m.q[dof("torso_yaw")], yaw, "revolute joint");
+        let Observation::Position(p) = m.observation else {
+            panic!("expected a position")
+        };
+        for i in 0..3 {
+            assert_close(p[i], position[i], "position");
+        }
+        assert_eq!(
+            set.ids,
+            ["1"],
+            "without an id column the id is the row number"
+        );
+        assert_eq!(m.stage, None);
+    }
+    assert!("mm".parse::<LengthUnit>().is_ok() && "deg".parse::<AngleUnit>().is_ok());
+    let message = "cm".parse::<LengthUnit>().unwrap_err().to_string();
+    assert!(
+        message.contains("--length-unit") && message.contains("m or mm"),
+        "{message}"
+    );
+}
+
+#[test]
+fn three_targets_give_the_frame_they_were_placed_on() {
+    let (tree, model) = robonaut();
+    let mut rng = rng(31);
+    let header = "tool,torso_joint1,torso_joint2,left_joint1,left_joint2,left_joint3,left_joint4,left_joint5,left_joint6,ax,ay,az,bx,by,bz,cx,cy,cz";
+    for _ in 0..50 {
+        let translation = Vec3::new(
+            rng.random_range(-2.0..2.0),
+            rng.random_range(-2.0..2.0),
+            rng.random_range(-2.0..2.0),
+        );
+        let axis = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let pose = Pose::new(translation, axis * rng.random_range(0.0..3.0));
+        // B along x at 0.1 m; C anywhere in the x-y half-plane y > 0, not only on y.
+        let [a, b, _] = targets_on(&pose);
+        let c_local = Vec3::new(
+            rng.random_range(-0.2..0.2),
+            rng.random_range(0.05..0.2),
+            0.0,
+        );
+        let c = pose * nalgebra::Point3::from(c_local);
+        let cells: Vec<String> = [a, b, c.coords]
+            .iter()
+            .flat_map(|t| t.iter().map(|v| format!("{}", v * 1e3)).collect::<Vec<_>>())
+            .collect();
+        let text = format!("{header}\nleft_tool,0,0,0,0,0,0,0,0,{}\n", cells.join(","));
+        let options = MeasurementReadOptions {
+            length_unit: LengthUnit::Millimetre,
+            ..Default::default()
+        };
+        let set = parse_measurements(&text, "targets.csv", &tree, &model, &options).unwrap();
+        assert_eq!(set.observation, ObservationKind::ThreeTargets);
+        let Observation::Pose(read) = &set.measurements[0].observation else {
+            panic!("three targets give a pose")
+        };
+        assert_pose_close(read, &pose, "three-target frame");
+    }
+}
+
+#[test]
+fn every_bad_value_is_reported_at_its_line_and_column() {
+    let strict = MeasurementReadOptions {
+        strict_limits: true,
+        ..Default::default()
+    };
+    let plain = MeasurementReadOptions::default();
+    let cases: Vec<(String, &MeasurementReadOptions, &str, &str)> = vec![
+        (with_cell("y", ""), &plain, "bad.csv:3:y", "the value is missing"),
+        (with_cell("left_joint2", "abc"), &plain, "bad.csv:3:left_joint2", "'abc' is not a number"),
+        (with_cell("x", "NaN"), &plain, "bad.csv:3:x", "not a finite number"),
+        (with_cell("left_joint4", "inf"), &plain, "bad.csv:3:left_joint4", "not a finite number"),
+        (with_cell("z", "-1e400"), &plain, "bad.csv:3:z", "not a finite number"),
+        (with_cell("torso_joint1", "3.1"), &strict, "bad.csv:3:torso_joint1", "outside the limits of joint 'torso_joint1' [-2.9670597283903604, 2.9670597283903604] rad"),
+        (with_cell("tool", "left_tol"), &plain, "bad.csv:3:tool", "did you mean 'left_tool'?; the tools are 'left_tool', 'right_tool'"),
+        (with_cell("left_joint6", ""), &plain, "bad.csv:3:left_joint6", "tool 'left_tool' moves with joint 'left_joint6'"),
+        (with_cell("id", ""), &plain, "bad.csv:3:id", "the id is empty"),
+        (format!("{HEADER}\n{ROW}\n\n{ROW}\n"), &plain, "bad.csv:4:id", "id '1' was already used on line 2"),
+        (format!("{HEADER},left_jiont2\n{ROW},0\n"), &plain, "bad.csv:1:left_jiont2", "did you mean 'left_joint2'?"),
+        (format!("{HEADER},left_tool_joint\n{ROW},0\n"), &plain, "bad.csv:1:left_tool_joint", "fixed joint"),
+        (HEADER.replace(",left_joint6", "") + "\n" + &ROW.replace(",0.8,", ",") + "\n", &plain, "bad.csv:2:left_joint6", "has no column 'left_joint6'"),
+        (HEADER.replace(",tool", "") + "\n" + &ROW.replace(",left_tool", "") + "\n", &plain, "bad.csv:1", "no 'tool' column; add one naming the measured tool link of each row (one of 'left_tool', 'right_tool')"),
+        (HEADER.replace(",z", "") + "\n" + &ROW.replace(",3", "") + "\n", &plain, "bad.csv:1", "the observation columns x,y are not a complete layout; give exactly x,y,z (a position); x,y,z,qw,qx,qy,qz (a pose); or ax,ay,az,bx,by,bz,cx,cy,cz"),
+        (format!("{HEADER},qw\n{ROW},1\n"), &plain, "bad.csv:1", "x,y,z,qw are not a complete layout"),
+        (HEADER.replace(",x,y,z", "") + "\n" + &ROW.replace(",1,2,3", "") + "\n", &plain, "bad.csv:1", "no observation columns"),
+        (format!("{HEADER},qw,qx,qy,qz\n{ROW},0.5,0.5,0.5,0.6\n"), &plain, "bad.csv:2:qw", "check the column order"),
+        (format!("{HEADER},qw,qx,qy,qz\n{ROW},0,0,0,0\n"), &plain, "bad.csv:2:qw", "norm 0.000000"),
+        (format!("{HEADER}\n{ROW},4\n"), &plain, "bad.csv:2", "row has 15 fields but the header has 14"),
+        (String::new(), &plain, "bad.csv", "the file is empty"),
+        ("# only a comment\n\n".into(), &plain, "bad.csv", "the file is empty"),
+        (format!("# units: m\n{HEADER}\n"), &plain, "bad.csv", "no data rows"),
+    ];
+    for (text, options, place, expected) in cases {
+        let message = error(&text, options, place);
+        assert!(
+            message.contains(expected),
+            "expected '{expected}' in: {message}"
+        );
+    }
+}
+
+#[test]
+fn collinear_and_coincident_targets_are_errors() {
+    let header = "id,tool,torso_joint1,torso_joint2,left_joint1,left_joint2,left_joint3,left_joint4,left_joint5,left_joint6,ax,ay,az,bx,by,bz,cx,cy,cz";
+    let joints = "left_tool,0,0,0,0,0,0,0,0";
+    let good = format!("{header}\nA7,{joints},0,0,0,100,0,0,0,100,0\n");
+    let mm = MeasurementReadOptions {
+        length_unit: LengthUnit::Millimetre,
+        ..Default::default()
+    };
+    let set = parse(&good, &mm).unwrap();
+    assert_eq!(set.ids, ["A7"]);
+    let cases = [
+        // C on the line AB.
+        ("0,0,0,100,0,0,250,0,0", "collinear"),
+        // C 0.4° off the line AB.
+        ("0,0,0,100,0,0,100,0.7,0", "collinear"),
+        // C on the far side of A, on the line.
+        ("0,0,0,100,0,0,-50,0,0", "collinear"),
+        // B within 1 mm of A.
+        (
+            "0,0,0,0.5,0,0,0,100,0",
+            "targets A and B are 0.500 mm apart",
+        ),
+        ("10,10,10,10,10,10,10,10,10", "coincident"),
+    ];
+    for (targets, expected) in cases {
+        let text = format!("{header}\n# comment\nA7,{joints},{targets}\n");
+        let message = match parse(&text, &mm) {
+            Ok(_) => panic!("{targets} should be rejected"),
+            Err(e) => e.to_string(),
+        };
+        assert!(
+            message.starts_with("bad.csv:3:ax..cz: collinear or coincident targets"),
+            "{message}"
+        );
+        assert!(
+            message.contains(expected),
+            "expected '{expected}' in: {message}"
+        );
+    }
+    // 0.6° off the line is accepted.
+    let text = format!("{header}\nA7,{joints},0,0,0,100,0,0,100,1.05,0\n");
+    assert!(parse(&text, &mm).is_ok());
+}
+
+#[test]
+fn limits_warn_unless_strict() {
+    let text = with_cell("left_joint3", "-170.5");
+    let degrees = MeasurementReadOptions {
+        angle_unit: AngleUnit::Degree,
+        ..Default::default()
+    };
+    let set = parse(&text, &degrees).unwrap();
+    assert_eq!(set.warnings.len(), 1, "{:?}", set.warnings);
+    assert_eq!(
+        set.warnings[0],
+        "bad.csv:3:left_joint3: -170.5 deg is outside the limits of joint 'left_joint3' [-170, 170] deg"
+    );
+    let strict = MeasurementReadOptions {
+        strict_limits: true,
+        ..degrees.clone()
+    };
+    let message = error(&text, &strict, "bad.csv:3:left_joint3");
+    assert!(
+        message.contains("-170.5 deg is outside the limits"),
+        "{message}"
+    );
+    // Within the limits (and at a limit, within 1e-9 rad) nothing is said.
+    let inside = with_cell("left_joint3", "-170");
+    assert!(parse(&inside, &strict).unwrap().warnings.is_empty());
+    let at_limit = with_cell("left_joint3", "-2.9670597283903606");
+    assert!(parse(&at_limit, &strict).unwrap().warnings.is_empty());
+}
+
+#[test]
+fn continuous_joints_have_no_limits() {
+    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let text =
+        "tool,torso_lift,torso_yaw,right_j1,right_j2,right_j3,right_j4,right_j5,right_j6,x,y,z\n\
+                right_tool,0.1,0,0,0,0,0,0,40,1,2,3\n";
+    let options = MeasurementReadOptions {
+        strict_limits: true,
+        ..Default::default()
+    };
+    let set = parse_measurements(text, "c.csv", &tree, &model, &options).unwrap();
+    assert!(set.warnings.is_empty());
+    // The prismatic lift is limited to [0, 0.4] m, i.e. [0, 400] mm.
+    let text = text.replace("0.1,", "500,");
+    let options = MeasurementReadOptions {
+        length_unit: LengthUnit::Millimetre,
+        ..Default::default()
+    };
+    let set = parse_measurements(&text, "c.csv", &tree, &model, &options).unwrap();
+    assert_eq!(
+        set.warnings,
+        ["c.csv:2:torso_lift: 500 mm is outside the limits of joint 'torso_lift' [0, 400] mm"]
+    );
+}
+
+#[test]
+fn joints_off_the_tool_chain_may_be_missing_or_empty() {
+    let (tree, model) = robonaut();
+    // Right-arm columns present but empty for a left-tool row; absent entirely in another file.
+    let header = format!("{HEADER},right_joint1");
+    let text = format!("{header}\n{ROW},\n2,,right_tool,0,0,0,0,0,0,0,0,1,2,3,0.5\n");
+    let message = error(&text, &Default::default(), "bad.csv:3:right_joint2");
+    assert!(
+        message.contains("has no column 'right_joint2'"),
+        "{message}"
+    );
+    let set = parse(&format!("{header}\n{ROW},\n"), &Default::default()).unwrap();
+    let right = tree
+        .dof_of(tree.joint_id("right_joint1").unwrap())
+        .unwrap()
+        .0;
+    assert_eq!(set.measurements[0].q[right], 0.0);
+    assert_eq!(set.measurements[0].stage.as_deref(), Some("arms"));
+    assert_eq!(
+        set.measurements[0].tool,
+        model
+            .tool_of_link(tree.link_id("left_tool").unwrap())
+            .unwrap()
+    );
+    let left6 = tree
+        .dof_of(tree.joint_id("left_joint6").unwrap())
+        .unwrap()
+        .0;
+    assert_eq!(set.measurements[0].q[left6], 0.8);
+}
+
+#[test]
+fn mimic_joint_columns_name_their_master() {
+    let (tree, model) = load("humanoid/humanoid.urdf");
+    let tools: Vec<&str> = model
+        .tools()
+        .iter()
+        .map(|t| tree.link(t.link).name.as_str())
+        .collect();
+    let text = format!("tool,l_finger_right,x,y,z\n{},0.1,1,2,3\n", tools[0]);
+    let message = parse_measurements(&text, "h.csv", &tree, &model, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.starts_with("h.csv:1:l_finger_right: 'l_finger_right' is a mimic joint that follows 'l_finger_left'; give a 'l_finger_left' column instead"),
+        "{message}"
+    );
+    let ignore = MeasurementReadOptions {
+        ignore_columns: vec!["l_finger_right".into()],
+        ..Default::default()
+    };
+    // Ignored, the mimic column no longer matters; what is left is the missing chain joints.
+    let message = parse_measurements(&text, "h.csv", &tree, &model, &ignore)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.starts_with("h.csv:2:") && message.contains("has no column"),
+        "{message}"
+    );
+}
+
+#[test]
+fn ignored_columns_are_skipped_and_others_are_errors() {
+    let text = format!("timestamp,{HEADER},tracker_rms\n12:00:01,{ROW},0.01\n");
+    let message = error(&text, &Default::default(), "bad.csv:1:timestamp");
+    assert!(
+        message.contains("list it among the ignored columns"),
+        "{message}"
+    );
+    let only_one = MeasurementReadOptions {
+        ignore_columns: vec!["timestamp".into()],
+        ..Default::default()
+    };
+    error(&text, &only_one, "bad.csv:1:tracker_rms");
+    let both = MeasurementReadOptions {
+        ignore_columns: vec!["timestamp".into(), "tracker_rms".into(), "absent".into()],
+        ..Default::default()
+    };
+    let set = parse(&text, &both).unwrap();
+    assert_eq!(set.measurements.len(), 1);
+    assert_eq!(
+        set.warnings,
+        ["bad.csv: column 'absent' is to be ignored but the file has no such column"]
+    );
+    // A non-numeric value in an ignored column is not read.
+    let set = parse(&text.replace("0.01", "n/a"), &both).unwrap();
+    assert_eq!(set.measurements.len(), 1);
+}
+
+#[test]
+fn reading_a_file_names_it() {
+    let (tree, model) = robonaut();
+    let dir = std::env::temp_dir().join(format!("treecal-measurements-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("m.csv");
+    std::fs::write(&path, with_cell("x", "oops")).unwrap();
+    let message = read_measurements(&path, &tree, &model, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.starts_with(&format!("{}:3:x: 'oops'", path.display())),
+        "{message}"
+    );
+    std::fs::write(&path, with_cell("x", "1.5")).unwrap();
+    assert!(read_measurements(&path, &tree, &model, &Default::default()).is_ok());
+    let missing = dir.join("missing.csv");
+    let err = read_measurements(&missing, &tree, &model, &Default::default()).unwrap_err();
+    assert!(
+        matches!(err, Error::Io { .. }) && err.to_string().contains("missing.csv"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn corrupted_files_never_panic() {
+    let (tree, model) = robonaut();
+    let base = measurements_to_csv(&tree, &model, &simulated(&tree, &model, 3, true)).unwrap();
+    let junk = [
+        "",
+        "nan",
+        "-inf",
+        "abc",
+        "1e999",
+        "\"",
+        "\"a,b\"",
+        "0x10",
+        "--1",
+        "left_tool",
+        "1,2",
+        "right_tool",
+        "3.2",
+        "#",
+        " ",
+        "é",
+    ];
+    let mut rng = rng(77);
+    let (mut ok, mut err) = (0, 0);
+    for _ in 0..400 {
+        let mut lines: Vec<String> = base.lines().map(str::to_owned).collect();
+        for _ in 0..rng.random_range(1..4) {
+            let line = rng.random_range(0..lines.len());
+            match rng.random_range(0..5) {
+                0 => {
+                    let mut cells: Vec<String> =
+                        lines[line].split(',').map(str::to_owned).collect();
+                    let cell = rng.random_range(0..cells.len());
+                    cells[cell] = junk[rng.random_range(0..junk.len())].to_owned();
+                    lines[line] = cells.join(",");
+                }
+                1 => {
+                    lines.remove(line);
+                }
+                2 => {
+                    let copy = lines[line].clone();
+                    lines.insert(rng.random_range(0..=lines.len()), copy);
+                }
+                3 => {
+                    let mut cut = rng.random_range(0..=lines[line].len());
+                    while !lines[line].is_char_boundary(cut) {
+                        cut -= 1;
+                    }
+                    lines[line].truncate(cut);
+                }
+                _ => {
+                    // Leave the text unchanged: some files stay valid.
+                }
+            }
+            if lines.is_empty() {
+                break;
+            }
+        }
+        let text = lines.join("\n");
+        match parse_measurements(&text, "fuzz.csv", &tree, &model, &Default::default()) {
+            Ok(set) => {
+                ok += 1;
+                assert_eq!(set.measurements.len(), set.lines.len());
+                assert!(set
+                    .measurements
+                    .iter()
+                    .all(|m| m.q.iter().all(|v| v.is_finite())));
+            }
+            Err(e) => {
+                err += 1;
+                let message = e.to_string();
+                assert!(message.starts_with("fuzz.csv"), "{message}");
+            }
+        }
+    }
+    assert!(ok > 10 && err > 100, "{ok} accepted, {err} rejected");
+}
