@@ -50,7 +50,9 @@ struct Case {
 /// Loads `text`, detects branches (with `tools` if given) and perturbs every MCPC parameter
 /// by a seeded uniform ±0.05 rad / ±0.05 m (`seed` `None`: the nominal model).
 fn case(text: String, tools: Option<&[&str]>, seed: Option<u64>) -> Case {
-    let tree = parse_urdf(&text, "case").unwrap_or_else(|e| panic!("{e}")).tree;
+    let tree = parse_urdf(&text, "case")
+        .unwrap_or_else(|e| panic!("{e}"))
+        .tree;
     let tools = tools.map(|names| {
         names
             .iter()
@@ -109,7 +111,12 @@ fn export_and_check(case: &Case, what: &str) -> (ExportReport, KinematicTree) {
         let poses = exported.link_poses(&q).unwrap();
         for (t, tool_pose) in model.tool_poses(&q).iter().enumerate() {
             let link = model.tools()[t].link;
-            assert_close(&poses[link.0], tool_pose, TOLERANCE, &format!("{what}: tool {t}"));
+            assert_close(
+                &poses[link.0],
+                tool_pose,
+                TOLERANCE,
+                &format!("{what}: tool {t}"),
+            );
             let (p, r) = pose_gap(&poses[link.0], tool_pose);
             worst = worst.max(p).max(r);
         }
@@ -117,7 +124,12 @@ fn export_and_check(case: &Case, what: &str) -> (ExportReport, KinematicTree) {
             let link = tree.joint(model.frames()[f].joint).child;
             if !tool_links.contains(&link.0) {
                 let name = &tree.link(link).name;
-                assert_close(&poses[link.0], link_pose, TOLERANCE, &format!("{what}: {name}"));
+                assert_close(
+                    &poses[link.0],
+                    link_pose,
+                    TOLERANCE,
+                    &format!("{what}: {name}"),
+                );
             }
         }
     }
@@ -164,7 +176,7 @@ fn mask(line: &str) -> String {
         let quote = rest[value_start..].chars().next().unwrap();
         let close = value_start + 1 + rest[value_start + 1..].find(quote).unwrap();
         out.push_str(&rest[..value_start]);
-        out.push_str("#");
+        out.push('#');
         rest = &rest[close + 1..];
     }
 }
@@ -185,7 +197,10 @@ fn assert_same_but_origins(original: &str, exported: &str, changes: usize, what:
             );
         }
     }
-    assert!(differing <= 2 * changes, "{what}: {differing} lines changed");
+    assert!(
+        differing <= 2 * changes,
+        "{what}: {differing} lines changed"
+    );
     assert_eq!(differing > 0, changes > 0, "{what}");
 }
 
@@ -242,7 +257,12 @@ fn pinocchio_agrees(case: &Case, exported_text: &str, what: &str) {
         for (t, (model_pose, oracle_pose)) in
             case.model.tool_poses(q).iter().zip(per_link).enumerate()
         {
-            assert_close(oracle_pose, model_pose, TOLERANCE, &format!("{what}: tool {t}"));
+            assert_close(
+                oracle_pose,
+                model_pose,
+                TOLERANCE,
+                &format!("{what}: tool {t}"),
+            );
         }
     }
 }
@@ -250,19 +270,32 @@ fn pinocchio_agrees(case: &Case, exported_text: &str, what: &str) {
 fn full_check(text: String, tools: Option<&[&str]>, seed: u64, what: &str) {
     let calibrated = case(text.clone(), tools, Some(seed));
     let (report, _) = export_and_check(&calibrated, what);
-    assert!(!report.changes.is_empty(), "{what}: a perturbed model must change joints");
+    assert!(
+        !report.changes.is_empty(),
+        "{what}: a perturbed model must change joints"
+    );
     check_urdf_accepts(&report.urdf, what);
     pinocchio_agrees(&calibrated, &report.urdf, what);
 
     // (d) the nominal model gives the file back unchanged.
     let nominal = case(text.clone(), tools, None);
     let (report, exported) = export_and_check(&nominal, &format!("{what} (nominal)"));
-    assert_eq!(report.changes, vec![], "{what}: nominal export changed joints");
-    assert!(report.urdf == text, "{what}: nominal export is not the original text");
+    assert_eq!(
+        report.changes,
+        vec![],
+        "{what}: nominal export changed joints"
+    );
+    assert!(
+        report.urdf == text,
+        "{what}: nominal export is not the original text"
+    );
     let mut rng = rng(3);
     for _ in 0..5 {
         let q = random_configuration(&nominal.tree, &mut rng);
-        let (a, b) = (exported.link_poses(&q).unwrap(), nominal.tree.link_poses(&q).unwrap());
+        let (a, b) = (
+            exported.link_poses(&q).unwrap(),
+            nominal.tree.link_poses(&q).unwrap(),
+        );
         for (x, y) in a.iter().zip(&b) {
             assert_close(x, y, 1e-12, what);
         }
@@ -342,9 +375,8 @@ fn export_edits_in_place_and_keeps_elements_urdf_rs_drops() {
     let torso = &torso[..torso.find("</joint>").unwrap()];
     assert!(torso.contains("<origin xyz=\""), "{torso}");
     // Masking every xyz/rpy value and deleting the inserted origin gives the original back.
-    let inserted_start = out.find("<joint name=\"torso_joint1\"").unwrap()
-        + torso.find('>').unwrap()
-        + 1;
+    let inserted_start =
+        out.find("<joint name=\"torso_joint1\"").unwrap() + torso.find('>').unwrap() + 1;
     let inserted_end = inserted_start + out[inserted_start + 1..].find('\n').unwrap() + 1;
     let without_insert = format!("{}{}", &out[..inserted_start], &out[inserted_end..]);
     assert_eq!(mask(&without_insert), mask(&text));
@@ -385,7 +417,11 @@ fn tool_carried_by_a_revolute_joint_gets_a_new_axis() {
     calibrated.model.set_parameters(&values).unwrap();
     let (report, _) = export_and_check(&calibrated, "robonaut, tools on revolute joints");
     assert_eq!(
-        report.changes.iter().filter(|c| c.new_axis.is_some()).count(),
+        report
+            .changes
+            .iter()
+            .filter(|c| c.new_axis.is_some())
+            .count(),
         2,
         "{:?}",
         report.changes
@@ -408,7 +444,10 @@ fn export_refuses_text_that_is_not_the_tree_s_urdf() {
     let error = export_urdf(&other, "humanoid.urdf", &calibrated.tree, &calibrated.model)
         .unwrap_err()
         .to_string();
-    assert!(error.contains("humanoid.urdf") && error.contains("no <joint name="), "{error}");
+    assert!(
+        error.contains("humanoid.urdf") && error.contains("no <joint name="),
+        "{error}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -465,7 +504,12 @@ fn cli_export_writes_the_calibrated_urdf() {
         let q = random_configuration(&calibrated.tree, &mut rng);
         let poses = exported.link_poses(&q).unwrap();
         for (t, tool_pose) in expected.tool_poses(&q).iter().enumerate() {
-            assert_close(&poses[expected.tools()[t].link.0], tool_pose, TOLERANCE, "cli");
+            assert_close(
+                &poses[expected.tools()[t].link.0],
+                tool_pose,
+                TOLERANCE,
+                "cli",
+            );
         }
     }
 }
@@ -492,7 +536,11 @@ fn cli_export_refuses_unknown_parameter_names() {
     ]);
     assert_error(
         &run,
-        &["params.yaml:2:11", "left_joint1 alpah", "did you mean 'left_joint1 alpha'"],
+        &[
+            "params.yaml:2:11",
+            "left_joint1 alpah",
+            "did you mean 'left_joint1 alpha'",
+        ],
         "unknown parameter",
     );
     assert!(!out.exists(), "nothing is written on error");

@@ -64,7 +64,9 @@ pub fn parse_parameters(
             Some(l) => format!("{origin}:{}:{}", l.line(), l.column()),
             None => origin.to_owned(),
         },
-        message: format!("{e}; expected `parameters:` with a list of `name:` and `calibrated:` (SI units)"),
+        message: format!(
+            "{e}; expected `parameters:` with a list of `name:` and `calibrated:` (SI units)"
+        ),
     })?;
     // serde_yaml keeps no positions of values, so a bad name is found in the text again.
     let at = |name: &str| match text.find(name) {
@@ -122,7 +124,9 @@ pub fn parse_parameters(
         .zip(&values)
         .filter(|((_, given), _)| !**given)
         .map(|((name, _), value)| {
-            format!("{origin}: parameter '{name}' is not listed; it keeps its nominal value {value}")
+            format!(
+                "{origin}: parameter '{name}' is not listed; it keeps its nominal value {value}"
+            )
         })
         .collect();
     Ok(ParameterValues { values, warnings })

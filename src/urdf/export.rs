@@ -123,7 +123,9 @@ fn calibrated_placements(
     let frames = model.frames();
     let mut base_from_frame: Vec<Pose> = Vec::with_capacity(frames.len());
     for frame in frames {
-        let previous = frame.parent.map_or_else(Pose::identity, |p| base_from_frame[p]);
+        let previous = frame
+            .parent
+            .map_or_else(Pose::identity, |p| base_from_frame[p]);
         base_from_frame.push(previous * frame.constant_transform());
     }
     let mut target: Vec<Option<Pose>> = vec![None; tree.links().len()];
@@ -254,8 +256,7 @@ impl<'a> Document<'a> {
         let mut found = self.elements.iter().enumerate().filter(|(_, e)| {
             e.name == "joint"
                 && e.parent.is_some_and(|p| self.elements[p].parent.is_none())
-                && e
-                    .attribute("name")
+                && e.attribute("name")
                     .is_some_and(|a| unescape(&self.text[a.value.clone()]) == name)
         });
         match (found.next(), found.next()) {
@@ -311,11 +312,9 @@ impl<'a> Document<'a> {
                 let mut missing = String::new();
                 for (name, value) in values {
                     match child.attribute(name) {
-                        Some(attribute) => edits.push((
-                            attribute.value.start,
-                            attribute.value.end,
-                            value.clone(),
-                        )),
+                        Some(attribute) => {
+                            edits.push((attribute.value.start, attribute.value.end, value.clone()))
+                        }
                         None => missing.push_str(&format!(" {name}=\"{value}\"")),
                     }
                 }

@@ -146,8 +146,7 @@ fn start_tag(text: &str, at: usize, parent: Option<usize>) -> Option<Element> {
             }
             _ => {
                 let name_start = k;
-                while k < bytes.len() && !is_space(bytes[k]) && !matches!(bytes[k], b'=' | b'>')
-                {
+                while k < bytes.len() && !is_space(bytes[k]) && !matches!(bytes[k], b'=' | b'>') {
                     k += 1;
                 }
                 let name = text[name_start..k].to_owned();
@@ -238,7 +237,10 @@ mod tests {
         let origin = &elements[2];
         assert!(origin.self_closing);
         assert_eq!(origin.parent, Some(1));
-        assert_eq!(&text[origin.attribute("rpy").unwrap().value.clone()], "0 0 0");
+        assert_eq!(
+            &text[origin.attribute("rpy").unwrap().value.clone()],
+            "0 0 0"
+        );
         assert_eq!(&text[origin.attributes_end..origin.tag_end], "/>");
     }
 

@@ -33,7 +33,12 @@ pub fn run(args: ExportArgs) -> Result<()> {
         "treecal: wrote {} ({} joint origins changed{})",
         args.output.display(),
         report.changes.len(),
-        match report.changes.iter().filter(|c| c.new_axis.is_some()).count() {
+        match report
+            .changes
+            .iter()
+            .filter(|c| c.new_axis.is_some())
+            .count()
+        {
             0 => String::new(),
             n => format!(", {n} axes"),
         }
