@@ -72,9 +72,14 @@ pub fn export_urdf(
         let Some(placement) = placement else { continue };
         let joint = &tree.joints()[index];
         let element = document.joint(&joint.name)?;
-        let new_rpy = rpy_from_rotation(&placement.parent_from_joint.rotation);
-        let new_xyz: [f64; 3] = placement.parent_from_joint.translation.vector.into();
-        document.set_origin(element, &joint.name, new_xyz, new_rpy, &mut edits)?;
+        let parent_from_joint = placement
+            .parent_from_joint
+            .unwrap_or(joint.parent_from_joint);
+        let new_rpy = rpy_from_rotation(&parent_from_joint.rotation);
+        let new_xyz: [f64; 3] = parent_from_joint.translation.vector.into();
+        if placement.parent_from_joint.is_some() {
+            document.set_origin(element, &joint.name, new_xyz, new_rpy, &mut edits)?;
+        }
         let (old_axis, new_axis) = match placement.axis {
             Some(axis) => {
                 document.set_axis(element, &joint.name, axis, &mut edits)?;
@@ -103,7 +108,9 @@ pub fn export_urdf(
 /// A joint's new placement: its origin and, where it changes, its axis (in the joint frame).
 #[derive(Debug, Clone, Copy)]
 struct Placement {
-    parent_from_joint: Pose,
+    /// The new origin, if it moved.
+    parent_from_joint: Option<Pose>,
+    /// The new axis, if it turned.
     axis: Option<Vec3>,
 }
 
@@ -206,11 +213,7 @@ fn calibrated_placements(
         if moved || axis.is_some() {
             exported.push(parent * parent_from_joint);
             placements.push(Some(Placement {
-                parent_from_joint: if moved {
-                    parent_from_joint
-                } else {
-                    joint.parent_from_joint
-                },
+                parent_from_joint: moved.then_some(parent_from_joint),
                 axis,
             }));
         } else {
