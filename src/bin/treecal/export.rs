@@ -10,8 +10,16 @@ pub fn run(args: ExportArgs) -> Result<()> {
     let branches = crate::robot::branches(&import, args.tools.as_deref())?;
     let mut model = McpcModel::from_tree(&import.tree, &branches)?;
     let parameters = read_parameters(&args.params, &import.tree, &model)?;
-    for warning in &parameters.warnings {
+    // A file for another branch selection misses every parameter: name a few, count the rest.
+    const LISTED: usize = 5;
+    for warning in parameters.warnings.iter().take(LISTED) {
         eprintln!("treecal: warning: {warning}");
+    }
+    if parameters.warnings.len() > LISTED {
+        eprintln!(
+            "treecal: warning: … and {} more parameters not listed keep their nominal values",
+            parameters.warnings.len() - LISTED
+        );
     }
     model.set_parameters(&parameters.values)?;
     let (original, origin) = match &args.robot {
