@@ -437,6 +437,21 @@ fn tool_carried_by_a_revolute_joint_gets_a_new_axis() {
     );
 }
 
+/// A mimic joint with an offset on a modelled chain: the exported origin is the pose at joint
+/// value 0, not at q = 0 (where the mimic joint sits at its offset).
+#[test]
+fn mimic_joint_with_offset_on_a_chain_exports_exactly() {
+    let text = read(&robot("robonaut/robonaut.urdf"));
+    let anchor = "<child link=\"left_link5\"/>";
+    assert!(text.contains(anchor));
+    let text = text.replacen(
+        anchor,
+        "<child link=\"left_link5\"/>\n    <mimic joint=\"left_joint4\" multiplier=\"0.7\" offset=\"0.3\"/>",
+        1,
+    );
+    full_check(text, None, 11, "robonaut with a mimic elbow");
+}
+
 #[test]
 fn export_refuses_text_that_is_not_the_tree_s_urdf() {
     let calibrated = case(read(&robot("robonaut/robonaut.urdf")), None, Some(8));
