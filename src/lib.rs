@@ -14,4 +14,4 @@ pub mod urdf;
 pub use error::{Error, Result};
 pub use kinematics::{McpcModel, McpcTable};
 pub use tree::{detect_branches, Branches, KinematicTree};
-pub use urdf::{load_urdf, parse_urdf, urdf_from_mcpc_table};
+pub use urdf::{export_urdf, load_urdf, parse_urdf, urdf_from_mcpc_table};

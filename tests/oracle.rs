@@ -32,7 +32,7 @@ fn oracle_script() -> PathBuf {
 
 /// Whether the oracle can run. Returns `false` (after a loud note) when python3 or Pinocchio
 /// is missing, and panics instead if `TREECAL_REQUIRE_TOOLS=1`.
-fn oracle_available() -> bool {
+pub(crate) fn oracle_available() -> bool {
     let probe = Command::new("python3")
         .args(["-c", "import pinocchio"])
         .stdin(Stdio::null())
@@ -76,7 +76,7 @@ fn oracle_available() -> bool {
 
 /// Runs the oracle once for a whole batch of configurations; returns, per configuration,
 /// root_from_link of every requested link, in `links` order.
-fn pinocchio_poses(
+pub(crate) fn pinocchio_poses(
     urdf: &Path,
     tree: &KinematicTree,
     links: &[String],

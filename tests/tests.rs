@@ -5,6 +5,7 @@ mod common;
 mod branches;
 mod cli;
 mod collision;
+mod export;
 mod flexibility;
 mod from_mcpc;
 mod identification;

@@ -3,6 +3,7 @@
 pub mod joints_csv;
 pub mod mcpc_table;
 pub mod measurements_csv;
+pub mod params;
 pub mod stiffness;
 pub mod units;
 pub mod write;
@@ -13,6 +14,7 @@ pub use measurements_csv::{
     measurements_to_csv, measurements_to_csv_with, parse_measurements, read_measurements,
     MeasurementReadOptions, MeasurementSet, MeasurementWriteOptions, ObservationKind,
 };
+pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use stiffness::{parse_stiffness, read_stiffness};
 pub use units::{AngleUnit, LengthUnit};
 pub use write::write_atomically;

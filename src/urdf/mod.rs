@@ -1,12 +1,17 @@
-//! URDF in and out: the only module that uses urdf-rs.
+//! URDF in and out: the only module that uses urdf-rs or reads XML.
 //!
 //! - [`import`]: URDF text → [`KinematicTree`](crate::tree::KinematicTree), with every
 //!   check a real robot file needs (names, roots, cycles, NaN, unsupported joints).
 //! - [`from_mcpc`]: an MCPC table (paper Table 1 layout) → a new URDF document.
+//! - [`export`]: a calibrated MCPC model → the original URDF with corrected joint origins,
+//!   edited in place.
 
+pub mod export;
 pub mod from_mcpc;
 pub mod import;
+mod xml;
 
+pub use export::{export_urdf, ExportReport, JointChange};
 pub use from_mcpc::urdf_from_mcpc_table;
 
 pub use import::{load_urdf, parse_urdf, UrdfImport};

@@ -25,6 +25,9 @@ pub enum Command {
     /// Simulate the paper's section 5.2 experiment: calibrate a randomly wrong, gravity-loaded
     /// robot from noisy laser-tracker data, without and with flexibility compensation.
     Simulate(SimulateArgs),
+    /// Write calibrated MCPC parameters into the robot's URDF: corrected joint origins (and
+    /// axes where needed), everything else in the file unchanged.
+    Export(ExportArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -178,4 +181,25 @@ pub struct SimulateArgs {
     /// Also write trial 1's simulated measurements as CSV (docs/file-formats.md).
     #[arg(long, value_name = "FILE")]
     pub write_measurements: Option<PathBuf>,
+}
+
+/// Arguments of `treecal export`.
+#[derive(Args)]
+#[command(
+    after_help = "The parameter file lists `parameters:` entries with `name` (as `treecal inspect` names them, e.g. \"left_joint1 alpha\") and `calibrated` (rad, m); other keys are ignored and parameters not listed keep their nominal value (with a warning). Only the <origin> (and, for a tool link carried directly by a moving joint, the <axis>) of the joints that change are rewritten; every other byte of the URDF is kept. The tracker (world) frame is not exported: poses are in the root link frame. See docs/export.md.\n\nExample:\n  treecal export --robot robots/robonaut/robonaut.urdf --params params.yaml -o calibrated.urdf"
+)]
+pub struct ExportArgs {
+    /// The robot's URDF file [default: the built-in Robonaut].
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// The calibrated MCPC parameters (YAML).
+    #[arg(long, value_name = "PARAMS.yaml")]
+    pub params: PathBuf,
+    /// Tool links ending the arms, comma-separated (see `inspect --help`); must be the ones
+    /// the parameters were calibrated with.
+    #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
+    pub tools: Option<Vec<String>>,
+    /// The URDF file to write (written atomically).
+    #[arg(short, long, value_name = "OUT.urdf")]
+    pub output: PathBuf,
 }

@@ -4,6 +4,7 @@
 //! library inputs, one file per subcommand runs it.
 
 mod cli;
+mod export;
 mod fk;
 mod from_mcpc;
 mod inspect;
@@ -22,6 +23,7 @@ fn main() -> ExitCode {
         cli::Command::FromMcpc(a) => from_mcpc::run(a),
         cli::Command::ToMcpc(a) => to_mcpc::run(a),
         cli::Command::Simulate(a) => simulate::run(a),
+        cli::Command::Export(a) => export::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,55 @@
+//! `treecal export`.
+
+use crate::cli::ExportArgs;
+use treecal::io::{read_parameters, write_atomically};
+use treecal::urdf::export_urdf;
+use treecal::{McpcModel, Result};
+
+pub fn run(args: ExportArgs) -> Result<()> {
+    let import = crate::robot::load(args.robot.as_deref())?;
+    let branches = crate::robot::branches(&import, args.tools.as_deref())?;
+    let mut model = McpcModel::from_tree(&import.tree, &branches)?;
+    let parameters = read_parameters(&args.params, &import.tree, &model)?;
+    // A file for another branch selection misses every parameter: name a few, count the rest.
+    const LISTED: usize = 5;
+    for warning in parameters.warnings.iter().take(LISTED) {
+        eprintln!("treecal: warning: {warning}");
+    }
+    if parameters.warnings.len() > LISTED {
+        eprintln!(
+            "treecal: warning: … and {} more parameters not listed keep their nominal values",
+            parameters.warnings.len() - LISTED
+        );
+    }
+    model.set_parameters(&parameters.values)?;
+    let (original, origin) = match &args.robot {
+        Some(path) => (
+            std::fs::read_to_string(path).map_err(|source| treecal::Error::Io {
+                path: path.clone(),
+                source,
+            })?,
+            path.display().to_string(),
+        ),
+        None => (
+            crate::robot::BUILT_IN_ROBONAUT.to_owned(),
+            "built-in robonaut.urdf".to_owned(),
+        ),
+    };
+    let report = export_urdf(&original, &origin, &import.tree, &model)?;
+    write_atomically(&args.output, report.urdf.as_bytes())?;
+    eprintln!(
+        "treecal: wrote {} ({} joint origins changed{})",
+        args.output.display(),
+        report.changes.len(),
+        match report
+            .changes
+            .iter()
+            .filter(|c| c.new_axis.is_some())
+            .count()
+        {
+            0 => String::new(),
+            n => format!(", {n} axes"),
+        }
+    );
+    Ok(())
+}

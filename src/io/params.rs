@@ -1,0 +1,133 @@
+//! Calibrated MCPC parameter values (YAML), as `treecal export` reads them.
+//!
+//! ```yaml
+//! parameters:
+//!   - name: left_joint1 alpha      # McpcModel::parameter_name
+//!     calibrated: 1.5712           # SI: rad for alpha/beta/gamma, m for x/y/z
+//!   - name: left_tool z
+//!     calibrated: 0.1451
+//! ```
+//!
+//! Any other keys (of the file or of an entry) are ignored, so the report the calibration
+//! writes (nominal values, changes, standard deviations, units for display) reads as is.
+//! Unknown names are errors; parameters the file does not list keep their nominal value,
+//! with a warning. See `docs/file-formats.md`.
+
+use crate::error::{did_you_mean, Error, Result};
+use crate::kinematics::McpcModel;
+use crate::tree::KinematicTree;
+use std::collections::HashMap;
+use std::path::Path;
+
+#[derive(serde::Deserialize)]
+struct File {
+    parameters: Vec<Entry>,
+}
+
+#[derive(serde::Deserialize)]
+struct Entry {
+    name: String,
+    calibrated: f64,
+}
+
+/// The parameter vector a parameter file gives, and what the user should know about it.
+#[derive(Debug, Clone)]
+pub struct ParameterValues {
+    /// Every MCPC parameter (rad, m) in [`McpcModel::parameter_layout`] order.
+    pub values: Vec<f64>,
+    /// Parameters the file does not list (they keep their nominal value).
+    pub warnings: Vec<String>,
+}
+
+/// Reads a parameter file for `model` (the nominal model of `tree`).
+pub fn read_parameters(
+    path: &Path,
+    tree: &KinematicTree,
+    model: &McpcModel,
+) -> Result<ParameterValues> {
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse_parameters(&text, &path.display().to_string(), tree, model)
+}
+
+/// Parses a parameter file; `origin` names it in messages, with `:line:column` where known.
+pub fn parse_parameters(
+    text: &str,
+    origin: &str,
+    tree: &KinematicTree,
+    model: &McpcModel,
+) -> Result<ParameterValues> {
+    let file: File = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
+        origin: match e.location() {
+            Some(l) => format!("{origin}:{}:{}", l.line(), l.column()),
+            None => origin.to_owned(),
+        },
+        message: format!(
+            "{e}; expected `parameters:` with a list of `name:` and `calibrated:` (SI units)"
+        ),
+    })?;
+    // serde_yaml keeps no positions of values, so a bad name is found in the text again.
+    let at = |name: &str| match text.find(name) {
+        Some(offset) => {
+            let before = &text[..offset];
+            let line = before.matches('\n').count() + 1;
+            let column = before.len() - before.rfind('\n').map_or(0, |n| n + 1) + 1;
+            format!("{origin}:{line}:{column}")
+        }
+        None => origin.to_owned(),
+    };
+    let names: Vec<String> = (0..model.parameter_count())
+        .map(|i| model.parameter_name(tree, i))
+        .collect();
+    let index: HashMap<&str, usize> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.as_str(), i))
+        .collect();
+    let mut values = model.parameters();
+    let mut given = vec![false; values.len()];
+    for (entry_index, entry) in file.parameters.iter().enumerate() {
+        let name = entry.name.trim();
+        let Some(&i) = index.get(name) else {
+            return Err(Error::InvalidData {
+                origin: at(name),
+                message: format!(
+                    "parameters[{entry_index}]: unknown parameter '{name}'{}; names are a joint or tool link and one of alpha, beta, gamma, x, y, z (see `treecal inspect`)",
+                    did_you_mean(name, names.iter().map(String::as_str))
+                ),
+            });
+        };
+        if given[i] {
+            return Err(Error::InvalidData {
+                origin: origin.to_owned(),
+                message: format!(
+                    "parameters[{entry_index}]: '{name}' is given twice; keep one entry"
+                ),
+            });
+        }
+        if !entry.calibrated.is_finite() {
+            return Err(Error::InvalidData {
+                origin: at(name),
+                message: format!(
+                    "parameters[{entry_index}]: '{name}' has a calibrated value that is not a finite number"
+                ),
+            });
+        }
+        given[i] = true;
+        values[i] = entry.calibrated;
+    }
+    let warnings = names
+        .iter()
+        .zip(&given)
+        .zip(&values)
+        .filter(|((_, given), _)| !**given)
+        .map(|((name, _), value)| {
+            format!(
+                "{origin}: parameter '{name}' is not listed; it keeps its nominal value {value}"
+            )
+        })
+        .collect();
+    Ok(ParameterValues { values, warnings })
+}

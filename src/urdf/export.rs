@@ -1,0 +1,370 @@
+//! Calibrated MCPC model → URDF, by editing the original file in place.
+//!
+//! Only the `<origin xyz rpy>` (inserted where missing) and `<axis xyz>` of the joints whose
+//! placement changes are rewritten; every other byte of the file stays as it was, so
+//! `<transmission>`, `<gazebo>`, comments, limits, mimic tags and formatting survive. The
+//! math is in `docs/export.md`: every link on the modelled chains gets its calibrated pose at
+//! zero joint values, every other link keeps its pose relative to its parent link, and a
+//! changed joint's origin is `parent_pose⁻¹ · child_pose`. The measurement frame
+//! ([`McpcModel::world_from_base`]) is not part of a URDF and is not exported.
+
+use super::xml::{position, scan, unescape, Element};
+use crate::error::{Error, Result};
+use crate::kinematics::McpcModel;
+use crate::math::{rpy_from_rotation, Pose, Rotation, Vec3};
+use crate::tree::{JointKind, KinematicTree};
+
+/// A joint origin change smaller than this (m, and rad as twice the relative quaternion's
+/// vector part) is left out: the joint keeps its text exactly. A picometre is far below
+/// anything a calibration can resolve, and it keeps a nominal export byte-identical.
+pub const UNCHANGED_TOLERANCE: f64 = 1e-12;
+
+/// How far (m) a tool link's origin may sit off the axis of the movable joint that carries it.
+/// A URDF joint turns its child link about an axis through the child's origin, so a tool link
+/// that is itself the child of a revolute joint can only be exported while it stays on the axis.
+pub const ON_AXIS_TOLERANCE: f64 = 1e-9;
+
+/// One joint whose `<origin>` or `<axis>` was rewritten.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct JointChange {
+    /// The joint's URDF name.
+    pub joint: String,
+    /// The original origin translation (m).
+    pub old_xyz: [f64; 3],
+    /// The exported origin translation (m).
+    pub new_xyz: [f64; 3],
+    /// The original origin roll, pitch, yaw (rad).
+    pub old_rpy: [f64; 3],
+    /// The exported origin roll, pitch, yaw (rad).
+    pub new_rpy: [f64; 3],
+    /// The original axis (unit), if the axis was rewritten.
+    pub old_axis: Option<[f64; 3]>,
+    /// The exported axis (unit), if the axis was rewritten.
+    pub new_axis: Option<[f64; 3]>,
+}
+
+/// The exported URDF text and what changed in it.
+#[derive(Debug, Clone)]
+pub struct ExportReport {
+    /// The new URDF document.
+    pub urdf: String,
+    /// The joints whose origin or axis changed, in tree order.
+    pub changes: Vec<JointChange>,
+}
+
+/// Writes the calibrated `model` into the URDF text `original` (from which `tree` was
+/// imported; `origin` names it in messages) and returns the edited text.
+///
+/// `model` is [`McpcModel::from_tree`] of `tree` with calibrated parameters set. The exported
+/// file reproduces the model's tool and link poses in the base (root link) frame at every
+/// configuration; `world_from_base` is not exported.
+pub fn export_urdf(
+    original: &str,
+    origin: &str,
+    tree: &KinematicTree,
+    model: &McpcModel,
+) -> Result<ExportReport> {
+    let placements = calibrated_placements(tree, model)?;
+    let document = Document::new(original, origin)?;
+    let mut edits: Vec<(usize, usize, String)> = Vec::new();
+    let mut changes = Vec::new();
+    for (index, placement) in placements.iter().enumerate() {
+        let Some(placement) = placement else { continue };
+        let joint = &tree.joints()[index];
+        let element = document.joint(&joint.name)?;
+        let parent_from_joint = placement
+            .parent_from_joint
+            .unwrap_or(joint.parent_from_joint);
+        let new_rpy = rpy_from_rotation(&parent_from_joint.rotation);
+        let new_xyz: [f64; 3] = parent_from_joint.translation.vector.into();
+        if placement.parent_from_joint.is_some() {
+            document.set_origin(element, &joint.name, new_xyz, new_rpy, &mut edits)?;
+        }
+        let (old_axis, new_axis) = match placement.axis {
+            Some(axis) => {
+                document.set_axis(element, &joint.name, axis, &mut edits)?;
+                (Some(joint.axis.into_inner().into()), Some(axis.into()))
+            }
+            None => (None, None),
+        };
+        changes.push(JointChange {
+            joint: joint.name.clone(),
+            old_xyz: joint.parent_from_joint.translation.vector.into(),
+            new_xyz,
+            old_rpy: rpy_from_rotation(&joint.parent_from_joint.rotation),
+            new_rpy,
+            old_axis,
+            new_axis,
+        });
+    }
+    edits.sort_by_key(|(start, _, _)| std::cmp::Reverse(*start));
+    let mut urdf = original.to_owned();
+    for (start, end, replacement) in edits {
+        urdf.replace_range(start..end, &replacement);
+    }
+    Ok(ExportReport { urdf, changes })
+}
+
+/// A joint's new placement: its origin and, where it changes, its axis (in the joint frame).
+#[derive(Debug, Clone, Copy)]
+struct Placement {
+    /// The new origin, if it moved.
+    parent_from_joint: Option<Pose>,
+    /// The new axis, if it turned.
+    axis: Option<Vec3>,
+}
+
+/// Twice the vector part of the relative quaternion: the rotation angle for small angles,
+/// without the acos that makes `angle_to` blind below about 1e-8 rad.
+fn rotation_gap(a: &Rotation, b: &Rotation) -> f64 {
+    2.0 * (a.inverse() * b).quaternion().imag().norm()
+}
+
+/// The new placement of every joint whose origin or axis changes (`None`: keep the text).
+fn calibrated_placements(
+    tree: &KinematicTree,
+    model: &McpcModel,
+) -> Result<Vec<Option<Placement>>> {
+    // Calibrated poses in the base frame at zero joint values (the URDF origin is the child's
+    // pose at joint value 0; mimic offsets are joint values like any other, so nothing to undo).
+    let frames = model.frames();
+    let mut base_from_frame: Vec<Pose> = Vec::with_capacity(frames.len());
+    for frame in frames {
+        let previous = frame
+            .parent
+            .map_or_else(Pose::identity, |p| base_from_frame[p]);
+        base_from_frame.push(previous * frame.constant_transform());
+    }
+    let mut target: Vec<Option<Pose>> = vec![None; tree.links().len()];
+    let mut new_axis: Vec<Option<Vec3>> = vec![None; tree.joints().len()];
+    for (frame, base_from) in frames.iter().zip(&base_from_frame) {
+        let child = tree.joint(frame.joint).child;
+        target[child.0] = Some(base_from * frame.frame_from_link);
+    }
+    for tool in model.tools() {
+        let previous = tool
+            .parent
+            .map_or_else(Pose::identity, |p| base_from_frame[p]);
+        let last_from_tool = tool.constant_transform();
+        target[tool.link.0] = Some(previous * last_from_tool);
+        let link = tree.link(tool.link);
+        let Some(joint_id) = link.parent_joint else {
+            return Err(Error::InvalidRobot {
+                origin: tree.name().to_owned(),
+                message: format!(
+                    "tool link '{}' is the root link, which a URDF cannot move; choose a tool below a joint",
+                    link.name
+                ),
+            });
+        };
+        let joint = tree.joint(joint_id);
+        if !joint.kind.is_movable() {
+            continue;
+        }
+        // The tool link is the moved frame's child itself: its frame must follow the tool
+        // frame at every joint value, so the axis in the link frame is link_from_moved · z.
+        if tool.parent.map(|p| frames[p].joint) != Some(joint_id) {
+            return Err(Error::InvalidRobot {
+                origin: tree.name().to_owned(),
+                message: format!(
+                    "tool link '{}' is carried by joint '{}', which is not the last joint of its chain in the model",
+                    link.name, joint.name
+                ),
+            });
+        }
+        let off_axis = last_from_tool.translation.vector.xy().norm();
+        if joint.kind.is_rotational() && off_axis > ON_AXIS_TOLERANCE {
+            return Err(Error::InvalidRobot {
+                origin: tree.name().to_owned(),
+                message: format!(
+                    "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {off_axis:e} m off the joint axis, which a URDF joint cannot express; calibrate a tool link below a fixed joint instead (add a <link> and a fixed <joint> under '{}')",
+                    link.name, joint.name, link.name
+                ),
+            });
+        }
+        new_axis[joint_id.0] = Some(last_from_tool.rotation.inverse() * Vec3::z());
+    }
+
+    // The exported poses, joint by joint, so that an origin left unchanged (below the
+    // tolerance) is accounted for by the joints after it instead of accumulating.
+    let mut exported: Vec<Pose> = Vec::with_capacity(tree.links().len());
+    exported.push(Pose::identity());
+    let mut placements = Vec::with_capacity(tree.joints().len());
+    for (index, joint) in tree.joints().iter().enumerate() {
+        let parent = exported[joint.parent.0];
+        let Some(child) = target[joint.child.0] else {
+            exported.push(parent * joint.parent_from_joint);
+            placements.push(None);
+            continue;
+        };
+        let parent_from_joint = parent.inverse() * child;
+        let axis = new_axis[index].filter(|axis| {
+            joint.kind != JointKind::Fixed
+                && (axis - joint.axis.into_inner()).norm() > UNCHANGED_TOLERANCE
+        });
+        let moved = (parent_from_joint.translation.vector
+            - joint.parent_from_joint.translation.vector)
+            .norm()
+            > UNCHANGED_TOLERANCE
+            || rotation_gap(
+                &parent_from_joint.rotation,
+                &joint.parent_from_joint.rotation,
+            ) > UNCHANGED_TOLERANCE;
+        if moved || axis.is_some() {
+            exported.push(parent * parent_from_joint);
+            placements.push(Some(Placement {
+                parent_from_joint: moved.then_some(parent_from_joint),
+                axis,
+            }));
+        } else {
+            exported.push(parent * joint.parent_from_joint);
+            placements.push(None);
+        }
+    }
+    Ok(placements)
+}
+
+/// Shortest text that reads back as exactly these numbers.
+fn numbers(values: [f64; 3]) -> String {
+    format!("{} {} {}", values[0], values[1], values[2])
+}
+
+/// The original text with its elements located.
+struct Document<'a> {
+    text: &'a str,
+    origin: &'a str,
+    elements: Vec<Element>,
+}
+
+impl<'a> Document<'a> {
+    fn new(text: &'a str, origin: &'a str) -> Result<Self> {
+        let elements = scan(text, origin)?;
+        Ok(Self {
+            text,
+            origin,
+            elements,
+        })
+    }
+
+    fn invalid(&self, at: usize, message: String) -> Error {
+        Error::InvalidRobot {
+            origin: position(self.text, self.origin, at),
+            message,
+        }
+    }
+
+    /// The `<joint>` element called `name` directly under the root `<robot>` (joints inside
+    /// `<transmission>` or `<gazebo>` are other things with the same tag).
+    fn joint(&self, name: &str) -> Result<usize> {
+        let mut found = self.elements.iter().enumerate().filter(|(_, e)| {
+            e.name == "joint"
+                && e.parent.is_some_and(|p| self.elements[p].parent.is_none())
+                && e.attribute("name")
+                    .is_some_and(|a| unescape(&self.text[a.value.clone()]) == name)
+        });
+        match (found.next(), found.next()) {
+            (Some((index, _)), None) => Ok(index),
+            (Some(_), Some((_, second))) => Err(self.invalid(
+                second.start,
+                format!("joint '{name}' is declared twice; joint names must be unique"),
+            )),
+            (None, _) => Err(Error::InvalidRobot {
+                origin: self.origin.to_owned(),
+                message: format!(
+                    "the text has no <joint name=\"{name}\"> under <robot>; pass the URDF the tree was loaded from"
+                ),
+            }),
+        }
+    }
+
+    /// The one child element `tag` of element `parent`, if any.
+    fn child(&self, parent: usize, tag: &str, joint: &str) -> Result<Option<&Element>> {
+        let mut found = self
+            .elements
+            .iter()
+            .filter(|e| e.parent == Some(parent) && e.name == tag);
+        match (found.next(), found.next()) {
+            (first, None) => Ok(first),
+            (Some(_), Some(second)) => Err(self.invalid(
+                second.start,
+                format!("joint '{joint}' has more than one <{tag}>; remove all but one"),
+            )),
+            (None, Some(_)) => unreachable!("an iterator yields in order"),
+        }
+    }
+
+    /// Sets attributes of child `tag` of joint element `joint`, inserting the element (after
+    /// the joint's start tag, on its own line) or the attributes where missing.
+    fn set_child(
+        &self,
+        joint: usize,
+        joint_name: &str,
+        tag: &str,
+        values: &[(&str, String)],
+        edits: &mut Vec<(usize, usize, String)>,
+    ) -> Result<()> {
+        let element = &self.elements[joint];
+        if element.self_closing {
+            return Err(self.invalid(
+                element.start,
+                format!("joint '{joint_name}' is an empty element; it needs <parent> and <child>"),
+            ));
+        }
+        match self.child(joint, tag, joint_name)? {
+            Some(child) => {
+                let mut missing = String::new();
+                for (name, value) in values {
+                    match child.attribute(name) {
+                        Some(attribute) => {
+                            edits.push((attribute.value.start, attribute.value.end, value.clone()))
+                        }
+                        None => missing.push_str(&format!(" {name}=\"{value}\"")),
+                    }
+                }
+                if !missing.is_empty() {
+                    edits.push((child.attributes_end, child.attributes_end, missing));
+                }
+            }
+            None => {
+                let line_start = self.text[..element.start].rfind('\n').map_or(0, |n| n + 1);
+                let indent: String = self.text[line_start..element.start]
+                    .chars()
+                    .take_while(|c| c.is_whitespace())
+                    .collect();
+                let attributes: String = values
+                    .iter()
+                    .map(|(name, value)| format!(" {name}=\"{value}\""))
+                    .collect();
+                edits.push((
+                    element.tag_end,
+                    element.tag_end,
+                    format!("\n{indent}  <{tag}{attributes}/>"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn set_origin(
+        &self,
+        joint: usize,
+        joint_name: &str,
+        xyz: [f64; 3],
+        rpy: [f64; 3],
+        edits: &mut Vec<(usize, usize, String)>,
+    ) -> Result<()> {
+        let values = [("xyz", numbers(xyz)), ("rpy", numbers(rpy))];
+        self.set_child(joint, joint_name, "origin", &values, edits)
+    }
+
+    fn set_axis(
+        &self,
+        joint: usize,
+        joint_name: &str,
+        axis: Vec3,
+        edits: &mut Vec<(usize, usize, String)>,
+    ) -> Result<()> {
+        let values = [("xyz", numbers(axis.into()))];
+        self.set_child(joint, joint_name, "axis", &values, edits)
+    }
+}

@@ -1,0 +1,572 @@
+//! `export_urdf` and `treecal export`: a calibrated model written into the original URDF
+//! reproduces the model's forward kinematics, keeps every link off the modelled chains where
+//! it was relative to its parent, changes no byte but the rewritten `<origin>`/`<axis>`
+//! values, loads again, passes urdfdom's `check_urdf` and agrees with Pinocchio.
+
+use crate::common::cli::*;
+use crate::common::*;
+use rand::RngExt;
+use std::collections::HashSet;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use treecal::math::Pose;
+use treecal::urdf::{export_urdf, ExportReport};
+use treecal::{detect_branches, parse_urdf, Branches, KinematicTree, McpcModel};
+
+/// Random configurations per robot.
+const CONFIGURATIONS: usize = 50;
+/// Position (m) and rotation-matrix entry tolerance of the exported forward kinematics.
+const TOLERANCE: f64 = 1e-9;
+/// The Debian liburdfdom-tools binary (a different `check_urdf` may come first on PATH).
+const CHECK_URDF: &str = "/usr/bin/check_urdf";
+
+/// Largest translation difference (m) and largest rotation-matrix entry difference: unlike
+/// `angle_to`, which reads 0 below about 1e-8 rad, this sees differences down to rounding.
+fn pose_gap(a: &Pose, b: &Pose) -> (f64, f64) {
+    let position = (a.translation.vector - b.translation.vector).norm();
+    let rotation = (a.rotation.to_rotation_matrix().matrix()
+        - b.rotation.to_rotation_matrix().matrix())
+    .abs()
+    .max();
+    (position, rotation)
+}
+
+#[track_caller]
+fn assert_close(a: &Pose, b: &Pose, tolerance: f64, what: &str) {
+    let (position, rotation) = pose_gap(a, b);
+    assert!(
+        position <= tolerance && rotation <= tolerance,
+        "{what}: poses differ by {position:e} m and {rotation:e} (rotation entries)\n{a}\n{b}"
+    );
+}
+
+struct Case {
+    text: String,
+    tree: KinematicTree,
+    branches: Branches,
+    model: McpcModel,
+}
+
+/// Loads `text`, detects branches (with `tools` if given) and perturbs every MCPC parameter
+/// by a seeded uniform ±0.05 rad / ±0.05 m (`seed` `None`: the nominal model).
+fn case(text: String, tools: Option<&[&str]>, seed: Option<u64>) -> Case {
+    let tree = parse_urdf(&text, "case")
+        .unwrap_or_else(|e| panic!("{e}"))
+        .tree;
+    let tools = tools.map(|names| {
+        names
+            .iter()
+            .map(|n| tree.link_id(n).unwrap())
+            .collect::<Vec<_>>()
+    });
+    let branches = detect_branches(&tree, tools.as_deref()).unwrap();
+    let mut model = McpcModel::from_tree(&tree, &branches).unwrap();
+    if let Some(seed) = seed {
+        let mut rng = rng(seed);
+        let mut values = model.parameters();
+        // ±0.05 rad for angles, ±0.05 m for lengths: the same number in SI units.
+        for value in values.iter_mut() {
+            *value += rng.random_range(-0.05..0.05);
+        }
+        model.set_parameters(&values).unwrap();
+    }
+    Case {
+        text,
+        tree,
+        branches,
+        model,
+    }
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Exports, reloads, and checks (a) model poses, (b) off-chain links and (c) byte identity.
+fn export_and_check(case: &Case, what: &str) -> (ExportReport, KinematicTree) {
+    let report = export_urdf(&case.text, what, &case.tree, &case.model)
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
+    let exported = parse_urdf(&report.urdf, "exported")
+        .unwrap_or_else(|e| panic!("{what}: the export does not load again: {e}"))
+        .tree;
+    let (tree, model) = (&case.tree, &case.model);
+    assert_eq!(exported.links().len(), tree.links().len(), "{what}");
+    for (a, b) in exported.joints().iter().zip(tree.joints()) {
+        assert_eq!(
+            (&a.name, a.kind, a.parent, a.child, a.limits, a.actuation),
+            (&b.name, b.kind, b.parent, b.child, b.limits, b.actuation),
+            "{what}: joint changed beyond its origin and axis"
+        );
+    }
+
+    let tool_links: HashSet<usize> = model.tools().iter().map(|t| t.link.0).collect();
+    let mut on_chains = tool_links.clone();
+    on_chains.extend(model.frames().iter().map(|f| tree.joint(f.joint).child.0));
+
+    // (a) every modelled link and tool where the calibrated model puts it.
+    let mut rng = rng(0xE4_0127);
+    let mut worst = 0.0f64;
+    for _ in 0..CONFIGURATIONS {
+        let q = random_configuration(tree, &mut rng);
+        let poses = exported.link_poses(&q).unwrap();
+        for (t, tool_pose) in model.tool_poses(&q).iter().enumerate() {
+            let link = model.tools()[t].link;
+            assert_close(
+                &poses[link.0],
+                tool_pose,
+                TOLERANCE,
+                &format!("{what}: tool {t}"),
+            );
+            let (p, r) = pose_gap(&poses[link.0], tool_pose);
+            worst = worst.max(p).max(r);
+        }
+        for (f, link_pose) in model.link_poses(&q).iter().enumerate() {
+            let link = tree.joint(model.frames()[f].joint).child;
+            if !tool_links.contains(&link.0) {
+                let name = &tree.link(link).name;
+                assert_close(
+                    &poses[link.0],
+                    link_pose,
+                    TOLERANCE,
+                    &format!("{what}: {name}"),
+                );
+            }
+        }
+    }
+    eprintln!("{what}: worst tool pose difference {worst:e}");
+
+    // (b) links off the chains keep their placement on their parent link, bit for bit.
+    for (a, b) in exported.joints().iter().zip(tree.joints()) {
+        if !on_chains.contains(&a.child.0) {
+            assert_eq!(
+                (a.parent_from_joint, a.axis),
+                (b.parent_from_joint, b.axis),
+                "{what}: joint '{}' is off the modelled chains and must not move",
+                a.name
+            );
+        }
+    }
+    let changed: HashSet<&str> = report.changes.iter().map(|c| c.joint.as_str()).collect();
+    for joint in tree.joints() {
+        if !changed.contains(joint.name.as_str()) {
+            let exported_joint = exported.joint(exported.joint_id(&joint.name).unwrap());
+            assert_eq!(exported_joint.parent_from_joint, joint.parent_from_joint);
+        }
+    }
+
+    // (c) nothing but origin/axis attribute values differs (no insertions in these files).
+    assert_same_but_origins(&case.text, &report.urdf, report.changes.len(), what);
+    (report, exported)
+}
+
+/// Masks the values of `xyz` and `rpy` attributes.
+fn mask(line: &str) -> String {
+    let mut out = String::new();
+    let mut rest = line;
+    loop {
+        let next = ["xyz=", "rpy="]
+            .iter()
+            .filter_map(|k| rest.find(k).map(|i| (i, k.len())))
+            .min();
+        let Some((at, key_len)) = next else {
+            out.push_str(rest);
+            return out;
+        };
+        let value_start = at + key_len;
+        let quote = rest[value_start..].chars().next().unwrap();
+        let close = value_start + 1 + rest[value_start + 1..].find(quote).unwrap();
+        out.push_str(&rest[..value_start]);
+        out.push('#');
+        rest = &rest[close + 1..];
+    }
+}
+
+#[track_caller]
+fn assert_same_but_origins(original: &str, exported: &str, changes: usize, what: &str) {
+    let a: Vec<&str> = original.split('\n').collect();
+    let b: Vec<&str> = exported.split('\n').collect();
+    assert_eq!(a.len(), b.len(), "{what}: line count changed");
+    let mut differing = 0;
+    for (number, (x, y)) in a.iter().zip(&b).enumerate() {
+        if x != y {
+            differing += 1;
+            assert!(
+                (y.contains("<origin") || y.contains("<axis")) && mask(x) == mask(y),
+                "{what}: line {} changed beyond origin/axis values:\n- {x}\n+ {y}",
+                number + 1
+            );
+        }
+    }
+    assert!(
+        differing <= 2 * changes,
+        "{what}: {differing} lines changed"
+    );
+    assert_eq!(differing > 0, changes > 0, "{what}");
+}
+
+fn check_urdf_accepts(text: &str, what: &str) {
+    if !Path::new(CHECK_URDF).exists() {
+        let problem = format!("{CHECK_URDF} not found (Debian/Ubuntu package liburdfdom-tools)");
+        if std::env::var("TREECAL_REQUIRE_TOOLS").is_ok_and(|v| v == "1") {
+            panic!("TREECAL_REQUIRE_TOOLS=1 but {problem}");
+        }
+        use std::io::Write;
+        let _ = writeln!(
+            std::io::stderr().lock(),
+            "\n!!! SKIPPED: check_urdf on the export of {what} (tests/export.rs): {problem}\n\
+             !!! (set TREECAL_REQUIRE_TOOLS=1 to make this a failure instead of a skip)\n"
+        );
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("exported.urdf");
+    std::fs::write(&path, text).unwrap();
+    let output = Command::new(CHECK_URDF)
+        .arg(&path)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{what}: check_urdf refuses the export:\n{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+/// (f) Pinocchio reads the exported file and finds the model's tool poses.
+fn pinocchio_agrees(case: &Case, exported_text: &str, what: &str) {
+    if !crate::oracle::oracle_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("exported.urdf");
+    std::fs::write(&path, exported_text).unwrap();
+    let links: Vec<String> = case
+        .model
+        .tools()
+        .iter()
+        .map(|t| case.tree.link(t.link).name.clone())
+        .collect();
+    let mut rng = rng(0x0AC1E);
+    let configurations: Vec<Vec<f64>> = (0..10)
+        .map(|_| random_configuration(&case.tree, &mut rng))
+        .collect();
+    let poses = crate::oracle::pinocchio_poses(&path, &case.tree, &links, &configurations);
+    for (q, per_link) in configurations.iter().zip(&poses) {
+        for (t, (model_pose, oracle_pose)) in
+            case.model.tool_poses(q).iter().zip(per_link).enumerate()
+        {
+            assert_close(
+                oracle_pose,
+                model_pose,
+                TOLERANCE,
+                &format!("{what}: tool {t}"),
+            );
+        }
+    }
+}
+
+fn full_check(text: String, tools: Option<&[&str]>, seed: u64, what: &str) {
+    let calibrated = case(text.clone(), tools, Some(seed));
+    let (report, _) = export_and_check(&calibrated, what);
+    assert!(
+        !report.changes.is_empty(),
+        "{what}: a perturbed model must change joints"
+    );
+    check_urdf_accepts(&report.urdf, what);
+    pinocchio_agrees(&calibrated, &report.urdf, what);
+
+    // (d) the nominal model gives the file back unchanged.
+    let nominal = case(text.clone(), tools, None);
+    let (report, exported) = export_and_check(&nominal, &format!("{what} (nominal)"));
+    assert_eq!(
+        report.changes,
+        vec![],
+        "{what}: nominal export changed joints"
+    );
+    assert!(
+        report.urdf == text,
+        "{what}: nominal export is not the original text"
+    );
+    let mut rng = rng(3);
+    for _ in 0..5 {
+        let q = random_configuration(&nominal.tree, &mut rng);
+        let (a, b) = (
+            exported.link_poses(&q).unwrap(),
+            nominal.tree.link_poses(&q).unwrap(),
+        );
+        for (x, y) in a.iter().zip(&b) {
+            assert_close(x, y, 1e-12, what);
+        }
+    }
+}
+
+#[test]
+fn robonaut_export_reproduces_the_calibrated_model() {
+    full_check(read(&robot("robonaut/robonaut.urdf")), None, 1, "robonaut");
+}
+
+#[test]
+fn humanoid_export_keeps_head_legs_and_mimic_fingers_attached() {
+    full_check(read(&robot("humanoid/humanoid.urdf")), None, 2, "humanoid");
+}
+
+#[test]
+fn dual_arm_prismatic_export_reproduces_the_calibrated_model() {
+    let text = read(&robot("dual_arm_prismatic/dual_arm_prismatic.urdf"));
+    full_check(text, None, 3, "dual_arm_prismatic");
+}
+
+#[test]
+fn robonaut2_export_reproduces_the_calibrated_model() {
+    full_check(read(&robonaut2()), None, 4, "robonaut2");
+}
+
+/// Robonaut with elements urdf-rs drops, comments and CDATA that look like joints, single
+/// quotes, attributes in another order, an `<origin>` without `rpy` and a joint without
+/// `<origin>` (both edited by insertion, so the line check is replaced by a masked diff).
+fn decorated_robonaut() -> String {
+    let text = read(&robot("robonaut/robonaut.urdf"));
+    let extra = r#"  <!-- <joint name="left_joint2"><origin xyz="9 9 9"/></joint> -->
+  <transmission name="left_joint2_transmission">
+    <type>transmission_interface/SimpleTransmission</type>
+    <joint name="left_joint2"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
+    <actuator name="left_motor2"><mechanicalReduction>100</mechanicalReduction></actuator>
+  </transmission>
+  <gazebo reference="left_link2"><material>Gazebo/Grey</material><![CDATA[<joint name="left_joint3"><origin xyz="1 2 3"/></joint>]]></gazebo>
+</robot>"#;
+    let text = text.replacen("</robot>", extra, 1);
+    let text = text.replacen(
+        "<origin xyz=\"0 -0.135 0\" rpy=\"0 0 0\"/>",
+        "<origin  rpy='0 0 0'\n      xyz='0 -0.135 0' ></origin>",
+        1,
+    );
+    // torso_joint1's origin is the identity: the same robot without it.
+    let text = text.replacen(
+        "<child link=\"torso_link1\"/>\n    <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>",
+        "<child link=\"torso_link1\"/>",
+        1,
+    );
+    assert!(text.contains("rpy='0 0 0'") && !text.contains("torso_link1\"/>\n    <origin"));
+    text
+}
+
+#[test]
+fn export_edits_in_place_and_keeps_elements_urdf_rs_drops() {
+    let text = decorated_robonaut();
+    let calibrated = case(text.clone(), None, Some(5));
+    let report = export_urdf(&text, "decorated", &calibrated.tree, &calibrated.model).unwrap();
+    let out = &report.urdf;
+    for kept in [
+        "<transmission name=\"left_joint2_transmission\">",
+        "<joint name=\"left_joint2\"><hardwareInterface>",
+        "<![CDATA[<joint name=\"left_joint3\"><origin xyz=\"1 2 3\"/></joint>]]>",
+        "<!-- <joint name=\"left_joint2\"><origin xyz=\"9 9 9\"/></joint> -->",
+        "<gazebo reference=\"left_link2\">",
+    ] {
+        assert!(out.contains(kept), "lost: {kept}");
+    }
+    // The single-quoted origin was rewritten in place, keeping its quotes and order.
+    assert!(out.contains("<origin  rpy='"), "{out}");
+    assert!(out.contains("' ></origin>"));
+    // The joint without an origin got one.
+    let torso = &out[out.find("<joint name=\"torso_joint1\"").unwrap()..];
+    let torso = &torso[..torso.find("</joint>").unwrap()];
+    assert!(torso.contains("<origin xyz=\""), "{torso}");
+    // Masking every xyz/rpy value and deleting the inserted origin gives the original back.
+    let inserted_start =
+        out.find("<joint name=\"torso_joint1\"").unwrap() + torso.find('>').unwrap() + 1;
+    let inserted_end = inserted_start + out[inserted_start + 1..].find('\n').unwrap() + 1;
+    let without_insert = format!("{}{}", &out[..inserted_start], &out[inserted_end..]);
+    assert_eq!(mask(&without_insert), mask(&text));
+    // And it is the calibrated robot.
+    let exported = parse_urdf(out, "exported").unwrap().tree;
+    let mut rng = rng(6);
+    for _ in 0..CONFIGURATIONS {
+        let q = random_configuration(&calibrated.tree, &mut rng);
+        let poses = exported.link_poses(&q).unwrap();
+        for (t, tool_pose) in calibrated.model.tool_poses(&q).iter().enumerate() {
+            let link = calibrated.model.tools()[t].link;
+            assert_close(&poses[link.0], tool_pose, TOLERANCE, "decorated");
+        }
+    }
+    check_urdf_accepts(out, "decorated robonaut");
+}
+
+/// A tool link that is the child of a revolute joint: the joint's axis is rewritten so that
+/// the link frame is the tool frame at every joint value, as long as the tool stays on the
+/// axis; off the axis the export is refused with a message that says what to do.
+#[test]
+fn tool_carried_by_a_revolute_joint_gets_a_new_axis() {
+    let text = read(&robot("robonaut/robonaut.urdf"));
+    let tools = ["left_link6", "right_link5"];
+    let mut calibrated = case(text.clone(), Some(&tools), Some(7));
+    // Put both tool origins back on their joint axes: translation (Σ coordinates) x = y = 0.
+    let mut values = calibrated.model.parameters();
+    for t in 0..calibrated.model.tools().len() {
+        let tool = &calibrated.model.tools()[t];
+        let transform = tool.constant_transform();
+        let along = transform.translation.vector.z;
+        let local = transform.rotation.inverse() * treecal::math::Vec3::new(0.0, 0.0, along);
+        let offset = calibrated.model.tool_parameter_offset(t);
+        values[offset + 3] = local.x;
+        values[offset + 4] = local.y;
+        values[offset + 5] = local.z;
+    }
+    calibrated.model.set_parameters(&values).unwrap();
+    let (report, _) = export_and_check(&calibrated, "robonaut, tools on revolute joints");
+    assert_eq!(
+        report
+            .changes
+            .iter()
+            .filter(|c| c.new_axis.is_some())
+            .count(),
+        2,
+        "{:?}",
+        report.changes
+    );
+    check_urdf_accepts(&report.urdf, "robonaut, tools on revolute joints");
+
+    let off_axis = case(text, Some(&tools), Some(7));
+    let error = export_urdf(&off_axis.text, "r", &off_axis.tree, &off_axis.model).unwrap_err();
+    let message = error.to_string();
+    assert!(
+        message.contains("left_link6") && message.contains("off the joint axis"),
+        "{message}"
+    );
+}
+
+/// A mimic joint with an offset on a modelled chain: the exported origin is the pose at joint
+/// value 0, not at q = 0 (where the mimic joint sits at its offset).
+#[test]
+fn mimic_joint_with_offset_on_a_chain_exports_exactly() {
+    let text = read(&robot("robonaut/robonaut.urdf"));
+    let anchor = "<child link=\"left_link5\"/>";
+    assert!(text.contains(anchor));
+    let text = text.replacen(
+        anchor,
+        "<child link=\"left_link5\"/>\n    <mimic joint=\"left_joint4\" multiplier=\"0.7\" offset=\"0.3\"/>",
+        1,
+    );
+    full_check(text, None, 11, "robonaut with a mimic elbow");
+}
+
+#[test]
+fn export_refuses_text_that_is_not_the_tree_s_urdf() {
+    let calibrated = case(read(&robot("robonaut/robonaut.urdf")), None, Some(8));
+    let other = read(&robot("humanoid/humanoid.urdf"));
+    let error = export_urdf(&other, "humanoid.urdf", &calibrated.tree, &calibrated.model)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("humanoid.urdf") && error.contains("no <joint name="),
+        "{error}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// treecal export
+
+fn params_yaml(case: &Case, skip: Option<usize>) -> String {
+    let mut text = String::from("# calibrated parameters\nunits: SI\nparameters:\n");
+    for (i, value) in case.model.parameters().iter().enumerate() {
+        if Some(i) == skip {
+            continue;
+        }
+        text.push_str(&format!(
+            "  - name: {}\n    nominal: 0\n    calibrated: {value:?}\n    std_dev: 1e-5\n",
+            case.model.parameter_name(&case.tree, i)
+        ));
+    }
+    text
+}
+
+#[test]
+fn cli_export_writes_the_calibrated_urdf() {
+    let urdf = robot("robonaut/robonaut.urdf");
+    let calibrated = case(read(&urdf), None, Some(9));
+    let dir = tempfile::tempdir().unwrap();
+    let params = dir.path().join("params.yaml");
+    std::fs::write(&params, params_yaml(&calibrated, Some(0))).unwrap();
+    let out = dir.path().join("out/calibrated.urdf");
+    let run = treecal(&[
+        "export",
+        "--robot",
+        path_str(&urdf),
+        "--params",
+        path_str(&params),
+        "-o",
+        path_str(&out),
+    ]);
+    assert_success(&run, "export");
+    assert!(run.stderr.contains("wrote"), "{run}");
+    let missing = calibrated.model.parameter_name(&calibrated.tree, 0);
+    assert!(
+        run.stderr.contains("warning") && run.stderr.contains(&missing),
+        "the missing parameter is named\n{run}"
+    );
+    // The first parameter kept its nominal value; everything else is the calibrated model.
+    let mut expected = calibrated.model.clone();
+    let mut values = expected.parameters();
+    values[0] = McpcModel::from_tree(&calibrated.tree, &calibrated.branches)
+        .unwrap()
+        .parameters()[0];
+    expected.set_parameters(&values).unwrap();
+    let exported = parse_urdf(&read(&out), "out").unwrap().tree;
+    let mut rng = rng(10);
+    for _ in 0..10 {
+        let q = random_configuration(&calibrated.tree, &mut rng);
+        let poses = exported.link_poses(&q).unwrap();
+        for (t, tool_pose) in expected.tool_poses(&q).iter().enumerate() {
+            assert_close(
+                &poses[expected.tools()[t].link.0],
+                tool_pose,
+                TOLERANCE,
+                "cli",
+            );
+        }
+    }
+}
+
+#[test]
+fn cli_export_refuses_unknown_parameter_names() {
+    let urdf = robot("robonaut/robonaut.urdf");
+    let dir = tempfile::tempdir().unwrap();
+    let params = dir.path().join("params.yaml");
+    std::fs::write(
+        &params,
+        "parameters:\n  - name: left_joint1 alpah\n    calibrated: 0.1\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out.urdf");
+    let run = treecal(&[
+        "export",
+        "--robot",
+        path_str(&urdf),
+        "--params",
+        path_str(&params),
+        "-o",
+        path_str(&out),
+    ]);
+    assert_error(
+        &run,
+        &[
+            "params.yaml:2:11",
+            "left_joint1 alpah",
+            "did you mean 'left_joint1 alpha'",
+        ],
+        "unknown parameter",
+    );
+    assert!(!out.exists(), "nothing is written on error");
+
+    std::fs::write(&params, "parameters:\n  - name: left_joint1 alpha\n").unwrap();
+    let run = treecal(&[
+        "export",
+        "--params",
+        path_str(&params),
+        "-o",
+        path_str(&out),
+    ]);
+    assert_error(&run, &["params.yaml", "calibrated"], "missing value");
+}
