@@ -555,6 +555,20 @@ fn analyse(lin: &Linearisation) -> Analysis {
     let scales = column_scales(&lin.jacobian);
     let scaled = scale_columns(&lin.jacobian, &scales);
     let gradient = scaled.tr_mul(&lin.residual);
+    let (singular_values, v_t) = singular_decomposition(scaled);
+    Analysis {
+        scales,
+        singular_values,
+        v_t,
+        gradient,
+    }
+}
+
+/// Singular values (unsorted) and `Vᵀ` of a column-scaled Jacobian, through the SVD of the
+/// small triangle `R` of `J_s = Q·R`; with fewer rows than columns, zero rows complete the
+/// matrix so that there is one singular value per column and `V` spans the whole null space.
+/// Shared with `calibration::identifiability`.
+pub(crate) fn singular_decomposition(scaled: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
     let columns = scaled.ncols();
     let square = if scaled.nrows() >= columns {
         scaled.qr().r()
@@ -565,15 +579,10 @@ fn analyse(lin: &Linearisation) -> Analysis {
     let v_t = svd
         .v_t
         .unwrap_or_else(|| DMatrix::identity(columns, columns));
-    Analysis {
-        scales,
-        singular_values: svd.singular_values,
-        v_t,
-        gradient,
-    }
+    (svd.singular_values, v_t)
 }
 
-fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
+pub(crate) fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
     let norm = direction.norm().max(f64::MIN_POSITIVE);
     let largest = direction.amax() / norm;
     let mut terms: Vec<(usize, f64)> = direction
@@ -589,7 +598,7 @@ fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
 /// Column norms, floored at 1e-6 of the largest: a column that is zero but for rounding (a
 /// rotation about an axis through the tool point, say) must stay negligible after scaling,
 /// not be blown up into a unit column of noise.
-fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
+pub(crate) fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
     let norms: Vec<f64> = jacobian.column_iter().map(|c| c.norm()).collect();
     let floor = norms.iter().copied().fold(0.0, f64::max) * 1e-6;
     DVector::from_iterator(
@@ -606,7 +615,7 @@ fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
     )
 }
 
-fn scale_columns(jacobian: &DMatrix<f64>, scales: &DVector<f64>) -> DMatrix<f64> {
+pub(crate) fn scale_columns(jacobian: &DMatrix<f64>, scales: &DVector<f64>) -> DMatrix<f64> {
     let mut scaled = jacobian.clone();
     for (mut column, s) in scaled.column_iter_mut().zip(scales.iter()) {
         column /= *s;
