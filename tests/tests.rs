@@ -7,6 +7,7 @@ mod cli;
 mod collision;
 mod flexibility;
 mod from_mcpc;
+mod identifiability;
 mod identification;
 mod jacobian;
 mod mcpc;

@@ -50,6 +50,10 @@ impl ObservationKind {
     }
 }
 
+/// The default [`IdentifiabilityOptions::condition_limit`]: random configurations of the
+/// Robonaut give condition numbers of 3–5, configurations within a milliradian of zero 10⁴.
+pub const DEFAULT_CONDITION_LIMIT: f64 = 100.0;
+
 /// Settings of the analysis; σ's and rank tolerance mean what they mean in
 /// [`super::IdentificationOptions`], so the analysis predicts the solver's rank decision.
 #[derive(Debug, Clone)]
@@ -62,6 +66,9 @@ pub struct IdentifiabilityOptions {
     pub rank_tolerance: f64,
     /// Which parameters are free: the torso stage (arms locked), the arms, or all.
     pub parameters: ParameterSet,
+    /// A set whose condition number exceeds this is poorly conditioned, and the directions
+    /// with `σ < σ_max / condition_limit` are reported as poorly determined.
+    pub condition_limit: f64,
 }
 
 impl Default for IdentifiabilityOptions {
@@ -72,6 +79,7 @@ impl Default for IdentifiabilityOptions {
             rotation_sigma: solver.rotation_sigma,
             rank_tolerance: solver.rank_tolerance,
             parameters: ParameterSet::All,
+            condition_limit: DEFAULT_CONDITION_LIMIT,
         }
     }
 }
@@ -247,7 +255,8 @@ pub fn scaled_singular_values(weighted: &DMatrix<f64>) -> Vec<f64> {
 pub struct NamedCombination {
     /// `(parameter name, weight)`, largest weights first, unit length in rad and m.
     pub terms: Vec<(String, f64)>,
-    /// A sentence, e.g. `left_joint1 alpha and right_joint1 alpha move together (+0.71, -0.71)`.
+    /// A sentence, e.g. `left_joint1 alpha and right_joint1 alpha move together (+0.71, -0.71)`:
+    /// the terms of at least half the largest weight (at most six), then how many are left out.
     pub description: String,
 }
 
@@ -265,7 +274,22 @@ impl NamedCombination {
                 (name, *w)
             })
             .collect();
-        let description = describe_terms(&terms);
+        // In words, only the terms that matter: at least half the largest, at most six.
+        let largest = terms.first().map_or(0.0, |(_, w)| w.abs());
+        let shown = terms
+            .iter()
+            .take(6)
+            .take_while(|(_, w)| w.abs() >= 0.5 * largest)
+            .count()
+            .max(1)
+            .min(terms.len());
+        let mut description = describe_terms(&terms[..shown]);
+        if terms.len() > shown {
+            description.push_str(&format!(
+                ", with {} smaller term(s)",
+                terms.len() - shown
+            ));
+        }
         Self { terms, description }
     }
 }
@@ -318,12 +342,46 @@ pub struct IdentifiabilityReport {
     pub identifiable_indices: ObservabilityIndices,
     /// The combinations the configurations cannot determine (L − rank of them).
     pub unidentifiable: Vec<NamedCombination>,
+    /// Combinations above the rank threshold but below `σ_max / condition_limit`: determined
+    /// in principle, but with errors amplified more than `condition_limit` times the best.
+    pub poorly_determined: Vec<NamedCombination>,
+    /// The condition limit the verdict used.
+    pub condition_limit: f64,
 }
 
 impl IdentifiabilityReport {
     /// Number of parameters analysed (L).
     pub fn parameter_count(&self) -> usize {
         self.parameter_names.len()
+    }
+
+    /// Full rank and a condition number within the limit.
+    pub fn is_well_conditioned(&self) -> bool {
+        self.rank == self.parameter_count() && self.condition_number <= self.condition_limit
+    }
+
+    /// One line: `well conditioned (…)` or `poorly conditioned: …`.
+    pub fn verdict(&self) -> String {
+        let count = self.parameter_count();
+        if self.rank < count {
+            format!(
+                "poorly conditioned: rank {} of {count}; {} parameter combination(s) cannot be identified from these poses",
+                self.rank,
+                count - self.rank
+            )
+        } else if self.condition_number > self.condition_limit {
+            format!(
+                "poorly conditioned: condition number {:.3e} exceeds {}; {} combination(s) are poorly determined",
+                self.condition_number,
+                self.condition_limit,
+                self.poorly_determined.len()
+            )
+        } else {
+            format!(
+                "well conditioned (full rank {count}, condition number {:.1} <= {})",
+                self.condition_number, self.condition_limit
+            )
+        }
     }
 }
 
@@ -408,12 +466,16 @@ pub fn analyse(
         .collect();
     let indices = observability_indices(&thresholded, observations);
     let identifiable_indices = observability_indices(&singular_values[..rank], observations);
-    let unidentifiable = order[rank..]
+    let named = |i: usize| {
+        let direction = v_t.row(i).transpose().component_div(&scales);
+        NamedCombination::new(&combination(&direction, &free), &names)
+    };
+    let unidentifiable = order[rank..].iter().map(|&i| named(i)).collect();
+    let weak = sigma_max / options.condition_limit;
+    let poorly_determined = order[..rank]
         .iter()
-        .map(|&i| {
-            let direction = v_t.row(i).transpose().component_div(&scales);
-            NamedCombination::new(&combination(&direction, &free), &names)
-        })
+        .filter(|&&i| values[i] < weak)
+        .map(|&i| named(i))
         .collect();
     let mut distinct: Vec<&[f64]> = analysed_rows.iter().map(|r| r.q.as_slice()).collect();
     distinct.dedup();
@@ -430,6 +492,8 @@ pub fn analyse(
         indices,
         identifiable_indices,
         unidentifiable,
+        poorly_determined,
+        condition_limit: options.condition_limit,
     })
 }
 
@@ -471,6 +535,12 @@ fn validate(
         return Err(bad(
             "position_sigma and rotation_sigma must be positive".into()
         ));
+    }
+    if !(options.condition_limit >= 1.0) {
+        return Err(bad(format!(
+            "condition_limit {} must be at least 1",
+            options.condition_limit
+        )));
     }
     if !(options.rank_tolerance >= 0.0 && options.rank_tolerance < 1.0) {
         return Err(bad(format!(
