@@ -504,13 +504,10 @@ fn check_reports_zero_poses_as_poorly_conditioned() {
         .unwrap()
         .contains("torso"));
     assert_eq!(json["stages"][1]["analysis"]["parameters"], "arms");
-    assert!(
-        json["stages"][1]["analysis"]["unidentifiable"]
-            .as_array()
-            .unwrap()
-            .len()
-            > 0
-    );
+    assert!(!json["stages"][1]["analysis"]["unidentifiable"]
+        .as_array()
+        .unwrap()
+        .is_empty());
     assert!(staged.stderr.contains("no `stage` column"), "{staged}");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ParameterOwner, ToolJacobian};
 use crate::measurement::{Measurement, Observation};
 use crate::tree::{Actuation, Branches, KinematicTree};
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// One measured tool at one configuration (no measured value: what is analysed is where the
@@ -112,7 +112,7 @@ pub fn observability_indices(singular_values: &[f64], measurements: usize) -> Ob
         .iter()
         .copied()
         .fold(f64::INFINITY, f64::min);
-    if count == 0 || !(smallest > 0.0) {
+    if count == 0 || smallest.is_nan() || smallest <= 0.0 {
         return ObservabilityIndices {
             o1: 0.0,
             o2: f64::INFINITY,
@@ -185,7 +185,8 @@ pub fn criterion_value(criterion: Criterion, singular_values: &[f64], measuremen
         Criterion::O1 => observability_indices(singular_values, measurements).o1,
         Criterion::O3 => observability_indices(singular_values, measurements).o3,
         Criterion::D => {
-            if singular_values.is_empty() || singular_values.iter().any(|s| !(*s > 0.0)) {
+            if singular_values.is_empty() || singular_values.iter().any(|s| s.is_nan() || *s <= 0.0)
+            {
                 f64::NEG_INFINITY
             } else {
                 2.0 * singular_values.iter().map(|s| s.ln()).sum::<f64>()
@@ -285,10 +286,7 @@ impl NamedCombination {
             .min(terms.len());
         let mut description = describe_terms(&terms[..shown]);
         if terms.len() > shown {
-            description.push_str(&format!(
-                ", with {} smaller term(s)",
-                terms.len() - shown
-            ));
+            description.push_str(&format!(", with {} smaller term(s)", terms.len() - shown));
         }
         Self { terms, description }
     }
@@ -470,7 +468,16 @@ pub fn analyse(
         let direction = v_t.row(i).transpose().component_div(&scales);
         NamedCombination::new(&combination(&direction, &free), &names)
     };
-    let unidentifiable = order[rank..].iter().map(|&i| named(i)).collect();
+    let null_space: Vec<usize> = order[rank..].to_vec();
+    let unidentifiable = sparse_null_basis(&v_t, &null_space)
+        .into_iter()
+        .map(|direction| {
+            NamedCombination::new(
+                &combination(&direction.component_div(&scales), &free),
+                &names,
+            )
+        })
+        .collect();
     let weak = sigma_max / options.condition_limit;
     let poorly_determined = order[..rank]
         .iter()
@@ -495,6 +502,57 @@ pub fn analyse(
         poorly_determined,
         condition_limit: options.condition_limit,
     })
+}
+
+/// A readable basis of the null space spanned by the rows `rows` of `v_t`: its reduced row
+/// echelon form (Gauss–Jordan with the largest remaining entry as pivot). Any basis of the null
+/// space is as valid as another, and the singular vectors mix every parameter involved; in
+/// echelon form each direction has one pivot parameter that no other direction contains, and
+/// a parameter no configuration observes comes out alone.
+fn sparse_null_basis(v_t: &DMatrix<f64>, rows: &[usize]) -> Vec<DVector<f64>> {
+    let mut basis: Vec<DVector<f64>> = rows.iter().map(|&i| v_t.row(i).transpose()).collect();
+    let columns = v_t.ncols();
+    let mut used = vec![false; columns];
+    for index in 0..basis.len() {
+        // The largest entry of this or a later row, in a column not pivoted yet.
+        let mut best: Option<(usize, usize, f64)> = None;
+        for (row, vector) in basis.iter().enumerate().skip(index) {
+            for (column, value) in vector.iter().enumerate() {
+                if !used[column] && best.is_none_or(|(_, _, b)| value.abs() > b) {
+                    best = Some((row, column, value.abs()));
+                }
+            }
+        }
+        let Some((row, column, size)) = best else {
+            break;
+        };
+        if size < 1e-12 {
+            break;
+        }
+        basis.swap(index, row);
+        used[column] = true;
+        let pivot = basis[index][column];
+        basis[index] /= pivot;
+        let pivot_row = basis[index].clone();
+        for (other, vector) in basis.iter_mut().enumerate() {
+            if other != index {
+                let factor = vector[column];
+                if factor != 0.0 {
+                    vector.axpy(-factor, &pivot_row, 1.0);
+                }
+            }
+        }
+    }
+    // Entries that are rounding noise after elimination.
+    for vector in &mut basis {
+        let largest = vector.amax();
+        vector.apply(|v| {
+            if v.abs() <= 1e-9 * largest {
+                *v = 0.0;
+            }
+        });
+    }
+    basis
 }
 
 /// Parameter names of a locked-arm (torso stage) model: the torso frames by joint, each rigid
@@ -536,7 +594,7 @@ fn validate(
             "position_sigma and rotation_sigma must be positive".into()
         ));
     }
-    if !(options.condition_limit >= 1.0) {
+    if options.condition_limit.is_nan() || options.condition_limit < 1.0 {
         return Err(bad(format!(
             "condition_limit {} must be at least 1",
             options.condition_limit
