@@ -605,6 +605,8 @@ fn check_reads_tool_and_stage_columns() {
         &["--measurements", "not available", "--poses"],
         "measurements",
     );
+    let run = treecal(&["check", "--targets", "2"]);
+    assert_error(&run, &["--targets", "use 3"], "two targets");
     let run = treecal(&["check", "--position-sigma", "0"]);
     assert_error(&run, &["--position-sigma"], "sigma");
     std::fs::remove_dir_all(&dir).ok();

@@ -38,6 +38,12 @@ pub fn run(args: CheckArgs) -> Result<()> {
             format!("{} must be a number of at least 1", args.condition_limit),
         ));
     }
+    if args.targets == 2 {
+        return Err(invalid(
+            "--targets",
+            "2 targets give neither a full pose nor a single position; use 3 (a pose) or 1 (a position)".into(),
+        ));
+    }
     if let Some(path) = &args.measurements {
         return Err(invalid(
             "--measurements",
