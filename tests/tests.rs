@@ -8,6 +8,7 @@ mod collision;
 mod export;
 mod flexibility;
 mod from_mcpc;
+mod identifiability;
 mod identification;
 mod jacobian;
 mod mcpc;

@@ -1,14 +1,21 @@
 //! Identification of MCPC parameters from measurements (paper section 4, done robustly).
 //!
+//! - [`identifiability`]: rank, condition number, observability indices O1–O5 and the
+//!   unidentifiable parameter combinations of a set of configurations, before measuring.
 //! - [`initial_guess`](mod@initial_guess): closed-form measurement frame and tool frames to start from.
 //! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
 
+pub mod identifiability;
 pub mod initial_guess;
 pub mod plan;
 pub mod solver;
 
+pub use identifiability::{
+    analyse, criterion_value, observability_indices, Criterion, IdentifiabilityOptions,
+    IdentifiabilityReport, NamedCombination, ObservabilityIndices, ObservationKind, PoseRow,
+};
 pub use initial_guess::{fit_rigid_transform, initial_guess, InitialGuess};
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,

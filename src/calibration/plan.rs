@@ -339,7 +339,7 @@ pub fn calibrate(
 /// The coupled-stage model: the torso frames plus one rigid tool per distinct (tool, locked arm
 /// configuration), and the measurements re-pointed at those tools. Whether the locked tools
 /// are determined by the data is left to the solver's rank analysis.
-fn locked_arm_model(
+pub(crate) fn locked_arm_model(
     model: &McpcModel,
     coupled_frames: &[usize],
     data: &[Measurement],

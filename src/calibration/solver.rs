@@ -590,6 +590,21 @@ fn analyse(lin: &Linearisation) -> Analysis {
     let scales = column_scales(&lin.jacobian);
     let scaled = scale_columns(&lin.jacobian, &scales);
     let gradient = scaled.tr_mul(&lin.residual);
+    let (singular_values, v_t) = singular_decomposition(scaled);
+    Analysis {
+        scales,
+        singular_values,
+        v_t,
+        gradient,
+    }
+}
+
+/// Singular values (unsorted) and `Vᵀ` of a column-scaled Jacobian: from the normal matrix
+/// when it is well conditioned, else through the SVD of the small triangle `R` of
+/// `J_s = Q·R`; with fewer rows than columns, zero rows complete the
+/// matrix so that there is one singular value per column and `V` spans the whole null space.
+/// Shared with `calibration::identifiability`.
+pub(crate) fn singular_decomposition(scaled: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
     let columns = scaled.ncols();
     // Fast path: the eigen-decomposition of the scaled normal matrix gives σ² and V in a third
     // of the time of QR + SVD, and exactly enough when the matrix is well conditioned (σ²
@@ -599,12 +614,10 @@ fn analyse(lin: &Linearisation) -> Analysis {
     let eigen = gram.symmetric_eigen();
     let largest = eigen.eigenvalues.max();
     if largest > 0.0 && eigen.eigenvalues.min() > 1e-10 * largest {
-        return Analysis {
-            scales,
-            singular_values: eigen.eigenvalues.map(f64::sqrt),
-            v_t: eigen.eigenvectors.transpose(),
-            gradient,
-        };
+        return (
+            eigen.eigenvalues.map(f64::sqrt),
+            eigen.eigenvectors.transpose(),
+        );
     }
     let square = if scaled.nrows() >= columns {
         scaled.qr().r()
@@ -615,12 +628,7 @@ fn analyse(lin: &Linearisation) -> Analysis {
     let v_t = svd
         .v_t
         .unwrap_or_else(|| DMatrix::identity(columns, columns));
-    Analysis {
-        scales,
-        singular_values: svd.singular_values,
-        v_t,
-        gradient,
-    }
+    (svd.singular_values, v_t)
 }
 
 /// `AᵀA`, row by row over the non-zero entries: a row of the identification Jacobian is zero
@@ -645,7 +653,7 @@ fn normal_matrix(a: &DMatrix<f64>) -> DMatrix<f64> {
     normal
 }
 
-fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
+pub(crate) fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
     let norm = direction.norm().max(f64::MIN_POSITIVE);
     let largest = direction.amax() / norm;
     let mut terms: Vec<(usize, f64)> = direction
@@ -661,7 +669,7 @@ fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
 /// Column norms, floored at 1e-6 of the largest: a column that is zero but for rounding (a
 /// rotation about an axis through the tool point, say) must stay negligible after scaling,
 /// not be blown up into a unit column of noise.
-fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
+pub(crate) fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
     let norms: Vec<f64> = jacobian.column_iter().map(|c| c.norm()).collect();
     let floor = norms.iter().copied().fold(0.0, f64::max) * 1e-6;
     DVector::from_iterator(
@@ -678,7 +686,7 @@ fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
     )
 }
 
-fn scale_columns(jacobian: &DMatrix<f64>, scales: &DVector<f64>) -> DMatrix<f64> {
+pub(crate) fn scale_columns(jacobian: &DMatrix<f64>, scales: &DVector<f64>) -> DMatrix<f64> {
     let mut scaled = jacobian.clone();
     for (mut column, s) in scaled.column_iter_mut().zip(scales.iter()) {
         column /= *s;

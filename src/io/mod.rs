@@ -4,6 +4,7 @@ pub mod joints_csv;
 pub mod mcpc_table;
 pub mod measurements_csv;
 pub mod params;
+pub mod poses_csv;
 pub mod stiffness;
 pub mod units;
 pub mod write;
@@ -15,6 +16,7 @@ pub use measurements_csv::{
     MeasurementReadOptions, MeasurementSet, MeasurementWriteOptions, ObservationKind,
 };
 pub use params::{parse_parameters, read_parameters, ParameterValues};
+pub use poses_csv::{pose_rows, PoseSet};
 pub use stiffness::{parse_stiffness, read_stiffness};
 pub use units::{AngleUnit, LengthUnit};
 pub use write::write_atomically;

@@ -4,5 +4,6 @@ pub mod collision;
 pub mod experiment;
 pub mod monte_carlo;
 pub mod noise;
+pub mod pose_set;
 pub mod sampling;
 pub mod truth;

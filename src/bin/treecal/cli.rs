@@ -28,6 +28,9 @@ pub enum Command {
     /// Write calibrated MCPC parameters into the robot's URDF: corrected joint origins (and
     /// axes where needed), everything else in the file unchanged.
     Export(ExportArgs),
+    /// Identifiability of a pose set: singular values, rank, condition number, observability
+    /// indices O1-O5 and the parameter combinations the poses cannot determine.
+    Check(CheckArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -202,4 +205,48 @@ pub struct ExportArgs {
     /// The URDF file to write (written atomically).
     #[arg(short, long, value_name = "OUT.urdf")]
     pub output: PathBuf,
+}
+
+/// Arguments of `treecal check`.
+#[derive(Args)]
+#[command(
+    after_help = "--poses is a CSV with a header naming joints (as for `treecal fk`; joints without a column are 0), an optional `tool` column (the tool link measured in that row; without it every tool is measured at every row) and an optional `stage` column (torso: arms locked, or arms) for the staged plan. Without --poses or --measurements, a seeded random collision-free set is analysed (20 configurations; the staged plan adds 10 torso configurations at 2 locked arm configurations).\n\nThe exit code is 0 whenever the report is written, also for a rank-deficient set. See docs/identifiability.md.\n\nExamples:\n  treecal check\n  treecal check --poses poses.csv --plan simultaneous --targets 1\n  treecal check --robot robots/humanoid/humanoid.urdf --format yaml"
+)]
+pub struct CheckArgs {
+    /// The robot's URDF file [default: the built-in Robonaut].
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Tool links ending the arms (see `inspect --help`).
+    #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
+    pub tools: Option<Vec<String>>,
+    /// CSV of the configurations to be measured (joint columns, optional `tool` and `stage`).
+    #[arg(long, value_name = "P.csv", conflicts_with = "measurements")]
+    pub poses: Option<PathBuf>,
+    /// Measurement CSV (docs/file-formats.md): its configurations, tools and stages are analysed.
+    #[arg(long, value_name = "M.csv")]
+    pub measurements: Option<PathBuf>,
+    /// Targets per tool: 3 (a full pose) or 1 (a position).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
+    pub targets: u8,
+    /// Calibration plan whose stages are analysed.
+    #[arg(long, value_enum, default_value = "staged")]
+    pub plan: PlanChoice,
+    /// Expected position error of a measurement (m): position rows are divided by it.
+    #[arg(long, default_value_t = 1e-4)]
+    pub position_sigma: f64,
+    /// Expected rotation error of a measurement (rad): rotation rows are divided by it.
+    #[arg(long, default_value_t = 1e-4)]
+    pub rotation_sigma: f64,
+    /// Condition number above which a set is reported as poorly conditioned.
+    #[arg(long, default_value_t = 100.0)]
+    pub condition_limit: f64,
+    /// Unit of revolute joint values in --poses (prismatic values are always metres).
+    #[arg(long, value_enum, default_value = "rad")]
+    pub angle_unit: AngleUnit,
+    /// Seed of the default random pose set.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: Format,
 }
