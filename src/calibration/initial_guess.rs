@@ -107,59 +107,7 @@ pub fn initial_guess(
             current.set_world_from_base(&world_from_base);
         }
         // (2) Each tool's transform from its last moved frame.
-        let mut tools = current.tools().to_vec();
-        for (index, tool) in tools.iter_mut().enumerate() {
-            let own: Vec<&Measurement> = measurements.iter().filter(|m| m.tool == index).collect();
-            if own.is_empty() {
-                continue;
-            }
-            let last_poses: Vec<Pose> = own
-                .iter()
-                .map(|m| match tool.parent {
-                    Some(f) => current
-                        .moved(f, &m.q, &current.frame_transforms(&m.q)[f])
-                        .to_pose(),
-                    None => current.world_from_base(),
-                })
-                .collect();
-            let current_relative = tool.constant_transform();
-            let poses: Vec<Pose> = own
-                .iter()
-                .zip(&last_poses)
-                .filter_map(|(m, last)| match &m.observation {
-                    Observation::Pose(p) => Some(last.inverse() * p),
-                    Observation::Position(_) => None,
-                })
-                .collect();
-            let relative = if poses.len() == own.len() {
-                // Full poses: mean translation, chordal mean rotation.
-                let translation =
-                    poses.iter().map(|p| p.translation.vector).sum::<Vec3>() / poses.len() as f64;
-                let sum: Mat3 = poses
-                    .iter()
-                    .map(|p| *p.rotation.to_rotation_matrix().matrix())
-                    .sum();
-                match nearest_rotation(&sum) {
-                    Some(rotation) => pose(translation, rotation),
-                    None => current_relative,
-                }
-            } else {
-                // Positions: least-squares point in the last frame, orientation kept.
-                let point = own
-                    .iter()
-                    .zip(&last_poses)
-                    .map(|(m, last)| last.inverse() * nalgebra::Point3::from(measured_position(m)))
-                    .map(|p| p.coords)
-                    .sum::<Vec3>()
-                    / own.len() as f64;
-                pose(point, current_relative.rotation)
-            };
-            let twist = tool.parent.map_or(0.0, |f| current.frames()[f].twist);
-            *tool = McpcTool::from_relative_pose(tool.link, tool.parent, twist, &relative);
-        }
-        let world_from_base = current.world_from_base();
-        current = McpcModel::new(current.frames().to_vec(), tools)?;
-        current.set_world_from_base(&world_from_base);
+        current = fit_tools(&current, measurements)?;
     }
     let rms_after = position_rms(&current, measurements);
     Ok(InitialGuess {
@@ -167,5 +115,85 @@ pub fn initial_guess(
         model: current,
         rms_before,
         rms_after,
+    })
+}
+
+/// Each measured tool's transform from its last moved frame, fitted in closed form with the
+/// measurement frame of `current` kept.
+fn fit_tools(current: &McpcModel, measurements: &[Measurement]) -> Result<McpcModel> {
+    let mut tools = current.tools().to_vec();
+    for (index, tool) in tools.iter_mut().enumerate() {
+        let own: Vec<&Measurement> = measurements.iter().filter(|m| m.tool == index).collect();
+        if own.is_empty() {
+            continue;
+        }
+        let last_poses: Vec<Pose> = own
+            .iter()
+            .map(|m| match tool.parent {
+                Some(f) => current
+                    .moved(f, &m.q, &current.frame_transforms(&m.q)[f])
+                    .to_pose(),
+                None => current.world_from_base(),
+            })
+            .collect();
+        let current_relative = tool.constant_transform();
+        let poses: Vec<Pose> = own
+            .iter()
+            .zip(&last_poses)
+            .filter_map(|(m, last)| match &m.observation {
+                Observation::Pose(p) => Some(last.inverse() * p),
+                Observation::Position(_) => None,
+            })
+            .collect();
+        let relative = if poses.len() == own.len() {
+            // Full poses: mean translation, chordal mean rotation.
+            let translation =
+                poses.iter().map(|p| p.translation.vector).sum::<Vec3>() / poses.len() as f64;
+            let sum: Mat3 = poses
+                .iter()
+                .map(|p| *p.rotation.to_rotation_matrix().matrix())
+                .sum();
+            match nearest_rotation(&sum) {
+                Some(rotation) => pose(translation, rotation),
+                None => current_relative,
+            }
+        } else {
+            // Positions: least-squares point in the last frame, orientation kept.
+            let point = own
+                .iter()
+                .zip(&last_poses)
+                .map(|(m, last)| last.inverse() * nalgebra::Point3::from(measured_position(m)))
+                .map(|p| p.coords)
+                .sum::<Vec3>()
+                / own.len() as f64;
+            pose(point, current_relative.rotation)
+        };
+        let twist = tool.parent.map_or(0.0, |f| current.frames()[f].twist);
+        *tool = McpcTool::from_relative_pose(tool.link, tool.parent, twist, &relative);
+    }
+    let mut fitted = McpcModel::new(current.frames().to_vec(), tools)?;
+    fitted.set_world_from_base(&current.world_from_base());
+    Ok(fitted)
+}
+
+/// The initial guess with the measurement frame of `model` kept (e.g. data already in the
+/// root frame): only the measured tools' frames are fitted.
+pub fn initial_tool_frames(
+    model: &McpcModel,
+    measurements: &[Measurement],
+) -> Result<InitialGuess> {
+    if measurements.is_empty() {
+        return Err(Error::InvalidData {
+            origin: "initial guess".into(),
+            message: "no measurements".into(),
+        });
+    }
+    let rms_before = position_rms(model, measurements);
+    let current = fit_tools(model, measurements)?;
+    Ok(InitialGuess {
+        world_from_base: current.world_from_base(),
+        rms_before,
+        rms_after: position_rms(&current, measurements),
+        model: current,
     })
 }

@@ -3,6 +3,8 @@
 //! - [`identifiability`]: rank, condition number, observability indices O1–O5 and the
 //!   unidentifiable parameter combinations of a set of configurations, before measuring.
 //! - [`initial_guess`](mod@initial_guess): closed-form measurement frame and tool frames to start from.
+//! - [`run`]: a calibration from measured data end to end (hold-out, initial guess, plan,
+//!   uncertainties, errors before and after per arm).
 //! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
@@ -10,6 +12,7 @@
 pub mod identifiability;
 pub mod initial_guess;
 pub mod plan;
+pub mod run;
 pub mod solver;
 
 pub use identifiability::{
@@ -19,6 +22,10 @@ pub use identifiability::{
 pub use initial_guess::{fit_rigid_transform, initial_guess, InitialGuess};
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
+};
+pub use run::{
+    assembled_covariance, hold_out, run_calibration, ArmResiduals, CalibrationInput,
+    CalibrationRun, ErrorSummary, ParameterEstimate,
 };
 pub use solver::{
     identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,

@@ -278,7 +278,25 @@ pub struct IdentificationReport {
     pub residual_rms_position: f64,
     /// RMS of the rotation residuals at the solution (rad), over pose observations.
     pub residual_rms_rotation: f64,
+    /// `σ̂ = √(2·cost / (rows − rank))`: how large the weighted residuals are against the
+    /// assumed σ's (1 when the noise is as assumed and the model explains the data; NaN with
+    /// no redundancy).
+    pub residual_scale: f64,
+    /// Standard deviation of each free parameter (rad or m, same order as `free`):
+    /// `σ̂·√diag((JᵀWJ)⁺)` over the identifiable subspace. For a parameter that is part of an
+    /// unidentifiable combination this is the spread of its identifiable part only.
+    pub standard_deviations: Vec<f64>,
+    /// `σ̂²·(JᵀWJ)⁺` over the free parameters (rad, m; same order as `free`), on the
+    /// identifiable subspace; `None` without redundancy.
+    pub covariance: Option<DMatrix<f64>>,
+    /// Whether each free parameter is determined by the data on its own (it has no weight,
+    /// beyond [`IDENTIFIABLE_NULL_WEIGHT`] in scaled units, in any unidentifiable combination).
+    pub identifiable: Vec<bool>,
 }
+
+/// A parameter whose unit vector (column-scaled) has more than this weight in the null space
+/// is reported as not identifiable.
+pub const IDENTIFIABLE_NULL_WEIGHT: f64 = 1e-3;
 
 /// The stacked, weighted residual and its Jacobian over the free parameters.
 struct Linearisation {
@@ -559,7 +577,43 @@ pub fn identify(
         .collect();
     let (residual_rms_position, residual_rms_rotation) =
         residual_rms(&current, measurements, offsets, predictor)?;
+    // A-posteriori scale of the assumed σ's, and the covariance σ̂²·(JᵀWJ)⁺ on the
+    // identifiable subspace, back in parameter units: Σ over retained directions of
+    // (v_k / s_k)² / σᵢ².
+    let rows = rows_of(measurements);
+    let residual_scale = if rows > rank {
+        (2.0 * cost / (rows - rank) as f64).sqrt()
+    } else {
+        f64::NAN
+    };
+    // W = S⁻¹·V_r·Σ_r⁻¹, C = σ̂²·W·Wᵀ.
+    let mut w = DMatrix::zeros(free.len(), rank);
+    for (column, &i) in order[..rank].iter().enumerate() {
+        for k in 0..free.len() {
+            w[(k, column)] =
+                analysis.v_t[(i, k)] / analysis.scales[k] / analysis.singular_values[i];
+        }
+    }
+    let covariance = residual_scale
+        .is_finite()
+        .then(|| &w * w.transpose() * residual_scale.powi(2));
+    let standard_deviations = (0..free.len())
+        .map(|k| residual_scale * w.row(k).norm())
+        .collect();
+    let identifiable = (0..free.len())
+        .map(|k| {
+            let null: f64 = order[rank..]
+                .iter()
+                .map(|&i| analysis.v_t[(i, k)].powi(2))
+                .sum();
+            null.sqrt() < IDENTIFIABLE_NULL_WEIGHT
+        })
+        .collect();
     Ok(IdentificationReport {
+        covariance,
+        residual_scale,
+        standard_deviations,
+        identifiable,
         parameters,
         free: free.to_vec(),
         iterations,

@@ -4,6 +4,7 @@ pub mod joints_csv;
 pub mod mcpc_table;
 pub mod measurements_csv;
 pub mod params;
+pub mod plan;
 pub mod poses_csv;
 pub mod stiffness;
 pub mod units;
@@ -16,6 +17,7 @@ pub use measurements_csv::{
     MeasurementReadOptions, MeasurementSet, MeasurementWriteOptions, ObservationKind,
 };
 pub use params::{parse_parameters, read_parameters, ParameterValues};
+pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{pose_rows, PoseSet};
 pub use stiffness::{parse_stiffness, read_stiffness};
 pub use units::{AngleUnit, LengthUnit};

@@ -1,9 +1,14 @@
 //! Human- and machine-readable reports.
 
+pub mod calibrate;
 pub mod check;
 pub mod inspect;
 pub mod plot;
 pub mod simulate;
 
+pub use calibrate::{
+    calibration_markdown, calibration_plots, calibration_summary, parameter_file,
+    CalibrationContext, CalibrationSummary,
+};
 pub use check::{CheckReport, StageCheck};
 pub use inspect::{inspect, InspectReport};

@@ -25,6 +25,9 @@ pub enum Command {
     /// Simulate the paper's section 5.2 experiment: calibrate a randomly wrong, gravity-loaded
     /// robot from noisy laser-tracker data, without and with flexibility compensation.
     Simulate(SimulateArgs),
+    /// Calibrate from laser-tracker measurements: identified parameters with uncertainties,
+    /// errors before and after per arm, a corrected URDF.
+    Calibrate(CalibrateArgs),
     /// Write calibrated MCPC parameters into the robot's URDF: corrected joint origins (and
     /// axes where needed), everything else in the file unchanged.
     Export(ExportArgs),
@@ -249,4 +252,91 @@ pub struct CheckArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "text")]
     pub format: Format,
+}
+
+/// Arguments of `treecal calibrate`.
+#[derive(Args)]
+#[command(
+    after_help = "The measurement CSV (docs/file-formats.md) has a `tool` column, one column per joint of the measured tool's chain (named as in the URDF), optional `id` and `stage` columns, and x,y,z (a target), x,y,z,qw,qx,qy,qz (a pose) or ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C on the tool: origin A, X along AB, Z along AB × AC). The measurement frame and the targets' frame on each tool are fitted, not assumed.\n\nThe staged plan (the default when rows are labelled `stage` = torso / arms) calibrates the torso from the torso rows with the arms locked, then the arms; without labels the simultaneous plan is used. With --stiffness the deflections under gravity are compensated exactly. Without --validation a seeded fifth of the (non-torso) configurations is held out for validation.\n\nWrites to --out: calibrated.urdf, params.yaml, report.md, report.json and per-arm error plots (SVG).\n\nExample:\n  treecal calibrate --measurements robots/robonaut/example/measurements.csv --stiffness robots/robonaut/stiffness.yaml --length-unit mm --angle-unit deg"
+)]
+pub struct CalibrateArgs {
+    /// The robot's URDF file [default: the built-in Robonaut].
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Measurement CSV (one row per tool observation).
+    #[arg(long, value_name = "M.csv")]
+    pub measurements: PathBuf,
+    /// Validation measurements (same format) [default: hold out a seeded fifth].
+    #[arg(long, value_name = "V.csv")]
+    pub validation: Option<PathBuf>,
+    /// Link stiffness, joint compliance and payloads (YAML, docs/flexibility.md): compensate
+    /// the deflections under gravity. Without it the robot is treated as rigid.
+    #[arg(long, value_name = "S.yaml")]
+    pub stiffness: Option<PathBuf>,
+    /// Tool links ending the arms (see `inspect --help`).
+    #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
+    pub tools: Option<Vec<String>>,
+    /// `staged`, `simultaneous` or a plan file (YAML) [default: staged when rows are labelled
+    /// torso/arms, else simultaneous].
+    #[arg(long, value_name = "staged|simultaneous|PLAN.yaml")]
+    pub plan: Option<String>,
+    /// Output directory.
+    #[arg(long, default_value = "out/calibrate")]
+    pub out: PathBuf,
+    /// Unit of lengths in the CSV (positions, targets, prismatic joints).
+    #[arg(long, default_value = "m", value_parser = parse_length_unit)]
+    pub length_unit: treecal::io::LengthUnit,
+    /// Unit of revolute joint values in the CSV.
+    #[arg(long, default_value = "rad", value_parser = parse_angle_unit)]
+    pub angle_unit: treecal::io::AngleUnit,
+    /// Columns to skip (e.g. a timestamp), comma-separated.
+    #[arg(long, value_delimiter = ',', value_name = "COLUMN,COLUMN")]
+    pub ignore_columns: Vec<String>,
+    /// A joint value outside its URDF limits is an error (default: a warning).
+    #[arg(long)]
+    pub strict: bool,
+    /// Expected position noise of a measurement (m): position rows are divided by it.
+    #[arg(long, default_value_t = 1e-4)]
+    pub position_sigma: f64,
+    /// Expected rotation noise of a measured frame (rad): rotation rows are divided by it.
+    #[arg(long, default_value_t = 1e-3)]
+    pub rotation_sigma: f64,
+    /// Seed of the held-out validation fifth.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The frame the stiffness file's gravity vector is given in: the measurement frame (a
+    /// levelled tracker) or the robot's root link frame (a level robot base).
+    #[arg(long, value_enum, default_value = "measurement")]
+    pub gravity_frame: GravityFrame,
+    /// `fit`: the measurements are in the tracker's own frame, fitted in closed form; `base`:
+    /// they are already in the robot's root link frame (as `simulate --write-measurements`
+    /// writes them).
+    #[arg(long, value_enum, default_value = "fit")]
+    pub measurement_frame: MeasurementFrame,
+}
+
+/// How the measurement frame is found.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum MeasurementFrame {
+    /// Fitted to the data in closed form (Kabsch), then kept.
+    Fit,
+    /// The robot's root link frame.
+    Base,
+}
+
+/// Where gravity is fixed.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum GravityFrame {
+    /// The measurement (tracker) frame.
+    Measurement,
+    /// The robot's root link frame.
+    Base,
+}
+
+fn parse_length_unit(text: &str) -> Result<treecal::io::LengthUnit, String> {
+    text.parse().map_err(|e: treecal::Error| e.to_string())
+}
+
+fn parse_angle_unit(text: &str) -> Result<treecal::io::AngleUnit, String> {
+    text.parse().map_err(|e: treecal::Error| e.to_string())
 }

@@ -22,19 +22,7 @@ pub fn run(args: ExportArgs) -> Result<()> {
         );
     }
     model.set_parameters(&parameters.values)?;
-    let (original, origin) = match &args.robot {
-        Some(path) => (
-            std::fs::read_to_string(path).map_err(|source| treecal::Error::Io {
-                path: path.clone(),
-                source,
-            })?,
-            path.display().to_string(),
-        ),
-        None => (
-            crate::robot::BUILT_IN_ROBONAUT.to_owned(),
-            "built-in robonaut.urdf".to_owned(),
-        ),
-    };
+    let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
     let report = export_urdf(&original, &origin, &import.tree, &model)?;
     write_atomically(&args.output, report.urdf.as_bytes())?;
     eprintln!(

@@ -3,6 +3,7 @@
 //! A thin layer over the library: clap parses, `cli` turns raw arguments into checked
 //! library inputs, one file per subcommand runs it.
 
+mod calibrate;
 mod check;
 mod cli;
 mod export;
@@ -24,6 +25,7 @@ fn main() -> ExitCode {
         cli::Command::FromMcpc(a) => from_mcpc::run(a),
         cli::Command::ToMcpc(a) => to_mcpc::run(a),
         cli::Command::Simulate(a) => simulate::run(a),
+        cli::Command::Calibrate(a) => calibrate::run(a),
         cli::Command::Export(a) => export::run(a),
         cli::Command::Check(a) => check::run(a),
     };

@@ -36,3 +36,20 @@ pub fn branches(import: &UrdfImport, tools: Option<&[String]>) -> Result<Branche
         .transpose()?;
     detect_branches(tree, tools.as_deref())
 }
+
+/// The URDF text of `path`, or of the built-in Robonaut, with the name to use in messages.
+pub fn original_text(path: Option<&Path>) -> Result<(String, String)> {
+    match path {
+        Some(path) => Ok((
+            std::fs::read_to_string(path).map_err(|source| treecal::Error::Io {
+                path: path.to_owned(),
+                source,
+            })?,
+            path.display().to_string(),
+        )),
+        None => Ok((
+            BUILT_IN_ROBONAUT.to_owned(),
+            "built-in robonaut.urdf".to_owned(),
+        )),
+    }
+}

@@ -122,8 +122,13 @@ impl FlexibilityModel {
                     .then(model.tool_constant(t)),
             })
             .collect();
-        // Frames are in the model's measurement frame; gravity is given in the root frame.
-        let gravity = model.world_from_base_transform().rotation * self.gravity;
+        // Frames are in the model's measurement frame; gravity is given in the root frame
+        // unless it was fixed in the measurement frame.
+        let gravity = if self.gravity_in_measurement_frame {
+            self.gravity
+        } else {
+            model.world_from_base_transform().rotation * self.gravity
+        };
         // Only masses behind joints outside the model need the tree (head, fingers).
         let tree_poses = if self.uses_tree {
             tree.link_poses(q)?

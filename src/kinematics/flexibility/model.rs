@@ -68,6 +68,9 @@ pub(crate) struct Mass {
 #[derive(Debug, Clone)]
 pub struct FlexibilityModel {
     pub(crate) gravity: Vec3,
+    /// Whether `gravity` is given in the measurement frame (a levelled tracker) rather than
+    /// in the robot's root frame.
+    pub(crate) gravity_in_measurement_frame: bool,
     /// Per MCPC frame: (bending, torsion) compliance, rad/(N·m).
     pub(crate) joint_compliance: Vec<(f64, f64)>,
     pub(crate) segments: Vec<Segment>,
@@ -159,6 +162,7 @@ impl FlexibilityModel {
         let uses_tree = masses.iter().any(|m| matches!(m.place, Place::Tree { .. }));
         Ok(Self {
             gravity: stiffness.gravity,
+            gravity_in_measurement_frame: false,
             joint_compliance,
             segments,
             masses,
@@ -194,9 +198,21 @@ impl FlexibilityModel {
         &self.segments
     }
 
-    /// The gravity vector in the root frame, m/s².
+    /// The gravity vector, m/s², in the root frame or, after
+    /// [`Self::with_gravity_in_measurement_frame`], in the measurement frame.
     pub fn gravity(&self) -> Vec3 {
         self.gravity
+    }
+
+    /// A copy whose gravity vector is fixed in the measurement frame (see
+    /// [`crate::McpcModel::set_world_from_base`]) instead of the root frame: right for a
+    /// levelled laser tracker. A calibration that fits the measurement frame absorbs part of
+    /// the robot's geometric error into it, so gravity tied to the fitted root frame would be
+    /// tilted by that error (docs/flexibility.md).
+    pub fn with_gravity_in_measurement_frame(&self) -> Self {
+        let mut copy = self.clone();
+        copy.gravity_in_measurement_frame = true;
+        copy
     }
 
     /// Total mass that loads the structure (links when self-weight is on, and payloads), kg.

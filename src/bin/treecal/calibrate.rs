@@ -1,0 +1,185 @@
+//! `treecal calibrate`.
+
+use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame};
+use treecal::calibration::identifiability::NamedCombination;
+use treecal::calibration::{
+    hold_out, run_calibration, CalibrationInput, IdentificationOptions, Plan,
+};
+use treecal::io::{
+    read_measurements, read_plan, read_stiffness, to_json, to_yaml, write_atomically,
+    MeasurementReadOptions,
+};
+use treecal::kinematics::FlexibilityModel;
+use treecal::report::{
+    calibration_markdown, calibration_plots, calibration_summary, parameter_file,
+    CalibrationContext,
+};
+use treecal::urdf::export_urdf;
+use treecal::{Error, McpcModel, Result};
+
+/// Fraction of the configurations held out for validation without `--validation`.
+const HOLD_OUT: f64 = 0.2;
+
+const TOOL_PARAMETERS: [&str; 6] = ["alpha", "beta", "gamma", "x", "y", "z"];
+
+fn invalid(flag: &str, message: String) -> Error {
+    Error::InvalidData {
+        origin: flag.into(),
+        message,
+    }
+}
+
+pub fn run(args: CalibrateArgs) -> Result<()> {
+    for (flag, value) in [
+        ("--position-sigma", args.position_sigma),
+        ("--rotation-sigma", args.rotation_sigma),
+    ] {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(invalid(flag, format!("{value} must be a positive number")));
+        }
+    }
+    let import = crate::robot::load(args.robot.as_deref())?;
+    let tree = &import.tree;
+    let branches = crate::robot::branches(&import, args.tools.as_deref())?;
+    let nominal = McpcModel::from_tree(tree, &branches)?;
+    let read_options = MeasurementReadOptions {
+        length_unit: args.length_unit,
+        angle_unit: args.angle_unit,
+        ignore_columns: args.ignore_columns.clone(),
+        strict_limits: args.strict,
+    };
+    let read = |path: &std::path::Path| -> Result<Vec<treecal::measurement::Measurement>> {
+        let set = read_measurements(path, tree, &nominal, &read_options)?;
+        for warning in &set.warnings {
+            eprintln!("treecal: warning: {warning}");
+        }
+        Ok(set.measurements)
+    };
+    let all = read(&args.measurements)?;
+    let (measurements, validation, validation_source) = match &args.validation {
+        Some(path) => (all, read(path)?, path.display().to_string()),
+        None => {
+            let (identification, validation) = hold_out(&all, HOLD_OUT, args.seed)?;
+            let source = format!(
+                "{} of {} observations held out from the measurements (a fifth of the configurations, seed {}; give --validation to use your own)",
+                validation.len(),
+                all.len(),
+                args.seed
+            );
+            eprintln!("treecal: note: {source}");
+            (identification, validation, source)
+        }
+    };
+    let labelled = measurements
+        .iter()
+        .any(|m| m.stage.as_deref() == Some("torso"));
+    let (plan, plan_name) = match args.plan.as_deref() {
+        Some("staged") => (Plan::staged(), "staged".to_owned()),
+        Some("simultaneous") => (Plan::simultaneous(), "simultaneous".to_owned()),
+        Some(path) => (
+            read_plan(std::path::Path::new(path))?,
+            format!("plan file {path}"),
+        ),
+        None if labelled => (Plan::staged(), "staged".to_owned()),
+        None => {
+            eprintln!(
+                "treecal: note: no rows are labelled stage=torso, so the simultaneous plan is used (label torso rows, taken with the arms locked, for the staged plan)"
+            );
+            (Plan::simultaneous(), "simultaneous".to_owned())
+        }
+    };
+    let flexibility = match &args.stiffness {
+        Some(path) => {
+            let model =
+                FlexibilityModel::new(tree, &nominal, &read_stiffness(path, tree, &nominal)?)?;
+            Some(match args.gravity_frame {
+                GravityFrame::Measurement => model.with_gravity_in_measurement_frame(),
+                GravityFrame::Base => model,
+            })
+        }
+        None => None,
+    };
+    let options = IdentificationOptions {
+        position_sigma: args.position_sigma,
+        rotation_sigma: args.rotation_sigma,
+        ..IdentificationOptions::default()
+    };
+    let input = CalibrationInput {
+        tree,
+        branches: &branches,
+        nominal: &nominal,
+        flexibility: flexibility.as_ref(),
+        plan: &plan,
+        options: &options,
+        fit_measurement_frame: matches!(args.measurement_frame, MeasurementFrame::Fit),
+    };
+    let run = run_calibration(&input, &measurements, &validation)?;
+
+    // Everything is computed before anything is written.
+    let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
+    let export = export_urdf(&original, &origin, tree, &run.report.model)?;
+    let unidentifiable: Vec<Vec<String>> = run
+        .report
+        .stages
+        .iter()
+        .map(|stage| {
+            let id = &stage.identification;
+            let torso = if stage.locked_tools > 0 {
+                id.parameters.len().saturating_sub(6 * stage.locked_tools)
+            } else {
+                usize::MAX
+            };
+            let names: Vec<String> = (0..id.parameters.len())
+                .map(|p| {
+                    if p >= torso {
+                        let k = p - torso;
+                        format!("locked arm tool {} {}", k / 6 + 1, TOOL_PARAMETERS[k % 6])
+                    } else {
+                        run.report.model.parameter_name(tree, p)
+                    }
+                })
+                .collect();
+            id.unidentifiable
+                .iter()
+                .map(|c| NamedCombination::new(c, &names).description)
+                .collect()
+        })
+        .collect();
+    let context = CalibrationContext {
+        robot: tree.name().to_owned(),
+        measurements: format!(
+            "{} ({} observations used for identification)",
+            args.measurements.display(),
+            measurements.len()
+        ),
+        validation: validation_source,
+        plan: plan_name,
+        compensation: match &args.stiffness {
+            Some(path) => format!("compensated exactly ({})", path.display()),
+            None => "not compensated (no --stiffness)".into(),
+        },
+        sigma: [args.position_sigma, args.rotation_sigma],
+    };
+    let changed: Vec<String> = export.changes.iter().map(|c| c.joint.clone()).collect();
+    let summary = calibration_summary(context, &run, unidentifiable, changed);
+    let markdown = calibration_markdown(&summary, &options);
+    let params = to_yaml(&parameter_file(tree.name(), &run))?;
+    let json = to_json(&summary)?;
+    let mut plots = calibration_plots(&run.identification, "measurement")?;
+    plots.extend(calibration_plots(&run.validation, "validation")?);
+
+    std::fs::create_dir_all(&args.out).map_err(|source| Error::Io {
+        path: args.out.clone(),
+        source,
+    })?;
+    write_atomically(&args.out.join("calibrated.urdf"), export.urdf.as_bytes())?;
+    write_atomically(&args.out.join("params.yaml"), params.as_bytes())?;
+    write_atomically(&args.out.join("report.md"), markdown.as_bytes())?;
+    write_atomically(&args.out.join("report.json"), json.as_bytes())?;
+    for (stem, svg) in &plots {
+        write_atomically(&args.out.join(format!("{stem}.svg")), svg.as_bytes())?;
+    }
+    print!("{markdown}");
+    eprintln!("treecal: wrote {}", args.out.display());
+    Ok(())
+}

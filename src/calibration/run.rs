@@ -1,0 +1,413 @@
+//! A calibration from measured data, end to end: hold-out, initial guess, the plan, parameter
+//! uncertainties and the errors before and after, per arm (`treecal calibrate`).
+
+use super::initial_guess::{initial_guess, initial_tool_frames, InitialGuess};
+use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
+use super::solver::{Deflected, IdentificationOptions};
+use crate::error::{Error, Result};
+use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
+use crate::math::Pose;
+use crate::measurement::{Measurement, Observation};
+use crate::tree::{Branches, KinematicTree};
+use nalgebra::DMatrix;
+use rand::rngs::ChaCha8Rng;
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use serde::Serialize;
+
+/// What a calibration is run on and how.
+#[derive(Debug, Clone, Copy)]
+pub struct CalibrationInput<'a> {
+    /// The robot.
+    pub tree: &'a KinematicTree,
+    /// Its coupled branch and arms.
+    pub branches: &'a Branches,
+    /// The nominal MCPC model of `branches`.
+    pub nominal: &'a McpcModel,
+    /// The flexibility model, for exact compensation; `None` calibrates a rigid robot.
+    pub flexibility: Option<&'a FlexibilityModel>,
+    /// The stages.
+    pub plan: &'a Plan,
+    /// Row weights, tolerances.
+    pub options: &'a IdentificationOptions,
+    /// Fit the measurement frame in closed form (`true`), or take the measurements to be in
+    /// the robot's root frame already (`false`; tool frames are still fitted).
+    pub fit_measurement_frame: bool,
+}
+
+/// One MCPC parameter before and after, with its uncertainty: a row of the paper's Table 2.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParameterEstimate {
+    /// Name as [`McpcModel::parameter_name`] gives it, e.g. `left_joint1 alpha`.
+    pub name: String,
+    /// The joint (joint frames) or tool link (tool frames) it belongs to.
+    pub owner: String,
+    /// `alpha`, `beta`, `gamma`, `x`, `y` or `z`.
+    pub kind: String,
+    /// `rad` or `m`.
+    pub unit: String,
+    /// Nominal value (from the URDF).
+    pub nominal: f64,
+    /// Calibrated value.
+    pub calibrated: f64,
+    /// `calibrated − nominal`.
+    pub change: f64,
+    /// Standard deviation from the residuals (`σ̂²·(JᵀWJ)⁺`), if the stage that identified it
+    /// has redundant data.
+    pub std_dev: Option<f64>,
+    /// Whether the data determine it on its own.
+    pub identifiable: bool,
+}
+
+/// Maximum and mean errors over a set of observations of one tool.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ErrorSummary {
+    /// Largest position error (mm).
+    pub max_position_mm: f64,
+    /// Mean position error (mm).
+    pub mean_position_mm: f64,
+    /// Largest orientation error (deg); `None` for position-only data.
+    pub max_orientation_deg: Option<f64>,
+    /// Mean orientation error (deg); `None` for position-only data.
+    pub mean_orientation_deg: Option<f64>,
+}
+
+impl ErrorSummary {
+    fn of(position_mm: &[f64], orientation_deg: &[f64]) -> Self {
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+        let some = |v: f64| (!orientation_deg.is_empty()).then_some(v);
+        Self {
+            max_position_mm: max(position_mm),
+            mean_position_mm: mean(position_mm),
+            max_orientation_deg: some(max(orientation_deg)),
+            mean_orientation_deg: some(mean(orientation_deg)),
+        }
+    }
+}
+
+/// Errors of one arm's tool on one data set, before and after calibration.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ArmResiduals {
+    /// The arm (branch name).
+    pub arm: String,
+    /// Observations of this arm's tool in the set.
+    pub observations: usize,
+    /// Before: the nominal model in the fitted measurement frame, tools fitted.
+    pub before: ErrorSummary,
+    /// After calibration.
+    pub after: ErrorSummary,
+    /// % of the mean position error removed.
+    pub position_removed_percent: f64,
+    /// % of the mean orientation error removed (pose observations only).
+    pub orientation_removed_percent: Option<f64>,
+    /// Position error per observation (mm): before, after.
+    pub position_mm: [Vec<f64>; 2],
+    /// Orientation error per observation (deg): before, after (empty for positions).
+    pub orientation_deg: [Vec<f64>; 2],
+}
+
+/// Everything a calibration found.
+#[derive(Debug, Clone)]
+pub struct CalibrationRun {
+    /// The closed-form start: measurement frame and tool frames.
+    pub guess: InitialGuess,
+    /// The plan's outcome (the calibrated model is `report.model`).
+    pub report: CalibrationReport,
+    /// Every MCPC parameter, in [`McpcModel::parameters`] order.
+    pub parameters: Vec<ParameterEstimate>,
+    /// Errors on the identification data, per arm.
+    pub identification: Vec<ArmResiduals>,
+    /// Errors on the validation data, per arm (empty without validation data).
+    pub validation: Vec<ArmResiduals>,
+    /// Predicted RMS position error at the validation configurations from the parameter
+    /// covariance alone (mm): what the noise of the identification data leaves.
+    pub predicted_validation_rms_mm: Option<f64>,
+}
+
+/// Splits off a seeded fifth of the configurations for validation: whole configurations
+/// (every tool observed there), never torso-stage ones (the staged plan needs them), at
+/// least one. Returns `(identification, validation)`.
+pub fn hold_out(
+    measurements: &[Measurement],
+    fraction: f64,
+    seed: u64,
+) -> Result<(Vec<Measurement>, Vec<Measurement>)> {
+    // Distinct configurations, in file order, with the stage they belong to.
+    let mut groups: Vec<(&[f64], Option<&str>)> = Vec::new();
+    let group_of: Vec<usize> = measurements
+        .iter()
+        .map(|m| {
+            let key = (m.q.as_slice(), m.stage.as_deref());
+            match groups.iter().position(|g| *g == key) {
+                Some(g) => g,
+                None => {
+                    groups.push(key);
+                    groups.len() - 1
+                }
+            }
+        })
+        .collect();
+    let mut eligible: Vec<usize> = (0..groups.len())
+        .filter(|&g| groups[g].1 != Some("torso"))
+        .collect();
+    let count = ((eligible.len() as f64 * fraction).round() as usize).max(1);
+    if eligible.len() < count + 2 {
+        return Err(Error::InvalidData {
+            origin: "measurements".into(),
+            message: format!(
+                "{} configurations (not counting torso-stage ones) are too few to hold out a validation set; give one with --validation",
+                eligible.len()
+            ),
+        });
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    eligible.shuffle(&mut rng);
+    let held: Vec<usize> = eligible[..count].to_vec();
+    let (mut identification, mut validation) = (Vec::new(), Vec::new());
+    for (m, g) in measurements.iter().zip(&group_of) {
+        if held.contains(g) {
+            validation.push(m.clone());
+        } else {
+            identification.push(m.clone());
+        }
+    }
+    Ok((identification, validation))
+}
+
+/// Calibrates from `measurements` and evaluates the result on them and on `validation`.
+pub fn run_calibration(
+    input: &CalibrationInput<'_>,
+    measurements: &[Measurement],
+    validation: &[Measurement],
+) -> Result<CalibrationRun> {
+    let guess = if input.fit_measurement_frame {
+        initial_guess(input.nominal, measurements, 3)?
+    } else {
+        tools_only_guess(input.nominal, measurements)?
+    };
+    let compensation = match input.flexibility {
+        Some(flexibility) => Compensation::Exact(Deflected {
+            tree: input.tree,
+            flexibility,
+        }),
+        None => Compensation::None,
+    };
+    let report = calibrate(
+        input.branches,
+        &guess.model,
+        measurements,
+        compensation,
+        input.plan,
+        input.options,
+    )?;
+    let parameters = estimates(input, &guess.model, &report);
+    let predict = |model: &McpcModel, q: &[f64]| -> Result<Vec<Pose>> {
+        match input.flexibility {
+            Some(flexibility) => flexibility.deflected_tool_poses(input.tree, model, q),
+            None => Ok(model.tool_poses(q)),
+        }
+    };
+    let residuals = |data: &[Measurement]| -> Result<Vec<ArmResiduals>> {
+        arm_residuals(input, data, &|q| Ok(guess.model.tool_poses(q)), &|q| {
+            predict(&report.model, q)
+        })
+    };
+    let identification = residuals(measurements)?;
+    let validation_residuals = if validation.is_empty() {
+        Vec::new()
+    } else {
+        residuals(validation)?
+    };
+    let predicted_validation_rms_mm = predicted_rms(&report, validation);
+    Ok(CalibrationRun {
+        guess,
+        report,
+        parameters,
+        identification,
+        validation: validation_residuals,
+        predicted_validation_rms_mm,
+    })
+}
+
+/// The covariance of all parameters (full-model order, rad and m), assembled from the stages:
+/// each stage's `σ̂²·(JᵀWJ)⁺` over the parameters it freed (a coupled stage's torso frames are
+/// the first parameters of its reduced model; its locked tools are dropped). Later stages
+/// overwrite earlier ones; stages are independent, so cross-stage covariances are zero.
+pub fn assembled_covariance(report: &CalibrationReport) -> DMatrix<f64> {
+    let n = report.model.parameter_count();
+    let mut covariance = DMatrix::zeros(n, n);
+    for stage in &report.stages {
+        let id = &stage.identification;
+        let Some(c) = &id.covariance else { continue };
+        let limit = if stage.locked_tools > 0 {
+            id.parameters.len().saturating_sub(6 * stage.locked_tools)
+        } else {
+            usize::MAX
+        };
+        let kept: Vec<(usize, usize)> = id
+            .free
+            .iter()
+            .enumerate()
+            .filter(|(_, &p)| p < limit && p < n)
+            .map(|(k, &p)| (k, p))
+            .collect();
+        for &(a, p) in &kept {
+            for &(b, q) in &kept {
+                covariance[(p, q)] = c[(a, b)];
+            }
+        }
+    }
+    covariance
+}
+
+/// Table 2 rows: nominal is the URDF's value (the measurement frame does not enter the
+/// parameters), standard deviations and identifiability from the stage that freed each one.
+fn estimates(
+    input: &CalibrationInput<'_>,
+    start: &McpcModel,
+    report: &CalibrationReport,
+) -> Vec<ParameterEstimate> {
+    let nominal = start.parameters();
+    let calibrated = report.model.parameters();
+    let layout = report.model.parameter_layout();
+    let mut spread: Vec<(Option<f64>, bool)> = vec![(None, true); calibrated.len()];
+    for stage in &report.stages {
+        let id = &stage.identification;
+        let limit = if stage.locked_tools > 0 {
+            id.parameters.len().saturating_sub(6 * stage.locked_tools)
+        } else {
+            usize::MAX
+        };
+        for (k, &p) in id.free.iter().enumerate() {
+            if p < limit && p < spread.len() {
+                let sd = id.standard_deviations[k];
+                spread[p] = (sd.is_finite().then_some(sd), id.identifiable[k]);
+            }
+        }
+    }
+    layout
+        .iter()
+        .enumerate()
+        .map(|(i, (owner, kind))| {
+            let owner_name = match owner {
+                ParameterOwner::Frame(f) => input
+                    .tree
+                    .joint(report.model.frames()[*f].joint)
+                    .name
+                    .clone(),
+                ParameterOwner::Tool(t) => {
+                    input.tree.link(report.model.tools()[*t].link).name.clone()
+                }
+            };
+            ParameterEstimate {
+                name: report.model.parameter_name(input.tree, i),
+                owner: owner_name,
+                kind: kind.name().into(),
+                unit: if kind.is_angle() { "rad" } else { "m" }.into(),
+                nominal: nominal[i],
+                calibrated: calibrated[i],
+                change: calibrated[i] - nominal[i],
+                std_dev: spread[i].0,
+                identifiable: spread[i].1,
+            }
+        })
+        .collect()
+}
+
+fn arm_residuals(
+    input: &CalibrationInput<'_>,
+    data: &[Measurement],
+    before: &dyn Fn(&[f64]) -> Result<Vec<Pose>>,
+    after: &dyn Fn(&[f64]) -> Result<Vec<Pose>>,
+) -> Result<Vec<ArmResiduals>> {
+    let tools = input.nominal.tools().len();
+    let mut position = vec![[Vec::new(), Vec::new()]; tools];
+    let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
+    let mut cache: Option<(&[f64], [Vec<Pose>; 2])> = None;
+    for m in data {
+        if cache.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
+            cache = Some((&m.q, [before(&m.q)?, after(&m.q)?]));
+        }
+        let Some((_, predictions)) = &cache else {
+            continue;
+        };
+        for (k, predicted) in predictions.iter().enumerate() {
+            let pose = predicted.get(m.tool).ok_or_else(|| Error::InvalidData {
+                origin: "measurements".into(),
+                message: format!("tool {} does not exist", m.tool),
+            })?;
+            match &m.observation {
+                Observation::Pose(measured) => {
+                    let d = measured.translation.vector - pose.translation.vector;
+                    position[m.tool][k].push(d.norm() * 1e3);
+                    orientation[m.tool][k]
+                        .push(measured.rotation.angle_to(&pose.rotation).to_degrees());
+                }
+                Observation::Position(measured) => {
+                    position[m.tool][k].push((measured - pose.translation.vector).norm() * 1e3);
+                }
+            }
+        }
+    }
+    let removed = |before: f64, after: f64| {
+        if before > 0.0 {
+            100.0 * (1.0 - after / before)
+        } else {
+            0.0
+        }
+    };
+    Ok((0..tools)
+        .filter(|&tool| !position[tool][0].is_empty())
+        .map(|tool| {
+            let before = ErrorSummary::of(&position[tool][0], &orientation[tool][0]);
+            let after = ErrorSummary::of(&position[tool][1], &orientation[tool][1]);
+            let arm = input
+                .branches
+                .arms
+                .iter()
+                .find(|a| a.tool == Some(input.nominal.tools()[tool].link))
+                .map(|a| a.name.clone())
+                .unwrap_or_else(|| format!("tool {tool}"));
+            ArmResiduals {
+                arm,
+                observations: position[tool][0].len(),
+                before,
+                after,
+                position_removed_percent: removed(before.mean_position_mm, after.mean_position_mm),
+                orientation_removed_percent: before
+                    .mean_orientation_deg
+                    .zip(after.mean_orientation_deg)
+                    .map(|(b, a)| removed(b, a)),
+                position_mm: position[tool].clone(),
+                orientation_deg: orientation[tool].clone(),
+            }
+        })
+        .collect())
+}
+
+/// RMS over the validation observations of `√trace(J_p·C·J_pᵀ)`, with `C` the assembled
+/// parameter covariance ([`assembled_covariance`]) (mm). `None` without validation data.
+fn predicted_rms(report: &CalibrationReport, validation: &[Measurement]) -> Option<f64> {
+    if validation.is_empty() {
+        return None;
+    }
+    let covariance = assembled_covariance(report);
+    let model = &report.model;
+    let mut sum = 0.0;
+    for m in validation {
+        let jacobian = model.tool_jacobian(m.tool, &m.q).jacobian;
+        let position = jacobian.rows(0, 3);
+        sum += (position * &covariance * position.transpose()).trace();
+    }
+    let rms = (sum / validation.len() as f64).sqrt() * 1e3;
+    rms.is_finite().then_some(rms)
+}
+
+/// The initial guess with the measurement frame fixed at the root frame: only the tool frames
+/// are fitted.
+fn tools_only_guess(nominal: &McpcModel, measurements: &[Measurement]) -> Result<InitialGuess> {
+    let mut start = nominal.clone();
+    start.set_world_from_base(&Pose::identity());
+    initial_tool_frames(&start, measurements)
+}

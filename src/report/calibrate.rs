@@ -1,0 +1,389 @@
+//! The report of `treecal calibrate`: the paper's Table 2 (calibrated parameters) and Table 3
+//! (errors before and after, per arm) layouts in markdown, a serialisable summary for JSON, the
+//! parameter file (`params.yaml`) and the per-configuration error plots (Fig. 9–12 style).
+
+use super::plot::{error_plot_svg, ErrorPlot, Series};
+use crate::calibration::{ArmResiduals, CalibrationRun, IdentificationOptions, ParameterEstimate};
+use crate::error::Result;
+use crate::math::{rpy_from_rotation, Pose};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// What the report says about where the data came from.
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationContext {
+    /// Robot name.
+    pub robot: String,
+    /// The measurement file.
+    pub measurements: String,
+    /// Where the validation data came from (a file, or the held-out fifth).
+    pub validation: String,
+    /// Plan name (`staged`, `simultaneous` or a file).
+    pub plan: String,
+    /// Whether flexibility was compensated (a stiffness file was given).
+    pub compensation: String,
+    /// Assumed noise: position σ (m) and rotation σ (rad).
+    pub sigma: [f64; 2],
+}
+
+/// One stage's solver outcome.
+#[derive(Debug, Clone, Serialize)]
+pub struct StageOutcome {
+    /// Stage name.
+    pub name: String,
+    /// Measurements used.
+    pub measurements: usize,
+    /// Accepted iterations (of the last plan cycle).
+    pub iterations: usize,
+    /// Why it stopped.
+    pub termination: String,
+    /// Final weighted cost ½‖r‖².
+    pub cost: f64,
+    /// Numerical rank / free parameters.
+    pub rank: usize,
+    /// Free parameters (including locked-arm tools of a coupled stage).
+    pub parameters: usize,
+    /// Condition number of the column-scaled Jacobian.
+    pub condition_number: f64,
+    /// RMS position residual (mm).
+    pub residual_rms_position_mm: f64,
+    /// RMS rotation residual (deg).
+    pub residual_rms_rotation_deg: f64,
+    /// σ̂: residuals against the assumed noise (1 = as expected).
+    pub residual_scale: f64,
+    /// The parameter combinations the stage's data cannot determine, in words.
+    pub unidentifiable: Vec<String>,
+}
+
+/// The machine-readable report (`report.json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationSummary {
+    /// Inputs.
+    pub context: CalibrationContext,
+    /// The fitted measurement frame: `xyz` (m) and `rpy` (rad) of the robot base in it.
+    pub measurement_frame: FrameValues,
+    /// RMS position distance before / after the closed-form initial guess (m).
+    pub initial_guess_rms_m: [f64; 2],
+    /// Plan repetitions.
+    pub cycles: usize,
+    /// Per stage.
+    pub stages: Vec<StageOutcome>,
+    /// Every parameter.
+    pub parameters: Vec<ParameterEstimate>,
+    /// Errors on the identification data, per arm.
+    pub identification: Vec<ArmResiduals>,
+    /// Errors on the validation data, per arm.
+    pub validation: Vec<ArmResiduals>,
+    /// RMS validation position error the parameter covariance predicts (mm).
+    pub predicted_validation_rms_mm: Option<f64>,
+    /// Joints whose URDF origin (or axis) the export changed.
+    pub changed_joints: Vec<String>,
+}
+
+/// A frame as URDF writes it.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct FrameValues {
+    /// Translation (m).
+    pub xyz: [f64; 3],
+    /// Roll, pitch, yaw (rad).
+    pub rpy: [f64; 3],
+}
+
+impl FrameValues {
+    fn of(pose: &Pose) -> Self {
+        let t = pose.translation.vector;
+        Self {
+            xyz: [t.x, t.y, t.z],
+            rpy: rpy_from_rotation(&pose.rotation),
+        }
+    }
+}
+
+/// Collects the summary of a calibration run; `names` describes each stage's unidentifiable
+/// combinations (the caller knows the stage models).
+pub fn calibration_summary(
+    context: CalibrationContext,
+    run: &CalibrationRun,
+    unidentifiable: Vec<Vec<String>>,
+    changed_joints: Vec<String>,
+) -> CalibrationSummary {
+    let stages = run
+        .report
+        .stages
+        .iter()
+        .zip(
+            unidentifiable
+                .into_iter()
+                .chain(std::iter::repeat(Vec::new())),
+        )
+        .map(|(stage, names)| {
+            let id = &stage.identification;
+            StageOutcome {
+                name: stage.name.clone(),
+                measurements: stage.measurements,
+                iterations: id.iterations,
+                termination: format!("{:?}", id.termination),
+                cost: id.costs.last().copied().unwrap_or(f64::NAN),
+                rank: id.rank,
+                parameters: id.free.len(),
+                condition_number: id.condition_number,
+                residual_rms_position_mm: id.residual_rms_position * 1e3,
+                residual_rms_rotation_deg: id.residual_rms_rotation.to_degrees(),
+                residual_scale: id.residual_scale,
+                unidentifiable: names,
+            }
+        })
+        .collect();
+    CalibrationSummary {
+        context,
+        measurement_frame: FrameValues::of(&run.guess.world_from_base),
+        initial_guess_rms_m: [run.guess.rms_before, run.guess.rms_after],
+        cycles: run.report.cycles,
+        stages,
+        parameters: run.parameters.clone(),
+        identification: run.identification.clone(),
+        validation: run.validation.clone(),
+        predicted_validation_rms_mm: run.predicted_validation_rms_mm,
+        changed_joints,
+    }
+}
+
+/// `params.yaml`: the parameters with their units, and the measurement frame; `treecal export`
+/// reads the `name` and `calibrated` of every entry.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParameterFile<'a> {
+    /// Robot name.
+    pub robot: &'a str,
+    /// Units of the values.
+    pub units: &'a str,
+    /// The fitted measurement frame (not part of the URDF).
+    pub measurement_frame: FrameValues,
+    /// Every MCPC parameter.
+    pub parameters: &'a [ParameterEstimate],
+}
+
+/// The `params.yaml` contents of a run.
+pub fn parameter_file<'a>(robot: &'a str, run: &'a CalibrationRun) -> ParameterFile<'a> {
+    ParameterFile {
+        robot,
+        units: "SI: rad for alpha, beta, gamma; m for x, y, z (report.md shows deg and mm)",
+        measurement_frame: FrameValues::of(&run.guess.world_from_base),
+        parameters: &run.parameters,
+    }
+}
+
+fn display(p: &ParameterEstimate, value: f64) -> f64 {
+    if p.unit == "rad" {
+        value.to_degrees()
+    } else {
+        value * 1e3
+    }
+}
+
+fn number(value: Option<f64>, digits: usize) -> String {
+    match value {
+        Some(v) if v.is_finite() => format!("{v:.digits$}"),
+        _ => "—".into(),
+    }
+}
+
+/// The markdown report (`report.md`).
+pub fn calibration_markdown(
+    summary: &CalibrationSummary,
+    options: &IdentificationOptions,
+) -> String {
+    let mut out = String::new();
+    let c = &summary.context;
+    let _ = writeln!(out, "# Calibration of '{}'\n", c.robot);
+    let _ = writeln!(
+        out,
+        "Measurements: {}. Validation: {}. Plan: {} ({} cycle(s)). Flexibility: {}. Assumed noise: σ = {:.4} mm, {:.4} mrad.\n",
+        c.measurements,
+        c.validation,
+        c.plan,
+        summary.cycles,
+        c.compensation,
+        options.position_sigma * 1e3,
+        options.rotation_sigma * 1e3,
+    );
+    let f = &summary.measurement_frame;
+    let _ = writeln!(
+        out,
+        "Measurement frame (robot base in it, fitted in closed form, then left fixed): xyz = ({:.4}, {:.4}, {:.4}) m, rpy = ({:.4}, {:.4}, {:.4}) deg; RMS distance {:.2} mm before the fit, {:.2} mm after.\n",
+        f.xyz[0],
+        f.xyz[1],
+        f.xyz[2],
+        f.rpy[0].to_degrees(),
+        f.rpy[1].to_degrees(),
+        f.rpy[2].to_degrees(),
+        summary.initial_guess_rms_m[0] * 1e3,
+        summary.initial_guess_rms_m[1] * 1e3,
+    );
+
+    // Table 3 layout.
+    for (title, arms) in [
+        ("measurement configurations", &summary.identification),
+        ("validation configurations", &summary.validation),
+    ] {
+        if arms.is_empty() {
+            continue;
+        }
+        let _ = writeln!(out, "## Errors on the {title} (paper Table 3 layout)\n");
+        let _ = writeln!(
+            out,
+            "| arm | n | | before max | before mean | after max | after mean | mean removed |"
+        );
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
+        for arm in arms {
+            let _ = writeln!(
+                out,
+                "| {} | {} | position (mm) | {:.4} | {:.4} | {:.4} | {:.4} | {:.2} % |",
+                arm.arm,
+                arm.observations,
+                arm.before.max_position_mm,
+                arm.before.mean_position_mm,
+                arm.after.max_position_mm,
+                arm.after.mean_position_mm,
+                arm.position_removed_percent
+            );
+            if arm.before.mean_orientation_deg.is_some() {
+                let _ = writeln!(
+                    out,
+                    "| {} | {} | orientation (deg) | {} | {} | {} | {} | {} % |",
+                    arm.arm,
+                    arm.observations,
+                    number(arm.before.max_orientation_deg, 5),
+                    number(arm.before.mean_orientation_deg, 5),
+                    number(arm.after.max_orientation_deg, 5),
+                    number(arm.after.mean_orientation_deg, 5),
+                    number(arm.orientation_removed_percent, 2),
+                );
+            }
+        }
+        out.push('\n');
+    }
+    if let Some(rms) = summary.predicted_validation_rms_mm {
+        let _ = writeln!(
+            out,
+            "The parameter covariance predicts an RMS validation position error of {rms:.4} mm from the measurement noise alone (the model error adds to it).\n"
+        );
+    }
+
+    // Solver outcome.
+    let _ = writeln!(out, "## Solver, per stage\n");
+    let _ = writeln!(
+        out,
+        "| stage | measurements | iterations | termination | cost | rank | condition | residual RMS | σ̂ |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|");
+    for s in &summary.stages {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {:.4e} | {}/{} | {:.3e} | {:.4} mm, {:.5} deg | {:.3} |",
+            s.name,
+            s.measurements,
+            s.iterations,
+            s.termination,
+            s.cost,
+            s.rank,
+            s.parameters,
+            s.condition_number,
+            s.residual_rms_position_mm,
+            s.residual_rms_rotation_deg,
+            s.residual_scale
+        );
+    }
+    out.push('\n');
+    let _ = writeln!(
+        out,
+        "σ̂ is the residual against the assumed noise (√(2·cost/(rows − rank)); 1 means the residuals are as large as the noise alone explains; much larger means model error or underestimated noise).\n"
+    );
+    for s in &summary.stages {
+        if !s.unidentifiable.is_empty() {
+            let _ = writeln!(
+                out,
+                "Stage '{}': {} combination(s) the data cannot determine (kept at their starting values):\n",
+                s.name,
+                s.unidentifiable.len()
+            );
+            for name in &s.unidentifiable {
+                let _ = writeln!(out, "- {name}");
+            }
+            out.push('\n');
+        }
+    }
+
+    // Table 2 layout.
+    let _ = writeln!(
+        out,
+        "## Calibrated parameters (paper Table 2 layout; deg and mm)\n"
+    );
+    let _ = writeln!(
+        out,
+        "| frame | parameter | nominal | calibrated | change | std. dev. | identifiable |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|");
+    for p in &summary.parameters {
+        let _ = writeln!(
+            out,
+            "| {} | {} ({}) | {:.4} | {:.4} | {:+.4} | {} | {} |",
+            p.owner,
+            p.kind,
+            if p.unit == "rad" { "deg" } else { "mm" },
+            display(p, p.nominal),
+            display(p, p.calibrated),
+            display(p, p.change),
+            number(p.std_dev.map(|s| display(p, s)), 4),
+            if p.identifiable { "yes" } else { "no" }
+        );
+    }
+    out.push('\n');
+    if !summary.changed_joints.is_empty() {
+        let _ = writeln!(
+            out,
+            "calibrated.urdf: the origins (and, where needed, axes) of {} joint(s) changed: {}.",
+            summary.changed_joints.len(),
+            summary.changed_joints.join(", ")
+        );
+    }
+    out
+}
+
+/// The per-configuration error plots of one data set: `(file stem, SVG)` per arm and quantity.
+pub fn calibration_plots(arms: &[ArmResiduals], set: &str) -> Result<Vec<(String, String)>> {
+    let mut plots = Vec::new();
+    for arm in arms {
+        let quantities = [
+            ("position", "position error (mm)", &arm.position_mm),
+            (
+                "orientation",
+                "orientation error (deg)",
+                &arm.orientation_deg,
+            ),
+        ];
+        for (what, unit, values) in quantities {
+            if values[0].is_empty() {
+                continue;
+            }
+            let plot = ErrorPlot {
+                title: format!("{}: {what} error on the {set} configurations", arm.arm),
+                y_label: unit.into(),
+                series: vec![
+                    Series {
+                        label: "before calibration".into(),
+                        values: values[0].clone(),
+                    },
+                    Series {
+                        label: "after calibration".into(),
+                        values: values[1].clone(),
+                    },
+                ],
+            };
+            plots.push((
+                format!("{}_{set}_{what}", arm.arm.replace('/', "_")),
+                error_plot_svg(&plot)?,
+            ));
+        }
+    }
+    Ok(plots)
+}
