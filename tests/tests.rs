@@ -11,6 +11,7 @@ mod identification;
 mod jacobian;
 mod mcpc;
 mod oracle;
+mod planning;
 mod plot;
 mod simulate;
 mod urdf_import;

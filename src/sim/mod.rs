@@ -1,8 +1,10 @@
-//! Simulation: random configurations and the self-collision checks they must pass.
+//! Simulation: random and planned configurations and the self-collision checks they must pass.
 
 pub mod collision;
+mod detmax;
 pub mod experiment;
 pub mod monte_carlo;
 pub mod noise;
+pub mod planning;
 pub mod sampling;
 pub mod truth;
