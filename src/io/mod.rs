@@ -2,13 +2,17 @@
 
 pub mod joints_csv;
 pub mod mcpc_table;
+pub mod mesh_files;
 pub mod measurements_csv;
+pub mod poses_csv;
 pub mod stiffness;
 pub mod write;
 
 pub use joints_csv::{append_poses, configurations, parse_csv, ColumnMapping, CsvTable};
 pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
 pub use measurements_csv::measurements_to_csv;
+pub use mesh_files::{mesh_file_loader, package_dirs, resolve_mesh};
+pub use poses_csv::planned_poses_to_csv;
 pub use stiffness::{parse_stiffness, read_stiffness};
 pub use write::write_atomically;
 

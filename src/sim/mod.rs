@@ -3,6 +3,7 @@
 pub mod collision;
 mod detmax;
 pub mod experiment;
+pub mod mesh;
 pub mod monte_carlo;
 pub mod noise;
 pub mod planning;

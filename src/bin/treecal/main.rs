@@ -7,6 +7,7 @@ mod cli;
 mod fk;
 mod from_mcpc;
 mod inspect;
+mod plan;
 mod robot;
 mod simulate;
 mod to_mcpc;
@@ -22,6 +23,7 @@ fn main() -> ExitCode {
         cli::Command::FromMcpc(a) => from_mcpc::run(a),
         cli::Command::ToMcpc(a) => to_mcpc::run(a),
         cli::Command::Simulate(a) => simulate::run(a),
+        cli::Command::Plan(a) => plan::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
