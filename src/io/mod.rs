@@ -2,8 +2,8 @@
 
 pub mod joints_csv;
 pub mod mcpc_table;
-pub mod mesh_files;
 pub mod measurements_csv;
+pub mod mesh_files;
 pub mod poses_csv;
 pub mod stiffness;
 pub mod write;

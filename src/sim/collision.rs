@@ -15,9 +15,9 @@
 //! parry 0.31 works in glam types; poses are converted from [`crate::math::Pose`] here and
 //! nowhere else, so nothing of parry leaks out of this module.
 
+use super::mesh::{mesh_vertices, MeshFormat};
 use crate::error::{Error, Result};
 use crate::math::Pose;
-use super::mesh::{mesh_vertices, MeshFormat};
 use crate::tree::{JointKind, KinematicTree, LinkId, Shape};
 use parry3d_f64::math::{Pose as ShapePose, Rotation as ShapeRotation, Vector as ShapeVector};
 use parry3d_f64::query::{self, ClosestPoints};

@@ -46,7 +46,7 @@ impl Design {
                 let a = blocks.rows(first * rows, n * rows);
                 for c in 0..n {
                     let block = a.rows(c * rows, rows);
-                    let g = &block * block.transpose() / ridge;
+                    let g = block * block.transpose() / ridge;
                     for i in 0..rows {
                         for j in 0..rows {
                             out[c * rows * rows + i * rows + j] = g[(i, j)];
@@ -224,7 +224,7 @@ fn log_det_spd(a: &mut [f64], n: usize) -> Option<f64> {
         for k in 0..j {
             d -= a[j * n + k] * a[j * n + k];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let d = d.sqrt();

@@ -228,13 +228,16 @@ pub fn run_trial(
     )
 }
 
+/// Configurations of the torso stage, then of the arms stage.
+type StageConfigurations = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 /// Torso configurations (the arms locked at a few random configurations) and arm
 /// configurations, drawn at random.
 fn random_configurations(
     setup: &Setup<'_>,
     options: &SimulationOptions,
     rng: &mut ChaCha8Rng,
-) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+) -> Result<StageConfigurations> {
     let tree = setup.tree;
     let sampling = SamplingOptions::default();
     // Torso configurations: arms locked at a few random configurations, the torso moving.
@@ -277,7 +280,7 @@ fn planned_configurations(
     planning: &PlanningOptions,
     identification: &IdentificationOptions,
     rng: &mut ChaCha8Rng,
-) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+) -> Result<StageConfigurations> {
     let staged = options
         .plan
         .stages

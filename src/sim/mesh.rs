@@ -118,14 +118,34 @@ mod tests {
         }
         binary.extend([0u8; 2]);
         let v = mesh_vertices(&binary, MeshFormat::Stl, "a.stl").unwrap();
-        assert_eq!(v, vec![Vec3::new(1., 2., 3.), Vec3::new(4., 5., 6.), Vec3::new(7., 8., 9.)]);
+        assert_eq!(
+            v,
+            vec![
+                Vec3::new(1., 2., 3.),
+                Vec3::new(4., 5., 6.),
+                Vec3::new(7., 8., 9.)
+            ]
+        );
         let ascii = b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 1 2 3\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid t\n";
-        assert_eq!(mesh_vertices(ascii, MeshFormat::Stl, "a.stl").unwrap().len(), 3);
+        assert_eq!(
+            mesh_vertices(ascii, MeshFormat::Stl, "a.stl")
+                .unwrap()
+                .len(),
+            3
+        );
         let obj = b"# box\nv 0 0 0\nv 1 0 0\nvn 0 0 1\nv 0 1 0\nf 1 2 3\n";
-        assert_eq!(mesh_vertices(obj, MeshFormat::Obj, "a.obj").unwrap().len(), 3);
+        assert_eq!(
+            mesh_vertices(obj, MeshFormat::Obj, "a.obj").unwrap().len(),
+            3
+        );
         let bad = b"v 0 0 zero\n";
-        let error = mesh_vertices(bad, MeshFormat::Obj, "a.obj").unwrap_err().to_string();
-        assert!(error.contains("a.obj:1") && error.contains("zero"), "{error}");
+        let error = mesh_vertices(bad, MeshFormat::Obj, "a.obj")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("a.obj:1") && error.contains("zero"),
+            "{error}"
+        );
         assert_eq!(MeshFormat::of("package://r2/meshes/x.DAE"), None);
         assert_eq!(MeshFormat::of("x.STL"), Some(MeshFormat::Stl));
     }

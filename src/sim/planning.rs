@@ -70,7 +70,10 @@ pub fn criterion_value(criterion: Criterion, singular_values: &[f64], observatio
             (log_sum / singular_values.len() as f64).exp() / (observations.max(1) as f64).sqrt()
         }
         Criterion::D => 2.0 * log_sum,
-        Criterion::O3 => singular_values.iter().copied().fold(f64::INFINITY, f64::min),
+        Criterion::O3 => singular_values
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min),
     }
 }
 // --- end of local criteria ----------------------------------------------------------------
@@ -411,43 +414,42 @@ fn jacobian_blocks(
         .filter_map(|j| model.frame_of_joint(*j))
         .collect();
     // The model the stage identifies, and which of its tools each measurement uses.
-    let (stage_model, stage_tools, columns): (McpcModel, Vec<usize>, Vec<usize>) =
-        match options.stage {
-            PlanningStage::Torso => {
-                let data: Vec<Measurement> = candidates
-                    .iter()
-                    .flat_map(|q| {
-                        (0..tool_count).map(move |tool| Measurement {
-                            tool,
-                            q: q.clone(),
-                            observation: Observation::Position(Vec3::zeros()),
-                            stage: None,
-                        })
+    let (stage_model, stage_tools, columns): (McpcModel, Vec<usize>, Vec<usize>) = match options
+        .stage
+    {
+        PlanningStage::Torso => {
+            let data: Vec<Measurement> = candidates
+                .iter()
+                .flat_map(|q| {
+                    (0..tool_count).map(move |tool| Measurement {
+                        tool,
+                        q: q.clone(),
+                        observation: Observation::Position(Vec3::zeros()),
+                        stage: None,
                     })
-                    .collect();
-                let (stage_model, stage_data, _) =
-                    locked_arm_model(model, &coupled_frames, &data, "torso")?;
-                let columns = (0..stage_model.parameter_count()).collect();
-                let tools = stage_data.iter().map(|m| m.tool).collect();
-                (stage_model, tools, columns)
-            }
-            PlanningStage::Arms | PlanningStage::All => {
-                let columns = model
-                    .parameter_layout()
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, (owner, _))| {
-                        options.stage == PlanningStage::All
-                            || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
-                    })
-                    .map(|(i, _)| i)
-                    .collect();
-                let tools = (0..candidates.len())
-                    .flat_map(|_| 0..tool_count)
-                    .collect();
-                (model.clone(), tools, columns)
-            }
-        };
+                })
+                .collect();
+            let (stage_model, stage_data, _) =
+                locked_arm_model(model, &coupled_frames, &data, "torso")?;
+            let columns = (0..stage_model.parameter_count()).collect();
+            let tools = stage_data.iter().map(|m| m.tool).collect();
+            (stage_model, tools, columns)
+        }
+        PlanningStage::Arms | PlanningStage::All => {
+            let columns = model
+                .parameter_layout()
+                .iter()
+                .enumerate()
+                .filter(|(_, (owner, _))| {
+                    options.stage == PlanningStage::All
+                        || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
+                })
+                .map(|(i, _)| i)
+                .collect();
+            let tools = (0..candidates.len()).flat_map(|_| 0..tool_count).collect();
+            (model.clone(), tools, columns)
+        }
+    };
     let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
     let per_candidate: Vec<DMatrix<f64>> = candidates
         .par_iter()
@@ -506,7 +508,10 @@ fn singular_values(information: &DMatrix<f64>) -> Vec<f64> {
 /// O3 is not a determinant, so after DETMAX (which maximises `log det`) swap chosen poses for
 /// the few unchosen ones with the largest `log det` gain while that raises the smallest
 /// singular value; a handful of passes at most. Returns the swaps made.
-fn refine_min_singular_value(design: &mut Design, value: &dyn Fn(&Design, &[usize]) -> f64) -> usize {
+fn refine_min_singular_value(
+    design: &mut Design,
+    value: &dyn Fn(&Design, &[usize]) -> f64,
+) -> usize {
     const SHORTLIST: usize = 8;
     const PASSES: usize = 5;
     let mut swaps = 0;

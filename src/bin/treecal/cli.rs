@@ -251,7 +251,12 @@ pub struct PlanArgs {
     #[arg(long, value_enum, default_value = "all")]
     pub stage: StageChoice,
     /// Box every tool origin must lie in, in the base frame (m): xmin,ymin,zmin,xmax,ymax,zmax.
-    #[arg(long, value_delimiter = ',', allow_negative_numbers = true, value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX"
+    )]
     pub workspace: Option<Vec<f64>>,
     /// Tracker noise the rows are weighted by (as simulate --noise).
     #[arg(long, default_value = "at901")]

@@ -17,10 +17,7 @@ fn invalid(flag: &str, message: String) -> Error {
 
 pub fn run(args: PlanArgs) -> Result<()> {
     if args.poses == 0 || args.candidates == 0 {
-        return Err(invalid(
-            "--poses/--candidates",
-            "must be at least 1".into(),
-        ));
+        return Err(invalid("--poses/--candidates", "must be at least 1".into()));
     }
     if args.targets == 2 {
         return Err(invalid(

@@ -1,9 +1,9 @@
 //! Loading the robot a command works on: a URDF path, or the built-in Robonaut.
 
 use std::path::Path;
-use treecal::urdf::{load_urdf, parse_urdf, UrdfImport};
 use treecal::io::{mesh_file_loader, package_dirs};
 use treecal::sim::collision::{CollisionChecker, CollisionOptions};
+use treecal::urdf::{load_urdf, parse_urdf, UrdfImport};
 use treecal::{detect_branches, Branches, KinematicTree, Result};
 
 /// The Robonaut generated from the paper's Table 1, built into the binary so that the main

@@ -9,10 +9,10 @@ use treecal::io::{
 use treecal::kinematics::FlexibilityModel;
 use treecal::report::plot::{error_plot_svg, ErrorPlot, Series};
 use treecal::report::simulate::simulation_markdown;
-use treecal::sim::planning::PlanningOptions;
 use treecal::sim::experiment::{Setup, SimulationOptions};
 use treecal::sim::monte_carlo::{run_trials, summarise};
 use treecal::sim::noise::{NoiseModel, Targets};
+use treecal::sim::planning::PlanningOptions;
 use treecal::sim::truth::ErrorRanges;
 use treecal::{Error, McpcModel, Result};
 
