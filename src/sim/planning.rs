@@ -8,7 +8,7 @@
 //! is computed once, rows weighted by 1/σ as the solver does, columns scaled by their RMS norm
 //! over the *whole candidate pool* (not over the chosen set, so criteria of different sets are
 //! comparable). The choice is a greedy pick followed by DETMAX exchanges on `log det`
-//! ([`super::detmax`]); for O3 a short exchange pass on the smallest singular value follows.
+//! (`sim/detmax.rs`); for O3 a short exchange pass on the smallest singular value follows.
 //! See `docs/planning.md`.
 
 use super::collision::CollisionChecker;
@@ -414,29 +414,28 @@ fn jacobian_blocks(
         .filter_map(|j| model.frame_of_joint(*j))
         .collect();
     // The model the stage identifies, and which of its tools each measurement uses.
-    let (stage_model, stage_tools, columns): (McpcModel, Vec<usize>, Vec<usize>) = match options
-        .stage
-    {
-        PlanningStage::Torso => {
-            let data: Vec<Measurement> = candidates
-                .iter()
-                .flat_map(|q| {
-                    (0..tool_count).map(move |tool| Measurement {
-                        tool,
-                        q: q.clone(),
-                        observation: Observation::Position(Vec3::zeros()),
-                        stage: None,
+    let (stage_model, stage_tools, columns): (McpcModel, Vec<usize>, Vec<usize>) =
+        match options.stage {
+            PlanningStage::Torso => {
+                let data: Vec<Measurement> = candidates
+                    .iter()
+                    .flat_map(|q| {
+                        (0..tool_count).map(move |tool| Measurement {
+                            tool,
+                            q: q.clone(),
+                            observation: Observation::Position(Vec3::zeros()),
+                            stage: None,
+                        })
                     })
-                })
-                .collect();
-            let (stage_model, stage_data, _) =
-                locked_arm_model(model, &coupled_frames, &data, "torso")?;
-            let columns = (0..stage_model.parameter_count()).collect();
-            let tools = stage_data.iter().map(|m| m.tool).collect();
-            (stage_model, tools, columns)
-        }
-        PlanningStage::Arms | PlanningStage::All => {
-            let columns = model
+                    .collect();
+                let (stage_model, stage_data, _) =
+                    locked_arm_model(model, &coupled_frames, &data, "torso")?;
+                let columns = (0..stage_model.parameter_count()).collect();
+                let tools = stage_data.iter().map(|m| m.tool).collect();
+                (stage_model, tools, columns)
+            }
+            PlanningStage::Arms | PlanningStage::All => {
+                let columns = model
                 .parameter_layout()
                 .iter()
                 .enumerate()
@@ -446,10 +445,10 @@ fn jacobian_blocks(
                 })
                 .map(|(i, _)| i)
                 .collect();
-            let tools = (0..candidates.len()).flat_map(|_| 0..tool_count).collect();
-            (model.clone(), tools, columns)
-        }
-    };
+                let tools = (0..candidates.len()).flat_map(|_| 0..tool_count).collect();
+                (model.clone(), tools, columns)
+            }
+        };
     let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
     let per_candidate: Vec<DMatrix<f64>> = candidates
         .par_iter()
