@@ -249,9 +249,10 @@ mod tests {
     #[test]
     fn updates_match_direct_determinants() {
         let (rows, columns, count) = (2, 4, 300);
-        // A fixed pseudo-random pool (no RNG needed: a quasi-random sequence).
+        // A fixed pseudo-random pool of full rank (a multiplicative hash, no RNG needed).
         let blocks = DMatrix::from_fn(count * rows, columns, |i, j| {
-            ((i * 7 + j * 13) as f64 * 0.618).sin()
+            let h = ((i * 7919 + j * 104_729 + 1) as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            (h >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         });
         let ridge = 1e-6;
         let mut design = Design::new(blocks, rows, ridge);
