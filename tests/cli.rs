@@ -786,3 +786,119 @@ fn simulate_rejects_bad_flags() {
         "no output after errors"
     );
 }
+
+fn plan_csv(path: &std::path::Path) -> (Vec<String>, Vec<Vec<String>>) {
+    read_csv(&std::fs::read_to_string(path).unwrap())
+}
+
+#[test]
+fn plan_writes_poses_and_compares_with_random() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("poses.csv");
+    let args = [
+        "plan",
+        "--poses",
+        "8",
+        "--candidates",
+        "200",
+        "--seed",
+        "4",
+        "-o",
+        path_str(&out),
+    ];
+    let run = treecal(&args);
+    assert_success(&run, "plan");
+    assert!(
+        run.stdout.contains("planned") && run.stdout.contains("random"),
+        "{run}"
+    );
+    let (header, rows) = plan_csv(&out);
+    assert_eq!(header[0], "tool");
+    assert!(header.contains(&"torso_joint1".to_owned()), "{header:?}");
+    // One row per tool per configuration.
+    assert_eq!(rows.len(), 16);
+    assert_eq!(rows[0][0], "left_tool");
+    assert_eq!(rows[1][0], "right_tool");
+    // Same seed, same file.
+    let first = std::fs::read(&out).unwrap();
+    assert_success(&treecal(&args), "plan again");
+    assert_eq!(first, std::fs::read(&out).unwrap());
+}
+
+#[test]
+fn plan_staged_labels_torso_then_arms() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("staged.csv");
+    let run = treecal(&[
+        "plan",
+        "--poses",
+        "6",
+        "--torso-poses",
+        "4",
+        "--candidates",
+        "150",
+        "--stage",
+        "staged",
+        "--criterion",
+        "d",
+        "-o",
+        path_str(&out),
+    ]);
+    assert_success(&run, "plan --stage staged");
+    let (header, rows) = plan_csv(&out);
+    assert_eq!(&header[..2], ["stage", "tool"]);
+    let stages: Vec<&str> = rows.iter().map(|r| r[0].as_str()).collect();
+    assert_eq!(stages[..8], ["torso"; 8]);
+    assert_eq!(stages[8..], ["arms"; 12]);
+}
+
+#[test]
+fn plan_bad_arguments_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.csv");
+    let run = treecal(&[
+        "plan",
+        "--poses",
+        "5",
+        "--workspace",
+        "0,0,1",
+        "-o",
+        path_str(&out),
+    ]);
+    assert_error(&run, &["--workspace", "six numbers"], "short workspace");
+    let run = treecal(&[
+        "plan",
+        "--poses",
+        "5",
+        "--candidates",
+        "50",
+        "--workspace",
+        "20,20,20,21,21,21",
+        "-o",
+        path_str(&out),
+    ]);
+    assert_error(&run, &["workspace box"], "unreachable workspace");
+    let run = treecal(&["plan", "--poses", "0", "-o", path_str(&out)]);
+    assert_error(&run, &["--poses"], "no poses");
+    assert!(!out.exists());
+}
+
+#[test]
+fn simulate_with_planned_poses() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = treecal(&[
+        "simulate",
+        "--poses-from",
+        "planned",
+        "--candidates",
+        "100",
+        "--poses",
+        "10",
+        "--torso-poses",
+        "6",
+        "--out",
+        path_str(dir.path()),
+    ]);
+    assert_success(&run, "simulate --poses-from planned");
+    assert!(run.stdout.contains("planned from 100 candidates"), "{run}");
+}

@@ -456,3 +456,94 @@ fn sampler_rejects_bad_requests() {
         .to_string();
     assert!(error.contains("built for a robot with 3 links"), "{error}");
 }
+
+/// A unit cube (±0.5 m) as a binary STL.
+fn cube_stl() -> Vec<u8> {
+    let mut bytes = vec![0u8; 80];
+    let corners: Vec<[f32; 3]> = (0..8)
+        .map(|c| {
+            let s = |bit: usize| if c & bit == 0 { -0.5 } else { 0.5 };
+            [s(1), s(2), s(4)]
+        })
+        .collect();
+    // Twelve triangles are not needed for a hull: four triangles covering all eight corners.
+    let triangles = [[0, 1, 2], [3, 4, 5], [6, 7, 0], [1, 3, 5]];
+    bytes.extend((triangles.len() as u32).to_le_bytes());
+    for triangle in triangles {
+        bytes.extend([0u8; 12]);
+        for corner in triangle {
+            for value in corners[corner] {
+                bytes.extend(value.to_le_bytes());
+            }
+        }
+        bytes.extend([0u8; 2]);
+    }
+    bytes
+}
+
+/// The same cube as OBJ text.
+fn cube_obj() -> String {
+    let mut text = String::from("# unit cube\n");
+    for c in 0..8 {
+        let s = |bit: usize| if c & bit == 0 { -0.5 } else { 0.5 };
+        text += &format!("v {} {} {}\n", s(1), s(2), s(4));
+    }
+    text + "f 1 2 3\n"
+}
+
+/// STL and OBJ meshes (a unit cube scaled to 0.2 m) collide exactly like the 0.2 m box: the
+/// faces meet at q[1] = 0.8 with `a` square to x. Found next to the URDF, through file:// and
+/// through package:// search directories; a .dae is skipped and listed.
+#[test]
+fn stl_and_obj_meshes_collide_like_the_box_they_describe() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("cube.stl"), cube_stl()).unwrap();
+    std::fs::create_dir_all(dir.path().join("robot/meshes")).unwrap();
+    std::fs::write(dir.path().join("robot/meshes/cube.obj"), cube_obj()).unwrap();
+    let absolute = dir.path().join("cube.stl");
+    let names = [
+        "cube.stl".to_owned(),
+        format!("file://{}", absolute.display()),
+        "package://robot/meshes/cube.obj".to_owned(),
+    ];
+    for name in &names {
+        let tree = sliding_boxes(&format!(r#"<mesh filename="{name}" scale="0.2 0.2 0.2"/>"#));
+        let loader = treecal::io::mesh_file_loader(dir.path().to_owned(), vec![dir.path().into()]);
+        let checker =
+            CollisionChecker::with_meshes(&tree, &CollisionOptions::default(), &loader).unwrap();
+        assert_eq!(checker.loaded_meshes(), 1, "{name}");
+        assert_eq!(checker.skipped_meshes(), 0, "{name}");
+        assert!(!collides(&checker, &tree, &[0.0, 0.79]), "{name}: apart");
+        assert!(
+            collides(&checker, &tree, &[0.0, 0.81]),
+            "{name}: overlapping"
+        );
+        // Turned by 45°, a's edge reaches further: they meet at 0.9 − 0.1·√2 ≈ 0.7586.
+        let turned = std::f64::consts::FRAC_PI_4;
+        assert!(
+            !collides(&checker, &tree, &[turned, 0.75]),
+            "{name}: turned, apart"
+        );
+        assert!(
+            collides(&checker, &tree, &[turned, 0.77]),
+            "{name}: turned, overlapping"
+        );
+    }
+    // Not found, or not STL/OBJ: skipped and listed.
+    for name in ["missing.stl", "cube.dae", "package://other/cube.obj"] {
+        let tree = sliding_boxes(&format!(r#"<mesh filename="{name}"/>"#));
+        let loader = treecal::io::mesh_file_loader(dir.path().to_owned(), vec![dir.path().into()]);
+        let checker =
+            CollisionChecker::with_meshes(&tree, &CollisionOptions::default(), &loader).unwrap();
+        assert_eq!(checker.skipped_mesh_files(), [name.to_owned()]);
+        assert_eq!(checker.pair_count(), 0);
+    }
+    // A found file that is not a mesh is an error naming it and the line.
+    std::fs::write(dir.path().join("bad.obj"), "v 0 0 x\n").unwrap();
+    let tree = sliding_boxes(r#"<mesh filename="bad.obj"/>"#);
+    let loader = treecal::io::mesh_file_loader(dir.path().to_owned(), Vec::new());
+    let error = CollisionChecker::with_meshes(&tree, &CollisionOptions::default(), &loader)
+        .unwrap_err()
+        .to_string();
+    assert!(error.contains("bad.obj:1"), "{error}");
+}

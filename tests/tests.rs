@@ -14,6 +14,7 @@ mod jacobian;
 mod mcpc;
 mod measurements_csv;
 mod oracle;
+mod planning;
 mod plot;
 mod simulate;
 mod urdf_import;

@@ -337,9 +337,11 @@ pub fn calibrate(
 }
 
 /// The coupled-stage model: the torso frames plus one rigid tool per distinct (tool, locked arm
-/// configuration), and the measurements re-pointed at those tools. Whether the locked tools
-/// are determined by the data is left to the solver's rank analysis.
-pub(crate) fn locked_arm_model(
+/// configuration), and the measurements re-pointed at those tools; also the number of those
+/// tools. Whether the locked tools are determined by the data is left to the solver's rank
+/// analysis. `coupled_frames` are the model frames of the coupled branch's joints; the pose
+/// planner uses this too, so that it plans for exactly the model the stage identifies.
+pub fn locked_arm_model(
     model: &McpcModel,
     coupled_frames: &[usize],
     data: &[Measurement],

@@ -3,6 +3,7 @@
 pub mod joints_csv;
 pub mod mcpc_table;
 pub mod measurements_csv;
+pub mod mesh_files;
 pub mod params;
 pub mod plan;
 pub mod poses_csv;
@@ -16,9 +17,10 @@ pub use measurements_csv::{
     measurements_to_csv, measurements_to_csv_with, parse_measurements, read_measurements,
     MeasurementReadOptions, MeasurementSet, MeasurementWriteOptions, ObservationKind,
 };
+pub use mesh_files::{mesh_file_loader, package_dirs, resolve_mesh};
 pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use plan::{parse_plan, read_plan};
-pub use poses_csv::{pose_rows, PoseSet};
+pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
 pub use stiffness::{parse_stiffness, read_stiffness};
 pub use units::{AngleUnit, LengthUnit};
 pub use write::write_atomically;

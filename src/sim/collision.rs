@@ -7,9 +7,15 @@
 //! bodies joined to it by a single movable joint. Adjacent links may touch (that is how joints
 //! are drawn), so they are never checked.
 //!
+//! Mesh shapes (STL, OBJ) are loaded when a loader is given
+//! ([`CollisionChecker::with_meshes`]) and the file resolves; each becomes its *convex hull*,
+//! which is fast and conservative (a concave link counts as its hull). Meshes that do not
+//! resolve or are in another format (e.g. `.dae`) are skipped and listed.
+//!
 //! parry 0.31 works in glam types; poses are converted from [`crate::math::Pose`] here and
 //! nowhere else, so nothing of parry leaks out of this module.
 
+use super::mesh::{mesh_vertices, MeshFormat};
 use crate::error::{Error, Result};
 use crate::math::Pose;
 use crate::tree::{JointKind, KinematicTree, LinkId, Shape};
@@ -59,8 +65,13 @@ pub struct CollisionChecker {
     /// apart first.
     pairs: Vec<(usize, usize)>,
     margin: f64,
-    skipped_meshes: usize,
+    skipped_meshes: Vec<String>,
+    loaded_meshes: usize,
 }
+
+/// Returns the bytes of a URDF mesh `filename` (as written in the URDF), or `None` when it
+/// cannot be found; see [`crate::io::mesh_file_loader`].
+pub type MeshLoader<'a> = &'a (dyn Fn(&str) -> Option<Vec<u8>> + 'a);
 
 impl std::fmt::Debug for CollisionChecker {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -68,7 +79,8 @@ impl std::fmt::Debug for CollisionChecker {
             .field("links_with_shapes", &self.links.len())
             .field("pairs", &self.pairs.len())
             .field("margin", &self.margin)
-            .field("skipped_meshes", &self.skipped_meshes)
+            .field("skipped_meshes", &self.skipped_meshes.len())
+            .field("loaded_meshes", &self.loaded_meshes)
             .finish()
     }
 }
@@ -79,8 +91,20 @@ impl CollisionChecker {
         Self::with_options(tree, &CollisionOptions::default())
     }
 
-    /// A checker for `tree` with the given options.
+    /// A checker for `tree` with the given options; mesh shapes are skipped.
     pub fn with_options(tree: &KinematicTree, options: &CollisionOptions) -> Result<Self> {
+        Self::with_meshes(tree, options, &|_| None)
+    }
+
+    /// A checker for `tree` whose STL and OBJ mesh shapes are read through `load` (as their
+    /// convex hulls, scaled by the URDF `scale`); meshes it cannot find or in other formats
+    /// are skipped ([`Self::skipped_meshes`]). A mesh file that is found but unreadable is an
+    /// error naming it.
+    pub fn with_meshes(
+        tree: &KinematicTree,
+        options: &CollisionOptions,
+        load: MeshLoader<'_>,
+    ) -> Result<Self> {
         if !(options.margin.is_finite() && options.margin >= 0.0) {
             return Err(Error::InvalidData {
                 origin: "collision options".into(),
@@ -91,7 +115,8 @@ impl CollisionChecker {
             });
         }
         let mut links = Vec::new();
-        let mut skipped_meshes = 0;
+        let mut skipped_meshes = Vec::new();
+        let mut loaded_meshes = 0;
         for (index, link) in tree.links().iter().enumerate() {
             let mut shapes = Vec::new();
             for (link_from_urdf_shape, shape) in &link.geometry.collisions {
@@ -103,14 +128,21 @@ impl CollisionChecker {
                         link.name
                     ),
                 };
-                let (parry_shape, shape_from_parry) = match parry_shape(shape, &invalid)? {
-                    Some(found) => found,
-                    None => {
-                        // Meshes are loaded by a later step; until then the link is checked
-                        // with its primitives only (or not at all).
-                        skipped_meshes += 1;
-                        continue;
+                let found = match shape {
+                    Shape::Mesh { filename, scale } => {
+                        let hull = mesh_hull(filename, scale, load, &link.name)?;
+                        if hull.is_some() {
+                            loaded_meshes += 1;
+                        } else {
+                            // The link is checked with its other shapes only (or not at all).
+                            skipped_meshes.push(filename.clone());
+                        }
+                        hull
                     }
+                    _ => parry_shape(shape, &invalid)?,
+                };
+                let Some((parry_shape, shape_from_parry)) = found else {
+                    continue;
                 };
                 let link_from_shape = ShapePose::from(*link_from_urdf_shape) * shape_from_parry;
                 let (ends, bound_radius) = bounding_capsule(&parry_shape);
@@ -149,6 +181,7 @@ impl CollisionChecker {
             pairs,
             margin: options.margin,
             skipped_meshes,
+            loaded_meshes,
         })
     }
 
@@ -164,9 +197,19 @@ impl CollisionChecker {
             .map(|&(a, b)| (self.links[a].link, self.links[b].link))
     }
 
-    /// Number of `<collision>` meshes left out (mesh files are not loaded yet).
+    /// Number of `<collision>` meshes left out (not found, or not STL/OBJ).
     pub fn skipped_meshes(&self) -> usize {
-        self.skipped_meshes
+        self.skipped_meshes.len()
+    }
+
+    /// The file names (as in the URDF) of the `<collision>` meshes left out.
+    pub fn skipped_mesh_files(&self) -> &[String] {
+        &self.skipped_meshes
+    }
+
+    /// Number of `<collision>` meshes loaded (as convex hulls).
+    pub fn loaded_meshes(&self) -> usize {
+        self.loaded_meshes
     }
 
     /// The margin (m) below which links count as colliding.
@@ -399,6 +442,41 @@ fn parry_shape(
         ),
         Shape::Mesh { .. } => return Ok(None),
     }))
+}
+
+/// The convex hull of a mesh file, scaled; `None` when the loader cannot find it or its format
+/// is not STL or OBJ.
+fn mesh_hull(
+    filename: &str,
+    scale: &crate::math::Vec3,
+    load: MeshLoader<'_>,
+    link: &str,
+) -> Result<Option<(SharedShape, ShapePose)>> {
+    let Some(format) = MeshFormat::of(filename) else {
+        return Ok(None);
+    };
+    let Some(bytes) = load(filename) else {
+        return Ok(None);
+    };
+    if !scale.iter().all(|s| s.is_finite()) {
+        return Err(Error::InvalidData {
+            origin: filename.into(),
+            message: format!("link '{link}' gives this mesh a scale that is not finite"),
+        });
+    }
+    let points: Vec<ShapeVector> = mesh_vertices(&bytes, format, filename)?
+        .iter()
+        .map(|v| ShapeVector::new(v.x * scale.x, v.y * scale.y, v.z * scale.z))
+        .collect();
+    match SharedShape::convex_hull(&points) {
+        Some(hull) => Ok(Some((hull, ShapePose::IDENTITY))),
+        None => Err(Error::InvalidData {
+            origin: filename.into(),
+            message: format!(
+                "the collision mesh of link '{link}' is flat or degenerate (no convex hull);                  fix the mesh or give the link a primitive <collision> shape"
+            ),
+        }),
+    }
 }
 
 /// A sphere (centre in the link frame, radius) around all shapes of a link.

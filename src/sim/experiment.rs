@@ -4,10 +4,12 @@
 
 use super::collision::CollisionChecker;
 use super::noise::{observe, NoiseModel, Targets};
+use super::planning::{plan_poses, PlanningOptions, PlanningStage};
 use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, ErrorRanges};
 use crate::calibration::{
-    calibrate, CalibrationReport, Compensation, Deflected, IdentificationOptions, Plan,
+    calibrate, CalibrationReport, Compensation, Deflected, IdentificationOptions, ParameterSet,
+    Plan,
 };
 use crate::error::Result;
 use crate::kinematics::{FlexibilityModel, McpcModel};
@@ -17,7 +19,7 @@ use crate::measurement::TARGET_SPACING;
 use crate::tree::{Branches, KinematicTree};
 use nalgebra::DMatrix;
 use rand::rngs::ChaCha8Rng;
-use rand::SeedableRng;
+use rand::{RngExt, SeedableRng};
 use serde::Serialize;
 
 /// Settings of one simulated calibration.
@@ -41,6 +43,10 @@ pub struct SimulationOptions {
     pub plan: Plan,
     /// The master seed; trial `k` uses a seed derived from it.
     pub seed: u64,
+    /// `None`: identification configurations drawn at random. `Some`: planned in every trial
+    /// with the nominal model (its `candidates`, `criterion` and `workspace` are used; poses,
+    /// stage, targets, locks, seed and σ follow this simulation).
+    pub planning: Option<PlanningOptions>,
 }
 
 impl Default for SimulationOptions {
@@ -55,6 +61,7 @@ impl Default for SimulationOptions {
             targets: Targets::Three,
             plan: Plan::staged(),
             seed: 0,
+            planning: None,
         }
     }
 }
@@ -173,34 +180,13 @@ pub fn run_trial(
     let truth = true_model(setup.nominal, &options.errors, &mut rng)?;
     let sampling = SamplingOptions::default();
 
-    // Torso configurations: arms locked at a few random configurations, the torso moving.
-    let torso_dofs = setup.branches.coupled.dofs(tree);
-    let locks = sample_configurations(
-        tree,
-        setup.checker,
-        options.locks.max(1),
-        &mut rng,
-        &sampling,
-        &[],
-    )?;
-    let mut torso_configurations = Vec::with_capacity(options.torso_poses);
-    for index in 0..options.torso_poses {
-        let lock = &locks[index % locks.len()];
-        let fixed: Vec<(usize, f64)> = (0..tree.dof_count())
-            .filter(|d| !torso_dofs.contains(d))
-            .map(|d| (d, lock[d]))
-            .collect();
-        torso_configurations.extend(sample_configurations(
-            tree,
-            setup.checker,
-            1,
-            &mut rng,
-            &sampling,
-            &fixed,
-        )?);
-    }
-    let arm_configurations =
-        sample_configurations(tree, setup.checker, options.poses, &mut rng, &sampling, &[])?;
+    let identification_options = identification_options(&options.noise, options.targets);
+    let (torso_configurations, arm_configurations) = match &options.planning {
+        None => random_configurations(setup, options, &mut rng)?,
+        Some(planning) => {
+            planned_configurations(setup, options, planning, &identification_options, &mut rng)?
+        }
+    };
     let validation = sample_configurations(
         tree,
         setup.checker,
@@ -231,8 +217,125 @@ pub fn run_trial(
         };
     measure(&torso_configurations, "torso", &mut rng)?;
     measure(&arm_configurations, "arms", &mut rng)?;
+    finish_trial(
+        setup,
+        options,
+        seed,
+        &truth,
+        measurements,
+        &identification_options,
+        &arm_configurations,
+        &validation,
+    )
+}
 
-    let identification_options = identification_options(&options.noise, options.targets);
+/// Configurations of the torso stage, then of the arms stage.
+type StageConfigurations = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+/// Torso configurations (the arms locked at a few random configurations) and arm
+/// configurations, drawn at random.
+fn random_configurations(
+    setup: &Setup<'_>,
+    options: &SimulationOptions,
+    rng: &mut ChaCha8Rng,
+) -> Result<StageConfigurations> {
+    let tree = setup.tree;
+    let sampling = SamplingOptions::default();
+    // Torso configurations: arms locked at a few random configurations, the torso moving.
+    let torso_dofs = setup.branches.coupled.dofs(tree);
+    let locks = sample_configurations(
+        tree,
+        setup.checker,
+        options.locks.max(1),
+        rng,
+        &sampling,
+        &[],
+    )?;
+    let mut torso_configurations = Vec::with_capacity(options.torso_poses);
+    for index in 0..options.torso_poses {
+        let lock = &locks[index % locks.len()];
+        let fixed: Vec<(usize, f64)> = (0..tree.dof_count())
+            .filter(|d| !torso_dofs.contains(d))
+            .map(|d| (d, lock[d]))
+            .collect();
+        torso_configurations.extend(sample_configurations(
+            tree,
+            setup.checker,
+            1,
+            rng,
+            &sampling,
+            &fixed,
+        )?);
+    }
+    let arm_configurations =
+        sample_configurations(tree, setup.checker, options.poses, rng, &sampling, &[])?;
+    Ok((torso_configurations, arm_configurations))
+}
+
+/// Torso and arm configurations planned with the nominal model (sim/planning.rs): the torso set
+/// for the torso stage with the arms locked, the arm set for the arms stage of a staged plan or
+/// for all parameters otherwise.
+fn planned_configurations(
+    setup: &Setup<'_>,
+    options: &SimulationOptions,
+    planning: &PlanningOptions,
+    identification: &IdentificationOptions,
+    rng: &mut ChaCha8Rng,
+) -> Result<StageConfigurations> {
+    let staged = options
+        .plan
+        .stages
+        .iter()
+        .any(|s| s.parameters == ParameterSet::Coupled);
+    let plan = |stage: PlanningStage, poses: usize, seed: u64| -> Result<Vec<Vec<f64>>> {
+        if poses == 0 {
+            return Ok(Vec::new());
+        }
+        let planning = PlanningOptions {
+            poses,
+            candidates: planning.candidates.max(poses),
+            stage,
+            targets: options.targets,
+            locks: options.locks.max(1),
+            position_sigma: identification.position_sigma,
+            rotation_sigma: identification.rotation_sigma,
+            seed,
+            ..planning.clone()
+        };
+        let report = plan_poses(
+            setup.tree,
+            setup.branches,
+            setup.nominal,
+            setup.checker,
+            &planning,
+            &|_| {},
+        )?;
+        Ok(report.poses.into_iter().map(|p| p.q).collect())
+    };
+    let torso = plan(PlanningStage::Torso, options.torso_poses, rng.random())?;
+    let arms_stage = if staged {
+        PlanningStage::Arms
+    } else {
+        PlanningStage::All
+    };
+    let arms = plan(arms_stage, options.poses, rng.random())?;
+    Ok((torso, arms))
+}
+
+/// Calibrates from the measurements and judges the results.
+#[allow(clippy::too_many_arguments)]
+fn finish_trial(
+    setup: &Setup<'_>,
+    options: &SimulationOptions,
+    seed: u64,
+    truth: &McpcModel,
+    measurements: Vec<Measurement>,
+    identification_options: &IdentificationOptions,
+    arm_configurations: &[Vec<f64>],
+    validation: &[Vec<f64>],
+) -> Result<TrialReport> {
+    let tree = setup.tree;
+    let identification_options = identification_options.clone();
     let source = Deflected {
         tree,
         flexibility: setup.model_flexibility,
@@ -257,7 +360,7 @@ pub fn run_trial(
     let errors = |configurations: &[Vec<f64>]| -> Result<Vec<ArmErrors>> {
         arm_errors(
             setup,
-            &truth,
+            truth,
             &rigid.model,
             &compensated.model,
             configurations,
@@ -268,12 +371,12 @@ pub fn run_trial(
         &measurements,
         &identification_options,
         &options.noise,
-        &validation,
+        validation,
     );
     Ok(TrialReport {
         seed,
-        identification: errors(&arm_configurations)?,
-        validation: errors(&validation)?,
+        identification: errors(arm_configurations)?,
+        validation: errors(validation)?,
         noise_floor_position_mm,
         rigid_run: summary(&rigid),
         compensated_run: summary(&compensated),

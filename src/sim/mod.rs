@@ -1,9 +1,12 @@
-//! Simulation: random configurations and the self-collision checks they must pass.
+//! Simulation: random and planned configurations and the self-collision checks they must pass.
 
 pub mod collision;
+mod detmax;
 pub mod experiment;
+pub mod mesh;
 pub mod monte_carlo;
 pub mod noise;
+pub mod planning;
 pub mod pose_set;
 pub mod sampling;
 pub mod truth;

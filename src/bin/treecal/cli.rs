@@ -34,6 +34,9 @@ pub enum Command {
     /// Identifiability of a pose set: singular values, rank, condition number, observability
     /// indices O1-O5 and the parameter combinations the poses cannot determine.
     Check(CheckArgs),
+    /// Plan calibration poses: choose collision-free configurations that make the parameters
+    /// best observable (greedy pick + DETMAX exchanges on an observability index).
+    Plan(PlanArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -187,6 +190,92 @@ pub struct SimulateArgs {
     /// Also write trial 1's simulated measurements as CSV (docs/file-formats.md).
     #[arg(long, value_name = "FILE")]
     pub write_measurements: Option<PathBuf>,
+    /// Where the identification configurations come from: drawn at random, or planned (O1,
+    /// greedy + DETMAX) from --candidates random ones with the nominal model in every trial.
+    #[arg(long, value_enum, default_value = "random")]
+    pub poses_from: PosesFrom,
+    /// Candidate configurations each planned pose set is chosen from (--poses-from planned).
+    #[arg(long, default_value_t = 2000, allow_negative_numbers = true)]
+    pub candidates: u32,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PosesFrom {
+    /// Uniform random collision-free configurations.
+    Random,
+    /// Planned to maximise the O1 observability index.
+    Planned,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CriterionChoice {
+    /// Geometric mean of the scaled singular values over √(observations).
+    O1,
+    /// log det of the scaled information matrix (D-optimality).
+    D,
+    /// Smallest scaled singular value.
+    O3,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum StageChoice {
+    /// Every parameter at once (simultaneous plan).
+    All,
+    /// The arms, with the torso held.
+    Arms,
+    /// The torso, with the arms locked.
+    Torso,
+    /// The paper's staging: a torso set (--torso-poses, arms locked) then an arms set (--poses).
+    Staged,
+}
+
+/// Arguments of `treecal plan`.
+#[derive(Args)]
+#[command(
+    after_help = "Candidates are drawn uniformly within the joint limits; those in self-collision (URDF collision primitives, and STL/OBJ meshes that resolve: relative to the URDF, file://, or package:// through ROS_PACKAGE_PATH) or with a tool outside --workspace are rejected. The output CSV has one row per tool per configuration: [stage,]tool,<joint columns> (metres, radians), the measurement CSV without its measured columns (docs/file-formats.md). See docs/planning.md.\n\nExamples:\n  treecal plan --poses 20 -o poses.csv\n  treecal plan --robot robots/humanoid/humanoid.urdf --poses 30 --criterion d --stage staged -o poses.csv\n  treecal plan --poses 20 --workspace 0.2,-1,-0.5,1.5,1,1 -o poses.csv"
+)]
+pub struct PlanArgs {
+    /// The robot's URDF file [default: the built-in Robonaut].
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Tool links ending the arms (see `inspect --help`).
+    #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
+    pub tools: Option<Vec<String>>,
+    /// Configurations to choose (for --stage staged: the arms set).
+    #[arg(long, allow_negative_numbers = true)]
+    pub poses: u32,
+    /// Configurations of the torso set for --stage staged (arms locked).
+    #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
+    pub torso_poses: u32,
+    /// Collision-free candidate configurations to choose from.
+    #[arg(long, default_value_t = 5000, allow_negative_numbers = true)]
+    pub candidates: u32,
+    /// Observability index to maximise.
+    #[arg(long, value_enum, default_value = "o1")]
+    pub criterion: CriterionChoice,
+    /// Targets per tool: 3 (a frame, 6 rows) or 1 (a position, 3 rows).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
+    pub targets: u8,
+    /// Which calibration stage the poses are for.
+    #[arg(long, value_enum, default_value = "all")]
+    pub stage: StageChoice,
+    /// Box every tool origin must lie in, in the base frame (m): xmin,ymin,zmin,xmax,ymax,zmax.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX"
+    )]
+    pub workspace: Option<Vec<f64>>,
+    /// Tracker noise the rows are weighted by (as simulate --noise).
+    #[arg(long, default_value = "at901")]
+    pub noise: String,
+    /// Seed of the candidate draws; the same seed gives the same file.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The CSV to write (atomically).
+    #[arg(short, long, value_name = "OUT.csv")]
+    pub output: PathBuf,
 }
 
 /// Arguments of `treecal export`.

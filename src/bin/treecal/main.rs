@@ -10,6 +10,7 @@ mod export;
 mod fk;
 mod from_mcpc;
 mod inspect;
+mod plan;
 mod robot;
 mod simulate;
 mod to_mcpc;
@@ -28,6 +29,7 @@ fn main() -> ExitCode {
         cli::Command::Calibrate(a) => calibrate::run(a),
         cli::Command::Export(a) => export::run(a),
         cli::Command::Check(a) => check::run(a),
+        cli::Command::Plan(a) => plan::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,6 +1,6 @@
 //! `treecal simulate`.
 
-use crate::cli::{PlanChoice, SimulateArgs};
+use crate::cli::{PlanChoice, PosesFrom, SimulateArgs};
 use std::io::IsTerminal;
 use treecal::calibration::Plan;
 use treecal::io::{
@@ -9,10 +9,10 @@ use treecal::io::{
 use treecal::kinematics::FlexibilityModel;
 use treecal::report::plot::{error_plot_svg, ErrorPlot, Series};
 use treecal::report::simulate::simulation_markdown;
-use treecal::sim::collision::CollisionChecker;
 use treecal::sim::experiment::{Setup, SimulationOptions};
 use treecal::sim::monte_carlo::{run_trials, summarise};
 use treecal::sim::noise::{NoiseModel, Targets};
+use treecal::sim::planning::PlanningOptions;
 use treecal::sim::truth::ErrorRanges;
 use treecal::{Error, McpcModel, Result};
 
@@ -92,12 +92,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     }
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
     let model_flexibility = truth_flexibility.scaled(1.0 / args.model_stiffness_scale)?;
-    let checker = CollisionChecker::new(tree)?;
-    if checker.skipped_meshes() > 0 {
-        eprintln!(
-            "treecal: note: {} mesh collision shapes are not checked yet; self-collision checks use the primitive shapes only",
-            checker.skipped_meshes()
-        );
+    let checker = crate::robot::checker(args.robot.as_deref(), tree)?;
+    if args.poses_from == PosesFrom::Planned && args.candidates == 0 {
+        return Err(invalid("--candidates", "must be at least 1".into()));
     }
     let options = SimulationOptions {
         poses: args.poses as usize,
@@ -119,6 +116,10 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             PlanChoice::Simultaneous => Plan::simultaneous(),
         },
         seed: args.seed,
+        planning: (args.poses_from == PosesFrom::Planned).then(|| PlanningOptions {
+            candidates: args.candidates as usize,
+            ..PlanningOptions::default()
+        }),
     };
     if args.targets == 2 {
         return Err(invalid(
@@ -149,12 +150,16 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     let summary = summarise(&reports);
 
     let header = format!(
-        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations, {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {} plan; model stiffness × {}.",
+        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {} plan; model stiffness × {}.",
         tree.name(),
         trials,
         args.seed,
         options.poses,
         options.torso_poses,
+        match args.poses_from {
+            PosesFrom::Random => "random".to_owned(),
+            PosesFrom::Planned => format!("planned from {} candidates", args.candidates),
+        },
         options.validation_poses,
         args.angle_error,
         args.length_error,
