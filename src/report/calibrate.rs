@@ -24,6 +24,8 @@ pub struct CalibrationContext {
     pub compensation: String,
     /// Assumed noise: position σ (m) and rotation σ (rad).
     pub sigma: [f64; 2],
+    /// How the measurement frame was found (fitted, or the root frame).
+    pub measurement_frame: String,
 }
 
 /// One stage's solver outcome.
@@ -209,7 +211,8 @@ pub fn calibration_markdown(
     let f = &summary.measurement_frame;
     let _ = writeln!(
         out,
-        "Measurement frame (robot base in it, fitted in closed form, then left fixed): xyz = ({:.4}, {:.4}, {:.4}) m, rpy = ({:.4}, {:.4}, {:.4}) deg; RMS distance {:.2} mm before the fit, {:.2} mm after.\n",
+        "Measurement frame ({}): robot base at xyz = ({:.4}, {:.4}, {:.4}) m, rpy = ({:.4}, {:.4}, {:.4}) deg; RMS position distance of the nominal model {:.2} mm before the initial fit, {:.2} mm after.\n",
+        c.measurement_frame,
         f.xyz[0],
         f.xyz[1],
         f.xyz[2],

@@ -159,6 +159,16 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             None => "not compensated (no --stiffness)".into(),
         },
         sigma: [args.position_sigma, args.rotation_sigma],
+        measurement_frame: match args.measurement_frame {
+            MeasurementFrame::Fit => {
+                "fitted in closed form to the nominal model, then kept; the tool frames fitted too"
+                    .into()
+            }
+            MeasurementFrame::Base => {
+                "the robot's root link frame (--measurement-frame base); the tool frames fitted"
+                    .into()
+            }
+        },
     };
     let changed: Vec<String> = export.changes.iter().map(|c| c.joint.clone()).collect();
     let summary = calibration_summary(context, &run, unidentifiable, changed);

@@ -4,7 +4,9 @@ use crate::cli::{AngleUnit, CheckArgs, Format, PlanChoice};
 use treecal::calibration::{
     analyse, IdentifiabilityOptions, ObservationKind, ParameterSet, PoseRow,
 };
-use treecal::io::{parse_csv, pose_rows, to_json, to_yaml};
+use treecal::io::{
+    parse_csv, pose_rows, read_measurements, to_json, to_yaml, MeasurementReadOptions,
+};
 use treecal::report::{CheckReport, StageCheck};
 use treecal::sim::collision::CollisionChecker;
 use treecal::sim::pose_set::staged_pose_set;
@@ -44,23 +46,36 @@ pub fn run(args: CheckArgs) -> Result<()> {
             "2 targets give neither a full pose nor a single position; use 3 (a pose) or 1 (a position)".into(),
         ));
     }
-    if let Some(path) = &args.measurements {
-        return Err(invalid(
-            "--measurements",
-            format!(
-                "reading measurement CSVs ({}) is not available in this build yet; give the configurations with --poses instead",
-                path.display()
-            ),
-        ));
-    }
     let import = crate::robot::load(args.robot.as_deref())?;
     let tree = &import.tree;
     let branches = crate::robot::branches(&import, args.tools.as_deref())?;
     let model = McpcModel::from_tree(tree, &branches)?;
-    let observation = if args.targets == 1 {
-        ObservationKind::Position
-    } else {
-        ObservationKind::Pose
+    let measured = match &args.measurements {
+        Some(path) => {
+            let options = MeasurementReadOptions {
+                length_unit: args.length_unit,
+                angle_unit: match args.angle_unit {
+                    AngleUnit::Rad => treecal::io::AngleUnit::Radian,
+                    AngleUnit::Deg => treecal::io::AngleUnit::Degree,
+                },
+                ignore_columns: args.ignore_columns.clone(),
+                strict_limits: false,
+            };
+            let set = read_measurements(path, tree, &model, &options)?;
+            for warning in &set.warnings {
+                eprintln!("treecal: warning: {warning}");
+            }
+            Some((path, set))
+        }
+        None => None,
+    };
+    let observation = match &measured {
+        Some((_, set)) if set.observation == treecal::io::ObservationKind::Position => {
+            ObservationKind::Position
+        }
+        Some(_) => ObservationKind::Pose,
+        None if args.targets == 1 => ObservationKind::Position,
+        None => ObservationKind::Pose,
     };
     let every_tool = |configurations: Vec<Vec<f64>>, stage: &str| -> Vec<PoseRow> {
         configurations
@@ -75,8 +90,22 @@ pub fn run(args: CheckArgs) -> Result<()> {
             .collect()
     };
     let staged = matches!(args.plan, PlanChoice::Staged);
-    let (rows, has_stage, source) = match &args.poses {
-        Some(path) => {
+    let (rows, has_stage, source) = match (&args.poses, measured) {
+        (_, Some((path, set))) => {
+            let rows: Vec<PoseRow> = set
+                .measurements
+                .iter()
+                .map(|m| PoseRow {
+                    tool: m.tool,
+                    q: m.q.clone(),
+                    stage: m.stage.clone(),
+                })
+                .collect();
+            let has_stage = rows.iter().any(|r| r.stage.is_some());
+            let source = format!("{} ({} observations)", path.display(), rows.len());
+            (rows, has_stage, source)
+        }
+        (Some(path), None) => {
             let origin = path.display().to_string();
             let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
                 path: path.clone(),
@@ -101,7 +130,7 @@ pub fn run(args: CheckArgs) -> Result<()> {
             let source = format!("{origin} ({} rows)", table.records.len());
             (set.rows, set.has_stage, source)
         }
-        None => {
+        (None, None) => {
             let checker = CollisionChecker::new(tree)?;
             let torso = if staged { DEFAULT_TORSO } else { 0 };
             let set = staged_pose_set(

@@ -190,6 +190,11 @@ pub struct SimulateArgs {
     /// Also write trial 1's simulated measurements as CSV (docs/file-formats.md).
     #[arg(long, value_name = "FILE")]
     pub write_measurements: Option<PathBuf>,
+    /// Layout of --write-measurements: `si` (poses or positions, m and rad) or `tracker`
+    /// (three targets A, B, C per tool in mm, joints in deg, as tracker software exports them;
+    /// needs --targets 3). Read back with `calibrate --length-unit mm --angle-unit deg`.
+    #[arg(long, value_enum, default_value = "si")]
+    pub measurement_format: MeasurementFormat,
     /// Where the identification configurations come from: drawn at random, or planned (O1,
     /// greedy + DETMAX) from --candidates random ones with the nominal model in every trial.
     #[arg(long, value_enum, default_value = "random")]
@@ -317,6 +322,12 @@ pub struct CheckArgs {
     /// Measurement CSV (docs/file-formats.md): its configurations, tools and stages are analysed.
     #[arg(long, value_name = "M.csv")]
     pub measurements: Option<PathBuf>,
+    /// Unit of lengths in --measurements (positions, targets, prismatic joints).
+    #[arg(long, default_value = "m", value_parser = parse_length_unit)]
+    pub length_unit: treecal::io::LengthUnit,
+    /// Columns of --measurements to skip, comma-separated.
+    #[arg(long, value_delimiter = ',', value_name = "COLUMN,COLUMN")]
+    pub ignore_columns: Vec<String>,
     /// Targets per tool: 3 (a full pose) or 1 (a position).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     pub targets: u8,
@@ -428,4 +439,13 @@ fn parse_length_unit(text: &str) -> Result<treecal::io::LengthUnit, String> {
 
 fn parse_angle_unit(text: &str) -> Result<treecal::io::AngleUnit, String> {
     text.parse().map_err(|e: treecal::Error| e.to_string())
+}
+
+/// How `simulate --write-measurements` writes the CSV.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum MeasurementFormat {
+    /// Poses (or positions), metres and radians.
+    Si,
+    /// Three targets per tool, millimetres and degrees.
+    Tracker,
 }

@@ -1,10 +1,11 @@
 //! `treecal simulate`.
 
-use crate::cli::{PlanChoice, PosesFrom, SimulateArgs};
+use crate::cli::{MeasurementFormat, PlanChoice, PosesFrom, SimulateArgs};
 use std::io::IsTerminal;
 use treecal::calibration::Plan;
 use treecal::io::{
-    measurements_to_csv, parse_stiffness, read_stiffness, to_json, write_atomically,
+    measurements_to_csv, measurements_to_csv_with, parse_stiffness, read_stiffness, to_json,
+    write_atomically, LengthUnit, MeasurementWriteOptions,
 };
 use treecal::kinematics::FlexibilityModel;
 use treecal::report::plot::{error_plot_svg, ErrorPlot, Series};
@@ -222,10 +223,28 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             }
         }
         if let Some(path) = &args.write_measurements {
-            write_atomically(
-                path,
-                measurements_to_csv(tree, &nominal, &first.measurements)?.as_bytes(),
-            )?;
+            let text = match args.measurement_format {
+                MeasurementFormat::Si => measurements_to_csv(tree, &nominal, &first.measurements)?,
+                MeasurementFormat::Tracker => {
+                    if args.targets != 3 {
+                        return Err(invalid(
+                            "--measurement-format",
+                            "tracker writes three targets per tool; use it with --targets 3".into(),
+                        ));
+                    }
+                    measurements_to_csv_with(
+                        tree,
+                        &nominal,
+                        &first.measurements,
+                        &MeasurementWriteOptions {
+                            length_unit: LengthUnit::Millimetre,
+                            angle_unit: treecal::io::AngleUnit::Degree,
+                            three_targets: true,
+                        },
+                    )?
+                }
+            };
+            write_atomically(path, text.as_bytes())?;
         }
     }
     print!("{markdown}");
