@@ -9,7 +9,7 @@ use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::Pose;
 use crate::measurement::{Measurement, Observation};
 use crate::tree::{Branches, KinematicTree};
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
@@ -112,6 +112,9 @@ pub struct ArmResiduals {
 pub struct CalibrationRun {
     /// The closed-form start: measurement frame and tool frames.
     pub guess: InitialGuess,
+    /// With flexibility compensation and a fitted measurement frame: how the frame was
+    /// refined jointly with the parameters (`None` otherwise).
+    pub frame_refinement: Option<FrameRefinement>,
     /// The plan's outcome (the calibrated model is `report.model`).
     pub report: CalibrationReport,
     /// Every MCPC parameter, in [`McpcModel::parameters`] order.
@@ -193,7 +196,8 @@ pub fn run_calibration(
         }),
         None => Compensation::None,
     };
-    let report = calibrate(
+    let mut guess = guess;
+    let mut report = calibrate(
         input.branches,
         &guess.model,
         measurements,
@@ -201,6 +205,13 @@ pub fn run_calibration(
         input.plan,
         input.options,
     )?;
+    let mut frame_refinement = None;
+    if let (true, Some(flexibility)) = (input.fit_measurement_frame, input.flexibility) {
+        let refined = refine_measurement_frame(input, flexibility, measurements, &report)?;
+        guess.world_from_base = refined.report.model.world_from_base();
+        report = refined.report;
+        frame_refinement = Some(refined.summary);
+    }
     let parameters = estimates(input, &guess.model, &report);
     let predict = |model: &McpcModel, q: &[f64]| -> Result<Vec<Pose>> {
         match input.flexibility {
@@ -222,6 +233,7 @@ pub fn run_calibration(
     let predicted_validation_rms_mm = predicted_rms(&report, validation);
     Ok(CalibrationRun {
         guess,
+        frame_refinement,
         report,
         parameters,
         identification,
@@ -410,4 +422,198 @@ fn tools_only_guess(nominal: &McpcModel, measurements: &[Measurement]) -> Result
     let mut start = nominal.clone();
     start.set_world_from_base(&Pose::identity());
     initial_tool_frames(&start, measurements)
+}
+
+/// How the measurement frame was refined (see [`run_calibration`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameRefinement {
+    /// Gauss–Newton iterations over the six frame parameters.
+    pub iterations: usize,
+    /// Weighted cost ½‖r‖² with the closed-form frame, and after refinement.
+    pub cost: [f64; 2],
+    /// Rotation (rad) and translation (m) of the frame correction.
+    pub correction: [f64; 2],
+    /// How many of the six frame directions the data determine (the rest are only fixed
+    /// by the rigid kinematics, which cannot tell them from the parameters).
+    pub determined: usize,
+}
+
+struct Refined {
+    report: CalibrationReport,
+    summary: FrameRefinement,
+}
+
+/// Rigid kinematics cannot tell the measurement frame from the MCPC parameters (the model is
+/// complete: any frame error is absorbed by them), but the deflections can: gravity and the
+/// lever arms of the loads are fixed in space, and the absorbed parametrisation places joints
+/// and masses differently. A frame fitted to the nominal model (off by the geometric errors)
+/// therefore leaves a systematic error of the order of deflection × relative geometric error.
+/// This refines the six frame parameters by variable projection: Gauss–Newton on the weighted
+/// residual *after* calibrating the parameters at each trial frame, with forward-difference
+/// derivatives (each a warm-started calibration) and a Gaussian prior centred on the closed-form
+/// frame ([`FRAME_PRIOR_LENGTH`], [`FRAME_PRIOR_ANGLE`]) for the directions the data leave free.
+fn refine_measurement_frame(
+    input: &CalibrationInput<'_>,
+    flexibility: &FlexibilityModel,
+    measurements: &[Measurement],
+    start: &CalibrationReport,
+) -> Result<Refined> {
+    let predictor = super::solver::Deflected {
+        tree: input.tree,
+        flexibility,
+    };
+    let residual_of = |report: &CalibrationReport| {
+        super::solver::weighted_residual(&report.model, measurements, &predictor, input.options)
+    };
+    let calibrate_at = |from: &McpcModel, frame: &Pose| -> Result<CalibrationReport> {
+        let mut model = from.clone();
+        model.set_world_from_base(frame);
+        calibrate(
+            input.branches,
+            &model,
+            measurements,
+            Compensation::Exact(predictor),
+            input.plan,
+            input.options,
+        )
+    };
+    // Frame perturbation: world_from_base ← exp(δ)·world_from_base, δ = (translation, rotation)
+    // in the measurement frame.
+    let moved = |frame: &Pose, delta: &[f64]| -> Pose {
+        let translation = nalgebra::Translation3::new(delta[0], delta[1], delta[2]);
+        let rotation = nalgebra::UnitQuaternion::from_scaled_axis(nalgebra::Vector3::new(
+            delta[3], delta[4], delta[5],
+        ));
+        let mut pose = Pose::from_parts(translation, rotation) * frame;
+        // Rotate about the frame's own origin, not the measurement origin.
+        pose.translation.vector = frame.translation.vector + translation.vector;
+        pose
+    };
+    const STEP: f64 = 1e-4;
+    const MAX_ITERATIONS: usize = 10;
+    let initial_frame = start.model.world_from_base();
+    // The correction from the closed-form frame as (translation, rotation vector).
+    let correction_of = |frame: &Pose| -> DVector<f64> {
+        let t = frame.translation.vector - initial_frame.translation.vector;
+        let r = (frame.rotation * initial_frame.rotation.inverse()).scaled_axis();
+        DVector::from_column_slice(&[t.x, t.y, t.z, r.x, r.y, r.z])
+    };
+    let prior: DVector<f64> = DVector::from_column_slice(&[
+        1.0 / FRAME_PRIOR_LENGTH,
+        1.0 / FRAME_PRIOR_LENGTH,
+        1.0 / FRAME_PRIOR_LENGTH,
+        1.0 / FRAME_PRIOR_ANGLE,
+        1.0 / FRAME_PRIOR_ANGLE,
+        1.0 / FRAME_PRIOR_ANGLE,
+    ]);
+    let total_cost = |residual: &DVector<f64>, frame: &Pose| -> f64 {
+        0.5 * residual.norm_squared()
+            + 0.5 * correction_of(frame).component_mul(&prior).norm_squared()
+    };
+    let mut current = start.clone();
+    let mut residual = residual_of(&current)?;
+    let initial_cost = 0.5 * residual.norm_squared();
+    let mut iterations = 0;
+    let mut determined = 0;
+    let mut damping = 0.0;
+    while iterations < MAX_ITERATIONS {
+        let frame = current.model.world_from_base();
+        let mut jacobian = DMatrix::zeros(residual.len(), 6);
+        for k in 0..6 {
+            let mut delta = [0.0; 6];
+            delta[k] = STEP;
+            let shifted = calibrate_at(&current.model, &moved(&frame, &delta))?;
+            let column = (residual_of(&shifted)? - &residual) / STEP;
+            jacobian.set_column(k, &column);
+        }
+        let singular_values = jacobian.clone().svd(false, false).singular_values;
+        let largest = singular_values.max();
+        // Directions the data determine better than the prior does.
+        determined = singular_values
+            .iter()
+            .filter(|&&s| s > 1.0 / FRAME_PRIOR_LENGTH.max(FRAME_PRIOR_ANGLE) && s > 1e-6 * largest)
+            .count();
+        let cost = total_cost(&residual, &frame);
+        let weights = prior.component_mul(&prior);
+        let normal = jacobian.tr_mul(&jacobian) + DMatrix::from_diagonal(&weights);
+        let gradient = jacobian.tr_mul(&residual) + correction_of(&frame).component_mul(&weights);
+        let mut accepted = false;
+        for _ in 0..10 {
+            let damped = &normal + DMatrix::identity(6, 6) * damping;
+            let Some(cholesky) = damped.cholesky() else {
+                break;
+            };
+            let step = -cholesky.solve(&gradient);
+            let trial_frame = moved(&frame, step.as_slice());
+            let trial = calibrate_at(&current.model, &trial_frame)?;
+            let trial_residual = residual_of(&trial)?;
+            let trial_cost = total_cost(&trial_residual, &trial_frame);
+            if trial_cost < cost {
+                current = trial;
+                residual = trial_residual;
+                damping *= 0.1;
+                accepted = true;
+                iterations += 1;
+                if step.norm() < 1e-9 || cost - trial_cost <= 1e-8 * cost {
+                    return Ok(finish(
+                        current,
+                        residual,
+                        initial_cost,
+                        iterations,
+                        determined,
+                        &initial_frame,
+                    ));
+                }
+                break;
+            }
+            damping = if damping == 0.0 {
+                1e-6 * normal.diagonal().max()
+            } else {
+                damping * 10.0
+            };
+        }
+        if !accepted {
+            break;
+        }
+    }
+    Ok(finish(
+        current,
+        residual,
+        initial_cost,
+        iterations,
+        determined,
+        &initial_frame,
+    ))
+}
+
+/// How far (m) the refined measurement frame is expected to be from the closed-form fit: the
+/// scale of a Gaussian prior that keeps the directions the deflections hardly see (such as a
+/// turn about the vertical) where the closed form put them.
+pub const FRAME_PRIOR_LENGTH: f64 = 0.01;
+
+/// The same for rotations (rad).
+pub const FRAME_PRIOR_ANGLE: f64 = 0.01;
+
+fn finish(
+    report: CalibrationReport,
+    residual: DVector<f64>,
+    initial_cost: f64,
+    iterations: usize,
+    determined: usize,
+    initial_frame: &Pose,
+) -> Refined {
+    let frame = report.model.world_from_base();
+    let change = frame * initial_frame.inverse();
+    Refined {
+        summary: FrameRefinement {
+            iterations,
+            cost: [initial_cost, 0.5 * residual.norm_squared()],
+            correction: [
+                change.rotation.angle(),
+                (frame.translation.vector - initial_frame.translation.vector).norm(),
+            ],
+            determined,
+        },
+        report,
+    }
 }

@@ -309,6 +309,18 @@ fn rows_of(measurements: &[Measurement]) -> usize {
 }
 
 /// Raw (unweighted) residual of one measurement: measured ⊖ predicted − offset.
+/// The weighted residual of every measurement (position rows over `position_sigma`, rotation
+/// rows over `rotation_sigma`) under `predictor` at `model`: the vector whose half squared norm
+/// [`identify`] minimises.
+pub fn weighted_residual(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    predictor: &dyn Predictor,
+    options: &IdentificationOptions,
+) -> Result<DVector<f64>> {
+    Ok(linearise(model, measurements, None, predictor, &[], options, false)?.residual)
+}
+
 fn raw_residual(
     measured: &Observation,
     predicted: &Pose,

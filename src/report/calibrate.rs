@@ -66,6 +66,8 @@ pub struct CalibrationSummary {
     pub measurement_frame: FrameValues,
     /// RMS position distance before / after the closed-form initial guess (m).
     pub initial_guess_rms_m: [f64; 2],
+    /// How the measurement frame was refined jointly with the parameters, if it was.
+    pub frame_refinement: Option<crate::calibration::run::FrameRefinement>,
     /// Plan repetitions.
     pub cycles: usize,
     /// Per stage.
@@ -140,6 +142,7 @@ pub fn calibration_summary(
         context,
         measurement_frame: FrameValues::of(&run.guess.world_from_base),
         initial_guess_rms_m: [run.guess.rms_before, run.guess.rms_after],
+        frame_refinement: run.frame_refinement.clone(),
         cycles: run.report.cycles,
         stages,
         parameters: run.parameters.clone(),
@@ -222,6 +225,19 @@ pub fn calibration_markdown(
         summary.initial_guess_rms_m[0] * 1e3,
         summary.initial_guess_rms_m[1] * 1e3,
     );
+
+    if let Some(r) = &summary.frame_refinement {
+        let _ = writeln!(
+            out,
+            "The measurement frame was then refined with the parameters through the deflections ({} iteration(s), {} of 6 directions determined; moved by {:.4} deg and {:.3} mm; cost {:.4e} → {:.4e}).\n",
+            r.iterations,
+            r.determined,
+            r.correction[0].to_degrees(),
+            r.correction[1] * 1e3,
+            r.cost[0],
+            r.cost[1]
+        );
+    }
 
     // Table 3 layout.
     for (title, arms) in [
