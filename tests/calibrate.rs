@@ -585,3 +585,217 @@ fn standard_deviations_match_a_monte_carlo() {
         );
     }
 }
+
+/// `treecal simulate --write-measurements` (one trial: 10 torso + 20 arm configurations, two
+/// tools, poses): the measurement file of the CLI tests below.
+fn simulated_csv(dir: &Path) -> std::path::PathBuf {
+    let csv = dir.join("m.csv");
+    let run = treecal(&[
+        "simulate",
+        "--trials",
+        "1",
+        "--write-measurements",
+        path_str(&csv),
+        "--out",
+        path_str(&dir.join("simulate")),
+    ]);
+    assert_success(&run, "simulate");
+    csv
+}
+
+fn calibrate_into(out: &Path, extra: &[&str]) -> Run {
+    let mut args = vec!["calibrate", "--out", path_str(out)];
+    args.extend_from_slice(extra);
+    treecal(&args)
+}
+
+/// Bad input fails with one clear error and leaves `--out` untouched: the command computes
+/// everything before it writes anything.
+#[test]
+fn bad_input_fails_cleanly_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulated_csv(dir.path());
+    let m = path_str(&csv);
+    let out = dir.path().join("out");
+    let check = |extra: &[&str], needles: &[&str], what: &str| {
+        let run = calibrate_into(&out, extra);
+        assert_error(&run, needles, what);
+        assert!(!out.exists(), "{what}: {} was created", out.display());
+    };
+
+    let missing = dir.path().join("missing.csv");
+    check(
+        &["--measurements", path_str(&missing)],
+        &["missing.csv"],
+        "missing measurements",
+    );
+
+    // A bad cell: line 3 (the second data row), column `torso_joint2` (the fifth).
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    assert_eq!(header[4], "torso_joint2");
+    let mut cells: Vec<String> = lines[2].split(',').map(str::to_owned).collect();
+    cells[4] = "abc".into();
+    lines[2] = cells.join(",");
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, lines.join("\n") + "\n").unwrap();
+    check(
+        &["--measurements", path_str(&bad)],
+        &["bad.csv:3:torso_joint2", "'abc'"],
+        "bad cell",
+    );
+
+    // Too few configurations to hold out a fifth (and keep some to identify from).
+    let few = dir.path().join("few.csv");
+    std::fs::write(
+        &few,
+        text.lines().take(5).collect::<Vec<_>>().join("\n") + "\n",
+    )
+    .unwrap();
+    check(
+        &["--measurements", path_str(&few)],
+        &["too few to hold out", "--validation"],
+        "too few configurations",
+    );
+
+    let no_plan = dir.path().join("nonexistent.yaml");
+    check(
+        &["--measurements", m, "--plan", path_str(&no_plan)],
+        &["nonexistent.yaml"],
+        "missing plan",
+    );
+    for sigma in ["--position-sigma", "--rotation-sigma"] {
+        check(&["--measurements", m, sigma, "0"], &[sigma], sigma);
+    }
+
+    // Fails only in the calibration, after everything was read and the fifth held out.
+    let plan = dir.path().join("plan.yaml");
+    std::fs::write(
+        &plan,
+        "stages:\n  - name: all\n    parameters: all\n    measurements: nosuchstage\n",
+    )
+    .unwrap();
+    check(
+        &["--measurements", m, "--plan", path_str(&plan)],
+        &["nosuchstage"],
+        "plan naming no rows",
+    );
+    // Fails on the validation file, read after the measurements.
+    check(
+        &["--measurements", m, "--validation", path_str(&bad)],
+        &["bad.csv:3:torso_joint2"],
+        "bad validation file",
+    );
+}
+
+/// `treecal export --params out/params.yaml` rebuilds `out/calibrated.urdf` byte for byte.
+#[test]
+fn export_of_the_parameter_file_reproduces_the_calibrated_urdf() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulated_csv(dir.path());
+    let out = dir.path().join("out");
+    let run = calibrate_into(
+        &out,
+        &[
+            "--measurements",
+            path_str(&csv),
+            "--stiffness",
+            path_str(&stiffness_path()),
+            "--measurement-frame",
+            "base",
+        ],
+    );
+    assert_success(&run, "calibrate");
+    let exported = dir.path().join("exported.urdf");
+    let run = treecal(&[
+        "export",
+        "--params",
+        path_str(&out.join("params.yaml")),
+        "-o",
+        path_str(&exported),
+    ]);
+    assert_success(&run, "export");
+    let a = std::fs::read(out.join("calibrated.urdf")).unwrap();
+    let b = std::fs::read(&exported).unwrap();
+    assert!(a == b, "export of params.yaml differs from calibrated.urdf");
+}
+
+/// Without `--validation`, a seeded fifth of the configurations is held out: whole
+/// configurations (both tools), never torso rows, the same for the same seed; report.json says
+/// how many.
+#[test]
+fn a_seeded_fifth_is_held_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = simulated_csv(dir.path());
+    let robot = built_in();
+    let set = treecal::io::read_measurements(
+        &csv,
+        &robot.tree,
+        &robot.nominal,
+        &treecal::io::MeasurementReadOptions::default(),
+    )
+    .unwrap();
+    let all = set.measurements;
+    let arm_configurations = all
+        .iter()
+        .filter(|m| m.stage.as_deref() == Some("arms"))
+        .count()
+        / 2;
+    assert_eq!(arm_configurations, 20);
+    for seed in [0, 1, 7] {
+        let (identification, validation) = hold_out(&all, 0.2, seed).unwrap();
+        assert_eq!(identification.len() + validation.len(), all.len());
+        assert!(validation
+            .iter()
+            .all(|m| m.stage.as_deref() == Some("arms")));
+        let mut held: Vec<&[f64]> = validation.iter().map(|m| m.q.as_slice()).collect();
+        held.dedup();
+        assert_eq!(held.len(), 4, "seed {seed}: a fifth of 20 configurations");
+        for q in &held {
+            let tools: Vec<usize> = validation
+                .iter()
+                .filter(|m| m.q == *q)
+                .map(|m| m.tool)
+                .collect();
+            assert_eq!(tools, [0, 1], "seed {seed}: whole configurations");
+            assert!(
+                identification.iter().all(|m| m.q != *q),
+                "seed {seed}: a held-out configuration is also identified from"
+            );
+        }
+        let again = hold_out(&all, 0.2, seed).unwrap();
+        assert_eq!((identification, validation), again, "seed {seed}");
+    }
+    assert_ne!(
+        hold_out(&all, 0.2, 0).unwrap().1,
+        hold_out(&all, 0.2, 1).unwrap().1,
+        "different seeds hold out different configurations"
+    );
+
+    let reports: Vec<String> = ["a", "b"]
+        .iter()
+        .map(|name| {
+            let out = dir.path().join(name);
+            let run = calibrate_into(&out, &["--measurements", path_str(&csv), "--seed", "3"]);
+            assert_success(&run, "calibrate");
+            assert!(
+                run.stderr.contains("8 of 60 observations held out"),
+                "{run}"
+            );
+            let report = read_json(&out.join("report.json"));
+            assert!(
+                report["context"]["validation"]
+                    .as_str()
+                    .unwrap()
+                    .starts_with("8 of 60 observations held out"),
+                "{report}"
+            );
+            for arm in report["validation"].as_array().unwrap() {
+                assert_eq!(arm["observations"], 4, "{arm}");
+            }
+            std::fs::read_to_string(out.join("report.json")).unwrap()
+        })
+        .collect();
+    assert_eq!(reports[0], reports[1], "the same seed, the same report");
+}
