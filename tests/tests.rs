@@ -3,6 +3,7 @@
 mod common;
 
 mod branches;
+mod calibrate;
 mod cli;
 mod collision;
 mod export;

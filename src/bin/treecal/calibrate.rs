@@ -48,16 +48,23 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         ignore_columns: args.ignore_columns.clone(),
         strict_limits: args.strict,
     };
-    let read = |path: &std::path::Path| -> Result<Vec<treecal::measurement::Measurement>> {
+    // Warnings and notes are printed once everything is computed, so that a failure reads as
+    // one `treecal: error:` line.
+    let mut notes: Vec<String> = Vec::new();
+    let read = |path: &std::path::Path,
+                notes: &mut Vec<String>|
+     -> Result<Vec<treecal::measurement::Measurement>> {
         let set = read_measurements(path, tree, &nominal, &read_options)?;
-        for warning in &set.warnings {
-            eprintln!("treecal: warning: {warning}");
-        }
+        notes.extend(
+            set.warnings
+                .iter()
+                .map(|warning| format!("treecal: warning: {warning}")),
+        );
         Ok(set.measurements)
     };
-    let all = read(&args.measurements)?;
+    let all = read(&args.measurements, &mut notes)?;
     let (measurements, validation, validation_source) = match &args.validation {
-        Some(path) => (all, read(path)?, path.display().to_string()),
+        Some(path) => (all, read(path, &mut notes)?, path.display().to_string()),
         None => {
             let (identification, validation) = hold_out(&all, HOLD_OUT, args.seed)?;
             let source = format!(
@@ -66,7 +73,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 all.len(),
                 args.seed
             );
-            eprintln!("treecal: note: {source}");
+            notes.push(format!("treecal: note: {source}"));
             (identification, validation, source)
         }
     };
@@ -82,8 +89,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         ),
         None if labelled => (Plan::staged(), "staged".to_owned()),
         None => {
-            eprintln!(
-                "treecal: note: no rows are labelled stage=torso, so the simultaneous plan is used (label torso rows, taken with the arms locked, for the staged plan)"
+            notes.push(
+                "treecal: note: no rows are labelled stage=torso, so the simultaneous plan is used (label torso rows, taken with the arms locked, for the staged plan)".into()
             );
             (Plan::simultaneous(), "simultaneous".to_owned())
         }
@@ -178,6 +185,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut plots = calibration_plots(&run.identification, "measurement")?;
     plots.extend(calibration_plots(&run.validation, "validation")?);
 
+    for note in &notes {
+        eprintln!("{note}");
+    }
     std::fs::create_dir_all(&args.out).map_err(|source| Error::Io {
         path: args.out.clone(),
         source,
