@@ -126,6 +126,9 @@ pub struct CalibrationRun {
     /// Predicted RMS position error at the validation configurations from the parameter
     /// covariance alone (mm): what the noise of the identification data leaves.
     pub predicted_validation_rms_mm: Option<f64>,
+    /// The predicted position error distribution per validation observation: the standard
+    /// deviation `√trace(J_p·C·J_pᵀ)` (mm), in validation order.
+    pub predicted_validation_sd_mm: Vec<f64>,
 }
 
 /// Splits off a seeded fifth of the configurations for validation: whole configurations
@@ -230,7 +233,17 @@ pub fn run_calibration(
     } else {
         residuals(validation)?
     };
-    let predicted_validation_rms_mm = predicted_rms(&report, validation);
+    let predicted_validation_sd_mm = predicted_spread(&report, validation);
+    let predicted_validation_rms_mm = (!predicted_validation_sd_mm.is_empty())
+        .then(|| {
+            (predicted_validation_sd_mm
+                .iter()
+                .map(|s| s * s)
+                .sum::<f64>()
+                / predicted_validation_sd_mm.len() as f64)
+                .sqrt()
+        })
+        .filter(|rms| rms.is_finite());
     Ok(CalibrationRun {
         guess,
         frame_refinement,
@@ -239,6 +252,7 @@ pub fn run_calibration(
         identification,
         validation: validation_residuals,
         predicted_validation_rms_mm,
+        predicted_validation_sd_mm,
     })
 }
 
@@ -398,22 +412,27 @@ fn arm_residuals(
         .collect())
 }
 
-/// RMS over the validation observations of `√trace(J_p·C·J_pᵀ)`, with `C` the assembled
-/// parameter covariance ([`assembled_covariance`]) (mm). `None` without validation data.
-fn predicted_rms(report: &CalibrationReport, validation: &[Measurement]) -> Option<f64> {
+/// Per validation observation, `√trace(J_p·C·J_pᵀ)` with `C` the assembled parameter
+/// covariance ([`assembled_covariance`]) (mm): the spread of the predicted position that the
+/// identification noise leaves.
+fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> Vec<f64> {
     if validation.is_empty() {
-        return None;
+        return Vec::new();
     }
     let covariance = assembled_covariance(report);
     let model = &report.model;
-    let mut sum = 0.0;
-    for m in validation {
-        let jacobian = model.tool_jacobian(m.tool, &m.q).jacobian;
-        let position = jacobian.rows(0, 3);
-        sum += (position * &covariance * position.transpose()).trace();
-    }
-    let rms = (sum / validation.len() as f64).sqrt() * 1e3;
-    rms.is_finite().then_some(rms)
+    validation
+        .iter()
+        .map(|m| {
+            let jacobian = model.tool_jacobian(m.tool, &m.q).jacobian;
+            let position = jacobian.rows(0, 3);
+            (position * &covariance * position.transpose())
+                .trace()
+                .max(0.0)
+                .sqrt()
+                * 1e3
+        })
+        .collect()
 }
 
 /// The initial guess with the measurement frame fixed at the root frame: only the tool frames

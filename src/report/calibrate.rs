@@ -80,6 +80,8 @@ pub struct CalibrationSummary {
     pub validation: Vec<ArmResiduals>,
     /// RMS validation position error the parameter covariance predicts (mm).
     pub predicted_validation_rms_mm: Option<f64>,
+    /// The predicted position error standard deviation per validation observation (mm).
+    pub predicted_validation_sd_mm: Vec<f64>,
     /// Joints whose URDF origin (or axis) the export changed.
     pub changed_joints: Vec<String>,
 }
@@ -149,6 +151,7 @@ pub fn calibration_summary(
         identification: run.identification.clone(),
         validation: run.validation.clone(),
         predicted_validation_rms_mm: run.predicted_validation_rms_mm,
+        predicted_validation_sd_mm: run.predicted_validation_sd_mm.clone(),
         changed_joints,
     }
 }
@@ -282,9 +285,15 @@ pub fn calibration_markdown(
         out.push('\n');
     }
     if let Some(rms) = summary.predicted_validation_rms_mm {
+        let mut spread = summary.predicted_validation_sd_mm.clone();
+        spread.sort_by(f64::total_cmp);
+        let at = |f: f64| spread[((spread.len() - 1) as f64 * f).round() as usize];
         let _ = writeln!(
             out,
-            "The parameter covariance predicts an RMS validation position error of {rms:.4} mm from the measurement noise alone (the model error adds to it).\n"
+            "The parameter covariance predicts the position error the measurement noise alone leaves at the validation configurations: RMS {rms:.4} mm; per observation a standard deviation of {:.4} mm (median), {:.4} mm (95th percentile), {:.4} mm (largest). The model error adds to it.\n",
+            at(0.5),
+            at(0.95),
+            at(1.0)
         );
     }
 
