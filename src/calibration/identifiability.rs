@@ -396,12 +396,7 @@ pub fn analyse(
     options: &IdentifiabilityOptions,
 ) -> Result<IdentifiabilityReport> {
     validate(model, rows, &[], options)?;
-    let coupled_frames: Vec<usize> = branches
-        .coupled
-        .joints
-        .iter()
-        .filter_map(|j| model.frame_of_joint(*j))
-        .collect();
+    let coupled_frames = super::plan::coupled_frames(model, branches);
     let (analysed, analysed_rows, free, names, locked_tools) = match options.parameters {
         ParameterSet::Coupled => {
             let as_measurements: Vec<Measurement> = rows
@@ -428,16 +423,7 @@ pub fn analyse(
             (stage_model, stage_rows, free, names, locked_tools)
         }
         ParameterSet::Arms | ParameterSet::All => {
-            let free: Vec<usize> = model
-                .parameter_layout()
-                .iter()
-                .enumerate()
-                .filter(|(_, (owner, _))| {
-                    options.parameters == ParameterSet::All
-                        || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
-                })
-                .map(|(i, _)| i)
-                .collect();
+            let free = super::plan::stage_parameters(model, &coupled_frames, options.parameters);
             let names = (0..model.parameter_count())
                 .map(|p| model.parameter_name(tree, p))
                 .collect();

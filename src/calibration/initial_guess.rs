@@ -86,12 +86,7 @@ pub fn initial_guess(
     measurements: &[Measurement],
     rounds: usize,
 ) -> Result<InitialGuess> {
-    if measurements.is_empty() {
-        return Err(Error::InvalidData {
-            origin: "initial guess".into(),
-            message: "no measurements".into(),
-        });
-    }
+    require_measurements(measurements)?;
     let rms_before = position_rms(model, measurements);
     let mut current = model.clone();
     for _ in 0..rounds.max(1) {
@@ -182,12 +177,7 @@ pub fn initial_tool_frames(
     model: &McpcModel,
     measurements: &[Measurement],
 ) -> Result<InitialGuess> {
-    if measurements.is_empty() {
-        return Err(Error::InvalidData {
-            origin: "initial guess".into(),
-            message: "no measurements".into(),
-        });
-    }
+    require_measurements(measurements)?;
     let rms_before = position_rms(model, measurements);
     let current = fit_tools(model, measurements)?;
     Ok(InitialGuess {
@@ -196,4 +186,14 @@ pub fn initial_tool_frames(
         rms_after: position_rms(&current, measurements),
         model: current,
     })
+}
+
+fn require_measurements(measurements: &[Measurement]) -> Result<()> {
+    if measurements.is_empty() {
+        return Err(Error::InvalidData {
+            origin: "initial guess".into(),
+            message: "no measurements".into(),
+        });
+    }
+    Ok(())
 }

@@ -90,6 +90,22 @@ pub struct StageReport {
     pub identification: IdentificationReport,
 }
 
+impl StageReport {
+    /// How many of the stage's parameters are parameters of the full model, in the same
+    /// order: all of them (`usize::MAX`), except for a coupled stage, whose reduced model has
+    /// the torso frames first and then six parameters per locked-arm tool.
+    pub fn full_model_parameters(&self) -> usize {
+        if self.locked_tools > 0 {
+            self.identification
+                .parameters
+                .len()
+                .saturating_sub(6 * self.locked_tools)
+        } else {
+            usize::MAX
+        }
+    }
+}
+
 /// The outcome of a plan.
 #[derive(Debug, Clone)]
 pub struct CalibrationReport {
@@ -138,12 +154,7 @@ pub fn calibrate(
             message: "the plan has no stages".into(),
         });
     }
-    let coupled_frames: Vec<usize> = branches
-        .coupled
-        .joints
-        .iter()
-        .filter_map(|j| model.frame_of_joint(*j))
-        .collect();
+    let coupled_frames = coupled_frames(model, branches);
     // Eq. (26): the linear D_f of every measurement, once, at the starting model.
     let linear_offsets: Option<Vec<Vector6<f64>>> = match compensation {
         Compensation::Linear(source) => Some(
@@ -281,16 +292,7 @@ pub fn calibrate(
                     }
                 }
                 ParameterSet::Arms | ParameterSet::All => {
-                    let free: Vec<usize> = current
-                        .parameter_layout()
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, (owner, _))| {
-                            stage.parameters == ParameterSet::All
-                                || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
-                        })
-                        .map(|(i, _)| i)
-                        .collect();
+                    let free = stage_parameters(&current, &coupled_frames, stage.parameters);
                     let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
                         .as_ref()
                         .map(|o| selected.iter().map(|&i| o[i]).collect());
@@ -334,6 +336,36 @@ pub fn calibrate(
         stages: reports,
         cycles,
     })
+}
+
+/// The model frames of the coupled branch's joints (the torso), parents first.
+pub fn coupled_frames(model: &McpcModel, branches: &Branches) -> Vec<usize> {
+    branches
+        .coupled
+        .joints
+        .iter()
+        .filter_map(|j| model.frame_of_joint(*j))
+        .collect()
+}
+
+/// The parameters an `Arms` or `All` stage frees: everything, or everything but the torso
+/// frames (`coupled_frames`). A `Coupled` stage works on its own reduced model
+/// ([`locked_arm_model`]), whose parameters are all free.
+pub fn stage_parameters(
+    model: &McpcModel,
+    coupled_frames: &[usize],
+    set: ParameterSet,
+) -> Vec<usize> {
+    model
+        .parameter_layout()
+        .iter()
+        .enumerate()
+        .filter(|(_, (owner, _))| {
+            set == ParameterSet::All
+                || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
+        })
+        .map(|(i, _)| i)
+        .collect()
 }
 
 /// The coupled-stage model: the torso frames plus one rigid tool per distinct (tool, locked arm

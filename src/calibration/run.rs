@@ -267,11 +267,7 @@ pub fn assembled_covariance(report: &CalibrationReport) -> DMatrix<f64> {
     for stage in &report.stages {
         let id = &stage.identification;
         let Some(c) = &id.covariance else { continue };
-        let limit = if stage.locked_tools > 0 {
-            id.parameters.len().saturating_sub(6 * stage.locked_tools)
-        } else {
-            usize::MAX
-        };
+        let limit = stage.full_model_parameters();
         let kept: Vec<(usize, usize)> = id
             .free
             .iter()
@@ -301,11 +297,7 @@ fn estimates(
     let mut spread: Vec<(Option<f64>, bool)> = vec![(None, true); calibrated.len()];
     for stage in &report.stages {
         let id = &stage.identification;
-        let limit = if stage.locked_tools > 0 {
-            id.parameters.len().saturating_sub(6 * stage.locked_tools)
-        } else {
-            usize::MAX
-        };
+        let limit = stage.full_model_parameters();
         for (k, &p) in id.free.iter().enumerate() {
             if p < limit && p < spread.len() {
                 let sd = id.standard_deviations[k];
@@ -377,35 +369,25 @@ fn arm_residuals(
             }
         }
     }
-    let removed = |before: f64, after: f64| {
-        if before > 0.0 {
-            100.0 * (1.0 - after / before)
-        } else {
-            0.0
-        }
-    };
     Ok((0..tools)
         .filter(|&tool| !position[tool][0].is_empty())
         .map(|tool| {
             let before = ErrorSummary::of(&position[tool][0], &orientation[tool][0]);
             let after = ErrorSummary::of(&position[tool][1], &orientation[tool][1]);
-            let arm = input
-                .branches
-                .arms
-                .iter()
-                .find(|a| a.tool == Some(input.nominal.tools()[tool].link))
-                .map(|a| a.name.clone())
-                .unwrap_or_else(|| format!("tool {tool}"));
+            let arm = input.branches.arm_name(input.nominal.tools()[tool].link);
             ArmResiduals {
                 arm,
                 observations: position[tool][0].len(),
                 before,
                 after,
-                position_removed_percent: removed(before.mean_position_mm, after.mean_position_mm),
+                position_removed_percent: removed_percent(
+                    before.mean_position_mm,
+                    after.mean_position_mm,
+                ),
                 orientation_removed_percent: before
                     .mean_orientation_deg
                     .zip(after.mean_orientation_deg)
-                    .map(|(b, a)| removed(b, a)),
+                    .map(|(b, a)| removed_percent(b, a)),
                 position_mm: position[tool].clone(),
                 orientation_deg: orientation[tool].clone(),
             }
@@ -561,6 +543,7 @@ fn refine_measurement_frame(
         let normal = jacobian.tr_mul(&jacobian) + DMatrix::from_diagonal(&weights);
         let gradient = jacobian.tr_mul(&residual) + correction_of(&frame).component_mul(&weights);
         let mut accepted = false;
+        let mut converged = false;
         for _ in 0..10 {
             let damped = &normal + DMatrix::identity(6, 6) * damping;
             let Some(cholesky) = damped.cholesky() else {
@@ -579,16 +562,7 @@ fn refine_measurement_frame(
                 iterations += 1;
                 // Past the noise floor the cost creeps along the valley the data leave
                 // free; a relative decrease of 1e-5 is far below what noise tells apart.
-                if step.norm() < 1e-9 || cost - trial_cost <= 1e-5 * cost {
-                    return Ok(finish(
-                        current,
-                        residual,
-                        initial_cost,
-                        iterations,
-                        determined,
-                        &initial_frame,
-                    ));
-                }
+                converged = step.norm() < 1e-9 || cost - trial_cost <= 1e-5 * cost;
                 break;
             }
             damping = if damping == 0.0 {
@@ -597,7 +571,7 @@ fn refine_measurement_frame(
                 damping * 10.0
             };
         }
-        if !accepted {
+        if !accepted || converged {
             break;
         }
     }
@@ -640,5 +614,14 @@ fn finish(
             determined,
         },
         report,
+    }
+}
+
+/// The percentage of `before` that `after` removed (0 when there was nothing to remove).
+pub fn removed_percent(before: f64, after: f64) -> f64 {
+    if before > 0.0 {
+        100.0 * (1.0 - after / before)
+    } else {
+        0.0
     }
 }

@@ -2,7 +2,7 @@
 //! (errors before and after, per arm) layouts in markdown, a serialisable summary for JSON, the
 //! parameter file (`params.yaml`) and the per-configuration error plots (Fig. 9–12 style).
 
-use super::plot::{error_plot_svg, ErrorPlot, Series};
+use super::plot::arm_error_plots;
 use crate::calibration::{ArmResiduals, CalibrationRun, IdentificationOptions, ParameterEstimate};
 use crate::error::Result;
 use crate::math::{rpy_from_rotation, Pose};
@@ -377,41 +377,19 @@ pub fn calibration_markdown(
     out
 }
 
-/// The per-configuration error plots of one data set: `(file stem, SVG)` per arm and quantity.
+/// The per-configuration error plots of one data set: `(file stem, SVG)` per arm and quantity,
+/// stems `<arm>_<set>_<quantity>`.
 pub fn calibration_plots(arms: &[ArmResiduals], set: &str) -> Result<Vec<(String, String)>> {
     let mut plots = Vec::new();
     for arm in arms {
-        let quantities = [
-            ("position", "position error (mm)", &arm.position_mm),
-            (
-                "orientation",
-                "orientation error (deg)",
-                &arm.orientation_deg,
-            ),
-        ];
-        for (what, unit, values) in quantities {
-            if values[0].is_empty() {
-                continue;
-            }
-            let plot = ErrorPlot {
-                title: format!("{}: {what} error on the {set} configurations", arm.arm),
-                y_label: unit.into(),
-                series: vec![
-                    Series {
-                        label: "before calibration".into(),
-                        values: values[0].clone(),
-                    },
-                    Series {
-                        label: "after calibration".into(),
-                        values: values[1].clone(),
-                    },
-                ],
-            };
-            plots.push((
-                format!("{}_{set}_{what}", arm.arm.replace('/', "_")),
-                error_plot_svg(&plot)?,
-            ));
-        }
+        plots.extend(arm_error_plots(
+            &arm.arm,
+            &format!("{}_{set}", arm.arm),
+            &format!("on the {set} configurations"),
+            &["before calibration", "after calibration"],
+            &arm.position_mm,
+            &arm.orientation_deg,
+        )?);
     }
     Ok(plots)
 }

@@ -81,6 +81,46 @@ const MARKERS: [Marker; 6] = [
 // Markers closer than this (pixels) are drawn only on every k-th configuration.
 const MARKER_SPACING: f64 = 12.0;
 
+/// The position and orientation plots of one arm (paper Fig. 7–12 style): one curve per
+/// label, `position_mm[k]` and `orientation_deg[k]` per configuration. Returns
+/// `(file stem, SVG)` pairs, `<stem>_<quantity>` with `/` replaced; a quantity without values
+/// (orientation of position-only data) is left out.
+pub fn arm_error_plots(
+    arm: &str,
+    stem: &str,
+    title: &str,
+    labels: &[&str],
+    position_mm: &[Vec<f64>],
+    orientation_deg: &[Vec<f64>],
+) -> Result<Vec<(String, String)>> {
+    let mut plots = Vec::new();
+    for (what, unit, values) in [
+        ("position", "position error (mm)", position_mm),
+        ("orientation", "orientation error (deg)", orientation_deg),
+    ] {
+        if values.iter().all(Vec::is_empty) {
+            continue;
+        }
+        let plot = ErrorPlot {
+            title: format!("{arm}: {what} error {title}"),
+            y_label: unit.into(),
+            series: labels
+                .iter()
+                .zip(values)
+                .map(|(label, values)| Series {
+                    label: (*label).into(),
+                    values: values.clone(),
+                })
+                .collect(),
+        };
+        plots.push((
+            format!("{}_{what}", stem.replace('/', "_")),
+            error_plot_svg(&plot)?,
+        ));
+    }
+    Ok(plots)
+}
+
 /// Renders `plot` as an 800×450 SVG document.
 ///
 /// Fails, naming the series and index, on an empty plot, series of different lengths, and

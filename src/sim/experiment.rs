@@ -458,20 +458,8 @@ fn arm_errors(
             let stats: Vec<ErrorStats> = (0..3)
                 .map(|k| ErrorStats::of(&position[tool][k], &orientation[tool][k]))
                 .collect();
-            let removed = |before: f64, after: f64| {
-                if before > 0.0 {
-                    100.0 * (1.0 - after / before)
-                } else {
-                    0.0
-                }
-            };
-            let arm = setup
-                .branches
-                .arms
-                .iter()
-                .find(|a| a.tool == Some(setup.nominal.tools()[tool].link))
-                .map(|a| a.name.clone())
-                .unwrap_or_else(|| format!("tool {tool}"));
+            let removed = crate::calibration::run::removed_percent;
+            let arm = setup.branches.arm_name(setup.nominal.tools()[tool].link);
             ArmErrors {
                 arm,
                 before: stats[0],

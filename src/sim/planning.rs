@@ -16,8 +16,9 @@ use super::detmax::{Design, MAX_ROWS};
 use super::noise::Targets;
 use super::sampling::{sample_configurations, SamplingOptions};
 use crate::calibration::plan::locked_arm_model;
+use crate::calibration::ParameterSet;
 use crate::error::{Error, Result};
-use crate::kinematics::{McpcModel, ParameterOwner};
+use crate::kinematics::McpcModel;
 use crate::math::Vec3;
 use crate::measurement::{Measurement, Observation};
 use crate::tree::{Branches, KinematicTree};
@@ -357,48 +358,40 @@ fn jacobian_blocks(
             ),
         });
     }
-    let coupled_frames: Vec<usize> = branches
-        .coupled
-        .joints
-        .iter()
-        .filter_map(|j| model.frame_of_joint(*j))
-        .collect();
+    let coupled_frames = crate::calibration::plan::coupled_frames(model, branches);
     // The model the stage identifies, and which of its tools each measurement uses.
-    let (stage_model, stage_tools, columns): (McpcModel, Vec<usize>, Vec<usize>) =
-        match options.stage {
-            PlanningStage::Torso => {
-                let data: Vec<Measurement> = candidates
-                    .iter()
-                    .flat_map(|q| {
-                        (0..tool_count).map(move |tool| Measurement {
-                            tool,
-                            q: q.clone(),
-                            observation: Observation::Position(Vec3::zeros()),
-                            stage: None,
-                        })
-                    })
-                    .collect();
-                let (stage_model, stage_data, _) =
-                    locked_arm_model(model, &coupled_frames, &data, "torso")?;
-                let columns = (0..stage_model.parameter_count()).collect();
-                let tools = stage_data.iter().map(|m| m.tool).collect();
-                (stage_model, tools, columns)
-            }
-            PlanningStage::Arms | PlanningStage::All => {
-                let columns = model
-                .parameter_layout()
+    let (stage_model, stage_tools, columns): (McpcModel, Vec<usize>, Vec<usize>) = match options
+        .stage
+    {
+        PlanningStage::Torso => {
+            let data: Vec<Measurement> = candidates
                 .iter()
-                .enumerate()
-                .filter(|(_, (owner, _))| {
-                    options.stage == PlanningStage::All
-                        || !matches!(owner, ParameterOwner::Frame(f) if coupled_frames.contains(f))
+                .flat_map(|q| {
+                    (0..tool_count).map(move |tool| Measurement {
+                        tool,
+                        q: q.clone(),
+                        observation: Observation::Position(Vec3::zeros()),
+                        stage: None,
+                    })
                 })
-                .map(|(i, _)| i)
                 .collect();
-                let tools = (0..candidates.len()).flat_map(|_| 0..tool_count).collect();
-                (model.clone(), tools, columns)
-            }
-        };
+            let (stage_model, stage_data, _) =
+                locked_arm_model(model, &coupled_frames, &data, "torso")?;
+            let columns = (0..stage_model.parameter_count()).collect();
+            let tools = stage_data.iter().map(|m| m.tool).collect();
+            (stage_model, tools, columns)
+        }
+        PlanningStage::Arms | PlanningStage::All => {
+            let set = if options.stage == PlanningStage::All {
+                ParameterSet::All
+            } else {
+                ParameterSet::Arms
+            };
+            let columns = crate::calibration::plan::stage_parameters(model, &coupled_frames, set);
+            let tools = (0..candidates.len()).flat_map(|_| 0..tool_count).collect();
+            (model.clone(), tools, columns)
+        }
+    };
     let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
     let per_candidate: Vec<DMatrix<f64>> = candidates
         .par_iter()

@@ -109,6 +109,15 @@ pub struct Branches {
 }
 
 impl Branches {
+    /// The name of the arm ending at tool link `tool` (`"tool <link index>"` if none does).
+    pub fn arm_name(&self, tool: LinkId) -> String {
+        self.arms
+            .iter()
+            .find(|a| a.tool == Some(tool))
+            .map(|a| a.name.clone())
+            .unwrap_or_else(|| format!("tool {}", tool.0))
+    }
+
     /// The tool links, in arm order.
     pub fn tools(&self) -> Vec<LinkId> {
         self.arms.iter().filter_map(|a| a.tool).collect()

@@ -131,11 +131,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .iter()
         .map(|stage| {
             let id = &stage.identification;
-            let torso = if stage.locked_tools > 0 {
-                id.parameters.len().saturating_sub(6 * stage.locked_tools)
-            } else {
-                usize::MAX
-            };
+            let torso = stage.full_model_parameters();
             let names: Vec<String> = (0..id.parameters.len())
                 .map(|p| {
                     if p >= torso {

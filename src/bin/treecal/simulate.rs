@@ -8,7 +8,7 @@ use treecal::io::{
     write_atomically, LengthUnit, MeasurementWriteOptions,
 };
 use treecal::kinematics::FlexibilityModel;
-use treecal::report::plot::{error_plot_svg, ErrorPlot, Series};
+use treecal::report::plot::arm_error_plots;
 use treecal::report::simulate::simulation_markdown;
 use treecal::sim::experiment::{Setup, SimulationOptions};
 use treecal::sim::monte_carlo::{run_trials, summarise};
@@ -190,36 +190,20 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     )?;
     if let Some(first) = reports.first() {
         for arm in &first.identification {
-            for (what, unit, values) in [
-                ("position", "position error (mm)", &arm.position_mm),
-                (
-                    "orientation",
-                    "orientation error (deg)",
-                    &arm.orientation_deg,
-                ),
-            ] {
-                let plot = ErrorPlot {
-                    title: format!("{}: {what} error before and after calibration", arm.arm),
-                    y_label: unit.into(),
-                    series: vec![
-                        Series {
-                            label: "before calibration".into(),
-                            values: values[0].clone(),
-                        },
-                        Series {
-                            label: "after, without flexibility compensation".into(),
-                            values: values[1].clone(),
-                        },
-                        Series {
-                            label: "after, with flexibility compensation".into(),
-                            values: values[2].clone(),
-                        },
-                    ],
-                };
-                let file = args
-                    .out
-                    .join(format!("{}_{what}.svg", arm.arm.replace('/', "_")));
-                write_atomically(&file, error_plot_svg(&plot)?.as_bytes())?;
+            let plots = arm_error_plots(
+                &arm.arm,
+                &arm.arm,
+                "before and after calibration",
+                &[
+                    "before calibration",
+                    "after, without flexibility compensation",
+                    "after, with flexibility compensation",
+                ],
+                &arm.position_mm,
+                &arm.orientation_deg,
+            )?;
+            for (stem, svg) in plots {
+                write_atomically(&args.out.join(format!("{stem}.svg")), svg.as_bytes())?;
             }
         }
         if let Some(path) = &args.write_measurements {
