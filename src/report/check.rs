@@ -114,10 +114,13 @@ fn stage_text(out: &mut String, a: &IdentifiabilityReport) {
     } else {
         String::new()
     };
+    let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
     let _ = writeln!(
         out,
-        "  {} configurations, {} observations, {} rows, {count} parameters{locked}",
-        a.configurations, a.observations, a.rows
+        "  {}, {}, {}, {count} parameters{locked}",
+        plural(a.configurations, "configuration"),
+        plural(a.observations, "observation"),
+        plural(a.rows, "row")
     );
     let values = &a.singular_values;
     let smallest: Vec<String> = values
