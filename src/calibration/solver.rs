@@ -743,34 +743,11 @@ pub(crate) fn singular_decomposition(scaled: DMatrix<f64>) -> (DVector<f64>, DMa
     (svd.singular_values, v_t)
 }
 
-/// `AᵀA`, by blocks of consecutive rows with the same non-zero columns (a measurement's rows
-/// are zero outside its tool's chain): each block's columns are gathered into a small dense
-/// matrix whose product is scattered back, a third of the work of the dense product.
+/// `AᵀA`. nalgebra's dense product (blocked, vectorised) beat both a row-sparse and a
+/// block-sparse accumulation that skip the zeros outside each tool's chain (measured: 100
+/// configurations 12.1 → 7.1 ms per calibration).
 fn normal_matrix(a: &DMatrix<f64>) -> DMatrix<f64> {
-    let (m, n) = a.shape();
-    let mut normal = DMatrix::zeros(n, n);
-    let pattern = |r: usize| -> Vec<usize> { (0..n).filter(|&c| a[(r, c)] != 0.0).collect() };
-    let mut start = 0;
-    while start < m {
-        let columns = pattern(start);
-        let mut end = start + 1;
-        while end < m && pattern(end) == columns {
-            end += 1;
-        }
-        if !columns.is_empty() {
-            let block = DMatrix::from_fn(end - start, columns.len(), |r, c| {
-                a[(start + r, columns[c])]
-            });
-            let product = block.tr_mul(&block);
-            for (x, &i) in columns.iter().enumerate() {
-                for (y, &j) in columns.iter().enumerate() {
-                    normal[(j, i)] += product[(y, x)];
-                }
-            }
-        }
-        start = end;
-    }
-    normal
+    a.tr_mul(a)
 }
 
 pub(crate) fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
