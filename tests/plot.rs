@@ -1,11 +1,11 @@
 //! `report::plot`: per-configuration error plots like the paper's Fig. 7–12 are well-formed,
 //! complete and deterministic SVG; bad data is refused with a message naming the series and
-//! index.
+//! index. Line plots over arbitrary x values (`line_plot_svg`) likewise.
 //!
 //! Set `TREECAL_PLOT_EXAMPLE=/some/file.svg` to have the Fig. 7 look-alike written there for a
 //! visual check.
 
-use treecal::report::plot::{error_plot_svg, ErrorPlot, Series};
+use treecal::report::plot::{error_plot_svg, line_plot_svg, Curve, ErrorPlot, LinePlot, Series};
 
 fn series(label: &str, values: Vec<f64>) -> Series {
     Series {
@@ -380,4 +380,127 @@ fn non_finite_and_negative_values_are_refused_with_their_place() {
 fn absurdly_large_values_are_refused() {
     let message = error_message(&plot_of(&[&[1e305]]));
     assert!(message.contains("outside the range"), "{message}");
+}
+
+/// Shaped like docs/img/planning_k.svg: error against K, medians with quartile bars.
+fn k_sweep() -> LinePlot {
+    let x = vec![8.0, 12.0, 16.0, 20.0, 30.0, 40.0];
+    let curve = |label: &str, scale: f64| Curve {
+        label: label.into(),
+        values: x.iter().map(|k| scale / k).collect(),
+        spread: Some(
+            x.iter()
+                .map(|k| (0.8 * scale / k, 1.3 * scale / k))
+                .collect(),
+        ),
+    };
+    LinePlot {
+        title: "Validation error vs K".into(),
+        x_label: "arm poses K".into(),
+        y_label: "position error (mm)".into(),
+        x: x.clone(),
+        curves: vec![curve("random", 1.0), curve("planned", 0.7)],
+    }
+}
+
+fn line_error(plot: &LinePlot) -> String {
+    line_plot_svg(plot)
+        .expect_err("the plot should be refused")
+        .to_string()
+}
+
+#[test]
+fn line_plot_is_well_formed_complete_and_deterministic() {
+    let plot = k_sweep();
+    let svg = line_plot_svg(&plot).unwrap();
+    assert_well_formed(&svg);
+    assert_eq!(svg, line_plot_svg(&plot).unwrap());
+    let contents: Vec<String> = texts(&svg).into_iter().map(|(_, c)| c).collect();
+    for expected in [
+        "Validation error vs K",
+        "arm poses K",
+        "position error (mm)",
+        "random",
+        "planned",
+    ] {
+        assert!(
+            contents.iter().any(|c| c == expected),
+            "no text '{expected}' in {contents:?}"
+        );
+    }
+    assert_eq!(x_tick_labels(&svg), vec![8, 12, 16, 20, 30, 40]);
+    // The curves' six-point lines come in two different colours (markers drawn as small
+    // polylines may share a colour with their curve).
+    let mut colours: Vec<String> = polylines(&svg)
+        .into_iter()
+        .filter(|(_, points)| *points == 6)
+        .map(|(colour, _)| colour)
+        .collect();
+    colours.sort();
+    colours.dedup();
+    assert_eq!(colours.len(), 2, "{colours:?}");
+    // The y axis covers the top of the highest error bar (1.3 / 8 = 0.1625).
+    let top: f64 = y_tick_labels(&svg)
+        .iter()
+        .filter_map(|label| label.parse().ok())
+        .fold(0.0, f64::max);
+    assert!(top >= 0.1625, "top tick {top}");
+}
+
+#[test]
+fn line_plot_without_spread_and_with_one_point_is_drawn() {
+    let mut plot = k_sweep();
+    plot.x = vec![3.5];
+    for curve in &mut plot.curves {
+        curve.values = vec![0.2];
+        curve.spread = None;
+    }
+    let svg = line_plot_svg(&plot).unwrap();
+    assert_well_formed(&svg);
+    assert!(texts(&svg).iter().any(|(_, c)| c == "3.5"));
+}
+
+#[test]
+fn line_plot_refuses_bad_data_with_its_place() {
+    let mut plot = k_sweep();
+    plot.curves[1].values[2] = f64::NAN;
+    let message = line_error(&plot);
+    assert!(
+        message.contains("'planned'") && message.contains("NaN") && message.contains("index 2"),
+        "{message}"
+    );
+
+    let mut plot = k_sweep();
+    plot.curves[0].values.pop();
+    let message = line_error(&plot);
+    assert!(
+        message.contains("'random' has 5 values") && message.contains("for 6 x values"),
+        "{message}"
+    );
+
+    let mut plot = k_sweep();
+    plot.curves[0].spread.as_mut().unwrap().push((0.0, 1.0));
+    assert!(line_error(&plot).contains("7 spreads"));
+
+    let mut plot = k_sweep();
+    plot.curves[0].spread.as_mut().unwrap()[1] = (0.5, 0.6);
+    let message = line_error(&plot);
+    assert!(message.contains("spread (0.5, 0.6)"), "{message}");
+
+    let mut plot = k_sweep();
+    plot.x[3] = 12.0;
+    let message = line_error(&plot);
+    assert!(message.contains("increase strictly"), "{message}");
+
+    let mut plot = k_sweep();
+    plot.x[0] = f64::INFINITY;
+    assert!(line_error(&plot).contains("not finite"));
+
+    let mut plot = k_sweep();
+    plot.curves.clear();
+    assert!(line_error(&plot).contains("no curves"));
+
+    let mut plot = k_sweep();
+    plot.x.clear();
+    assert!(line_error(&plot).contains("no x values"));
 }
