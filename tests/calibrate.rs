@@ -876,3 +876,27 @@ fn round_trip_with_a_fitted_frame_reaches_the_noise_floor() {
         "mean position error {position} mm against a predicted RMS of {predicted_rms} mm"
     );
 }
+
+/// Plan files: the staged plan written out reads back as `Plan::staged()`; unknown stage kinds,
+/// empty plans and broken YAML are errors naming the file (and line where known).
+#[test]
+fn plan_files_are_read_and_bad_ones_named() {
+    use treecal::calibration::Plan;
+    use treecal::io::parse_plan;
+    let staged = "stages:\n  - name: torso\n    parameters: coupled\n    measurements: torso\n  - name: arms\n    parameters: arms\n    measurements: arms\n";
+    assert_eq!(parse_plan(staged, "p.yaml").unwrap(), Plan::staged());
+    let all = "stages:\n  - name: all\n    parameters: all\n";
+    assert_eq!(parse_plan(all, "p.yaml").unwrap(), Plan::simultaneous());
+    let unknown = "stages:\n  - name: x\n    parameters: everything\n";
+    let message = parse_plan(unknown, "p.yaml").unwrap_err().to_string();
+    assert!(message.starts_with("p.yaml:"), "{message}");
+    assert!(message.contains("everything"), "{message}");
+    let empty = "stages: []\n";
+    let message = parse_plan(empty, "p.yaml").unwrap_err().to_string();
+    assert!(message.contains("no stages"), "{message}");
+    let broken = "stages: [\n";
+    assert!(parse_plan(broken, "p.yaml")
+        .unwrap_err()
+        .to_string()
+        .starts_with("p.yaml"));
+}
