@@ -429,16 +429,29 @@ fn line_plot_is_well_formed_complete_and_deterministic() {
         );
     }
     assert_eq!(x_tick_labels(&svg), vec![8, 12, 16, 20, 30, 40]);
-    // The curves' six-point lines come in two different colours (markers drawn as small
-    // polylines may share a colour with their curve).
-    let mut colours: Vec<String> = polylines(&svg)
-        .into_iter()
-        .filter(|(_, points)| *points == 6)
-        .map(|(colour, _)| colour)
+    // One curve line per curve, in different colours: the only polylines that span the plot
+    // (markers, error bars and ticks are a few pixels wide).
+    let lines: Vec<String> = svg
+        .split("<polyline")
+        .skip(1)
+        .filter(|element| {
+            let xs: Vec<f64> = element
+                .split(" points=\"")
+                .nth(1)
+                .and_then(|a| a.split('"').next())
+                .unwrap_or("")
+                .split_whitespace()
+                .filter_map(|point| point.split(',').next()?.parse().ok())
+                .collect();
+            xs.len() == 6 && xs[5] - xs[0] > 400.0
+        })
+        .map(|element| {
+            let stroke = element.split(" stroke=\"").nth(1).unwrap_or("");
+            stroke.split('"').next().unwrap_or("").to_string()
+        })
         .collect();
-    colours.sort();
-    colours.dedup();
-    assert_eq!(colours.len(), 2, "{colours:?}");
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    assert_ne!(lines[0], lines[1]);
     // The y axis covers the top of the highest error bar (1.3 / 8 = 0.1625).
     let top: f64 = y_tick_labels(&svg)
         .iter()
@@ -474,7 +487,7 @@ fn line_plot_refuses_bad_data_with_its_place() {
     plot.curves[0].values.pop();
     let message = line_error(&plot);
     assert!(
-        message.contains("'random' has 5 values") && message.contains("for 6 x values"),
+        message.contains("'random' has 5 values and 6 spreads for 6 x values"),
         "{message}"
     );
 
