@@ -530,6 +530,52 @@ fn draw_title_and_legend<'a>(
     Ok(chart_area)
 }
 
+/// Room left of the chart for the widest y tick label, the tick, and the rotated axis
+/// description (pixels).
+fn y_label_area(root: &DrawingArea<SVGBackend<'_>, Shift>, y_axis: &YAxis) -> DrawResult<u32> {
+    let label_font = (FONT, LABEL_SIZE).into_text_style(root);
+    let mut widest_tick = 0;
+    for (_, label) in &y_axis.ticks {
+        widest_tick = widest_tick.max(root.estimate_text_size(label, &label_font)?.0);
+    }
+    Ok(widest_tick + 44)
+}
+
+/// The chart both plots draw into: margins, the given x axis, the y axis from 0, the grid and
+/// the axis descriptions `[x, y]`.
+fn axes<'a, 'b>(
+    chart_area: &'a DrawingArea<SVGBackend<'b>, Shift>,
+    y_label_area: u32,
+    x_axis: TickedAxis,
+    y_axis: &YAxis,
+    descriptions: [&str; 2],
+    x_format: &dyn Fn(&f64) -> String,
+) -> DrawResult<ChartContext<'a, SVGBackend<'b>, Cartesian2d<TickedAxis, TickedAxis>>> {
+    let mut chart = ChartBuilder::on(chart_area)
+        .margin_top(10)
+        .margin_left(8)
+        .margin_right(MARGIN_RIGHT)
+        .margin_bottom(6)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(y_label_area)
+        .build_cartesian_2d(
+            x_axis,
+            TickedAxis::new(0.0..y_axis.top, y_axis.ticks.iter().map(|t| t.0).collect()),
+        )?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .bold_line_style(GRID)
+        .x_desc(descriptions[0])
+        .y_desc(descriptions[1])
+        .axis_desc_style((FONT, AXIS_DESC_SIZE))
+        .label_style((FONT, LABEL_SIZE))
+        .x_label_formatter(x_format)
+        .y_label_formatter(&|y| y_axis.label(*y))
+        .draw()?;
+    Ok(chart)
+}
+
 fn draw_on(
     root: &DrawingArea<SVGBackend<'_>, Shift>,
     plot: &ErrorPlot,
@@ -538,38 +584,17 @@ fn draw_on(
 ) -> DrawResult<()> {
     let labels: Vec<&str> = plot.series.iter().map(|s| s.label.as_str()).collect();
     let chart_area = draw_title_and_legend(root, &plot.title, &labels)?;
-    let label_font = (FONT, LABEL_SIZE).into_text_style(root);
-
-    // Room for the widest y tick label, the tick, and the rotated axis description.
-    let mut widest_tick = 0;
-    for (_, label) in &y_axis.ticks {
-        widest_tick = widest_tick.max(root.estimate_text_size(label, &label_font)?.0);
-    }
-    let y_label_area = widest_tick + 44;
+    let y_label_area = y_label_area(root, y_axis)?;
     let plot_width = WIDTH - y_label_area - MARGIN_RIGHT - 8;
     let last = configurations as f64;
-    let mut chart = ChartBuilder::on(&chart_area)
-        .margin_top(10)
-        .margin_left(8)
-        .margin_right(MARGIN_RIGHT)
-        .margin_bottom(6)
-        .x_label_area_size(X_LABEL_AREA)
-        .y_label_area_size(y_label_area)
-        .build_cartesian_2d(
-            TickedAxis::new(0.5..last + 0.5, x_ticks(configurations, plot_width)),
-            TickedAxis::new(0.0..y_axis.top, y_axis.ticks.iter().map(|t| t.0).collect()),
-        )?;
-    chart
-        .configure_mesh()
-        .disable_x_mesh()
-        .bold_line_style(GRID)
-        .x_desc("configuration")
-        .y_desc(&plot.y_label)
-        .axis_desc_style((FONT, AXIS_DESC_SIZE))
-        .label_style((FONT, LABEL_SIZE))
-        .x_label_formatter(&|x| format!("{}", x.round() as i64))
-        .y_label_formatter(&|y| y_axis.label(*y))
-        .draw()?;
+    let mut chart = axes(
+        &chart_area,
+        y_label_area,
+        TickedAxis::new(0.5..last + 0.5, x_ticks(configurations, plot_width)),
+        y_axis,
+        ["configuration", &plot.y_label],
+        &|x| format!("{}", x.round() as i64),
+    )?;
 
     let spacing = f64::from(plot_width) / configurations as f64;
     let marker_every = (MARKER_SPACING / spacing).ceil().max(1.0) as usize;
@@ -729,12 +754,7 @@ fn draw_line_plot(
 ) -> DrawResult<()> {
     let labels: Vec<&str> = plot.curves.iter().map(|c| c.label.as_str()).collect();
     let chart_area = draw_title_and_legend(root, &plot.title, &labels)?;
-    let label_font = (FONT, LABEL_SIZE).into_text_style(root);
-    let mut widest_tick = 0;
-    for (_, label) in &y_axis.ticks {
-        widest_tick = widest_tick.max(root.estimate_text_size(label, &label_font)?.0);
-    }
-    let y_label_area = widest_tick + 44;
+    let y_label_area = y_label_area(root, y_axis)?;
     let plot_width = f64::from(WIDTH - y_label_area - MARGIN_RIGHT - 8);
 
     let (first, last) = (plot.x[0], plot.x[plot.x.len() - 1]);
@@ -753,28 +773,14 @@ fn draw_line_plot(
             ticks.push(x);
         }
     }
-    let mut chart = ChartBuilder::on(&chart_area)
-        .margin_top(10)
-        .margin_left(8)
-        .margin_right(MARGIN_RIGHT)
-        .margin_bottom(6)
-        .x_label_area_size(X_LABEL_AREA)
-        .y_label_area_size(y_label_area)
-        .build_cartesian_2d(
-            TickedAxis::new(range, ticks),
-            TickedAxis::new(0.0..y_axis.top, y_axis.ticks.iter().map(|t| t.0).collect()),
-        )?;
-    chart
-        .configure_mesh()
-        .disable_x_mesh()
-        .bold_line_style(GRID)
-        .x_desc(&plot.x_label)
-        .y_desc(&plot.y_label)
-        .axis_desc_style((FONT, AXIS_DESC_SIZE))
-        .label_style((FONT, LABEL_SIZE))
-        .x_label_formatter(&|x| x_label(*x))
-        .y_label_formatter(&|y| y_axis.label(*y))
-        .draw()?;
+    let chart = axes(
+        &chart_area,
+        y_label_area,
+        TickedAxis::new(range, ticks),
+        y_axis,
+        [&plot.x_label, &plot.y_label],
+        &|x| x_label(*x),
+    )?;
 
     // Curves are drawn in pixels on the whole picture, each shifted sideways a little so that
     // error bars at the same x do not hide one another.
