@@ -166,6 +166,70 @@ fn mean(values: &[f64]) -> f64 {
     values.iter().sum::<f64>() / values.len() as f64
 }
 
+/// What a simulated round trip leaves for the checks: the robot, its flexibility model, the
+/// truth, the random stream (for fresh validation configurations) and the directory whose
+/// `out/` holds the calibration.
+struct RoundTrip {
+    robot: Robot,
+    flexibility: FlexibilityModel,
+    truth: McpcModel,
+    rng: ChaCha8Rng,
+    dir: tempfile::TempDir,
+}
+
+/// A truth with paper-size errors, deflected under gravity and measured by an AT901-class
+/// tracker with three targets (10 torso configurations at 2 locks, 25 arm configurations, in the
+/// root frame), written as CSV and calibrated by the CLI with exact compensation and `extra`
+/// flags into `dir/out`.
+fn round_trip(seed: u64, extra: &[&str]) -> RoundTrip {
+    let robot = built_in();
+    let flexibility = built_in_flexibility(&robot);
+    let mut rng = rng(seed);
+    let truth = true_model(&robot.nominal, &ErrorRanges::default(), &mut rng).unwrap();
+    let tracker = Tracker {
+        world_from_base: Pose::identity(),
+        tool_from_target: Pose::identity(),
+        flexibility: Some(&flexibility),
+        noise: NoiseModel::at901(),
+    };
+    let torso = torso_configurations(&robot, 10, 2, &mut rng);
+    let arms = configurations(&robot, 25, &mut rng);
+    let mut measurements = tracker.measure(&robot, &truth, &torso, Some("torso"), &mut rng);
+    measurements.extend(tracker.measure(&robot, &truth, &arms, Some("arms"), &mut rng));
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("m.csv");
+    std::fs::write(
+        &csv,
+        measurements_to_csv(&robot.tree, &robot.nominal, &measurements).unwrap(),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let stiffness = stiffness_path();
+    let mut args = vec![
+        "calibrate",
+        "--measurements",
+        path_str(&csv),
+        "--stiffness",
+        path_str(&stiffness),
+        "--position-sigma",
+        "3.3e-5",
+        "--rotation-sigma",
+        "4.7e-4",
+        "--out",
+        path_str(&out),
+    ];
+    args.extend_from_slice(extra);
+    let run = treecal(&args);
+    assert_success(&run, "calibrate");
+    RoundTrip {
+        robot,
+        flexibility,
+        truth,
+        rng,
+        dir,
+    }
+}
+
 /// Item 4 of issue 5: simulated measurements of the built-in Robonaut (paper errors ±0.05 rad /
 /// ±5 cm, AT901 noise, gravity deflection) calibrated by the CLI with exact compensation; the
 /// exported URDF plus the deflection the calibration models predicts the truth's deflected tool
@@ -179,45 +243,14 @@ fn mean(values: &[f64]) -> f64 {
 /// writes them; the next test fits the frame instead.
 #[test]
 fn round_trip_reaches_the_noise_floor() {
-    let robot = built_in();
-    let flexibility = built_in_flexibility(&robot);
-    let mut rng = rng(51);
-    let truth = true_model(&robot.nominal, &ErrorRanges::default(), &mut rng).unwrap();
-    let tracker = Tracker {
-        world_from_base: Pose::identity(),
-        tool_from_target: Pose::identity(),
-        flexibility: Some(&flexibility),
-        noise: NoiseModel::at901(),
-    };
-    let torso = torso_configurations(&robot, 10, 2, &mut rng);
-    let arms = configurations(&robot, 25, &mut rng);
-    let mut measurements = tracker.measure(&robot, &truth, &torso, Some("torso"), &mut rng);
-    measurements.extend(tracker.measure(&robot, &truth, &arms, Some("arms"), &mut rng));
-
-    let dir = tempfile::tempdir().unwrap();
-    let csv = dir.path().join("m.csv");
-    std::fs::write(
-        &csv,
-        measurements_to_csv(&robot.tree, &robot.nominal, &measurements).unwrap(),
-    )
-    .unwrap();
+    let RoundTrip {
+        robot,
+        flexibility,
+        truth,
+        mut rng,
+        dir,
+    } = round_trip(51, &["--measurement-frame", "base"]);
     let out = dir.path().join("out");
-    let run = treecal(&[
-        "calibrate",
-        "--measurements",
-        path_str(&csv),
-        "--stiffness",
-        path_str(&stiffness_path()),
-        "--measurement-frame",
-        "base",
-        "--position-sigma",
-        "3.3e-5",
-        "--rotation-sigma",
-        "4.7e-4",
-        "--out",
-        path_str(&out),
-    ]);
-    assert_success(&run, "calibrate");
 
     let calibrated = robot_at(&out.join("calibrated.urdf"), None);
     let model = &calibrated.nominal;
@@ -806,42 +839,14 @@ fn a_seeded_fifth_is_held_out() {
 /// 1.5 mm). Compared in the measurement frame, where the data live.
 #[test]
 fn round_trip_with_a_fitted_frame_reaches_the_noise_floor() {
-    let robot = built_in();
-    let flexibility = built_in_flexibility(&robot);
-    let mut rng = rng(52);
-    let truth = true_model(&robot.nominal, &ErrorRanges::default(), &mut rng).unwrap();
-    let tracker = Tracker {
-        world_from_base: Pose::identity(),
-        tool_from_target: Pose::identity(),
-        flexibility: Some(&flexibility),
-        noise: NoiseModel::at901(),
-    };
-    let torso = torso_configurations(&robot, 10, 2, &mut rng);
-    let arms = configurations(&robot, 25, &mut rng);
-    let mut measurements = tracker.measure(&robot, &truth, &torso, Some("torso"), &mut rng);
-    measurements.extend(tracker.measure(&robot, &truth, &arms, Some("arms"), &mut rng));
-    let dir = tempfile::tempdir().unwrap();
-    let csv = dir.path().join("m.csv");
-    std::fs::write(
-        &csv,
-        measurements_to_csv(&robot.tree, &robot.nominal, &measurements).unwrap(),
-    )
-    .unwrap();
+    let RoundTrip {
+        robot,
+        flexibility,
+        truth,
+        mut rng,
+        dir,
+    } = round_trip(52, &[]);
     let out = dir.path().join("out");
-    let run = treecal(&[
-        "calibrate",
-        "--measurements",
-        path_str(&csv),
-        "--stiffness",
-        path_str(&stiffness_path()),
-        "--position-sigma",
-        "3.3e-5",
-        "--rotation-sigma",
-        "4.7e-4",
-        "--out",
-        path_str(&out),
-    ]);
-    assert_success(&run, "calibrate");
     let report = read_json(&out.join("report.json"));
     let refinement = &report["frame_refinement"];
     assert!(refinement.is_object(), "no frame refinement: {report}");
