@@ -186,33 +186,40 @@ pub fn calibrate(
         Compensation::Exact(source) => Some(DeflectedWithDerivative::new(source)),
         _ => None,
     };
+    // Each stage's measurements (indices and copies): the same in every cycle.
+    let mut stage_inputs: Vec<(Vec<usize>, Vec<Measurement>)> = Vec::new();
+    for stage in &plan.stages {
+        let selected: Vec<usize> = (0..measurements.len())
+            .filter(|&i| {
+                stage.measurements.is_none() || measurements[i].stage == stage.measurements
+            })
+            .collect();
+        if selected.is_empty() {
+            return Err(Error::InvalidData {
+                origin: format!("stage '{}'", stage.name),
+                message: format!(
+                    "no measurements labelled '{}'; label them (a `stage` column) or use the simultaneous plan",
+                    stage.measurements.as_deref().unwrap_or("")
+                ),
+            });
+        }
+        let data = selected.iter().map(|&i| measurements[i].clone()).collect();
+        stage_inputs.push((selected, data));
+    }
     let mut reports = Vec::new();
-    // The coupled stage's identified reduced model (torso + locked-arm tools) of the previous
-    // cycle: the next cycle starts from it, so the locked-arm tools need not be found again.
-    let mut previous_coupled: Option<McpcModel> = None;
+    // Per coupled stage, its identified reduced model (torso + locked-arm tools), the
+    // measurements re-pointed at those tools and their number, from the previous cycle: the
+    // next cycle starts from them, so the locked-arm tools need not be built or found again.
+    let mut previous_coupled: Vec<Option<(McpcModel, Vec<Measurement>, usize)>> =
+        vec![None; plan.stages.len()];
     let mut acceleration = Anderson::new(ANDERSON_DEPTH);
     let mut cycles = 0;
     while cycles < max_cycles {
         cycles += 1;
         let before = current.parameters();
         reports.clear();
-        for stage in &plan.stages {
-            let selected: Vec<usize> = (0..measurements.len())
-                .filter(|&i| {
-                    stage.measurements.is_none() || measurements[i].stage == stage.measurements
-                })
-                .collect();
-            if selected.is_empty() {
-                return Err(Error::InvalidData {
-                    origin: format!("stage '{}'", stage.name),
-                    message: format!(
-                        "no measurements labelled '{}'; label them (a `stage` column) or use the simultaneous plan",
-                        stage.measurements.as_deref().unwrap_or("")
-                    ),
-                });
-            }
-            let data: Vec<Measurement> =
-                selected.iter().map(|&i| measurements[i].clone()).collect();
+        for (index, stage) in plan.stages.iter().enumerate() {
+            let (selected, data) = &stage_inputs[index];
             let report = match stage.parameters {
                 ParameterSet::Coupled => {
                     let mut rounds = 0;
@@ -232,21 +239,22 @@ pub fn calibrate(
                                     .collect::<Result<_>>()?,
                             ),
                         };
-                        let (mut stage_model, stage_data, locked_tools) =
-                            locked_arm_model(&current, &coupled_frames, &data, &stage.name)?;
-                        if let Some(mut previous) = previous_coupled.take() {
-                            // Same data, same groups: start the locked tools where the previous
-                            // cycle found them, the torso frames where the model has them now.
-                            if previous.parameter_count() == stage_model.parameter_count()
-                                && previous.tools().len() == stage_model.tools().len()
-                            {
+                        let (mut stage_model, stage_data, locked_tools) = match previous_coupled
+                            [index]
+                            .take()
+                        {
+                            // Same data, same groups: the locked tools start where the
+                            // previous round found them, the torso frames (the first
+                            // parameters of both models) where the model has them now.
+                            Some((mut previous, stage_data, locked_tools)) => {
                                 let mut values = previous.parameters();
-                                let torso = stage_model.tool_parameter_offset(0);
-                                values[..torso].copy_from_slice(&stage_model.parameters()[..torso]);
+                                let torso = previous.tool_parameter_offset(0);
+                                values[..torso].copy_from_slice(&current.parameters()[..torso]);
                                 previous.set_parameters(&values)?;
-                                stage_model = previous;
+                                (previous, stage_data, locked_tools)
                             }
-                        }
+                            None => locked_arm_model(&current, &coupled_frames, data, &stage.name)?,
+                        };
                         let free: Vec<usize> = (0..stage_model.parameter_count()).collect();
                         let identification = identify(
                             &stage_model,
@@ -269,7 +277,7 @@ pub fn calibrate(
                         }
                         current.set_parameters(&values)?;
                         stage_model.set_parameters(&identification.parameters)?;
-                        previous_coupled = Some(stage_model);
+                        previous_coupled[index] = Some((stage_model, stage_data, locked_tools));
                         let change = values
                             .iter()
                             .zip(&before)
@@ -296,14 +304,14 @@ pub fn calibrate(
                     let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
                         .as_ref()
                         .map(|o| selected.iter().map(|&i| o[i]).collect());
-                    let identification = match compensation {
-                        Compensation::Exact(_) => match &exact_predictor {
-                            Some(predictor) => {
-                                identify(&current, &data, None, predictor, &free, options)?
-                            }
-                            None => identify(&current, &data, None, &Rigid, &free, options)?,
-                        },
-                        _ => identify(&current, &data, offsets.as_deref(), &Rigid, &free, options)?,
+                    // The exact predictor exists exactly under exact compensation.
+                    let identification = match &exact_predictor {
+                        Some(predictor) => {
+                            identify(&current, data, None, predictor, &free, options)?
+                        }
+                        None => {
+                            identify(&current, data, offsets.as_deref(), &Rigid, &free, options)?
+                        }
                     };
                     current.set_parameters(&identification.parameters)?;
                     StageReport {
