@@ -696,7 +696,13 @@ fn analyse(lin: &Linearisation, rank_tolerance: f64) -> Analysis {
             normal: Some(normal),
         };
     }
-    let (singular_values, v_t) = singular_decomposition(scaled);
+    // Singular vectors are needed: from the same normal matrix while squaring still resolves
+    // the spectrum (a caller's coarse rank tolerance), else from QR + SVD.
+    let (singular_values, v_t) = if well_conditioned(&eigenvalues) {
+        eigen_decomposition(normal)
+    } else {
+        qr_svd(scaled)
+    };
     Analysis {
         scales,
         singular_values,
@@ -713,24 +719,41 @@ const WELL_CONDITIONED: f64 = 1e-10;
 
 /// Singular values (unsorted) and `Vᵀ` of a column-scaled Jacobian: from the normal matrix
 /// when it is well conditioned, else through the SVD of the small triangle `R` of
-/// `J_s = Q·R`; with fewer rows than columns, zero rows complete the
-/// matrix so that there is one singular value per column and `V` spans the whole null space.
-/// Shared with `calibration::identifiability`.
+/// `J_s = Q·R`. Shared with `calibration::identifiability`.
 pub(crate) fn singular_decomposition(scaled: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
-    let columns = scaled.ncols();
     // Fast path: the eigen-decomposition of the scaled normal matrix gives σ² and V in a third
     // of the time of QR + SVD, and exactly enough when the matrix is well conditioned (σ²
     // ratios above 1e-10 are resolved to ~1e-6 relative, far from the rank tolerance). Near
     // rank deficiency, where squaring would lose the small singular values, QR + SVD decide.
-    let gram = normal_matrix(&scaled);
-    let eigen = gram.symmetric_eigen();
-    let largest = eigen.eigenvalues.max();
-    if largest > 0.0 && eigen.eigenvalues.min() > WELL_CONDITIONED * largest {
-        return (
-            eigen.eigenvalues.map(f64::sqrt),
-            eigen.eigenvectors.transpose(),
-        );
+    let normal = normal_matrix(&scaled);
+    if well_conditioned(&normal.symmetric_eigenvalues()) {
+        eigen_decomposition(normal)
+    } else {
+        qr_svd(scaled)
     }
+}
+
+/// Whether the eigenvalues of a normal matrix are all above [`WELL_CONDITIONED`] of the
+/// largest.
+fn well_conditioned(eigenvalues: &DVector<f64>) -> bool {
+    let largest = eigenvalues.max();
+    largest > 0.0 && eigenvalues.min() > WELL_CONDITIONED * largest
+}
+
+/// `σ = √λ` and `Vᵀ` from the eigen-decomposition of the normal matrix `JᵀJ`.
+fn eigen_decomposition(normal: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
+    let eigen = normal.symmetric_eigen();
+    (
+        eigen.eigenvalues.map(|l| l.max(0.0).sqrt()),
+        eigen.eigenvectors.transpose(),
+    )
+}
+
+/// Singular values and `Vᵀ` through the SVD of the triangle `R` of `J = Q·R` (same σ and `V`);
+/// with fewer rows than columns, zero rows complete the matrix so that there is one singular
+/// value per column and `V` spans the whole null space.
+fn qr_svd(scaled: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
+    let columns = scaled.ncols();
     let square = if scaled.nrows() >= columns {
         scaled.qr().r()
     } else {
