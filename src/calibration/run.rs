@@ -482,14 +482,13 @@ fn refine_measurement_frame(
     // Frame perturbation: world_from_base ← exp(δ)·world_from_base, δ = (translation, rotation)
     // in the measurement frame.
     let moved = |frame: &Pose, delta: &[f64]| -> Pose {
-        let translation = nalgebra::Translation3::new(delta[0], delta[1], delta[2]);
         let rotation = nalgebra::UnitQuaternion::from_scaled_axis(nalgebra::Vector3::new(
             delta[3], delta[4], delta[5],
         ));
-        let mut pose = Pose::from_parts(translation, rotation) * frame;
-        // Rotate about the frame's own origin, not the measurement origin.
-        pose.translation.vector = frame.translation.vector + translation.vector;
-        pose
+        // Turned about the frame's own origin, not the measurement origin.
+        let origin =
+            frame.translation.vector + nalgebra::Vector3::new(delta[0], delta[1], delta[2]);
+        Pose::from_parts(origin.into(), rotation * frame.rotation)
     };
     const STEP: f64 = 1e-4;
     const MAX_ITERATIONS: usize = 10;
