@@ -23,7 +23,7 @@ use treecal::measurement::{Measurement, Observation};
 use treecal::sim::noise::{observe, NoiseModel, Targets};
 use treecal::sim::sampling::{sample_configurations, SamplingOptions};
 use treecal::sim::truth::{true_model, ErrorRanges};
-use treecal::{detect_branches, load_urdf, Branches, KinematicTree, McpcModel};
+use treecal::{load_urdf, Branches, KinematicTree, McpcModel};
 
 /// A robot with its branches and nominal model.
 struct Robot {
@@ -34,13 +34,7 @@ struct Robot {
 
 fn robot_at(path: &Path, tools: Option<&[&str]>) -> Robot {
     let tree = load_urdf(path).unwrap_or_else(|e| panic!("{e}")).tree;
-    let tools = tools.map(|names| {
-        names
-            .iter()
-            .map(|n| tree.link_id(n).unwrap())
-            .collect::<Vec<_>>()
-    });
-    let branches = detect_branches(&tree, tools.as_deref()).unwrap();
+    let branches = branches_with_tools(&tree, tools);
     let nominal = McpcModel::from_tree(&tree, &branches).unwrap();
     Robot {
         tree,

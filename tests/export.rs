@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use treecal::math::Pose;
 use treecal::urdf::{export_urdf, ExportReport};
-use treecal::{detect_branches, parse_urdf, Branches, KinematicTree, McpcModel};
+use treecal::{parse_urdf, Branches, KinematicTree, McpcModel};
 
 /// Random configurations per robot.
 const CONFIGURATIONS: usize = 50;
@@ -53,13 +53,7 @@ fn case(text: String, tools: Option<&[&str]>, seed: Option<u64>) -> Case {
     let tree = parse_urdf(&text, "case")
         .unwrap_or_else(|e| panic!("{e}"))
         .tree;
-    let tools = tools.map(|names| {
-        names
-            .iter()
-            .map(|n| tree.link_id(n).unwrap())
-            .collect::<Vec<_>>()
-    });
-    let branches = detect_branches(&tree, tools.as_deref()).unwrap();
+    let branches = branches_with_tools(&tree, tools);
     let mut model = McpcModel::from_tree(&tree, &branches).unwrap();
     if let Some(seed) = seed {
         let mut rng = rng(seed);

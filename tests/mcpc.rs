@@ -276,13 +276,7 @@ fn parameter_vector_round_trip() {
 fn check_round_trip(text: &str, origin: &str, tools: Option<&[&str]>) {
     use treecal::io::{mcpc_table_to_yaml, parse_mcpc_table};
     let tree = treecal::parse_urdf(text, origin).unwrap().tree;
-    let tool_ids = tools.map(|names| {
-        names
-            .iter()
-            .map(|n| tree.link_id(n).unwrap())
-            .collect::<Vec<_>>()
-    });
-    let branches = detect_branches(&tree, tool_ids.as_deref()).unwrap();
+    let branches = branches_with_tools(&tree, tools);
     let model = McpcModel::from_tree(&tree, &branches).unwrap();
     let table = treecal::McpcTable::from_model(&tree, &branches, &model).unwrap();
     let yaml = mcpc_table_to_yaml(&table, &["round trip".into()]);

@@ -102,3 +102,14 @@ pub fn assert_pose_eq(a: &Pose, b: &Pose, tolerance: f64, what: &str) {
         "{what}: poses differ by {position:e} m and {angle:e} rad\n{a}\n{b}"
     );
 }
+
+/// The branches of `tree`, with the named tool links if given (as `--tools` does).
+pub fn branches_with_tools(tree: &KinematicTree, tools: Option<&[&str]>) -> treecal::Branches {
+    let tools = tools.map(|names| {
+        names
+            .iter()
+            .map(|n| tree.link_id(n).unwrap_or_else(|e| panic!("{e}")))
+            .collect::<Vec<_>>()
+    });
+    treecal::detect_branches(tree, tools.as_deref()).unwrap_or_else(|e| panic!("{e}"))
+}
