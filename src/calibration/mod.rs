@@ -8,12 +8,14 @@
 //! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
+//! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
 pub mod identifiability;
 pub mod initial_guess;
 pub mod plan;
 pub mod run;
 pub mod solver;
+pub mod verdict;
 
 pub use identifiability::{
     analyse, criterion_value, observability_indices, Criterion, IdentifiabilityOptions,
@@ -31,3 +33,4 @@ pub use solver::{
     identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,
     IdentificationReport, Predictor, Rigid, Termination,
 };
+pub use verdict::{Finding, Status, Verdict};

@@ -4,6 +4,7 @@
 use super::initial_guess::{initial_guess, initial_tool_frames, InitialGuess};
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
 use super::solver::{Deflected, IdentificationOptions};
+use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::Pose;
@@ -130,6 +131,10 @@ pub struct CalibrationRun {
     /// The predicted position error distribution per validation observation: the standard
     /// deviation `√trace(J_p·C·J_pᵀ)` (mm), in validation order.
     pub predicted_validation_sd_mm: Vec<f64>,
+    /// What the checks of this run found (frame choice, rank, σ̂, validation, …), in order;
+    /// [`Verdict::from_findings`](super::verdict::Verdict::from_findings) turns them into
+    /// the verdict.
+    pub findings: Vec<Finding>,
 }
 
 /// Splits off a seeded fifth of the configurations for validation: whole configurations
@@ -254,6 +259,7 @@ pub fn run_calibration(
         validation: validation_residuals,
         predicted_validation_rms_mm,
         predicted_validation_sd_mm,
+        findings: Vec::new(),
     })
 }
 

@@ -113,3 +113,40 @@ pub fn branches_with_tools(tree: &KinematicTree, tools: Option<&[&str]>) -> tree
     });
     treecal::detect_branches(tree, tools.as_deref()).unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// The `robots/` folder of the PyPI package `example-robot-data` (installed by `.ci/run` from
+/// `tests/oracle/requirements.txt`): `$TREECAL_EXAMPLE_ROBOT_DATA` if set, else found through
+/// `python3` (the package installs under `site-packages/cmeel.prefix/share/example-robot-data`).
+/// `None` (after a note) when it is not installed; panics instead with `TREECAL_REQUIRE_TOOLS=1`.
+pub fn example_robot_data() -> Option<PathBuf> {
+    if let Some(dir) = std::env::var_os("TREECAL_EXAMPLE_ROBOT_DATA") {
+        return Some(PathBuf::from(dir));
+    }
+    let probe = std::process::Command::new("python3")
+        .args([
+            "-c",
+            "import sysconfig; print(sysconfig.get_paths()['purelib'])",
+        ])
+        .stdin(std::process::Stdio::null())
+        .output();
+    let found = probe.ok().and_then(|output| {
+        let purelib = String::from_utf8_lossy(&output.stdout).trim().to_owned();
+        let dir = PathBuf::from(purelib).join("cmeel.prefix/share/example-robot-data/robots");
+        dir.is_dir().then_some(dir)
+    });
+    if found.is_none() {
+        let message = "the PyPI package example-robot-data is not installed \
+                       (python3 -m pip install -r tests/oracle/requirements.txt)";
+        if std::env::var("TREECAL_REQUIRE_TOOLS").is_ok_and(|v| v == "1") {
+            panic!("TREECAL_REQUIRE_TOOLS=1 but {message}");
+        }
+        eprintln!("note: skipped: {message}");
+    }
+    found
+}
+
+/// A URDF of `example-robot-data`, by its path under `robots/`
+/// (e.g. `"talos_data/robots/talos_reduced.urdf"`); `None` as [`example_robot_data`].
+pub fn example_robot(relative: &str) -> Option<PathBuf> {
+    example_robot_data().map(|dir| dir.join(relative))
+}
