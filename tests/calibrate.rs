@@ -215,6 +215,13 @@ fn round_trip(seed: u64, extra: &[&str]) -> RoundTrip {
     args.extend_from_slice(extra);
     let run = treecal(&args);
     assert_success(&run, "calibrate");
+    // Good data: verdict ok, and no false alarm.
+    assert!(!run.stderr.contains("treecal: warning"), "{run}");
+    assert_eq!(
+        read_json(&out.join("report.json"))["verdict"]["status"],
+        "ok",
+        "{run}"
+    );
     RoundTrip {
         robot,
         flexibility,
@@ -399,6 +406,8 @@ fn robonaut2_staged_fit_through_the_cli() {
     ]);
     assert_success(&run, "calibrate robonaut 2");
     let report = read_json(&out.join("report.json"));
+    assert_eq!(report["verdict"]["status"], "ok", "{run}");
+    assert!(!run.stderr.contains("treecal: warning"), "{run}");
     assert_eq!(report["context"]["plan"], "staged", "{report}");
 
     let calibrated_path = out.join("calibrated.urdf");

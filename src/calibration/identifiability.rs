@@ -384,8 +384,14 @@ impl IdentifiabilityReport {
             ));
         }
         if self.rank < identifiable {
+            // A measured point on a joint axis does not move when that joint turns.
+            let hint = if self.expected_unidentifiable > 0 {
+                "; with positions only, a target on the last joint's axis cannot see that axis: place the targets off it"
+            } else {
+                ""
+            };
             warnings.push(format!(
-                "rank-deficient: rank {} of {identifiable}{explained}; {} parameter combination(s) cannot be identified from these poses",
+                "rank-deficient: rank {} of {identifiable}{explained}; {} parameter combination(s) cannot be identified from these poses{hint}",
                 self.rank,
                 identifiable - self.rank
             ));
