@@ -812,7 +812,19 @@ fn a_seeded_fifth_is_held_out() {
         .iter()
         .map(|name| {
             let out = dir.path().join(name);
-            let run = calibrate_into(&out, &["--measurements", path_str(&csv), "--seed", "3"]);
+            // The simulated robot deflects by centimetres: compensated, or the verdict fails.
+            let stiffness = stiffness_path();
+            let run = calibrate_into(
+                &out,
+                &[
+                    "--measurements",
+                    path_str(&csv),
+                    "--stiffness",
+                    path_str(&stiffness),
+                    "--seed",
+                    "3",
+                ],
+            );
             assert_success(&run, "calibrate");
             assert!(
                 run.stderr.contains("8 of 60 observations held out"),

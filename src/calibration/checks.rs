@@ -172,7 +172,7 @@ pub fn residual_scale(stage: &StageReport) -> Option<Finding> {
         Some(Finding::failed(
             "sigma-ratio",
             format!(
-                "stage '{}': σ̂ = {scale:.4e}: the residuals ({residuals}) are far larger than any measurement noise; typical causes: lengths in mm read as m (--length-unit), angles in degrees read as radians (--angle-unit), swapped or mislabelled tool columns, the wrong robot or measurement frame",
+                "stage '{}': σ̂ = {scale:.4e}: the residuals ({residuals}) are far larger than any measurement noise; typical causes: lengths in mm read as m (--length-unit), angles in degrees read as radians (--angle-unit), swapped or mislabelled tool columns, the wrong robot or measurement frame, large deflections left uncompensated (--stiffness)",
                 stage.name
             ),
         ))
