@@ -495,7 +495,7 @@ fn rigid_simultaneous(
         flexibility: None,
         plan: &plan,
         options: &options,
-        fit_measurement_frame: false,
+        measurement_frame: treecal::calibration::MeasurementFrame::Base,
     };
     run_calibration(&input, measurements, &[]).unwrap()
 }

@@ -154,13 +154,10 @@ fn round_trips_in_millimetres_degrees_and_three_targets() {
             three_targets,
         };
         let text = measurements_to_csv_with(&tree, &model, &written, &write).unwrap();
-        assert!(
-            text.starts_with("# lengths in mm, angles in deg\n"),
-            "{text}"
-        );
+        assert!(text.starts_with("# units: length=mm angle=deg\n"), "{text}");
         let read_options = MeasurementReadOptions {
-            length_unit: LengthUnit::Millimetre,
-            angle_unit: AngleUnit::Degree,
+            length_unit: Some(LengthUnit::Millimetre),
+            angle_unit: Some(AngleUnit::Degree),
             ..Default::default()
         };
         let read = parse_measurements(&text, "mm.csv", &tree, &model, &read_options).unwrap();
@@ -240,8 +237,8 @@ fn unit_flags_scale_lengths_and_angles() {
     ];
     for (length_unit, angle_unit, lift, yaw, position) in cases {
         let options = MeasurementReadOptions {
-            length_unit,
-            angle_unit,
+            length_unit: Some(length_unit),
+            angle_unit: Some(angle_unit),
             ..Default::default()
         };
         let set = parse_measurements(text, "units.csv", &tree, &model, &options).unwrap();
@@ -300,7 +297,7 @@ fn three_targets_give_the_frame_they_were_placed_on() {
             .collect();
         let text = format!("{header}\nleft_tool,0,0,0,0,0,0,0,0,{}\n", cells.join(","));
         let options = MeasurementReadOptions {
-            length_unit: LengthUnit::Millimetre,
+            length_unit: Some(LengthUnit::Millimetre),
             ..Default::default()
         };
         let set = parse_measurements(&text, "targets.csv", &tree, &model, &options).unwrap();
@@ -359,7 +356,7 @@ fn collinear_and_coincident_targets_are_errors() {
     let joints = "left_tool,0,0,0,0,0,0,0,0";
     let good = format!("{header}\nA7,{joints},0,0,0,100,0,0,0,100,0\n");
     let mm = MeasurementReadOptions {
-        length_unit: LengthUnit::Millimetre,
+        length_unit: Some(LengthUnit::Millimetre),
         ..Default::default()
     };
     let set = parse(&good, &mm).unwrap();
@@ -402,7 +399,7 @@ fn collinear_and_coincident_targets_are_errors() {
 fn limits_warn_unless_strict() {
     let text = with_cell("left_joint3", "-170.5");
     let degrees = MeasurementReadOptions {
-        angle_unit: AngleUnit::Degree,
+        angle_unit: Some(AngleUnit::Degree),
         ..Default::default()
     };
     let set = parse(&text, &degrees).unwrap();
@@ -442,7 +439,7 @@ fn continuous_joints_have_no_limits() {
     // The prismatic lift is limited to [0, 0.4] m, i.e. [0, 400] mm.
     let text = text.replace("0.1,", "500,");
     let options = MeasurementReadOptions {
-        length_unit: LengthUnit::Millimetre,
+        length_unit: Some(LengthUnit::Millimetre),
         ..Default::default()
     };
     let set = parse_measurements(&text, "c.csv", &tree, &model, &options).unwrap();

@@ -3,11 +3,11 @@
 use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame};
 use treecal::calibration::identifiability::NamedCombination;
 use treecal::calibration::{
-    hold_out, run_calibration, CalibrationInput, IdentificationOptions, Plan,
+    hold_out, run_calibration, CalibrationInput, IdentificationOptions, Plan, Status,
 };
 use treecal::io::{
-    read_measurements, read_plan, read_stiffness, to_json, to_yaml, write_atomically,
-    MeasurementReadOptions,
+    read_measurements, read_plan, read_registration, read_stiffness, to_json, to_yaml,
+    write_atomically, MeasurementReadOptions,
 };
 use treecal::kinematics::FlexibilityModel;
 use treecal::report::{
@@ -38,13 +38,23 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             return Err(invalid(flag, format!("{value} must be a positive number")));
         }
     }
+    let measurement_frame = match &args.measurement_frame {
+        MeasurementFrame::Auto => treecal::calibration::MeasurementFrame::Auto,
+        MeasurementFrame::Fit => treecal::calibration::MeasurementFrame::Fit,
+        MeasurementFrame::Base => treecal::calibration::MeasurementFrame::Base,
+        MeasurementFrame::File(path) => {
+            treecal::calibration::MeasurementFrame::Known(read_registration(path)?)
+        }
+    };
     let import = crate::robot::load(args.robot.as_deref())?;
     let tree = &import.tree;
-    let branches = crate::robot::branches(&import, args.tools.as_deref())?;
+    let branches =
+        crate::robot::measured_branches(&import, args.tools.as_deref(), &args.measurements)?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
     let read_options = MeasurementReadOptions {
         length_unit: args.length_unit,
         angle_unit: args.angle_unit,
+        joint_length_unit: args.joint_length_unit,
         ignore_columns: args.ignore_columns.clone(),
         strict_limits: args.strict,
     };
@@ -118,9 +128,18 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         flexibility: flexibility.as_ref(),
         plan: &plan,
         options: &options,
-        fit_measurement_frame: matches!(args.measurement_frame, MeasurementFrame::Fit),
+        measurement_frame,
     };
     let run = run_calibration(&input, &measurements, &validation)?;
+    // Until the verdict prints them, the findings are printed with the notes.
+    notes.extend(run.findings.iter().map(|finding| {
+        let level = match finding.status {
+            Status::Ok => "note",
+            Status::Warning => "warning",
+            Status::Failed => "error",
+        };
+        format!("treecal: {level}: {}", finding.message)
+    }));
 
     // Everything is computed before anything is written.
     let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
@@ -162,16 +181,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             None => "not compensated (no --stiffness)".into(),
         },
         sigma: [args.position_sigma, args.rotation_sigma],
-        measurement_frame: match args.measurement_frame {
-            MeasurementFrame::Fit => {
-                "fitted in closed form to the nominal model, then kept; the tool frames fitted too"
-                    .into()
-            }
-            MeasurementFrame::Base => {
-                "the robot's root link frame (--measurement-frame base); the tool frames fitted"
-                    .into()
-            }
-        },
+        measurement_frame: run.frame.reason.clone(),
     };
     let changed: Vec<String> = export.changes.iter().map(|c| c.joint.clone()).collect();
     let summary = calibration_summary(context, &run, unidentifiable, changed);
