@@ -17,5 +17,6 @@ mod measurements_csv;
 mod oracle;
 mod planning;
 mod plot;
+mod real_robots;
 mod simulate;
 mod urdf_import;
