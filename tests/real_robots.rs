@@ -4,7 +4,8 @@
 //! URDF), as a laser tracker reports them (full poses in mm, 15 µm and 0.15 mrad noise, the
 //! units comment in the file), in the robot's base frame and in a tracker frame 2.4 m away,
 //! then calibrated through the CLI with DEFAULT flags. The exported URDF is compared with the
-//! true URDF at fresh configurations, both through Pinocchio. And the usual lab mistakes, each
+//! true URDF at fresh configurations (the truth through Pinocchio, the calibrated URDF through
+//! treecal's forward kinematics, which tests/oracle.rs holds to Pinocchio's to 1e-9). And the usual lab mistakes, each
 //! with the diagnosis it must print.
 //!
 //! Needs python3 with Pinocchio and example-robot-data (`tests/oracle/requirements.txt`);
@@ -127,15 +128,19 @@ fn observe(pose: &Pose, rng: &mut ChaCha8Rng) -> Pose {
     )
 }
 
-/// Pinocchio's tool poses of the true URDF at `configurations`, measured from `world_from_base`
-/// with noise: one measurement per tool and configuration.
+/// Pinocchio's tool poses of the true URDF at `configurations` (one batch: the oracle starts
+/// once per robot).
+fn true_poses(truth: &Truth, configurations: &[Vec<f64>]) -> Vec<Vec<Pose>> {
+    pinocchio_poses(&truth.true_urdf, &truth.tree, &truth.links, configurations)
+}
+
+/// Noisy observations of `poses` (per configuration, per tool) from `world_from_base`.
 fn measure(
-    truth: &Truth,
-    world_from_base: &Pose,
     configurations: &[Vec<f64>],
+    poses: &[Vec<Pose>],
+    world_from_base: &Pose,
     rng: &mut ChaCha8Rng,
 ) -> Vec<Measurement> {
-    let poses = pinocchio_poses(&truth.true_urdf, &truth.tree, &truth.links, configurations);
     let mut measurements = Vec::new();
     for (q, tools) in configurations.iter().zip(poses) {
         for (tool, pose) in tools.iter().enumerate() {
@@ -161,19 +166,29 @@ fn tracker_csv(truth: &Truth, measurements: &[Measurement], angle: AngleUnit) ->
 }
 
 /// Mean position (mm) and orientation (deg) error of the calibrated URDF's tools against the
-/// truth's at `fresh` configurations, both through Pinocchio; with `align`, after removing the
-/// constant rigid transform that best maps one onto the other (a tracker frame leaves the
-/// root of the exported URDF wherever the fitted frame put it).
+/// truth's (`actual`, per fresh configuration and tool) at `fresh`; with `align`, after
+/// removing the constant rigid transform that best maps one onto the other (a tracker frame
+/// leaves the root of the exported URDF wherever the fitted frame put it), whose size (mm) is
+/// returned third. The calibrated URDF's forward kinematics are treecal's own (checked against
+/// Pinocchio to 1e-9 by tests/oracle.rs); the truth's are Pinocchio's.
 fn error_against_truth(
     truth: &Truth,
     calibrated: &Path,
     fresh: &[Vec<f64>],
+    actual: &[Vec<Pose>],
     align: bool,
 ) -> (f64, f64, f64) {
-    let actual = pinocchio_poses(&truth.true_urdf, &truth.tree, &truth.links, fresh);
-    let predicted = pinocchio_poses(calibrated, &truth.tree, &truth.links, fresh);
-    let flat = |p: &[Vec<Pose>]| -> Vec<Pose> { p.iter().flatten().copied().collect() };
-    let (actual, predicted) = (flat(&actual), flat(&predicted));
+    let tree = load_urdf(calibrated).unwrap_or_else(|e| panic!("{e}")).tree;
+    let links: Vec<_> = truth
+        .links
+        .iter()
+        .map(|l| tree.link_id(l).unwrap())
+        .collect();
+    let predicted: Vec<Pose> = fresh
+        .iter()
+        .flat_map(|q| links.iter().map(|&l| tree.link_pose(l, q).unwrap()))
+        .collect();
+    let actual: Vec<Pose> = actual.iter().flatten().copied().collect();
     let alignment = if align {
         let from: Vec<_> = predicted.iter().map(|p| p.translation.vector).collect();
         let to: Vec<_> = actual.iter().map(|p| p.translation.vector).collect();
@@ -233,8 +248,10 @@ fn real_robots_calibrate_with_default_flags() {
         let mut rng = rng(200 + index as u64);
         let measured = configurations(&truth.tree, CONFIGURATIONS, &mut rng);
         let fresh = configurations(&truth.tree, FRESH, &mut rng);
+        let mut poses = true_poses(&truth, &[measured.clone(), fresh.clone()].concat());
+        let actual = poses.split_off(CONFIGURATIONS);
         for (frame_name, frame) in [("base", Pose::identity()), ("tracker", tracker_frame())] {
-            let measurements = measure(&truth, &frame, &measured, &mut rng);
+            let measurements = measure(&measured, &poses, &frame, &mut rng);
             let csv = write(
                 truth.dir.path(),
                 &format!("{frame_name}.csv"),
@@ -253,6 +270,7 @@ fn real_robots_calibrate_with_default_flags() {
                 &truth,
                 &out.join("calibrated.urdf"),
                 &fresh,
+                &actual,
                 frame_name != "base",
             );
             table.push(format!(
@@ -277,4 +295,124 @@ fn real_robots_calibrate_with_default_flags() {
         "error against the truth, default flags:\n{}",
         table.join("\n")
     );
+}
+
+/// The lab mistakes on TALOS, each with its diagnosis, and a known registration as the good
+/// case of `--measurement-frame FILE`.
+#[test]
+fn real_robot_mistakes_are_named() {
+    let Some(truth) = truth_of(&ROBOTS[0], 100) else {
+        return;
+    };
+    let dir = truth.dir.path();
+    let mut rng = rng(300);
+    let measured = configurations(&truth.tree, CONFIGURATIONS, &mut rng);
+    let fresh = configurations(&truth.tree, FRESH, &mut rng);
+    let mut poses = true_poses(&truth, &[measured.clone(), fresh.clone()].concat());
+    let actual = poses.split_off(CONFIGURATIONS);
+    let far = measure(&measured, &poses, &tracker_frame(), &mut rng);
+    let csv_text = tracker_csv(&truth, &far, AngleUnit::Radian);
+    assert!(csv_text.starts_with("# units: length=mm angle=rad\n"));
+    let csv = write(dir, "far.csv", &csv_text);
+    let out = dir.join("out");
+
+    // Data in a tracker frame 2.4 m away declared to be in the base frame: a failed finding
+    // with the hint.
+    let run = calibrate(&truth.path, &csv, &out, &["--measurement-frame", "base"]);
+    assert!(
+        run.stderr
+            .contains("root frame (--measurement-frame base) cannot explain the data")
+            && run.stderr.contains("hint: --measurement-frame fit"),
+        "{run}"
+    );
+    eprintln!("base declared for tracker data:\n{}", run.stderr);
+
+    // The registration known: the exported root is the physical base, no alignment needed.
+    let t = tracker_frame();
+    let (roll, pitch, yaw) = t.rotation.euler_angles();
+    let registration = format!(
+        "units: {{length: mm, angle: deg}}\nxyz: [{}, {}, {}]\nrpy: [{}, {}, {}]\n",
+        t.translation.x * 1e3,
+        t.translation.y * 1e3,
+        t.translation.z * 1e3,
+        roll.to_degrees(),
+        pitch.to_degrees(),
+        yaw.to_degrees()
+    );
+    let known = write(dir, "registration.yaml", &registration);
+    let run = calibrate(
+        &truth.path,
+        &csv,
+        &out,
+        &["--measurement-frame", path_str(&known)],
+    );
+    assert_success(&run, "known registration");
+    assert!(run.stderr.contains("registration given"), "{run}");
+    let (position, orientation, _) =
+        error_against_truth(&truth, &out.join("calibrated.urdf"), &fresh, &actual, false);
+    eprintln!("known registration: {position:.4} mm, {orientation:.5}° against the truth");
+    assert!(position < 3.0 * position_noise_mm(), "{position} mm");
+    // A registration that is not the data's (the identity): failed, with the hint.
+    let wrong = write(
+        dir,
+        "wrong.yaml",
+        "units: {length: m, angle: rad}\nxyz: [0, 0, 0]\nrpy: [0, 0, 0]\n",
+    );
+    let run = calibrate(
+        &truth.path,
+        &csv,
+        &out,
+        &["--measurement-frame", path_str(&wrong)],
+    );
+    assert!(
+        run.stderr
+            .contains("the registration does not match the data"),
+        "{run}"
+    );
+
+    // Millimetres read as metres (the units comment dropped, no flag).
+    let body = csv_text.split_once('\n').unwrap().1;
+    let bare = write(dir, "bare.csv", body);
+    let run = calibrate(&truth.path, &bare, &out, &[]);
+    assert_error(
+        &run,
+        &["--length-unit mm", "millimetres read as metres"],
+        "mm as m",
+    );
+    eprintln!("mm read as m: {}", run.stderr);
+
+    // A flag that contradicts the units comment.
+    let run = calibrate(&truth.path, &csv, &out, &["--length-unit", "m"]);
+    assert_error(
+        &run,
+        &["--length-unit m contradicts", "length=mm"],
+        "conflict",
+    );
+    eprintln!("conflict: {}", run.stderr);
+
+    // Joint values in degrees read as radians: one diagnosis, not a line per value.
+    let degrees = tracker_csv(&truth, &far, AngleUnit::Degree);
+    let bare_degrees = write(dir, "deg.csv", degrees.split_once('\n').unwrap().1);
+    let run = calibrate(&truth.path, &bare_degrees, &out, &["--length-unit", "mm"]);
+    assert_error(
+        &run,
+        &["--angle-unit deg", "look like degrees"],
+        "deg as rad",
+    );
+    assert_eq!(run.stderr.lines().count(), 1, "{run}");
+    eprintln!("deg read as rad: {}", run.stderr);
+
+    // Radians read as degrees.
+    let run = calibrate(
+        &truth.path,
+        &bare,
+        &out,
+        &["--length-unit", "mm", "--angle-unit", "deg"],
+    );
+    assert_error(
+        &run,
+        &["--angle-unit rad", "look like radians"],
+        "rad as deg",
+    );
+    eprintln!("rad read as deg: {}", run.stderr);
 }

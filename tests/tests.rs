@@ -8,6 +8,7 @@ mod cli;
 mod collision;
 mod export;
 mod flexibility;
+mod frame;
 mod from_mcpc;
 mod identifiability;
 mod identification;

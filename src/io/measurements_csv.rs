@@ -408,7 +408,10 @@ fn limit_warnings(
         return Err(Error::InvalidData {
             origin: origin.to_owned(),
             message: format!(
-                "{revolute} of {revolute_values} revolute joint values are outside their limits                  when read as radians{first}, and {explained} of them are within the limits when                  read as degrees: the joint values look like degrees; give --angle-unit deg (or                  state `# units: angle=deg` in the file)"
+                "{revolute} of {revolute_values} revolute joint values are outside their limits \
+                when read as radians{first}, and {explained} of them are within the limits when \
+                read as degrees: the joint values look like degrees; give --angle-unit deg (or \
+                state `# units: angle=deg` in the file)"
             ),
         });
     }
@@ -458,7 +461,9 @@ fn angles_look_like_radians(
         return Err(Error::InvalidData {
             origin: origin.to_owned(),
             message: format!(
-                "all {} non-zero revolute joint values are within ±{largest_in_degrees:.3} deg,                  too small a motion to calibrate from: the joint values look like radians;                  give --angle-unit rad (or state `# units: angle=rad` in the file)",
+                "all {} non-zero revolute joint values are within ±{largest_in_degrees:.3} deg, \
+                too small a motion to calibrate from: the joint values look like radians; \
+                give --angle-unit rad (or state `# units: angle=rad` in the file)",
                 values.len()
             ),
         });
@@ -477,7 +482,8 @@ pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
         .position(|h| h == "tool")
         .ok_or_else(|| Error::InvalidData {
             origin: format!("{origin}:{}", table.header_line),
-            message: "the header has no 'tool' column; add one naming the measured tool link                       of each row"
+            message: "the header has no 'tool' column; add one naming the measured tool link \
+                of each row"
                 .into(),
         })?;
     let mut names: Vec<String> = Vec::new();
