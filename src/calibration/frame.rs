@@ -60,8 +60,8 @@ pub struct FrameDecision {
 /// same frame". The complete MCPC model absorbs any frame offset in its first frames, so the
 /// data cannot tell a registration offset from a geometric error; this bound only keeps the
 /// solver's start within the reach of its linearisation. With the paper's errors (±5 cm,
-/// ±0.05 rad on every parameter) the closed-form fit on root-frame data moves by up to 83 mm
-/// and 0.135 rad (20 seeds on each robot in `robots/`, `tests/frame.rs`): about 2× margin.
+/// ±0.05 rad on every parameter) the closed-form fit on root-frame data moves by up to 123 mm
+/// and 0.155 rad (20 seeds on each robot in `robots/`, `tests/frame.rs`): about 2× margin.
 pub const FRAME_TRANSLATION_LIMIT: f64 = 0.3;
 
 /// The same for rotation (rad).
@@ -69,8 +69,9 @@ pub const FRAME_ROTATION_LIMIT: f64 = 0.3;
 
 /// How much worse than the fitted frame the fixed one may explain the data: the position RMS
 /// it adds in quadrature, `√(rms_fixed² − rms_fitted²)`, at most this many times the fitted
-/// RMS (the uncalibrated robot's own error, which the fit cannot remove)…
-pub const FRAME_EXTRA_RMS_RATIO: f64 = 2.0;
+/// RMS (the uncalibrated robot's own error, which the fit cannot remove; at most 1.5× on
+/// root-frame data with the paper's errors, `tests/frame.rs`)…
+pub const FRAME_EXTRA_RMS_RATIO: f64 = 3.0;
 
 /// …or this much (m), whichever is larger, so that a precise robot with a registration a few
 /// millimetres off keeps its base.
