@@ -95,7 +95,7 @@ fn calibrate(robot: &Robot, data: &[Measurement], validation: &[Measurement]) ->
         flexibility: None,
         plan: &plan,
         options: &options,
-        fit_measurement_frame: false,
+        measurement_frame: treecal::calibration::MeasurementFrame::Base,
     };
     run_calibration(&input, data, validation).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -6,8 +6,8 @@ use treecal::calibration::{
     hold_out, run_calibration, CalibrationInput, Finding, IdentificationOptions, Plan, Status,
 };
 use treecal::io::{
-    check_output_folder, read_measurements, read_plan, read_stiffness, replace_folder, to_json,
-    to_yaml, MeasurementReadOptions,
+    check_output_folder, read_measurements, read_plan, read_registration, read_stiffness,
+    replace_folder, to_json, to_yaml, MeasurementReadOptions,
 };
 use treecal::kinematics::FlexibilityModel;
 use treecal::report::{
@@ -49,14 +49,24 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     // The output folder is replaced as a whole at the end: refuse a folder that is not a
     // previous output before computing anything.
     check_output_folder(&args.out, &is_output_file)?;
+    let measurement_frame = match &args.measurement_frame {
+        MeasurementFrame::Auto => treecal::calibration::MeasurementFrame::Auto,
+        MeasurementFrame::Fit => treecal::calibration::MeasurementFrame::Fit,
+        MeasurementFrame::Base => treecal::calibration::MeasurementFrame::Base,
+        MeasurementFrame::File(path) => {
+            treecal::calibration::MeasurementFrame::Known(read_registration(path)?)
+        }
+    };
     let import = crate::robot::load(args.robot.as_deref())?;
     let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
     let tree = &import.tree;
-    let branches = crate::robot::branches(&import, args.tools.as_deref())?;
+    let branches =
+        crate::robot::measured_branches(&import, args.tools.as_deref(), &args.measurements)?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
     let read_options = MeasurementReadOptions {
         length_unit: args.length_unit,
         angle_unit: args.angle_unit,
+        joint_length_unit: args.joint_length_unit,
         ignore_columns: args.ignore_columns.clone(),
         strict_limits: args.strict,
     };
@@ -130,7 +140,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         flexibility: flexibility.as_ref(),
         plan: &plan,
         options: &options,
-        fit_measurement_frame: matches!(args.measurement_frame, MeasurementFrame::Fit),
+        measurement_frame,
     };
     let mut run = run_calibration(&input, &measurements, &validation)?;
 
@@ -182,16 +192,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             None => "not compensated (no --stiffness)".into(),
         },
         sigma: [args.position_sigma, args.rotation_sigma],
-        measurement_frame: match args.measurement_frame {
-            MeasurementFrame::Fit => {
-                "fitted in closed form to the nominal model, then kept; the tool frames fitted too"
-                    .into()
-            }
-            MeasurementFrame::Base => {
-                "the robot's root link frame (--measurement-frame base); the tool frames fitted"
-                    .into()
-            }
-        },
+        measurement_frame: run.frame.reason.clone(),
     };
     let changed: Vec<String> = export
         .iter()
