@@ -19,3 +19,4 @@ mod planning;
 mod plot;
 mod simulate;
 mod urdf_import;
+mod urdf_tolerant;
