@@ -6,6 +6,7 @@ mod branches;
 mod calibrate;
 mod cli;
 mod collision;
+mod corpus;
 mod export;
 mod flexibility;
 mod from_mcpc;
