@@ -14,7 +14,7 @@ use treecal::report::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file,
     CalibrationContext,
 };
-use treecal::urdf::export_urdf;
+use treecal::urdf::{export_urdf_with, ExportOptions};
 use treecal::{Error, McpcModel, Result};
 
 /// Fraction of the configurations held out for validation without `--validation`.
@@ -124,7 +124,11 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
 
     // Everything is computed before anything is written.
     let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
-    let export = export_urdf(&original, &origin, tree, &run.report.model)?;
+    let std_devs: Vec<Option<f64>> = run.parameters.iter().map(|p| p.std_dev).collect();
+    let export_options =
+        ExportOptions::with_uncertainty(tree, &run.report.model, &std_devs, args.add_tool_links);
+    let export = export_urdf_with(&original, &origin, tree, &run.report.model, &export_options)?;
+    notes.extend(crate::robot::export_notes(&export));
     let unidentifiable: Vec<Vec<String>> = run
         .report
         .stages

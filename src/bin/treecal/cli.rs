@@ -302,6 +302,12 @@ pub struct ExportArgs {
     /// The URDF file to write (written atomically).
     #[arg(short, long, value_name = "OUT.urdf")]
     pub output: PathBuf,
+    /// When a tool link is the child of a revolute joint and its calibrated origin lies off
+    /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
+    /// express), add a fixed child link `<tool>_calibrated` at the exact calibrated tool frame
+    /// instead of failing (docs/export.md).
+    #[arg(long)]
+    pub add_tool_links: bool,
 }
 
 /// Arguments of `treecal check`.
@@ -363,6 +369,12 @@ pub struct CalibrateArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// When a tool link is the child of a revolute joint and its calibrated origin lies off
+    /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
+    /// express), add a fixed child link `<tool>_calibrated` at the exact calibrated tool frame
+    /// instead of failing (docs/export.md).
+    #[arg(long)]
+    pub add_tool_links: bool,
     /// Measurement CSV (one row per tool observation).
     #[arg(long, value_name = "M.csv")]
     pub measurements: PathBuf,
