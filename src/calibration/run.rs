@@ -250,6 +250,7 @@ pub fn run_calibration(
                 .sqrt()
         })
         .filter(|rms| rms.is_finite());
+    let findings = report.notes.clone();
     Ok(CalibrationRun {
         guess,
         frame_refinement,
@@ -259,7 +260,7 @@ pub fn run_calibration(
         validation: validation_residuals,
         predicted_validation_rms_mm,
         predicted_validation_sd_mm,
-        findings: Vec::new(),
+        findings,
     })
 }
 

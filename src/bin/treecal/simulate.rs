@@ -149,6 +149,11 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         bar.finish_and_clear();
     }
     let summary = summarise(&reports);
+    if let Some(first) = reports.first() {
+        for note in &first.notes {
+            eprintln!("treecal: note: {note}");
+        }
+    }
 
     let header = format!(
         "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {} plan; model stiffness × {}.",
