@@ -17,7 +17,7 @@ pub use measurements_csv::{
     measurements_to_csv, measurements_to_csv_with, parse_measurements, read_measurements,
     MeasurementReadOptions, MeasurementSet, MeasurementWriteOptions, ObservationKind,
 };
-pub use mesh_files::{mesh_file_loader, package_dirs, resolve_mesh};
+pub use mesh_files::{mesh_file_loader, package_dirs, read_mesh_vertices, resolve_mesh};
 pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
