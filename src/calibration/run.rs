@@ -253,6 +253,8 @@ pub fn run_calibration(
                 .sqrt()
         })
         .filter(|rms| rms.is_finite());
+    let mut findings = vec![frame_finding];
+    findings.extend(report.notes.iter().cloned());
     let mut run = CalibrationRun {
         guess,
         frame,
@@ -263,7 +265,7 @@ pub fn run_calibration(
         validation: validation_residuals,
         predicted_validation_rms_mm,
         predicted_validation_sd_mm,
-        findings: vec![frame_finding],
+        findings,
     };
     let found = super::checks::assess(&run, input.tree);
     run.findings.extend(found);
