@@ -632,3 +632,90 @@ fn plan_and_check_warn_about_weak_pose_sets() {
     assert_success(&enough, "plan 20 poses");
     assert!(!enough.stderr.contains("warning"), "{enough}");
 }
+
+/// The example data with the targets moved 20 mm along each axis of the frame they define
+/// (so the measured frame is off every joint axis) and labelled as the links of the last arm
+/// joints, which a URDF cannot give an off-axis origin: the export fails, and that is a failed
+/// verdict with params.yaml and the reports written (and no calibrated.urdf).
+#[test]
+fn a_failing_export_is_a_failed_verdict_with_the_reports_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(example()).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let targets: Vec<usize> = ["ax", "ay", "az", "bx", "by", "bz", "cx", "cy", "cz"]
+        .iter()
+        .map(|c| column(c))
+        .collect();
+    let tool = column("tool");
+    let mut csv = header.join(",") + "\n";
+    for line in lines {
+        let mut cells: Vec<String> = line.split(',').map(str::to_owned).collect();
+        let values: Vec<f64> = targets.iter().map(|&i| cells[i].parse().unwrap()).collect();
+        let value = |k: usize| values[k];
+        let point = |k: usize| Vec3::new(value(3 * k), value(3 * k + 1), value(3 * k + 2));
+        let (a, b, c) = (point(0), point(1), point(2));
+        let x = (b - a).normalize();
+        let z = x.cross(&(c - a)).normalize();
+        let y = z.cross(&x);
+        let shift = (x + y + z) * 20.0;
+        for (k, &index) in targets.iter().enumerate() {
+            cells[index] = format!("{}", value(k) + shift[k % 3]);
+        }
+        cells[tool] = match cells[tool].as_str() {
+            "left_tool" => "left_link6".into(),
+            _ => "right_link5".into(),
+        };
+        csv.push_str(&(cells.join(",") + "\n"));
+    }
+    let measurements = dir.path().join("m.csv");
+    std::fs::write(&measurements, csv).unwrap();
+    // The payloads sit at the tool links.
+    let stiffness = dir.path().join("stiffness.yaml");
+    std::fs::write(
+        &stiffness,
+        std::fs::read_to_string(robot("robonaut/stiffness.yaml"))
+            .unwrap()
+            .replace("left_tool", "left_link6")
+            .replace("right_tool", "right_link5"),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&measurements),
+        "--tools",
+        "left_link6,right_link5",
+        "--stiffness",
+        path_str(&stiffness),
+        "--measurement-frame",
+        "base",
+        "--length-unit",
+        "mm",
+        "--angle-unit",
+        "deg",
+        "--out",
+        path_str(&out),
+    ]);
+    assert!(!run.success, "{run}");
+    assert!(
+        run.stderr
+            .contains("treecal: error: the calibrated model cannot be written as a URDF"),
+        "{run}"
+    );
+    assert!(!out.join("calibrated.urdf").exists());
+    assert!(out.join("params.yaml").exists());
+    let json = report(&out);
+    assert_eq!(json["verdict"]["status"], "failed");
+    assert!(
+        json["verdict"]["reasons"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|r| r["code"] == "urdf-export" && r["status"] == "failed"),
+        "{}",
+        json["verdict"]
+    );
+}
