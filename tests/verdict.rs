@@ -219,6 +219,14 @@ fn too_few_equations_fail_and_little_redundancy_warns() {
         message.is_some_and(|f| f.message.contains("60 equations") && f.message.contains("64")),
         "{message:?}"
     );
+    // Without redundancy nothing can be predicted (the "0.0000 mm").
+    let five_with_validation = calibrate(
+        &robot,
+        &measure(&truth, &identification[..5], false, SIGMA, &mut rng),
+        &measure(&truth, &identification[5..8], false, SIGMA, &mut rng),
+    );
+    assert_eq!(five_with_validation.predicted_validation_rms_mm, None);
+    assert!(five_with_validation.predicted_validation_sd_mm.is_empty());
     let six = calibrate(
         &robot,
         &measure(&truth, &identification[..6], false, SIGMA, &mut rng),
