@@ -533,6 +533,25 @@ fn the_output_folder_is_written_as_a_set() {
     assert!(!out.join("calibrated.urdf").exists());
     assert_eq!(report(&out)["verdict"]["status"], "failed");
 
+    // An empty stiffness file is refused (it read as every default, "compensated exactly").
+    let empty = dir.path().join("empty.yaml");
+    std::fs::write(&empty, "# nothing yet\n").unwrap();
+    let run = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&example()),
+        "--stiffness",
+        path_str(&empty),
+        "--out",
+        path_str(&out),
+    ]);
+    assert_error(
+        &run,
+        &["empty.yaml", "empty", "--stiffness"],
+        "empty stiffness",
+    );
+    assert_eq!(report(&out)["verdict"]["status"], "failed", "out untouched");
+
     // Foreign files: refused before computing; the folder is left as it was.
     let foreign = dir.path().join("foreign");
     std::fs::create_dir(&foreign).unwrap();
