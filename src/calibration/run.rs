@@ -419,7 +419,12 @@ fn arm_residuals(
 /// covariance ([`assembled_covariance`]) (mm): the spread of the predicted position that the
 /// identification noise leaves.
 fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> Vec<f64> {
-    if validation.is_empty() {
+    // A stage without redundancy has no covariance: nothing can be predicted (not zero).
+    let undetermined = report
+        .stages
+        .iter()
+        .any(|s| s.identification.covariance.is_none());
+    if validation.is_empty() || undetermined {
         return Vec::new();
     }
     let covariance = assembled_covariance(report);
