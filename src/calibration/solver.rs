@@ -464,6 +464,11 @@ pub fn identify(
     let mut final_analysis: Option<Analysis> = None;
 
     while iterations < options.max_iterations {
+        // An SVD of a non-finite matrix never ends: stop with an error instead.
+        crate::limits::ensure_finite(
+            lin.jacobian.iter().chain(lin.residual.iter()),
+            "identification: the weighted Jacobian and residual",
+        )?;
         let analysis = analyse(&lin, options.rank_tolerance);
         let sigma_max = analysis.singular_values.iter().copied().fold(0.0, f64::max);
         let threshold = options.rank_tolerance * sigma_max;

@@ -6,6 +6,7 @@ use super::joints_csv::parse_csv;
 use super::units::{AngleUnit, LengthUnit};
 use crate::error::{did_you_mean, Error, Result};
 use crate::kinematics::McpcModel;
+use crate::limits::{self, Quantity};
 use crate::math::{Pose, Vec3};
 use crate::measurement::{
     frame_from_targets, targets_on, targets_problem, Measurement, Observation,
@@ -181,6 +182,7 @@ pub fn parse_measurements(
         warnings,
     };
     let mut first_line_of_id: HashMap<String, usize> = HashMap::new();
+    let mut repeats = Repeats::new(columns.id);
     for (row, (line, fields)) in table.records.iter().enumerate() {
         let line = *line;
         let place = |column: usize| format!("{origin}:{line}:{}", table.headers[column]);
@@ -235,7 +237,11 @@ pub fn parse_measurements(
                 (angle.in_radians(), angle.symbol())
             };
             let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
-            q[dof] = value * scale;
+            let quantity = match joint.kind {
+                JointKind::Prismatic => Quantity::Length,
+                _ => Quantity::Angle,
+            };
+            q[dof] = limits::check(value * scale, quantity, || place(column))?;
             given[dof] = true;
             if let Some(limits) = joint.limits.filter(|_| joint.kind != JointKind::Continuous) {
                 const TOLERANCE: f64 = 1e-9;
@@ -280,7 +286,9 @@ pub fn parse_measurements(
             let unit = if is_length { length.symbol() } else { "" };
             let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
             values.push(if is_length {
-                value * length.in_metres()
+                limits::check(value * length.in_metres(), Quantity::Length, || {
+                    place(column)
+                })?
             } else {
                 value
             });
@@ -333,8 +341,54 @@ pub fn parse_measurements(
         });
         set.ids.push(id);
         set.lines.push(line);
+        repeats.see(fields, line);
     }
+    set.warnings.extend(repeats.warning(origin));
     Ok(set)
+}
+
+/// Rows that repeat an earlier row in every column but the id: accepted (a repeated
+/// measurement is legitimate), with one warning, since an accidentally duplicated row weighs
+/// double in the fit.
+struct Repeats {
+    id: Option<usize>,
+    first_line: HashMap<Vec<String>, usize>,
+    /// `(line, line it repeats)` of every repeated row.
+    found: Vec<(usize, usize)>,
+}
+
+impl Repeats {
+    fn new(id: Option<usize>) -> Self {
+        Self {
+            id,
+            first_line: HashMap::new(),
+            found: Vec::new(),
+        }
+    }
+
+    fn see(&mut self, fields: &[String], line: usize) {
+        let mut key = fields.to_vec();
+        if let Some(id) = self.id {
+            key[id].clear();
+        }
+        if let Some(&first) = self.first_line.get(&key) {
+            self.found.push((line, first));
+        } else {
+            self.first_line.insert(key, line);
+        }
+    }
+
+    fn warning(&self, origin: &str) -> Option<String> {
+        let &(line, first) = self.found.first()?;
+        let more = match self.found.len() {
+            1 => String::new(),
+            n => format!(" ({} repeated rows in all)", n),
+        };
+        Some(format!(
+            "{origin}:{line}: the row repeats line {first} in every column but the id{more}; \
+             a repeated row weighs double in the fit: remove it if it was copied by mistake"
+        ))
+    }
 }
 
 /// A finite number, or what is wrong with the text.

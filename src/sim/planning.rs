@@ -433,12 +433,17 @@ fn jacobian_blocks(
             }
         }
     }
+    crate::limits::ensure_finite(blocks.iter(), "planning: the candidates' Jacobians")?;
     Ok((blocks, rows, kept.len()))
 }
 
 /// Singular values of a Jacobian from its information matrix `JᵀJ` (√ of the eigenvalues,
 /// negative rounding clamped to 0).
 fn singular_values(information: &DMatrix<f64>) -> Vec<f64> {
+    if !information.iter().all(|v| v.is_finite()) {
+        // Its eigen-decomposition would never end; NaN ranks below every finite criterion.
+        return vec![f64::NAN; information.ncols()];
+    }
     information
         .clone()
         .symmetric_eigenvalues()

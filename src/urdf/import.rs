@@ -24,20 +24,19 @@ pub struct UrdfImport {
 
 /// Reads and converts a URDF file.
 pub fn load_urdf(path: &Path) -> Result<UrdfImport> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_URDF_BYTES)?;
     parse_urdf(&text, &path.display().to_string())
 }
 
 /// Converts URDF text; `origin` names the source in messages (a file path or `<string>`).
 pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
+    crate::limits::check_text_size(text, crate::limits::MAX_URDF_BYTES, origin)?;
     check_nesting(text, origin)?;
     let robot = urdf_rs::read_from_string(text).map_err(|e| Error::UrdfParse {
         origin: origin.to_owned(),
         message: e.to_string(),
     })?;
+    super::bounds::check_bounds(&robot, text, origin)?;
     Importer { text, origin }.convert(&robot)
 }
 
@@ -667,7 +666,7 @@ fn urdf_pose(p: &urdf_rs::Pose) -> Pose {
 }
 
 /// The 1-based line of `<tag ... name="name"`, if it can be found in the text.
-fn element_line(text: &str, tag: &str, name: &str) -> Option<usize> {
+pub(super) fn element_line(text: &str, tag: &str, name: &str) -> Option<usize> {
     for quote in ['"', '\''] {
         let needle = format!("name={quote}{name}{quote}");
         let mut start = 0;
