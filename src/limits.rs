@@ -113,19 +113,32 @@ impl Quantity {
 /// it must be finite and within ±[`Quantity::bound`] (a mass also ≥ 0).
 pub fn magnitude_problem(value: f64, quantity: Quantity) -> Option<String> {
     if !value.is_finite() {
-        return Some(format!("{value} is not a finite number"));
+        return Some(format!("{} is not a finite number", shown(value)));
     }
     if quantity == Quantity::Mass && value < 0.0 {
-        return Some(format!("{value} is negative; a mass must be ≥ 0 kg"));
+        return Some(format!(
+            "{} is negative; a mass must be ≥ 0 kg",
+            shown(value)
+        ));
     }
     let bound = quantity.bound();
     (value.abs() > bound).then(|| {
         format!(
-            "{value} is beyond the limit ±{bound:e} {} (docs/file-formats.md, \"Limits\"); \
-             check the unit",
+            "{} is beyond the limit ±{} {} (docs/file-formats.md, \"Limits\"); check the unit",
+            shown(value),
+            shown(bound),
             quantity.describe()
         )
     })
+}
+
+/// A number for a message: in exponent notation when very large or small.
+pub fn shown(value: f64) -> String {
+    if value != 0.0 && value.is_finite() && !(1e-4..1e6).contains(&value.abs()) {
+        format!("{value:e}")
+    } else {
+        format!("{value}")
+    }
 }
 
 /// `value` if it is a sane `quantity`, else an [`Error::InvalidData`] at `origin` (the file,
@@ -148,14 +161,16 @@ pub fn check_range(value: f64, range: (f64, f64), flag: &str, unit: &str) -> Res
         Err(Error::InvalidData {
             origin: flag.to_owned(),
             message: format!(
-                "{value} {unit} is outside [{:e}, {:e}] {unit} (docs/file-formats.md, \"Limits\")",
-                range.0, range.1
+                "{} {unit} is outside [{}, {}] {unit} (docs/file-formats.md, \"Limits\")",
+                shown(value),
+                shown(range.0),
+                shown(range.1)
             ),
         })
     }
 }
 
-/// `count` if it is at most `max`, else an error naming `what` at `origin`.
+/// `count` if it is at most `max`, else an error naming `what` (e.g. "data rows") at `origin`.
 pub fn check_count(count: usize, max: usize, origin: &str, what: &str) -> Result<usize> {
     if count <= max {
         Ok(count)

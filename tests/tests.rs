@@ -9,6 +9,7 @@ mod collision;
 mod export;
 mod flexibility;
 mod from_mcpc;
+mod hardening;
 mod identifiability;
 mod identification;
 mod jacobian;

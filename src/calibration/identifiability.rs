@@ -225,7 +225,11 @@ pub fn weighted_jacobian(
         }
     }
     // Every decomposition of identifiability starts from this matrix.
-    crate::limits::ensure_finite(jacobian.iter(), "identifiability: the weighted Jacobian")?;
+    let squares = jacobian.norm_squared();
+    crate::limits::ensure_finite(
+        jacobian.iter().chain([&squares]),
+        "identifiability: the weighted Jacobian",
+    )?;
     Ok(jacobian)
 }
 

@@ -465,8 +465,13 @@ pub fn identify(
 
     while iterations < options.max_iterations {
         // An SVD of a non-finite matrix never ends: stop with an error instead.
+        // Squares overflow too (e.g. a tiny sigma): the column norms and the cost must be finite.
+        let squares = [lin.jacobian.norm_squared(), lin.residual.norm_squared()];
         crate::limits::ensure_finite(
-            lin.jacobian.iter().chain(lin.residual.iter()),
+            lin.jacobian
+                .iter()
+                .chain(lin.residual.iter())
+                .chain(&squares),
             "identification: the weighted Jacobian and residual",
         )?;
         let analysis = analyse(&lin, options.rank_tolerance);

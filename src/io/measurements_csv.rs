@@ -77,10 +77,7 @@ pub fn read_measurements(
     model: &McpcModel,
     options: &MeasurementReadOptions,
 ) -> Result<MeasurementSet> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
     parse_measurements(&text, &path.display().to_string(), tree, model, options)
 }
 

@@ -272,6 +272,14 @@ fn check_options(options: &PlanningOptions) -> Result<()> {
     if options.poses == 0 {
         return bad("ask for at least 1 pose".into());
     }
+    if options.candidates > crate::limits::MAX_CANDIDATES {
+        return bad(format!(
+            "{} candidates is more than the limit of {} (each costs a Jacobian block in memory; \
+             docs/file-formats.md, \"Limits\")",
+            options.candidates,
+            crate::limits::MAX_CANDIDATES
+        ));
+    }
     if options.candidates < options.poses {
         return bad(format!(
             "{} candidates cannot give {} poses; ask for at least as many candidates as poses",
@@ -433,7 +441,11 @@ fn jacobian_blocks(
             }
         }
     }
-    crate::limits::ensure_finite(blocks.iter(), "planning: the candidates' Jacobians")?;
+    let squares = blocks.norm_squared();
+    crate::limits::ensure_finite(
+        blocks.iter().chain([&squares]),
+        "planning: the candidates' Jacobians",
+    )?;
     Ok((blocks, rows, kept.len()))
 }
 
