@@ -51,6 +51,9 @@ pub const MAX_CSV_COLUMNS: usize = 10_000;
 pub const MAX_YAML_DEPTH: usize = 64;
 /// Most joints of a URDF. Large humanoids have about 100.
 pub const MAX_JOINTS: usize = 1_000;
+/// Most MCPC parameters of a model (about 250 joints on the selected branches): identification
+/// decomposes a square matrix of this size (Robonaut has 64).
+pub const MAX_PARAMETERS: usize = 1_000;
 /// Longest link, joint or robot name (characters).
 pub const MAX_NAME_CHARS: usize = 1_000;
 /// Most candidate configurations of a pose plan (each costs a Jacobian block in memory, about
