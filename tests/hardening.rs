@@ -395,6 +395,16 @@ fn to_mcpc_output_reads_back_with_any_printable_name() {
     let yaml = mcpc_table_to_yaml(&table, &["header".into()]);
     let back = parse_mcpc_table(&yaml, "t.yaml").unwrap();
     assert_eq!(back.robot, table.robot);
+    // "Unbounded" limits as real URDFs write them (±1e16) go through to-mcpc and back.
+    let text = robonaut_text().replacen("<limit lower=\"", "<limit lower=\"-1e16\" x=\"", 1);
+    let tree = parse_urdf(&text, "r.urdf").unwrap().tree;
+    let branches = detect_branches(&tree, None).unwrap();
+    let model = McpcModel::from_tree(&tree, &branches).unwrap();
+    let table = treecal::McpcTable::from_model(&tree, &branches, &model).unwrap();
+    let yaml = mcpc_table_to_yaml(&table, &[]);
+    let back = parse_mcpc_table(&yaml, "t.yaml").unwrap();
+    let rows = back.branches.iter().flat_map(|b| &b.rows);
+    assert_eq!(rows.filter(|r| r.limits.0 < -0.99e16).count(), 1);
     // Control characters cannot reach a table: the URDF loader refuses them.
     let text = robonaut_text().replace("\"left_joint1\"", "\"left&#9;joint1\"");
     let error = parse_urdf(&text, "r.urdf").unwrap_err().to_string();

@@ -223,12 +223,9 @@ fn check_bounds(table: &McpcTable, origin: &str) -> Result<()> {
             for (key, value) in [("x", row.x), ("y", row.y)] {
                 number(&what, key, value, Quantity::Length)?;
             }
-            let limit = match row.kind {
-                FrameKind::Revolute => Quantity::Angle,
-                FrameKind::Prismatic => Quantity::Length,
-            };
-            number(&what, "limits", row.limits.0, limit)?;
-            number(&what, "limits", row.limits.1, limit)?;
+            // URDFs write ±1e16 for "unbounded", and to-mcpc passes it on.
+            number(&what, "limits", row.limits.0, Quantity::JointLimit)?;
+            number(&what, "limits", row.limits.1, Quantity::JointLimit)?;
         }
         if let Some(t) = &branch.tool {
             names.push(&t.link);
