@@ -260,7 +260,8 @@ pub fn mcpc_table_to_yaml(table: &McpcTable, header: &[String]) -> String {
     let mm = |v: f64| number(v * 1e3);
     let mut out = String::new();
     for line in header {
-        let _ = writeln!(out, "# {line}");
+        // A line break in a header line (a file name can hold one) would end the comment.
+        let _ = writeln!(out, "# {}", line.replace(char::is_control, " "));
     }
     let _ = writeln!(out, "robot: {}", quoted(&table.robot));
     let _ = writeln!(out, "base_link: {}", quoted(&table.base_link));

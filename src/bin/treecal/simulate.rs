@@ -2,6 +2,7 @@
 
 use crate::cli::{MeasurementFormat, PlanChoice, PosesFrom, SimulateArgs};
 use std::io::IsTerminal;
+use std::path::Path;
 use treecal::calibration::Plan;
 use treecal::io::{
     measurements_to_csv, measurements_to_csv_with, parse_stiffness, read_stiffness, to_json,
@@ -25,7 +26,8 @@ fn invalid(flag: &str, message: String) -> Error {
     }
 }
 
-pub fn run(args: SimulateArgs) -> Result<()> {
+/// The flags' ranges and counts (`treecal::limits`), and no output over an input.
+fn check_flags(args: &SimulateArgs) -> Result<()> {
     for (flag, value, bound, unit) in [
         (
             "--angle-error",
@@ -37,9 +39,10 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     ] {
         limits::check_range(value, (0.0, bound), flag, unit)?;
     }
+    let scale = (1.0 / limits::MAX_FACTOR, limits::MAX_FACTOR);
     limits::check_range(
         args.model_stiffness_scale,
-        (1.0 / limits::MAX_FACTOR, limits::MAX_FACTOR),
+        scale,
         "--model-stiffness-scale",
         "",
     )?;
@@ -53,29 +56,21 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     if args.torso_poses as usize > limits::MAX_POSES {
         crate::checks::count("--torso-poses", args.torso_poses, limits::MAX_POSES)?;
     }
+    let inputs: Vec<&Path> = args
+        .robot
+        .iter()
+        .chain(&args.stiffness)
+        .map(|p| p.as_path())
+        .collect();
     if let Some(path) = &args.write_measurements {
-        let inputs: Vec<&std::path::Path> = args
-            .robot
-            .iter()
-            .chain(&args.stiffness)
-            .map(|p| p.as_path())
-            .collect();
         crate::checks::refuse_overwrite(path, &inputs)?;
     }
-    {
-        let inputs: Vec<&std::path::Path> = args
-            .robot
-            .iter()
-            .chain(&args.stiffness)
-            .map(|p| p.as_path())
-            .collect();
-        crate::checks::refuse_overwrite_in(
-            &args.out,
-            &["summary.md", "results.json"],
-            "svg",
-            &inputs,
-        )?;
-    }
+    let written = ["summary.md", "results.json"];
+    crate::checks::refuse_overwrite_in(&args.out, &written, "svg", &inputs)
+}
+
+pub fn run(args: SimulateArgs) -> Result<()> {
+    check_flags(&args)?;
     let noise = NoiseModel::parse(&args.noise)?;
     let import = crate::robot::load(args.robot.as_deref())?;
     let tree = &import.tree;
