@@ -11,6 +11,7 @@ mod export;
 mod flexibility;
 mod frame;
 mod from_mcpc;
+mod hardening;
 mod identifiability;
 mod identification;
 mod jacobian;

@@ -224,6 +224,12 @@ pub fn weighted_jacobian(
             }
         }
     }
+    // Every decomposition of identifiability starts from this matrix.
+    let squares = jacobian.norm_squared();
+    crate::limits::ensure_finite(
+        jacobian.iter().chain([&squares]),
+        "identifiability: the weighted Jacobian",
+    )?;
     Ok(jacobian)
 }
 
@@ -243,7 +249,11 @@ pub fn scaled_jacobian(
 
 /// The singular values of a weighted Jacobian after column scaling, largest first: what
 /// [`criterion_value`] and [`observability_indices`] take. One value per column.
+/// A matrix with a non-finite entry gives NaN values (its decomposition would never end).
 pub fn scaled_singular_values(weighted: &DMatrix<f64>) -> Vec<f64> {
+    if !weighted.iter().all(|v| v.is_finite()) {
+        return vec![f64::NAN; weighted.ncols()];
+    }
     let scales = column_scales(weighted);
     let (values, _) = singular_decomposition(scale_columns(weighted, &scales));
     let mut values: Vec<f64> = values.iter().copied().collect();

@@ -48,6 +48,10 @@ fn position_rms(model: &McpcModel, measurements: &[Measurement]) -> f64 {
 
 /// The rotation closest (Frobenius) to `m`, via SVD; `None` if `m` is degenerate.
 fn nearest_rotation(m: &Mat3) -> Option<Rotation> {
+    // The SVD of a non-finite matrix never ends.
+    if !m.iter().all(|v| v.is_finite()) {
+        return None;
+    }
     let svd = m.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
     let mut d = Mat3::identity();

@@ -590,6 +590,10 @@ impl Anderson {
         }
         // Small least-squares problem: SVD with a relative cut keeps it stable when the
         // differences are nearly parallel.
+        if !delta_f.iter().chain(f.iter()).all(|v| v.is_finite()) {
+            // No SVD of a non-finite matrix (it never ends): take the plain step.
+            return g.as_slice().to_vec();
+        }
         let svd = delta_f.svd(true, true);
         match svd.solve(&f, 1e-10 * svd.singular_values.max()) {
             Ok(gamma) if gamma.iter().all(|v| v.is_finite()) => {

@@ -547,6 +547,10 @@ fn refine_measurement_frame(
             })
             .collect::<Result<_>>()?;
         let jacobian = DMatrix::from_columns(&columns);
+        crate::limits::ensure_finite(
+            jacobian.iter().chain(residual.iter()),
+            "measurement frame refinement: the Jacobian",
+        )?;
         let singular_values = jacobian.clone().svd(false, false).singular_values;
         let largest = singular_values.max();
         // Directions the data determine better than the prior does.

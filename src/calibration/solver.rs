@@ -466,6 +466,16 @@ pub fn identify(
     let mut final_analysis: Option<Analysis> = None;
 
     while iterations < options.max_iterations {
+        // An SVD of a non-finite matrix never ends: stop with an error instead.
+        // Squares overflow too (e.g. a tiny sigma): the column norms and the cost must be finite.
+        let squares = [lin.jacobian.norm_squared(), lin.residual.norm_squared()];
+        crate::limits::ensure_finite(
+            lin.jacobian
+                .iter()
+                .chain(lin.residual.iter())
+                .chain(&squares),
+            "identification: the weighted Jacobian and residual",
+        )?;
         let analysis = analyse(&lin, options.rank_tolerance);
         let sigma_max = analysis.singular_values.iter().copied().fold(0.0, f64::max);
         let threshold = options.rank_tolerance * sigma_max;

@@ -8,6 +8,7 @@ use super::units::{
 };
 use crate::error::{did_you_mean, Error, Result};
 use crate::kinematics::McpcModel;
+use crate::limits::{self, Quantity};
 use crate::math::{Pose, Vec3};
 use crate::measurement::{
     frame_from_targets, targets_on, targets_problem, Measurement, Observation,
@@ -85,10 +86,7 @@ pub fn read_measurements(
     model: &McpcModel,
     options: &MeasurementReadOptions,
 ) -> Result<MeasurementSet> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
     parse_measurements(&text, &path.display().to_string(), tree, model, options)
 }
 
@@ -199,6 +197,7 @@ pub fn parse_measurements(
         units,
     };
     let mut first_line_of_id: HashMap<String, usize> = HashMap::new();
+    let mut repeats = Repeats::new(columns.id);
     for (row, (line, fields)) in table.records.iter().enumerate() {
         let line = *line;
         let place = |column: usize| format!("{origin}:{line}:{}", table.headers[column]);
@@ -254,7 +253,11 @@ pub fn parse_measurements(
                 (angle.in_radians(), angle.symbol())
             };
             let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
-            q[dof] = value * scale;
+            let quantity = match joint.kind {
+                JointKind::Prismatic => Quantity::Length,
+                _ => Quantity::Angle,
+            };
+            q[dof] = limits::check(value * scale, quantity, || place(column))?;
             given[dof] = true;
             if let Some(limits) = joint.limits.filter(|_| joint.kind != JointKind::Continuous) {
                 const TOLERANCE: f64 = 1e-9;
@@ -306,7 +309,9 @@ pub fn parse_measurements(
             let unit = if is_length { length.symbol() } else { "" };
             let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
             values.push(if is_length {
-                value * length.in_metres()
+                limits::check(value * length.in_metres(), Quantity::Length, || {
+                    place(column)
+                })?
             } else {
                 value
             });
@@ -359,6 +364,7 @@ pub fn parse_measurements(
         });
         set.ids.push(id);
         set.lines.push(line);
+        repeats.see(fields, line);
     }
     set.warnings.extend(limit_warnings(
         &outside,
@@ -367,6 +373,7 @@ pub fn parse_measurements(
         origin,
     )?);
     angles_look_like_radians(&set, tree, units.angle, origin)?;
+    set.warnings.extend(repeats.warning(origin));
     Ok(set)
 }
 
@@ -510,11 +517,52 @@ pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
 
 /// Reads a measurement CSV file's tool column; see [`measured_tool_names`].
 pub fn read_measured_tool_names(path: &Path) -> Result<Vec<String>> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
     measured_tool_names(&text, &path.display().to_string())
+}
+
+/// Rows that repeat an earlier row in every column but the id: accepted (a repeated
+/// measurement is legitimate), with one warning, since an accidentally duplicated row weighs
+/// double in the fit.
+struct Repeats {
+    id: Option<usize>,
+    first_line: HashMap<Vec<String>, usize>,
+    /// `(line, line it repeats)` of every repeated row.
+    found: Vec<(usize, usize)>,
+}
+
+impl Repeats {
+    fn new(id: Option<usize>) -> Self {
+        Self {
+            id,
+            first_line: HashMap::new(),
+            found: Vec::new(),
+        }
+    }
+
+    fn see(&mut self, fields: &[String], line: usize) {
+        let mut key = fields.to_vec();
+        if let Some(id) = self.id {
+            key[id].clear();
+        }
+        if let Some(&first) = self.first_line.get(&key) {
+            self.found.push((line, first));
+        } else {
+            self.first_line.insert(key, line);
+        }
+    }
+
+    fn warning(&self, origin: &str) -> Option<String> {
+        let &(line, first) = self.found.first()?;
+        let more = match self.found.len() {
+            1 => String::new(),
+            n => format!(" ({} repeated rows in all)", n),
+        };
+        Some(format!(
+            "{origin}:{line}: the row repeats line {first} in every column but the id{more}; \
+             a repeated row weighs double in the fit: remove it if it was copied by mistake"
+        ))
+    }
 }
 
 /// A finite number, or what is wrong with the text.

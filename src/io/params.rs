@@ -15,6 +15,7 @@
 
 use crate::error::{did_you_mean, Error, Result};
 use crate::kinematics::McpcModel;
+use crate::limits::{magnitude_problem, Quantity};
 use crate::tree::KinematicTree;
 use std::collections::HashMap;
 use std::path::Path;
@@ -51,10 +52,7 @@ pub fn read_parameters(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<ParameterValues> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_YAML_BYTES)?;
     parse_parameters(&text, &path.display().to_string(), tree, model)
 }
 
@@ -65,6 +63,7 @@ pub fn parse_parameters(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<ParameterValues> {
+    crate::limits::check_yaml_depth(text, origin)?;
     let file: File = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
         origin: match e.location() {
             Some(l) => format!("{origin}:{}:{}", l.line(), l.column()),
@@ -114,11 +113,16 @@ pub fn parse_parameters(
                 ),
             });
         }
-        if !entry.calibrated.is_finite() {
+        let quantity = if model.parameter_layout()[i].1.is_angle() {
+            Quantity::Angle
+        } else {
+            Quantity::Length
+        };
+        if let Some(problem) = magnitude_problem(entry.calibrated, quantity) {
             return Err(Error::InvalidData {
                 origin: at(name),
                 message: format!(
-                    "parameters[{entry_index}]: '{name}' has a calibrated value that is not a finite number"
+                    "parameters[{entry_index}]: '{name}' has calibrated value {problem}"
                 ),
             });
         }

@@ -154,6 +154,9 @@ fn carried_tool<'a>(table: &McpcTable, branch: &'a TableBranch) -> Carried<'a> {
 
 /// Generates a URDF document from an MCPC table (SI units). The output is deterministic.
 pub fn urdf_from_mcpc_table(table: &McpcTable, source_note: &str) -> String {
+    // Names go into attributes and the note into a comment: escaped once, here.
+    let table = &escaped_names(table);
+    let source_note = source_note.replace("--", "- -");
     let mut out = String::new();
     let _ = writeln!(out, "<?xml version=\"1.0\"?>");
     let _ = writeln!(
@@ -264,4 +267,39 @@ pub fn urdf_from_mcpc_table(table: &McpcTable, source_note: &str) -> String {
     out += &joints;
     out += "</robot>\n";
     out
+}
+
+/// `text` as an XML attribute value: `&`, `<`, `>`, `"` and `'` as entities.
+fn xml_escaped(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&apos;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// A copy of `table` with every name XML-escaped.
+fn escaped_names(table: &McpcTable) -> McpcTable {
+    let mut table = table.clone();
+    table.robot = xml_escaped(&table.robot);
+    table.base_link = xml_escaped(&table.base_link);
+    for branch in &mut table.branches {
+        branch.name = xml_escaped(&branch.name);
+        branch.parent = branch.parent.as_deref().map(xml_escaped);
+        for row in &mut branch.rows {
+            row.joint = xml_escaped(&row.joint);
+            row.link = xml_escaped(&row.link);
+        }
+        if let Some(tool) = &mut branch.tool {
+            tool.link = xml_escaped(&tool.link);
+        }
+    }
+    table
 }

@@ -24,10 +24,7 @@ pub struct UrdfImport {
 
 /// Reads and converts a URDF file.
 pub fn load_urdf(path: &Path) -> Result<UrdfImport> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_URDF_BYTES)?;
     parse_urdf(&text, &path.display().to_string())
 }
 
@@ -38,9 +35,11 @@ pub fn load_urdf(path: &Path) -> Result<UrdfImport> {
 /// read: materials, textures, gazebo, transmissions, sensors and unknown elements never
 /// stop a robot loading (see `docs/robots.md`).
 pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
+    crate::limits::check_text_size(text, crate::limits::MAX_URDF_BYTES, origin)?;
     let elements = super::xml::scan(text, origin)?;
     let mut warnings = Vec::new();
     let robot = super::tolerant::read_robot(text, origin, &elements, &mut warnings)?;
+    super::bounds::check_bounds(&robot, text, origin)?;
     let mut import = Importer { text, origin }.convert(&robot)?;
     warnings.append(&mut import.warnings);
     import.warnings = warnings;
@@ -635,7 +634,7 @@ fn urdf_pose(p: &urdf_rs::Pose) -> Pose {
 }
 
 /// The 1-based line of `<tag ... name="name"`, if it can be found in the text.
-fn element_line(text: &str, tag: &str, name: &str) -> Option<usize> {
+pub(super) fn element_line(text: &str, tag: &str, name: &str) -> Option<usize> {
     for quote in ['"', '\''] {
         let needle = format!("name={quote}{name}{quote}");
         let mut start = 0;

@@ -6,6 +6,7 @@
 //! - [`export`]: a calibrated MCPC model → the original URDF with corrected joint origins,
 //!   edited in place.
 
+mod bounds;
 pub mod export;
 pub mod export_options;
 pub mod from_mcpc;

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod cli;
+pub mod fuzz;
 
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};

@@ -10,6 +10,7 @@ use treecal::io::{
     replace_folder, to_json, to_yaml, MeasurementReadOptions,
 };
 use treecal::kinematics::FlexibilityModel;
+use treecal::limits;
 use treecal::report::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file,
     CalibrationContext,
@@ -38,13 +39,23 @@ fn invalid(flag: &str, message: String) -> Error {
 }
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
-    for (flag, value) in [
-        ("--position-sigma", args.position_sigma),
-        ("--rotation-sigma", args.rotation_sigma),
-    ] {
-        if !(value.is_finite() && value > 0.0) {
-            return Err(invalid(flag, format!("{value} must be a positive number")));
-        }
+    // A tiny sigma overflows the weighted cost, a huge one hides every residual.
+    let sigmas = [
+        (
+            "--position-sigma",
+            args.position_sigma,
+            limits::POSITION_SIGMA,
+            "m",
+        ),
+        (
+            "--rotation-sigma",
+            args.rotation_sigma,
+            limits::ROTATION_SIGMA,
+            "rad",
+        ),
+    ];
+    for (flag, value, range, unit) in sigmas {
+        limits::check_range(value, range, flag, unit)?;
     }
     // The output folder is replaced as a whole at the end: refuse a folder that is not a
     // previous output before computing anything.
@@ -57,6 +68,22 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             treecal::calibration::MeasurementFrame::Known(read_registration(path)?)
         }
     };
+    let plan_file = args
+        .plan
+        .as_deref()
+        .filter(|p| !matches!(*p, "staged" | "simultaneous"))
+        .map(std::path::Path::new);
+    let inputs: Vec<&std::path::Path> = [args.robot.as_deref(), Some(args.measurements.as_path())]
+        .into_iter()
+        .chain([
+            args.validation.as_deref(),
+            args.stiffness.as_deref(),
+            plan_file,
+        ])
+        .flatten()
+        .collect();
+    let written = ["calibrated.urdf", "params.yaml", "report.md", "report.json"];
+    crate::checks::refuse_overwrite_in(&args.out, &written, "svg", &inputs)?;
     let import = crate::robot::load(args.robot.as_deref())?;
     let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
     let tree = &import.tree;

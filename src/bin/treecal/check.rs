@@ -7,6 +7,7 @@ use treecal::calibration::{
 use treecal::io::{
     parse_csv, pose_rows, read_measurements, to_json, to_yaml, MeasurementReadOptions,
 };
+use treecal::limits;
 use treecal::report::{CheckReport, StageCheck};
 use treecal::sim::collision::CollisionChecker;
 use treecal::sim::pose_set::staged_pose_set;
@@ -26,13 +27,23 @@ fn invalid(flag: &str, message: String) -> Error {
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
-    for (flag, value) in [
-        ("--position-sigma", args.position_sigma),
-        ("--rotation-sigma", args.rotation_sigma),
-    ] {
-        if !(value.is_finite() && value > 0.0) {
-            return Err(invalid(flag, format!("{value} must be a positive number")));
-        }
+    // A tiny sigma overflows the weighted cost, a huge one hides every residual.
+    let sigmas = [
+        (
+            "--position-sigma",
+            args.position_sigma,
+            limits::POSITION_SIGMA,
+            "m",
+        ),
+        (
+            "--rotation-sigma",
+            args.rotation_sigma,
+            limits::ROTATION_SIGMA,
+            "rad",
+        ),
+    ];
+    for (flag, value, range, unit) in sigmas {
+        limits::check_range(value, range, flag, unit)?;
     }
     if !(args.condition_limit.is_finite() && args.condition_limit >= 1.0) {
         return Err(invalid(
@@ -111,10 +122,7 @@ pub fn run(args: CheckArgs) -> Result<()> {
         }
         (Some(path), None) => {
             let origin = path.display().to_string();
-            let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-                path: path.clone(),
-                source,
-            })?;
+            let text = limits::read_text(path, limits::MAX_CSV_BYTES)?;
             let table = parse_csv(&text, &origin)?;
             let scale = match args.angle_unit {
                 Some(AngleUnit::Deg) => std::f64::consts::PI / 180.0,

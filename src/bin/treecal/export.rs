@@ -6,6 +6,13 @@ use treecal::urdf::{export_urdf_with, ExportOptions};
 use treecal::{McpcModel, Result};
 
 pub fn run(args: ExportArgs) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = args
+        .robot
+        .iter()
+        .chain([&args.params])
+        .map(|p| p.as_path())
+        .collect();
+    crate::checks::refuse_overwrite(&args.output, &inputs)?;
     let import = crate::robot::load(args.robot.as_deref())?;
     let branches = crate::robot::branches(&import, args.tools.as_deref())?;
     let mut model = McpcModel::from_tree(&import.tree, &branches)?;

@@ -6,6 +6,7 @@ use treecal::calibration::{
     analyse, IdentifiabilityOptions, ObservationKind, ParameterSet, PoseRow,
 };
 use treecal::io::{planned_poses_to_csv, write_atomically};
+use treecal::limits;
 use treecal::math::Vec3;
 use treecal::measurement::TARGET_SPACING;
 use treecal::sim::noise::{NoiseModel, Targets};
@@ -70,8 +71,16 @@ fn invalid(flag: &str, message: String) -> Error {
 }
 
 pub fn run(args: PlanArgs) -> Result<()> {
-    if args.poses == 0 || args.candidates == 0 {
-        return Err(invalid("--poses/--candidates", "must be at least 1".into()));
+    crate::checks::count("--poses", args.poses, limits::MAX_POSES)?;
+    crate::checks::count("--candidates", args.candidates, limits::MAX_CANDIDATES)?;
+    if args.torso_poses as usize > limits::MAX_POSES {
+        crate::checks::count("--torso-poses", args.torso_poses, limits::MAX_POSES)?;
+    }
+    for value in args.workspace.iter().flatten() {
+        limits::check(*value, limits::Quantity::Length, || "--workspace".into())?;
+    }
+    if let Some(robot) = &args.robot {
+        crate::checks::refuse_overwrite(&args.output, &[robot])?;
     }
     if args.targets == 2 {
         return Err(invalid(

@@ -67,10 +67,7 @@ pub fn measured_branches(
 pub fn original_text(path: Option<&Path>) -> Result<(String, String)> {
     match path {
         Some(path) => Ok((
-            std::fs::read_to_string(path).map_err(|source| treecal::Error::Io {
-                path: path.to_owned(),
-                source,
-            })?,
+            treecal::limits::read_text(path, treecal::limits::MAX_URDF_BYTES)?,
             path.display().to_string(),
         )),
         None => Ok((
