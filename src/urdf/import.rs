@@ -36,8 +36,11 @@ pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
         origin: origin.to_owned(),
         message: e.to_string(),
     })?;
-    super::bounds::check_bounds(&robot, text, origin)?;
-    Importer { text, origin }.convert(&robot)
+    super::bounds::check_sizes(&robot, text, origin)?;
+    let import = Importer { text, origin }.convert(&robot)?;
+    // After the importer's own checks (NaN, negative masses), which keep their messages.
+    super::bounds::check_numbers(&robot, text, origin)?;
+    Ok(import)
 }
 
 /// The deepest element nesting accepted. Real URDFs nest about six deep; urdf-rs and its XML
