@@ -12,8 +12,9 @@ use std::io::Read;
 use std::path::Path;
 
 /// Largest length (m): link offsets, positions, targets, prismatic joint values, geometry.
-/// 1 km; a robot or a tracker set-up is metres, and 1e3² is far from overflow.
-pub const MAX_LENGTH: f64 = 1e3;
+/// 10 km: a robot or a tracker set-up is metres (millimetres read as metres still pass), and
+/// 1e4² is far from overflow.
+pub const MAX_LENGTH: f64 = 1e4;
 /// Largest angle (rad): joint values, rpy, MCPC angles. About 1,600 turns.
 pub const MAX_ANGLE: f64 = 1e4;
 /// Largest joint limit (rad or m). Real URDFs write ±1e16 for "unbounded"; beyond this the

@@ -1,20 +1,25 @@
-//! One validation pass over the numbers and names of a parsed URDF, against the bounds of
-//! [`crate::limits`]: every number treecal uses is finite and of a sane magnitude for its
-//! quantity, names are printable and of sane length, and the robot is not too large.
+//! Validation of a parsed URDF against the bounds of [`crate::limits`]: before conversion, the
+//! robot is not too large and its names are printable and of sane length; after it, every
+//! number treecal uses is finite and of a sane magnitude for its quantity.
 
 use super::import::element_line;
 use crate::error::{Error, Result};
 use crate::limits::{magnitude_problem, name_problem, Quantity, MAX_JOINTS};
 
-/// Checks `robot` (parsed from `text`); errors name the element, its line and the attribute.
-pub(super) fn check_bounds(robot: &urdf_rs::Robot, text: &str, origin: &str) -> Result<()> {
-    let at = |tag: &str, name: &str, message: String| Error::InvalidRobot {
+/// An error about `<tag name="name">`, at its line when the text shows it.
+fn at(text: &str, origin: &str, tag: &str, name: &str, message: String) -> Error {
+    Error::InvalidRobot {
         origin: match element_line(text, tag, name) {
             Some(line) => format!("{origin}:{line}"),
             None => origin.to_owned(),
         },
         message,
-    };
+    }
+}
+
+/// The joint count and every name of `robot` (parsed from `text`).
+pub(super) fn check_sizes(robot: &urdf_rs::Robot, text: &str, origin: &str) -> Result<()> {
+    let at = |tag: &str, name: &str, message: String| at(text, origin, tag, name, message);
     if robot.joints.len() > MAX_JOINTS || robot.links.len() > MAX_JOINTS + 1 {
         return Err(Error::InvalidRobot {
             origin: origin.to_owned(),
@@ -30,6 +35,23 @@ pub(super) fn check_bounds(robot: &urdf_rs::Robot, text: &str, origin: &str) -> 
         return Err(at("robot", &robot.name, format!("<robot>: {problem}")));
     }
     for link in &robot.links {
+        if let Some(problem) = name_problem(&link.name) {
+            return Err(at("link", &link.name, format!("<link>: {problem}")));
+        }
+    }
+    for joint in &robot.joints {
+        if let Some(problem) = name_problem(&joint.name) {
+            return Err(at("joint", &joint.name, format!("<joint>: {problem}")));
+        }
+    }
+    Ok(())
+}
+
+/// Every number of `robot` that treecal uses; errors name the element, its line and the
+/// attribute.
+pub(super) fn check_numbers(robot: &urdf_rs::Robot, text: &str, origin: &str) -> Result<()> {
+    let at = |tag: &str, name: &str, message: String| at(text, origin, tag, name, message);
+    for link in &robot.links {
         let fail = |what: &str, problem: String| {
             at(
                 "link",
@@ -37,9 +59,6 @@ pub(super) fn check_bounds(robot: &urdf_rs::Robot, text: &str, origin: &str) -> 
                 format!("link '{}' {what}: {problem}", short(&link.name)),
             )
         };
-        if let Some(problem) = name_problem(&link.name) {
-            return Err(at("link", &link.name, format!("<link>: {problem}")));
-        }
         let inertial = &link.inertial;
         let i = &inertial.inertia;
         check(&[inertial.mass.value], Quantity::Mass)
@@ -72,9 +91,6 @@ pub(super) fn check_bounds(robot: &urdf_rs::Robot, text: &str, origin: &str) -> 
                 format!("joint '{}' {what}: {problem}", short(&joint.name)),
             )
         };
-        if let Some(problem) = name_problem(&joint.name) {
-            return Err(at("joint", &joint.name, format!("<joint>: {problem}")));
-        }
         pose(&joint.origin).map_err(|p| fail("<origin>", p))?;
         check(&joint.axis.xyz.0, Quantity::Factor).map_err(|p| fail("<axis xyz>", p))?;
         check(

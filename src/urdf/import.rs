@@ -39,8 +39,10 @@ pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
     let elements = super::xml::scan(text, origin)?;
     let mut warnings = Vec::new();
     let robot = super::tolerant::read_robot(text, origin, &elements, &mut warnings)?;
-    super::bounds::check_bounds(&robot, text, origin)?;
+    super::bounds::check_sizes(&robot, text, origin)?;
     let mut import = Importer { text, origin }.convert(&robot)?;
+    // After the importer's own checks (NaN, negative masses), which keep their messages.
+    super::bounds::check_numbers(&robot, text, origin)?;
     warnings.append(&mut import.warnings);
     import.warnings = warnings;
     Ok(import)
