@@ -172,6 +172,15 @@ fn sides_from_y_when_names_do_not_say() {
     assert_eq!(names(&tree, &branches.coupled.joints), ["spin"]);
 }
 
+/// (file, torso joints, left (or only) tool, right tool, joints per arm).
+type Expected = (
+    &'static str,
+    &'static [&'static str],
+    &'static str,
+    Option<&'static str>,
+    usize,
+);
+
 /// What a roboticist names on one real robot: the torso (coupled-branch) joints, the two tool
 /// links (left, right) and the joints per arm. `None` for the right tool: a single arm.
 ///
@@ -186,7 +195,7 @@ fn sides_from_y_when_names_do_not_say() {
 /// - an arm on a legged base (ANYmal + Kinova, B1 + Z1) is a single-arm robot: legs are never
 ///   arms, the base does not move during calibration, so there is no torso;
 /// - a single-arm robot with a lift (TIAGo) is one arm whose chain starts at the lift.
-const BRANCHED: &[(&str, &[&str], &str, Option<&str>, usize)] = &[
+const BRANCHED: &[Expected] = &[
     // humanoids
     (
         "talos_data/robots/talos_full_v2.urdf",
@@ -443,7 +452,7 @@ fn real_robots_torso_and_arms_are_found_as_a_roboticist_names_them() {
             .tree;
         problems.extend(check_branches(file, &tree, (torso, left, right, joints)));
     }
-    let repo: &[(&str, &[&str], &str, Option<&str>, usize)] = &[
+    let repo: &[Expected] = &[
         (
             "humanoid/humanoid.urdf",
             &["waist_yaw", "waist_pitch"],

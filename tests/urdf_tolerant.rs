@@ -117,6 +117,20 @@ fn cases() -> Vec<Case> {
             check_urdf_accepts: true,
         },
         Case {
+            name: "a visual with a geometry urdf-rs does not know, and one with none",
+            text: arm(
+                "  <link name=\"deco\"><visual><geometry><heightmap/></geometry></visual>\
+                 <visual><origin xyz=\"0 0 0\"/></visual>\
+                 <collision><geometry><box size=\"1 1 1\"/></geometry></collision></link>\n  \
+                 <joint name=\"deco_fixed\" type=\"fixed\"><parent link=\"tip\"/><child link=\"deco\"/></joint>\n",
+            ),
+            treecal: Loads(&[
+                "<link name=\"deco\"> (line 11): its <visual> cannot be read",
+                "visuals do not affect kinematics",
+            ]),
+            check_urdf_accepts: true,
+        },
+        Case {
             name: "comments and a processing instruction after the root",
             text: format!("{}<!-- generated -->\n<?pi done?>\n", arm("")),
             treecal: Loads(&[]),

@@ -283,7 +283,9 @@ fn best_pair(tree: &KinematicTree, candidates: &[Candidate], pool: &[usize]) -> 
             .count()
     };
     let side = |i: usize| super::branches::side_from_tip(tree, candidates[i].tip);
-    let mut best: Option<((bool, usize, usize), (usize, usize))> = None;
+    // (named left and right, movable joints above the divergence, joints in both runs)
+    type Score = (bool, usize, usize);
+    let mut best: Option<(Score, (usize, usize))> = None;
     for (a, &i) in pool.iter().enumerate() {
         for &k in &pool[a + 1..] {
             let lca = common_ancestor(tree, candidates[i].tip, candidates[k].tip);

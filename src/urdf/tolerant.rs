@@ -80,9 +80,10 @@ pub(crate) fn read_robot(
             Ok(robot) => return Ok(robot),
             Err(error) => error.to_string(),
         };
+        // No single <link> or <joint> fails: the <robot> element itself is at fault.
         let culprit = locate(&kinematic, elements, &blank).ok_or_else(|| Error::UrdfParse {
-            origin: origin.to_owned(),
-            message: error.clone(),
+            origin: format!("{origin}:{}", line_at(text, elements[0].start)),
+            message: format!("{}: {error}", describe(text, &elements[0])),
         })?;
         let element = &elements[culprit.element];
         let what = describe(text, element);

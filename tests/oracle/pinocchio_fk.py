@@ -40,7 +40,9 @@ pin 4.1.0):
   own configuration entry; the <mimic> relation is neither enforced nor is the
   joint dropped.  (mimic=True would instead make it a JointModelMimic with
   nq=0, i.e. not settable.)  The caller computes and passes every mimic
-  joint's value itself.
+  joint's value itself; this script checks each one independently against
+  the <mimic> element (value = multiplier * master + offset) and fails on a
+  mismatch.
 * Continuous joints are Pinocchio "unbounded" revolute joints with nq=2 and
   configuration (cos q, sin q); we write both entries.
 * Non-unit axes (e.g. `0 0 2`): Pinocchio normalises the URDF axis (a
@@ -114,6 +116,36 @@ def read_urdf_structure(path):
     if len(roots) != 1:
         fail("URDF %r must have exactly one root link, found %r" % (path, roots))
     return set(links), joint_types, roots[0]
+
+
+def read_mimics(path):
+    """{joint: (master, multiplier, offset)} for every <mimic> whose master joint exists
+    (urdfdom ignores a mimic of a missing joint; so does treecal)."""
+    robot = ET.parse(path).getroot()
+    names = {j.get("name") for j in robot.findall("joint")}
+    mimics = {}
+    for j in robot.findall("joint"):
+        m = j.find("mimic")
+        if m is not None and m.get("joint") in names:
+            mimics[j.get("name")] = (
+                m.get("joint"),
+                float(m.get("multiplier", "1")),
+                float(m.get("offset", "0")),
+            )
+    return mimics
+
+
+def check_mimics(mimics, ci, cfg):
+    """The caller computes mimic joints' values; check them independently:
+    value = multiplier * master + offset (URDF convention)."""
+    for jname, (master, multiplier, offset) in mimics.items():
+        if jname in cfg and master in cfg:
+            expected = multiplier * float(cfg[master]) + offset
+            if abs(float(cfg[jname]) - expected) > 1e-9 * (1.0 + abs(expected)):
+                fail(
+                    "configuration %d: mimic joint %r = %r, but %r * %r + %r = %r"
+                    % (ci, jname, cfg[jname], multiplier, cfg[master], offset, expected)
+                )
 
 
 def main():
@@ -236,7 +268,9 @@ def poses_for(urdf_path, request):
 
     # ---- forward kinematics ------------------------------------------------
     poses = []
+    mimics = read_mimics(urdf_path)
     for ci, cfg in enumerate(configs):
+        check_mimics(mimics, ci, cfg)
         q = q0.copy()
         for jname, value in cfg.items():
             if jname not in joint_types:
