@@ -132,12 +132,36 @@ impl StatedUnits {
     }
 }
 
+/// The lines of `text` broken at `\r\n`, `\n` or a lone `\r` (old Mac files; `str::lines`
+/// keeps a lone `\r` inside the line).
+fn lines_any_break(text: &str) -> impl Iterator<Item = &str> {
+    let mut rest = Some(text);
+    std::iter::from_fn(move || {
+        let current = rest?;
+        match current.find(['\r', '\n']) {
+            Some(at) => {
+                let skip = if current[at..].starts_with("\r\n") {
+                    2
+                } else {
+                    1
+                };
+                rest = Some(&current[at + skip..]);
+                Some(&current[..at])
+            }
+            None => {
+                rest = None;
+                Some(current)
+            }
+        }
+    })
+}
+
 /// Reads the units comment of CSV `text` (see [`StatedUnits`]): only `#` lines before the
 /// first other non-blank line are looked at. A malformed units comment is an error naming
 /// its line.
 pub fn parse_units_header(text: &str, origin: &str) -> Result<StatedUnits> {
     let mut header = StatedUnits::default();
-    for (index, raw) in text.lines().enumerate() {
+    for (index, raw) in lines_any_break(text).enumerate() {
         let line = raw.trim();
         if line.is_empty() {
             continue;

@@ -57,9 +57,6 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     for (flag, value, range, unit) in sigmas {
         limits::check_range(value, range, flag, unit)?;
     }
-    // The output folder is replaced as a whole at the end: refuse a folder that is not a
-    // previous output before computing anything.
-    check_output_folder(&args.out, &is_output_file)?;
     let measurement_frame = match &args.measurement_frame {
         MeasurementFrame::Auto => treecal::calibration::MeasurementFrame::Auto,
         MeasurementFrame::Fit => treecal::calibration::MeasurementFrame::Fit,
@@ -84,6 +81,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .collect();
     let written = ["calibrated.urdf", "params.yaml", "report.md", "report.json"];
     crate::checks::refuse_overwrite_in(&args.out, &written, "svg", &inputs)?;
+    // The output folder is replaced as a whole at the end: refuse a folder that is not a
+    // previous output before computing anything.
+    check_output_folder(&args.out, &is_output_file)?;
     let import = crate::robot::load(args.robot.as_deref())?;
     let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
     let tree = &import.tree;
