@@ -886,13 +886,16 @@ fn palm_on_the_wrist_joint_calibrates_and_exports_through_the_cli() {
 }
 
 /// A true robot whose palms sit centimetres off the wrist axes (`simulate`'s default errors):
-/// `calibrate` refuses to export and names `--add-tool-links`; with it, calibrated.urdf has the
+/// `calibrate`'s verdict fails, naming `--add-tool-links`, and writes params.yaml and the
+/// reports but no calibrated.urdf; with it, calibrated.urdf has the
 /// `<palm>_calibrated` links at the calibrated tool frames (1e-9).
 #[test]
 fn palm_off_the_wrist_axis_needs_added_tool_links() {
     let dir = tempfile::tempdir().unwrap();
-    let (run, _) = palms_through_the_cli(dir.path(), "0.05", &[]);
-    assert_error(
+    let (run, out) = palms_through_the_cli(dir.path(), "0.05", &[]);
+    assert!(!out.join("calibrated.urdf").exists(), "{run}");
+    assert!(out.join("params.yaml").exists(), "{run}");
+    assert_failed_verdict(
         &run,
         &["l_hand", "mm off the joint axis", "--add-tool-links"],
         "calibrate",

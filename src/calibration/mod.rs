@@ -2,14 +2,19 @@
 //!
 //! - [`identifiability`]: rank, condition number, observability indices O1–O5 and the
 //!   unidentifiable parameter combinations of a set of configurations, before measuring.
+//! - [`frame`]: which measurement frame (root, fitted, known), and the unit-scale check.
 //! - [`initial_guess`](mod@initial_guess): closed-form measurement frame and tool frames to start from.
 //! - [`run`]: a calibration from measured data end to end (hold-out, initial guess, plan,
 //!   uncertainties, errors before and after per arm).
 //! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
+//! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
+//!   validation) that feed the verdict.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
+pub mod checks;
+pub mod frame;
 pub mod identifiability;
 pub mod initial_guess;
 pub mod plan;
@@ -17,11 +22,14 @@ pub mod run;
 pub mod solver;
 pub mod verdict;
 
+pub use frame::{
+    check_length_scale, choose_measurement_frame, ChosenFrame, FrameDecision, MeasurementFrame,
+};
 pub use identifiability::{
     analyse, criterion_value, observability_indices, Criterion, IdentifiabilityOptions,
     IdentifiabilityReport, NamedCombination, ObservabilityIndices, ObservationKind, PoseRow,
 };
-pub use initial_guess::{fit_rigid_transform, initial_guess, InitialGuess};
+pub use initial_guess::{fit_rigid_transform, fit_similarity_scale, initial_guess, InitialGuess};
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
 };

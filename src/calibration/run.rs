@@ -1,7 +1,9 @@
 //! A calibration from measured data, end to end: hold-out, initial guess, the plan, parameter
 //! uncertainties and the errors before and after, per arm (`treecal calibrate`).
 
-use super::initial_guess::{initial_guess, initial_tool_frames, InitialGuess};
+pub use super::frame::MeasurementFrame;
+use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame, FrameDecision};
+use super::initial_guess::InitialGuess;
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
 use super::solver::{Deflected, IdentificationOptions};
 use super::verdict::Finding;
@@ -32,9 +34,9 @@ pub struct CalibrationInput<'a> {
     pub plan: &'a Plan,
     /// Row weights, tolerances.
     pub options: &'a IdentificationOptions,
-    /// Fit the measurement frame in closed form (`true`), or take the measurements to be in
-    /// the robot's root frame already (`false`; tool frames are still fitted).
-    pub fit_measurement_frame: bool,
+    /// Where the measurements are: fitted, the root frame, a known registration, or `Auto`
+    /// (see [`MeasurementFrame`]); the tool frames are always fitted.
+    pub measurement_frame: MeasurementFrame,
 }
 
 /// One MCPC parameter before and after, with its uncertainty: a row of the paper's Table 2.
@@ -114,6 +116,8 @@ pub struct ArmResiduals {
 pub struct CalibrationRun {
     /// The closed-form start: measurement frame and tool frames.
     pub guess: InitialGuess,
+    /// Which measurement frame was used and why.
+    pub frame: FrameDecision,
     /// With flexibility compensation and a fitted measurement frame: how the frame was
     /// refined jointly with the parameters (`None` otherwise).
     pub frame_refinement: Option<FrameRefinement>,
@@ -193,11 +197,10 @@ pub fn run_calibration(
     measurements: &[Measurement],
     validation: &[Measurement],
 ) -> Result<CalibrationRun> {
-    let guess = if input.fit_measurement_frame {
-        initial_guess(input.nominal, measurements, 3)?
-    } else {
-        tools_only_guess(input.nominal, measurements)?
-    };
+    check_length_scale(input.nominal, measurements)?;
+    let (guess, frame, frame_finding) =
+        choose_measurement_frame(input.nominal, measurements, input.measurement_frame)?;
+    let fitted_frame = frame.chosen == ChosenFrame::Fitted;
     let compensation = match input.flexibility {
         Some(flexibility) => Compensation::Exact(Deflected {
             tree: input.tree,
@@ -215,7 +218,7 @@ pub fn run_calibration(
         input.options,
     )?;
     let mut frame_refinement = None;
-    if let (true, Some(flexibility)) = (input.fit_measurement_frame, input.flexibility) {
+    if let (true, Some(flexibility)) = (fitted_frame, input.flexibility) {
         let refined = refine_measurement_frame(input, flexibility, measurements, &report)?;
         guess.world_from_base = refined.report.model.world_from_base();
         report = refined.report;
@@ -250,9 +253,11 @@ pub fn run_calibration(
                 .sqrt()
         })
         .filter(|rms| rms.is_finite());
-    let findings = report.notes.clone();
-    Ok(CalibrationRun {
+    let mut findings = vec![frame_finding];
+    findings.extend(report.notes.iter().cloned());
+    let mut run = CalibrationRun {
         guess,
+        frame,
         frame_refinement,
         report,
         parameters,
@@ -261,7 +266,10 @@ pub fn run_calibration(
         predicted_validation_rms_mm,
         predicted_validation_sd_mm,
         findings,
-    })
+    };
+    let found = super::checks::assess(&run, input.tree);
+    run.findings.extend(found);
+    Ok(run)
 }
 
 /// The covariance of all parameters (full-model order, rad and m), assembled from the stages:
@@ -310,6 +318,11 @@ fn estimates(
                 let sd = id.standard_deviations[k];
                 spread[p] = (sd.is_finite().then_some(sd), id.identifiable[k]);
             }
+        }
+        // Kept at their starting values: the observations cannot see them.
+        let count = spread.len();
+        for &p in stage.kept.iter().filter(|&&p| p < limit && p < count) {
+            spread[p] = (None, false);
         }
     }
     layout
@@ -406,7 +419,12 @@ fn arm_residuals(
 /// covariance ([`assembled_covariance`]) (mm): the spread of the predicted position that the
 /// identification noise leaves.
 fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> Vec<f64> {
-    if validation.is_empty() {
+    // A stage without redundancy has no covariance: nothing can be predicted (not zero).
+    let undetermined = report
+        .stages
+        .iter()
+        .any(|s| s.identification.covariance.is_none());
+    if validation.is_empty() || undetermined {
         return Vec::new();
     }
     let covariance = assembled_covariance(report);
@@ -423,14 +441,6 @@ fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> V
                 * 1e3
         })
         .collect()
-}
-
-/// The initial guess with the measurement frame fixed at the root frame: only the tool frames
-/// are fitted.
-fn tools_only_guess(nominal: &McpcModel, measurements: &[Measurement]) -> Result<InitialGuess> {
-    let mut start = nominal.clone();
-    start.set_world_from_base(&Pose::identity());
-    initial_tool_frames(&start, measurements)
 }
 
 /// How the measurement frame was refined (see [`run_calibration`]).

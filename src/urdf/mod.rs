@@ -10,6 +10,7 @@ pub mod export;
 pub mod export_options;
 pub mod from_mcpc;
 pub mod import;
+mod tolerant;
 mod xml;
 
 pub use export::{export_urdf, export_urdf_with, ExportReport, JointChange};

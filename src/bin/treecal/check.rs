@@ -48,16 +48,20 @@ pub fn run(args: CheckArgs) -> Result<()> {
     }
     let import = crate::robot::load(args.robot.as_deref())?;
     let tree = &import.tree;
-    let branches = crate::robot::branches(&import, args.tools.as_deref())?;
+    let branches = match &args.measurements {
+        Some(path) => crate::robot::measured_branches(&import, args.tools.as_deref(), path)?,
+        None => crate::robot::branches(&import, args.tools.as_deref())?,
+    };
     let model = McpcModel::from_tree(tree, &branches)?;
     let measured = match &args.measurements {
         Some(path) => {
             let options = MeasurementReadOptions {
                 length_unit: args.length_unit,
-                angle_unit: match args.angle_unit {
+                angle_unit: args.angle_unit.map(|unit| match unit {
                     AngleUnit::Rad => treecal::io::AngleUnit::Radian,
                     AngleUnit::Deg => treecal::io::AngleUnit::Degree,
-                },
+                }),
+                joint_length_unit: args.joint_length_unit,
                 ignore_columns: args.ignore_columns.clone(),
                 strict_limits: false,
             };
@@ -113,8 +117,8 @@ pub fn run(args: CheckArgs) -> Result<()> {
             })?;
             let table = parse_csv(&text, &origin)?;
             let scale = match args.angle_unit {
-                AngleUnit::Rad => 1.0,
-                AngleUnit::Deg => std::f64::consts::PI / 180.0,
+                Some(AngleUnit::Deg) => std::f64::consts::PI / 180.0,
+                Some(AngleUnit::Rad) | None => 1.0,
             };
             let set = pose_rows(&table, tree, &model, scale, &origin)?;
             for column in &set.mapping.unmatched {
@@ -217,6 +221,11 @@ pub fn run(args: CheckArgs) -> Result<()> {
         if staged { "staged" } else { "simultaneous" }.into(),
         stages,
     );
+    for stage in &report.stages {
+        for warning in stage.analysis.iter().flat_map(|a| a.warnings()) {
+            eprintln!("treecal: warning: stage {}: {warning}", stage.name);
+        }
+    }
     let text = match args.format {
         Format::Text => report.to_text(),
         Format::Yaml => to_yaml(&report)?,

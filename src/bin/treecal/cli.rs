@@ -336,9 +336,14 @@ pub struct CheckArgs {
     /// Measurement CSV (docs/file-formats.md): its configurations, tools and stages are analysed.
     #[arg(long, value_name = "M.csv")]
     pub measurements: Option<PathBuf>,
-    /// Unit of lengths in --measurements (positions, targets, prismatic joints).
-    #[arg(long, default_value = "m", value_parser = parse_length_unit)]
-    pub length_unit: treecal::io::LengthUnit,
+    /// Unit of lengths in --measurements (positions, targets, prismatic joints) [default: the
+    /// file's `# units:` comment, else m].
+    #[arg(long, value_parser = parse_length_unit)]
+    pub length_unit: Option<treecal::io::LengthUnit>,
+    /// Unit of prismatic joint values in --measurements [default: the file's `# units:`
+    /// comment, else --length-unit].
+    #[arg(long, value_parser = parse_length_unit)]
+    pub joint_length_unit: Option<treecal::io::LengthUnit>,
     /// Columns of --measurements to skip, comma-separated.
     #[arg(long, value_delimiter = ',', value_name = "COLUMN,COLUMN")]
     pub ignore_columns: Vec<String>,
@@ -357,9 +362,10 @@ pub struct CheckArgs {
     /// Condition number above which a set is reported as poorly conditioned.
     #[arg(long, default_value_t = 100.0)]
     pub condition_limit: f64,
-    /// Unit of revolute joint values in --poses (prismatic values are always metres).
-    #[arg(long, value_enum, default_value = "rad")]
-    pub angle_unit: AngleUnit,
+    /// Unit of revolute joint values in --poses and --measurements (prismatic values in
+    /// --poses are always metres) [default: the file's `# units:` comment, else rad].
+    #[arg(long, value_enum)]
+    pub angle_unit: Option<AngleUnit>,
     /// Seed of the default random pose set.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -371,7 +377,7 @@ pub struct CheckArgs {
 /// Arguments of `treecal calibrate`.
 #[derive(Args)]
 #[command(
-    after_help = "The measurement CSV (docs/file-formats.md) has a `tool` column, one column per joint of the measured tool's chain (named as in the URDF), optional `id` and `stage` columns, and x,y,z (a target), x,y,z,qw,qx,qy,qz (a pose) or ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C on the tool: origin A, X along AB, Z along AB × AC). The measurement frame and the targets' frame on each tool are fitted, not assumed.\n\nThe staged plan (the default when rows are labelled `stage` = torso / arms) calibrates the torso from the torso rows with the arms locked, then the arms; without labels the simultaneous plan is used. With --stiffness the deflections under gravity are compensated exactly. Without --validation a seeded fifth of the (non-torso) configurations is held out for validation.\n\nWrites to --out: calibrated.urdf, params.yaml, report.md, report.json and per-arm error plots (SVG).\n\nExample:\n  treecal calibrate --measurements robots/robonaut/example/measurements.csv --stiffness robots/robonaut/stiffness.yaml --length-unit mm --angle-unit deg"
+    after_help = "The measurement CSV (docs/file-formats.md) has a `tool` column, one column per joint of the measured tool's chain (named as in the URDF), optional `id` and `stage` columns, and x,y,z (a target), x,y,z,qw,qx,qy,qz (a pose) or ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C on the tool: origin A, X along AB, Z along AB × AC). Without --tools the measured tools are the links the `tool` column names. Units come from the flags, else the file's `# units: length=mm angle=deg` comment, else m and rad; a flag that contradicts the comment is an error, and positions 1000× off or joint values that look like degrees (or radians) are named before solving. The targets' frame on each tool is fitted; the measurement frame is fitted, or the robot's root frame when the data are already in it (--measurement-frame auto; see docs/calibration.md).\n\nThe staged plan (the default when rows are labelled `stage` = torso / arms) calibrates the torso from the torso rows with the arms locked, then the arms; without labels the simultaneous plan is used. With --stiffness the deflections under gravity are compensated exactly. Without --validation a seeded fifth of the (non-torso) configurations is held out for validation.\n\nWrites to --out: calibrated.urdf, params.yaml, report.md, report.json and per-arm error plots (SVG).\n\nExample:\n  treecal calibrate --measurements robots/robonaut/example/measurements.csv --stiffness robots/robonaut/stiffness.yaml"
 )]
 pub struct CalibrateArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
@@ -403,12 +409,19 @@ pub struct CalibrateArgs {
     /// Output directory.
     #[arg(long, default_value = "out/calibrate")]
     pub out: PathBuf,
-    /// Unit of lengths in the CSV (positions, targets, prismatic joints).
-    #[arg(long, default_value = "m", value_parser = parse_length_unit)]
-    pub length_unit: treecal::io::LengthUnit,
-    /// Unit of revolute joint values in the CSV.
-    #[arg(long, default_value = "rad", value_parser = parse_angle_unit)]
-    pub angle_unit: treecal::io::AngleUnit,
+    /// Unit of lengths in the CSV (positions, targets, prismatic joints) [default: the file's
+    /// `# units: length=…` comment, else m]; contradicting the comment is an error.
+    #[arg(long, value_parser = parse_length_unit)]
+    pub length_unit: Option<treecal::io::LengthUnit>,
+    /// Unit of revolute joint values in the CSV [default: the file's `# units: angle=…`
+    /// comment, else rad]; contradicting the comment is an error.
+    #[arg(long, value_parser = parse_angle_unit)]
+    pub angle_unit: Option<treecal::io::AngleUnit>,
+    /// Unit of prismatic joint values when it differs from --length-unit (a controller logging
+    /// metres beside a tracker in mm) [default: the file's `# units: joint_length=…`, else the
+    /// length unit].
+    #[arg(long, value_parser = parse_length_unit)]
+    pub joint_length_unit: Option<treecal::io::LengthUnit>,
     /// Columns to skip (e.g. a timestamp), comma-separated.
     #[arg(long, value_delimiter = ',', value_name = "COLUMN,COLUMN")]
     pub ignore_columns: Vec<String>,
@@ -428,20 +441,42 @@ pub struct CalibrateArgs {
     /// levelled tracker) or the robot's root link frame (a level robot base).
     #[arg(long, value_enum, default_value = "measurement")]
     pub gravity_frame: GravityFrame,
-    /// `fit`: the measurements are in the tracker's own frame, fitted in closed form; `base`:
-    /// they are already in the robot's root link frame (as `simulate --write-measurements`
-    /// writes them).
-    #[arg(long, value_enum, default_value = "fit")]
+    /// `auto`: fitted in closed form, or the robot's root frame when that explains the data
+    /// (docs/calibration.md); `fit`: the tracker's own frame, fitted and kept; `base`: already
+    /// in the robot's root link frame (as `simulate --write-measurements` writes them); or a
+    /// registration file (YAML: the robot base in the tracker frame, docs/file-formats.md).
+    #[arg(
+        long,
+        default_value = "auto",
+        value_name = "auto|fit|base|REGISTRATION.yaml"
+    )]
     pub measurement_frame: MeasurementFrame,
 }
 
-/// How the measurement frame is found.
-#[derive(Clone, Copy, ValueEnum)]
+/// How the measurement frame is found (`--measurement-frame`).
+#[derive(Clone)]
 pub enum MeasurementFrame {
+    /// Fitted, or the root frame when it explains the data.
+    Auto,
     /// Fitted to the data in closed form (Kabsch), then kept.
     Fit,
     /// The robot's root link frame.
     Base,
+    /// A registration file.
+    File(PathBuf),
+}
+
+impl std::str::FromStr for MeasurementFrame {
+    type Err = std::convert::Infallible;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        Ok(match text {
+            "auto" => MeasurementFrame::Auto,
+            "fit" => MeasurementFrame::Fit,
+            "base" => MeasurementFrame::Base,
+            path => MeasurementFrame::File(PathBuf::from(path)),
+        })
+    }
 }
 
 /// Where gravity is fixed.

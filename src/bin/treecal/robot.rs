@@ -1,7 +1,7 @@
 //! Loading the robot a command works on: a URDF path, or the built-in Robonaut.
 
 use std::path::{Path, PathBuf};
-use treecal::io::{mesh_file_loader, package_dirs};
+use treecal::io::{mesh_file_loader, package_dirs, read_measured_tool_names};
 use treecal::sim::collision::{CollisionChecker, CollisionOptions};
 use treecal::urdf::{load_urdf, parse_urdf, UrdfImport};
 use treecal::{detect_branches, Branches, KinematicTree, Result};
@@ -37,6 +37,30 @@ pub fn branches(import: &UrdfImport, tools: Option<&[String]>) -> Result<Branche
         })
         .transpose()?;
     detect_branches(tree, tools.as_deref())
+}
+
+/// Detects branches from the tools the user named, else from the links the measurement CSV's
+/// `tool` column names (the measured tools), so that automatic detection cannot pick others.
+pub fn measured_branches(
+    import: &UrdfImport,
+    tools: Option<&[String]>,
+    measurements: &Path,
+) -> Result<Branches> {
+    if tools.is_some() {
+        return branches(import, tools);
+    }
+    let measured = read_measured_tool_names(measurements)?;
+    let tree = &import.tree;
+    let ids = measured
+        .iter()
+        .map(|name| {
+            tree.link_id(name).map_err(|e| treecal::Error::InvalidData {
+                origin: format!("{}: tool column", measurements.display()),
+                message: format!("{e}; the tool column names the measured tool links"),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    detect_branches(tree, Some(&ids))
 }
 
 /// The URDF text of `path`, or of the built-in Robonaut, with the name to use in messages.
