@@ -418,3 +418,46 @@ fn palm_off_the_wrist_axis_gets_a_mount_link() {
     let table = parse_mcpc_table(&carried, "t.yaml").unwrap();
     assert!(table.branches[0].carried_tool().is_some());
 }
+
+/// The failing commands: `to-mcpc` then `from-mcpc` on a robot whose palms are the
+/// wrist joints' children (before: "link name 'l_hand' is used twice"); the generated URDF's
+/// palms are at the original palm poses (1e-9) at random configurations.
+#[test]
+fn cli_to_mcpc_and_from_mcpc_keep_a_palm_on_the_wrist_joint() {
+    use crate::common::cli::*;
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = dir.path().join("palms.urdf");
+    let text = humanoid_with_palms_on_wrists();
+    std::fs::write(&urdf, &text).unwrap();
+    let table = dir.path().join("table.yaml");
+    let run = treecal(&[
+        "to-mcpc",
+        path_str(&urdf),
+        "--tools",
+        "l_hand,r_hand",
+        "-o",
+        path_str(&table),
+    ]);
+    assert_success(&run, "to-mcpc");
+    let generated = dir.path().join("generated.urdf");
+    let run = treecal(&["from-mcpc", path_str(&table), "-o", path_str(&generated)]);
+    assert_success(&run, "from-mcpc");
+    let tree = treecal::parse_urdf(&text, "palms").unwrap().tree;
+    let regenerated = treecal::load_urdf(&generated).unwrap().tree;
+    let mut random = rng(12);
+    for _ in 0..20 {
+        let q = random_configuration(&tree, &mut random);
+        let mut q_again = regenerated.zero_configuration();
+        for (dof, joint) in regenerated.dofs().iter().enumerate() {
+            let original = tree.joint_id(&regenerated.joint(*joint).name).unwrap();
+            q_again[dof] = tree.joint_value(original, &q);
+        }
+        for palm in ["l_hand", "r_hand"] {
+            let expected = tree.link_pose(tree.link_id(palm).unwrap(), &q).unwrap();
+            let got = regenerated
+                .link_pose(regenerated.link_id(palm).unwrap(), &q_again)
+                .unwrap();
+            assert_pose_eq(&got, &expected, 1e-9, palm);
+        }
+    }
+}

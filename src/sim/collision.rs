@@ -4,7 +4,8 @@
 //! construction; a check then places them with the link poses of one configuration and tests
 //! every pair of links that are not *adjacent*. Links welded together by fixed joints form one
 //! rigid body: all links of a body are mutually adjacent, and adjacent to every link of the
-//! bodies joined to it by a single movable joint. Adjacent links may touch (that is how joints
+//! bodies joined to it by a single movable joint, or by several whose bodies in between have no
+//! collision shapes (a two-joint shoulder). Adjacent links may touch (that is how joints
 //! are drawn), so they are never checked.
 //!
 //! Mesh shapes (STL, OBJ, COLLADA) are loaded when a loader is given
@@ -185,7 +186,11 @@ impl CollisionChecker {
                 });
             }
         }
-        let body = rigid_bodies(tree);
+        let mut has_shapes = vec![false; tree.links().len()];
+        for link in &links {
+            has_shapes[link.link.0] = true;
+        }
+        let body = rigid_bodies(tree, &has_shapes);
         let mut pairs = Vec::new();
         for a in 0..links.len() {
             for b in a + 1..links.len() {
@@ -279,6 +284,41 @@ impl CollisionChecker {
             .filter(|&&(a, b)| self.pair_collides(&placed[a], a, &placed[b], b))
             .map(|&(a, b)| (self.links[a].link, self.links[b].link))
             .collect()
+    }
+
+    /// Stops checking the pairs that collide at every one of `configurations` (the link poses
+    /// of random configurations, see [`crate::sim::sampling::sample_configurations`]): links
+    /// whose meshes overlap by design (two links of a compact wrist), which no configuration
+    /// can separate and which MoveIt's setup assistant disables as "always in collision".
+    /// Returns the pairs no longer checked; none when `configurations` is empty.
+    ///
+    /// # Panics
+    ///
+    /// As [`Self::in_collision`].
+    pub fn ignore_pairs_always_colliding(
+        &mut self,
+        configurations: &[Vec<Pose>],
+    ) -> Vec<(LinkId, LinkId)> {
+        let mut always = vec![!configurations.is_empty(); self.pairs.len()];
+        for link_poses in configurations {
+            let placed = self.place(link_poses);
+            for (k, &(a, b)) in self.pairs.iter().enumerate() {
+                if always[k] && !self.pair_collides(&placed[a], a, &placed[b], b) {
+                    always[k] = false;
+                }
+            }
+        }
+        let mut removed = Vec::new();
+        let mut kept = Vec::with_capacity(self.pairs.len());
+        for (&(a, b), &drop) in self.pairs.iter().zip(&always) {
+            if drop {
+                removed.push((self.links[a].link, self.links[b].link));
+            } else {
+                kept.push((a, b));
+            }
+        }
+        self.pairs = kept;
+        removed
     }
 
     /// Each shape-carrying link's pose (parry form) and bounding-sphere centre, root frame.
@@ -537,7 +577,11 @@ struct Bodies {
     parent_body: Vec<Option<LinkId>>,
 }
 
-fn rigid_bodies(tree: &KinematicTree) -> Bodies {
+/// `has_shapes`: whether each link has collision shapes. A body without any (the small link
+/// between the two joints of a shoulder or wrist, as real descriptions have them) does not
+/// separate the bodies on either side: they count as joined by one movable joint, since that
+/// is how they are drawn meeting.
+fn rigid_bodies(tree: &KinematicTree, has_shapes: &[bool]) -> Bodies {
     let count = tree.links().len();
     let mut body_of: Vec<LinkId> = (0..count).map(LinkId).collect();
     let mut parent_body = vec![None; count];
@@ -548,6 +592,20 @@ fn rigid_bodies(tree: &KinematicTree) -> Bodies {
             body_of[joint.child.0] = parent;
         } else {
             parent_body[joint.child.0] = Some(parent);
+        }
+    }
+    let mut body_has_shapes = vec![false; count];
+    for (link, &shapes) in has_shapes.iter().enumerate() {
+        body_has_shapes[body_of[link].0] |= shapes;
+    }
+    // Parents come before children, so a parent's own parent is already skipped to a body with
+    // shapes when its children are visited.
+    for joint in tree.joints() {
+        let child = joint.child.0;
+        if let Some(parent) = parent_body[child] {
+            if !body_has_shapes[parent.0] {
+                parent_body[child] = parent_body[parent.0].or(Some(parent));
+            }
         }
     }
     Bodies {

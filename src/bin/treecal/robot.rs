@@ -94,12 +94,47 @@ pub fn checker(
     let mut directories = package_paths.to_vec();
     directories.extend(package_dirs(&search));
     let loader = mesh_file_loader(directory, directories);
-    let checker = CollisionChecker::with_meshes(tree, &CollisionOptions::default(), &loader)?;
+    let mut checker = CollisionChecker::with_meshes(tree, &CollisionOptions::default(), &loader)?;
     if let Some(line) = skipped_meshes_line(&checker) {
         eprintln!("{line}");
     }
+    if checker.loaded_meshes() > 0 {
+        // Meshes of neighbouring links often overlap by design; such pairs would reject every
+        // configuration. A robot that cannot be sampled (no limits) is left as it is.
+        let mut rng = <rand::rngs::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+        let options = treecal::sim::sampling::SamplingOptions::default();
+        let samples = treecal::sim::sampling::sample_configurations(
+            tree,
+            None,
+            ALWAYS_COLLIDING_SAMPLES,
+            &mut rng,
+            &options,
+            &[],
+        )
+        .unwrap_or_default();
+        let poses: Vec<_> = samples
+            .iter()
+            .filter_map(|q| tree.link_poses(q).ok())
+            .collect();
+        let removed = checker.ignore_pairs_always_colliding(&poses);
+        if !removed.is_empty() {
+            let names: Vec<String> = removed
+                .iter()
+                .map(|(a, b)| format!("{}–{}", tree.link(*a).name, tree.link(*b).name))
+                .collect();
+            eprintln!(
+                "treecal: note: {} link pairs collide at all {} random configurations (their collision meshes overlap by design) and are not checked: {}",
+                removed.len(),
+                poses.len(),
+                names.join(", ")
+            );
+        }
+    }
     Ok(checker)
 }
+
+/// How many random configurations decide that a link pair always collides.
+const ALWAYS_COLLIDING_SAMPLES: usize = 100;
 
 /// One warning line naming every mesh left out, first the ones not found, then the unreadable
 /// ones with their reasons; `None` if none.
