@@ -3,7 +3,7 @@
 use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame};
 use treecal::calibration::identifiability::NamedCombination;
 use treecal::calibration::{
-    hold_out, run_calibration, CalibrationInput, IdentificationOptions, Plan,
+    hold_out_indices, run_calibration, CalibrationInput, IdentificationOptions, Plan,
 };
 use treecal::io::{
     read_measurements, read_plan, read_stiffness, to_json, to_yaml, write_atomically,
@@ -11,7 +11,7 @@ use treecal::io::{
 };
 use treecal::kinematics::FlexibilityModel;
 use treecal::report::{
-    calibration_markdown, calibration_plots, calibration_summary, parameter_file,
+    calibration_markdown, calibration_plots, calibration_summary, outlier_rows, parameter_file,
     CalibrationContext,
 };
 use treecal::urdf::export_urdf;
@@ -53,28 +53,35 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut notes: Vec<String> = Vec::new();
     let read = |path: &std::path::Path,
                 notes: &mut Vec<String>|
-     -> Result<Vec<treecal::measurement::Measurement>> {
+     -> Result<(Vec<treecal::measurement::Measurement>, Vec<String>)> {
         let set = read_measurements(path, tree, &nominal, &read_options)?;
         notes.extend(
             set.warnings
                 .iter()
                 .map(|warning| format!("treecal: warning: {warning}")),
         );
-        Ok(set.measurements)
+        Ok((set.measurements, set.ids))
     };
-    let all = read(&args.measurements, &mut notes)?;
-    let (measurements, validation, validation_source) = match &args.validation {
-        Some(path) => (all, read(path, &mut notes)?, path.display().to_string()),
+    let (all, all_ids) = read(&args.measurements, &mut notes)?;
+    // `ids`: the row ids of the identification and validation data, for the outlier report.
+    let (measurements, validation, validation_source, ids) = match &args.validation {
+        Some(path) => {
+            let (validation, validation_ids) = read(path, &mut notes)?;
+            let source = path.display().to_string();
+            (all, validation, source, [all_ids, validation_ids])
+        }
         None => {
-            let (identification, validation) = hold_out(&all, HOLD_OUT, args.seed)?;
+            let (kept, held) = hold_out_indices(&all, HOLD_OUT, args.seed)?;
             let source = format!(
                 "{} of {} observations held out from the measurements (a fifth of the configurations, seed {}; give --validation to use your own)",
-                validation.len(),
+                held.len(),
                 all.len(),
                 args.seed
             );
             notes.push(format!("treecal: note: {source}"));
-            (identification, validation, source)
+            let pick = |rows: &[usize]| rows.iter().map(|&i| all[i].clone()).collect();
+            let ids = [&kept, &held].map(|rows| rows.iter().map(|&i| all_ids[i].clone()).collect());
+            (pick(&kept), pick(&held), source, ids)
         }
     };
     let labelled = measurements
@@ -109,6 +116,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let options = IdentificationOptions {
         position_sigma: args.position_sigma,
         rotation_sigma: args.rotation_sigma,
+        robust: args.robust.into(),
         ..IdentificationOptions::default()
     };
     let input = CalibrationInput {
@@ -174,7 +182,17 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         },
     };
     let changed: Vec<String> = export.changes.iter().map(|c| c.joint.clone()).collect();
-    let summary = calibration_summary(context, &run, unidentifiable, changed);
+    let mut summary = calibration_summary(context, &run, unidentifiable, changed);
+    summary.outliers = outlier_rows(&run, tree, [&ids[0], &ids[1]]);
+    // One warning line naming the outliers (the run's `outliers` finding, with the row ids).
+    if !summary.outliers.is_empty() {
+        let named: Vec<&str> = summary.outliers.iter().map(|o| o.id.as_str()).collect();
+        notes.push(format!(
+            "treecal: warning: {} measurement(s) down-weighted as outliers and left out (rows {}): see the Outliers table in report.md",
+            named.len(),
+            named.join(", ")
+        ));
+    }
     let markdown = calibration_markdown(&summary, &options);
     let params = to_yaml(&parameter_file(tree.name(), &run))?;
     let json = to_json(&summary)?;
