@@ -17,5 +17,6 @@ mod measurements_csv;
 mod oracle;
 mod planning;
 mod plot;
+mod robust;
 mod simulate;
 mod urdf_import;
