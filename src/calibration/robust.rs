@@ -417,7 +417,7 @@ mod tests {
         assert_eq!(RobustLoss::Huber.weight(k, 6), 1.0);
         assert_eq!(RobustLoss::Huber.weight(0.5 * k, 6), 1.0);
         assert!((RobustLoss::Huber.weight(10.0 * k, 6) - 0.1).abs() < 1e-12);
-        assert!((RobustLoss::Cauchy.weight(k, 3) - 0.5).abs() < 1e-12);
+        assert!((RobustLoss::Cauchy.weight(k, 6) - 0.5).abs() < 1e-12);
         assert_eq!(RobustLoss::Off.weight(1e9, 3), 1.0);
         for loss in [RobustLoss::Huber, RobustLoss::Cauchy] {
             for rows in [3, 6] {
