@@ -20,3 +20,4 @@ mod plot;
 mod robust;
 mod simulate;
 mod urdf_import;
+mod verdict;

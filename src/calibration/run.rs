@@ -303,7 +303,7 @@ pub fn run_calibration(
                 .sqrt()
         })
         .filter(|rms| rms.is_finite());
-    Ok(CalibrationRun {
+    let mut run = CalibrationRun {
         guess,
         frame_refinement,
         report,
@@ -317,7 +317,10 @@ pub fn run_calibration(
             .collect(),
         robust,
         outliers,
-    })
+    };
+    let found = super::checks::assess(&run, input.tree);
+    run.findings.extend(found);
+    Ok(run)
 }
 
 /// The outliers of the identification data (the robust fit's) and of the validation data
@@ -421,6 +424,11 @@ fn estimates(
                 let sd = id.standard_deviations[k];
                 spread[p] = (sd.is_finite().then_some(sd), id.identifiable[k]);
             }
+        }
+        // Kept at their starting values: the observations cannot see them.
+        let count = spread.len();
+        for &p in stage.kept.iter().filter(|&&p| p < limit && p < count) {
+            spread[p] = (None, false);
         }
     }
     layout

@@ -23,7 +23,7 @@ pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
 pub use stiffness::{parse_stiffness, read_stiffness};
 pub use units::{AngleUnit, LengthUnit};
-pub use write::write_atomically;
+pub use write::{check_output_folder, replace_folder, write_atomically};
 
 use crate::error::{Error, Result};
 
