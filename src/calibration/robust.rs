@@ -167,14 +167,16 @@ impl RobustReport {
             .collect()
     }
 
-    /// The measurements of `data` (the identification data, or validation data judged at the
-    /// same robust scale by [`weights_of`]) whose weight is below [`OUTLIER_WEIGHT`].
+    /// The measurements of `data` (the identification data, or validation data weighted by
+    /// [`weights_of`]) whose weight is below [`OUTLIER_WEIGHT`]; `scale` is the robust scale
+    /// the weights were computed at.
     pub fn name_outliers(
         &self,
         set: DataSet,
         data: &[Measurement],
         residuals: &[Residual],
         weights: &[f64],
+        scale: f64,
     ) -> Vec<Outlier> {
         (0..data.len().min(residuals.len()).min(weights.len()))
             .filter(|&i| weights[i] < OUTLIER_WEIGHT)
@@ -183,7 +185,7 @@ impl RobustReport {
                 index: i,
                 tool: data[i].tool,
                 residual: residuals[i],
-                standardized: residuals[i].norm / self.scale,
+                standardized: residuals[i].norm / scale,
                 weight: weights[i],
             })
             .collect()

@@ -324,8 +324,8 @@ pub fn run_calibration(
 }
 
 /// The outliers of the identification data (the robust fit's) and of the validation data
-/// (judged by the same loss at the identification data's robust scale): none when the loss is
-/// off. Validation data are never fitted, so a blunder there would only inflate the
+/// (judged by the same loss at the larger of the identification data's robust scale and
+/// their own): none when the loss is off. Validation data are never fitted, so a blunder there would only inflate the
 /// validation statistics; it is named and left out of them instead.
 fn name_outliers(
     input: &CalibrationInput<'_>,
@@ -343,11 +343,24 @@ fn name_outliers(
         measurements,
         &robust.residuals,
         &robust.weights,
+        robust.scale,
     );
     let residuals =
         robust::residuals(&report.model, validation, compensation, None, input.options)?;
-    let weights = robust::weights_of(robust.loss, &residuals, validation, robust.scale);
-    outliers.extend(robust.name_outliers(DataSet::Validation, validation, &residuals, &weights));
+    // A validation row is an outlier only if it stands out from the other validation rows as
+    // well as from the fit's noise: validation data that are all off (another robot, a moved
+    // tracker) are the validation checks' business, not blunders.
+    let scale = robust
+        .scale
+        .max(robust::robust_scale(&residuals, validation));
+    let weights = robust::weights_of(robust.loss, &residuals, validation, scale);
+    outliers.extend(robust.name_outliers(
+        DataSet::Validation,
+        validation,
+        &residuals,
+        &weights,
+        scale,
+    ));
     Ok(outliers)
 }
 
