@@ -24,7 +24,7 @@ pub fn inject_blunders(
         return Vec::new();
     }
     // A stream apart from the trial's own.
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xB1D0_E55E_D0_u64);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x00B1_D0E5_5ED0_u64);
     let mut indices: Vec<usize> = (0..measurements.len()).collect();
     indices.shuffle(&mut rng);
     let mut chosen = indices[..count].to_vec();
