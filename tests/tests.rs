@@ -21,6 +21,7 @@ mod oracle;
 mod planning;
 mod plot;
 mod real_robots;
+mod robust;
 mod simulate;
 mod urdf_import;
 mod urdf_tolerant;

@@ -9,6 +9,7 @@
 //! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
+//! - [`robust`]: robust estimation (Huber or Cauchy by IRLS): blunders named and left out.
 //! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
 //!   validation) that feed the verdict.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
@@ -18,6 +19,7 @@ pub mod frame;
 pub mod identifiability;
 pub mod initial_guess;
 pub mod plan;
+pub mod robust;
 pub mod run;
 pub mod solver;
 pub mod verdict;
@@ -33,9 +35,10 @@ pub use initial_guess::{fit_rigid_transform, fit_similarity_scale, initial_guess
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
 };
+pub use robust::{calibrate_robust, RobustLoss, RobustReport};
 pub use run::{
-    assembled_covariance, hold_out, run_calibration, ArmResiduals, CalibrationInput,
-    CalibrationRun, ErrorSummary, ParameterEstimate,
+    assembled_covariance, hold_out, hold_out_indices, run_calibration, ArmResiduals,
+    CalibrationInput, CalibrationRun, ErrorSummary, ParameterEstimate,
 };
 pub use solver::{
     identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,

@@ -205,9 +205,12 @@ pub fn calibrate(
     };
     // Each stage's measurements (indices and copies): the same in every cycle.
     let mut stage_inputs: Vec<(Vec<usize>, Vec<Measurement>)> = Vec::new();
+    // Each stage's options: the observation weights (robust estimation) of its measurements.
+    let mut stage_options: Vec<IdentificationOptions> = Vec::new();
     for (stage, &skip) in plan.stages.iter().zip(&skipped) {
         if skip {
             stage_inputs.push((Vec::new(), Vec::new()));
+            stage_options.push(options.for_measurements(&[]));
             continue;
         }
         let selected: Vec<usize> = (0..measurements.len())
@@ -225,6 +228,7 @@ pub fn calibrate(
             });
         }
         let data = selected.iter().map(|&i| measurements[i].clone()).collect();
+        stage_options.push(options.for_measurements(&selected));
         stage_inputs.push((selected, data));
     }
     let mut reports = Vec::new();
@@ -290,7 +294,7 @@ pub fn calibrate(
                             // The reduced model is rigid; its deflections come as offsets.
                             &Rigid,
                             &free,
-                            options,
+                            &stage_options[index],
                         )?;
                         // Copy the torso frames back into the full model.
                         let before = current.parameters();
@@ -339,12 +343,22 @@ pub fn calibrate(
                         .map(|o| selected.iter().map(|&i| o[i]).collect());
                     // The exact predictor exists exactly under exact compensation.
                     let identification = match &exact_predictor {
-                        Some(predictor) => {
-                            identify(&current, data, None, predictor, &free, options)?
-                        }
-                        None => {
-                            identify(&current, data, offsets.as_deref(), &Rigid, &free, options)?
-                        }
+                        Some(predictor) => identify(
+                            &current,
+                            data,
+                            None,
+                            predictor,
+                            &free,
+                            &stage_options[index],
+                        )?,
+                        None => identify(
+                            &current,
+                            data,
+                            offsets.as_deref(),
+                            &Rigid,
+                            &free,
+                            &stage_options[index],
+                        )?,
                     };
                     current.set_parameters(&identification.parameters)?;
                     StageReport {

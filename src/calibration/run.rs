@@ -5,6 +5,7 @@ pub use super::frame::MeasurementFrame;
 use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame, FrameDecision};
 use super::initial_guess::InitialGuess;
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
+use super::robust::{self, calibrate_robust, DataSet, Outlier, RobustLoss, RobustReport};
 use super::solver::{Deflected, IdentificationOptions};
 use super::verdict::Finding;
 use crate::error::{Error, Result};
@@ -139,6 +140,12 @@ pub struct CalibrationRun {
     /// [`Verdict::from_findings`](super::verdict::Verdict::from_findings) turns them into
     /// the verdict.
     pub findings: Vec<Finding>,
+    /// What the robust estimation did (loss, scale, weights and residuals of the
+    /// identification data).
+    pub robust: RobustReport,
+    /// The measurements named as outliers, identification then validation: left out of the
+    /// fit and of the error statistics (`identification`, `validation`).
+    pub outliers: Vec<Outlier>,
 }
 
 /// Splits off a seeded fifth of the configurations for validation: whole configurations
@@ -149,6 +156,18 @@ pub fn hold_out(
     fraction: f64,
     seed: u64,
 ) -> Result<(Vec<Measurement>, Vec<Measurement>)> {
+    let (identification, validation) = hold_out_indices(measurements, fraction, seed)?;
+    let pick = |indices: Vec<usize>| indices.iter().map(|&i| measurements[i].clone()).collect();
+    Ok((pick(identification), pick(validation)))
+}
+
+/// [`hold_out`] as indices into `measurements` (each part in file order), so that callers can
+/// carry row ids along.
+pub fn hold_out_indices(
+    measurements: &[Measurement],
+    fraction: f64,
+    seed: u64,
+) -> Result<(Vec<usize>, Vec<usize>)> {
     // Distinct configurations, in file order, with the stage they belong to.
     let mut groups: Vec<(&[f64], Option<&str>)> = Vec::new();
     let group_of: Vec<usize> = measurements
@@ -181,11 +200,11 @@ pub fn hold_out(
     eligible.shuffle(&mut rng);
     let held: Vec<usize> = eligible[..count].to_vec();
     let (mut identification, mut validation) = (Vec::new(), Vec::new());
-    for (m, g) in measurements.iter().zip(&group_of) {
+    for (index, g) in group_of.iter().enumerate() {
         if held.contains(g) {
-            validation.push(m.clone());
+            validation.push(index);
         } else {
-            identification.push(m.clone());
+            identification.push(index);
         }
     }
     Ok((identification, validation))
@@ -209,7 +228,7 @@ pub fn run_calibration(
         None => Compensation::None,
     };
     let mut guess = guess;
-    let mut report = calibrate(
+    let (mut report, mut robust) = calibrate_robust(
         input.branches,
         &guess.model,
         measurements,
@@ -219,11 +238,45 @@ pub fn run_calibration(
     )?;
     let mut frame_refinement = None;
     if let (true, Some(flexibility)) = (fitted_frame, input.flexibility) {
-        let refined = refine_measurement_frame(input, flexibility, measurements, &report)?;
+        // The frame is refined with the robust weights found, the outliers left out.
+        let weighted = IdentificationOptions {
+            observation_weights: robust.fit_weights(),
+            ..input.options.clone()
+        };
+        let weighted_input = CalibrationInput {
+            options: &weighted,
+            ..*input
+        };
+        let refined =
+            refine_measurement_frame(&weighted_input, flexibility, measurements, &report)?;
         guess.world_from_base = refined.report.model.world_from_base();
         report = refined.report;
         frame_refinement = Some(refined.summary);
+        robust.residuals = robust::residuals(
+            &report.model,
+            measurements,
+            compensation,
+            None,
+            input.options,
+        )?;
     }
+    let outliers = name_outliers(
+        input,
+        &report,
+        &robust,
+        compensation,
+        measurements,
+        validation,
+    )?;
+    let kept = |data: &[Measurement], set: DataSet| -> Vec<Measurement> {
+        data.iter()
+            .enumerate()
+            .filter(|(i, _)| !outliers.iter().any(|o| o.set == set && o.index == *i))
+            .map(|(_, m)| m.clone())
+            .collect()
+    };
+    let measurements = &kept(measurements, DataSet::Identification)[..];
+    let validation = &kept(validation, DataSet::Validation)[..];
     let parameters = estimates(input, &guess.model, &report);
     let predict = |model: &McpcModel, q: &[f64]| -> Result<Vec<Pose>> {
         match input.flexibility {
@@ -255,6 +308,12 @@ pub fn run_calibration(
         .filter(|rms| rms.is_finite());
     let mut findings = vec![frame_finding];
     findings.extend(report.notes.iter().cloned());
+    findings.extend(outlier_finding(
+        &robust,
+        &outliers,
+        measurements.len(),
+        validation.len(),
+    ));
     let mut run = CalibrationRun {
         guess,
         frame,
@@ -266,10 +325,80 @@ pub fn run_calibration(
         predicted_validation_rms_mm,
         predicted_validation_sd_mm,
         findings,
+        robust,
+        outliers,
     };
     let found = super::checks::assess(&run, input.tree);
     run.findings.extend(found);
     Ok(run)
+}
+
+/// The outliers of the identification data (the robust fit's) and of the validation data
+/// (judged by the same loss at the larger of the identification data's robust scale and
+/// their own): none when the loss is off. Validation data are never fitted, so a blunder there would only inflate the
+/// validation statistics; it is named and left out of them instead.
+fn name_outliers(
+    input: &CalibrationInput<'_>,
+    report: &CalibrationReport,
+    robust: &RobustReport,
+    compensation: Compensation<'_>,
+    measurements: &[Measurement],
+    validation: &[Measurement],
+) -> Result<Vec<Outlier>> {
+    if robust.loss == RobustLoss::Off {
+        return Ok(Vec::new());
+    }
+    let mut outliers = robust.name_outliers(
+        DataSet::Identification,
+        measurements,
+        &robust.residuals,
+        &robust.weights,
+        robust.scale,
+    );
+    let residuals =
+        robust::residuals(&report.model, validation, compensation, None, input.options)?;
+    // A validation row is an outlier only if it stands out from the other validation rows as
+    // well as from the fit's noise: validation data that are all off (another robot, a moved
+    // tracker) are the validation checks' business, not blunders.
+    let scale = robust
+        .scale
+        .max(robust::robust_scale(&residuals, validation));
+    let weights = robust::weights_of(robust.loss, &residuals, validation, scale);
+    outliers.extend(robust.name_outliers(
+        DataSet::Validation,
+        validation,
+        &residuals,
+        &weights,
+        scale,
+    ));
+    Ok(outliers)
+}
+
+/// The warning that names how many measurements were left out as outliers; `kept` counts
+/// what the statistics still use.
+fn outlier_finding(
+    robust: &RobustReport,
+    outliers: &[Outlier],
+    kept_identification: usize,
+    kept_validation: usize,
+) -> Option<Finding> {
+    if outliers.is_empty() {
+        return None;
+    }
+    let count = |set: DataSet| outliers.iter().filter(|o| o.set == set).count();
+    let (identification, validation) = (count(DataSet::Identification), count(DataSet::Validation));
+    Some(Finding::warning(
+        "outliers",
+        format!(
+            "{identification} of {} identification and {validation} of {} validation measurements were down-weighted as outliers by the robust {} loss (residuals beyond {:.0}–{:.0} robust σ, robust σ = {:.3} of the assumed noise) and left out of the fit and the error statistics; see \"outliers\" in report.json, check those rows (a bumped target, a wrong row), or compare with --robust off",
+            identification + kept_identification,
+            validation + kept_validation,
+            robust.loss,
+            robust.loss.outlier_norm(3),
+            robust.loss.outlier_norm(6),
+            robust.scale,
+        ),
+    ))
 }
 
 /// The covariance of all parameters (full-model order, rad and m), assembled from the stages:

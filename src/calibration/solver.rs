@@ -205,6 +205,29 @@ pub struct IdentificationOptions {
     pub step_tolerance: f64,
     /// Stop when an accepted step lowers the cost by less than this fraction.
     pub cost_tolerance: f64,
+    /// Per-measurement weights (robust estimation, [`super::robust`]): measurement `i`'s rows
+    /// are multiplied by `√weights[i]`, so its share of the cost is `weights[i]·½‖r_i‖²`.
+    /// Empty: every weight is 1 (the plain least-squares problem, bit for bit).
+    pub observation_weights: Vec<f64>,
+    /// How [`super::run::run_calibration`] and [`super::robust::calibrate_robust`] weight
+    /// measurements by their residuals (default Huber); [`identify`] itself only applies
+    /// `observation_weights`.
+    pub robust: super::robust::RobustLoss,
+}
+
+impl IdentificationOptions {
+    /// The same options for the measurements at `selected` (a stage's subset): the
+    /// observation weights follow the measurements.
+    pub fn for_measurements(&self, selected: &[usize]) -> Self {
+        let mut options = self.clone();
+        if !self.observation_weights.is_empty() {
+            options.observation_weights = selected
+                .iter()
+                .map(|&i| self.observation_weights.get(i).copied().unwrap_or(1.0))
+                .collect();
+        }
+        options
+    }
 }
 
 impl Default for IdentificationOptions {
@@ -216,6 +239,8 @@ impl Default for IdentificationOptions {
             rank_tolerance: 1e-8,
             step_tolerance: 1e-12,
             cost_tolerance: 1e-8,
+            observation_weights: Vec::new(),
+            robust: super::robust::RobustLoss::default(),
         }
     }
 }
@@ -360,6 +385,12 @@ fn linearise(
     let mut cached_poses: Option<(&[f64], Vec<Pose>)> = None;
     for (index, m) in measurements.iter().enumerate() {
         let count = m.observation.rows();
+        // Multiplying by exactly 1.0 keeps unweighted problems bit for bit as before.
+        let observation = options
+            .observation_weights
+            .get(index)
+            .map_or(1.0, |w| w.sqrt());
+        let weights = [weights[0] * observation, weights[1] * observation];
         let predicted = if with_jacobian {
             if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
                 cached = Some((&m.q, predictor.jacobians(model, &m.q)?));
@@ -407,9 +438,15 @@ fn residual_rms(
     measurements: &[Measurement],
     offsets: Option<&[Vector6<f64>]>,
     predictor: &dyn Predictor,
+    options: &IdentificationOptions,
 ) -> Result<(f64, f64)> {
-    let (mut position, mut rotation, mut poses) = (0.0, 0.0, 0usize);
+    let (mut position, mut rotation, mut poses, mut count) = (0.0, 0.0, 0usize, 0usize);
     for (index, m) in measurements.iter().enumerate() {
+        // Measurements left out (weight 0, robust estimation) are not part of the fit.
+        if options.observation_weights.get(index) == Some(&0.0) {
+            continue;
+        }
+        count += 1;
         let predicted = predictor.predict(model, &m.q)?;
         let error = raw_residual(
             &m.observation,
@@ -422,7 +459,7 @@ fn residual_rms(
             poses += 1;
         }
     }
-    let n = measurements.len().max(1) as f64;
+    let n = count.max(1) as f64;
     let rotation_rms = if poses > 0 {
         (rotation / poses as f64).sqrt()
     } else {
@@ -607,11 +644,18 @@ pub fn identify(
         })
         .collect();
     let (residual_rms_position, residual_rms_rotation) =
-        residual_rms(&current, measurements, offsets, predictor)?;
+        residual_rms(&current, measurements, offsets, predictor, options)?;
     // A-posteriori scale of the assumed σ's, and the covariance σ̂²·(JᵀWJ)⁺ on the
     // identifiable subspace, back in parameter units: Σ over retained directions of
     // (v_k / s_k)² / σᵢ².
-    let rows = rows_of(measurements);
+    // Rows of measurements left out (weight 0, robust estimation) carry no information.
+    let rows = rows_of(measurements)
+        - measurements
+            .iter()
+            .zip(&options.observation_weights)
+            .filter(|(_, &w)| w == 0.0)
+            .map(|(m, _)| m.observation.rows())
+            .sum::<usize>();
     let residual_scale = if rows > rank {
         (2.0 * cost / (rows - rank) as f64).sqrt()
     } else {
@@ -850,6 +894,22 @@ fn validate(
     if let Some(&p) = free.iter().find(|&&p| p >= count) {
         return Err(bad(format!(
             "free parameter {p} does not exist (the model has {count})"
+        )));
+    }
+    let observation_weights = &options.observation_weights;
+    if !observation_weights.is_empty() && observation_weights.len() != measurements.len() {
+        return Err(bad(format!(
+            "{} observation weights for {} measurements",
+            observation_weights.len(),
+            measurements.len()
+        )));
+    }
+    if let Some(w) = observation_weights
+        .iter()
+        .find(|w| !(w.is_finite() && **w >= 0.0))
+    {
+        return Err(bad(format!(
+            "observation weight {w} is not a non-negative number"
         )));
     }
     if let Some(offsets) = offsets {

@@ -2,6 +2,7 @@
 //! (errors before and after, per arm) layouts in markdown, a serialisable summary for JSON, the
 //! parameter file (`params.yaml`) and the per-configuration error plots (Fig. 9–12 style).
 
+use super::outliers::{outliers_markdown, robust_summary, OutlierRow, RobustSummary};
 use super::plot::arm_error_plots;
 use crate::calibration::{
     ArmResiduals, CalibrationRun, IdentificationOptions, ParameterEstimate, Status, Verdict,
@@ -90,6 +91,11 @@ pub struct CalibrationSummary {
     pub predicted_validation_sd_mm: Vec<f64>,
     /// Joints whose URDF origin (or axis) the export changed.
     pub changed_joints: Vec<String>,
+    /// How the robust estimation ran.
+    pub robust: RobustSummary,
+    /// The measurements named as outliers (left out of the fit or the statistics); filled by
+    /// the caller with [`super::outliers::outlier_rows`], which needs the rows' ids.
+    pub outliers: Vec<OutlierRow>,
 }
 
 /// A frame as URDF writes it.
@@ -161,6 +167,9 @@ pub fn calibration_summary(
         predicted_validation_rms_mm: run.predicted_validation_rms_mm,
         predicted_validation_sd_mm: run.predicted_validation_sd_mm.clone(),
         changed_joints,
+        robust: robust_summary(run),
+        // The caller knows the rows' ids and the tool names: see `outlier_rows`.
+        outliers: Vec::new(),
     }
 }
 
@@ -305,6 +314,8 @@ pub fn calibration_markdown(
             at(1.0)
         );
     }
+
+    out.push_str(&outliers_markdown(&summary.robust, &summary.outliers));
 
     // Solver outcome.
     let _ = writeln!(out, "## Solver, per stage\n");

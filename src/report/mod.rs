@@ -3,6 +3,7 @@
 pub mod calibrate;
 pub mod check;
 pub mod inspect;
+pub mod outliers;
 pub mod plot;
 pub mod simulate;
 
@@ -12,3 +13,4 @@ pub use calibrate::{
 };
 pub use check::{CheckReport, StageCheck};
 pub use inspect::{inspect, InspectReport};
+pub use outliers::{outlier_rows, OutlierRow, RobustSummary};

@@ -141,6 +141,10 @@ pub fn simulation_markdown(
             "Measurement noise alone predicts an RMS validation position error of {:.4} mm.\n",
             first.noise_floor_position_mm
         );
+        blunder_line(
+            &mut out,
+            &[first.blunders.counts(0), first.blunders.counts(1)],
+        );
     }
     if trials.len() > 1 {
         let _ = writeln!(out, "## All {} trials\n", summary.trials);
@@ -161,6 +165,21 @@ pub fn simulation_markdown(
             "Noise floor (RMS validation position error predicted from the noise): {:.4} ± {:.4} mm.\n",
             summary.noise_floor_position_mm.mean, summary.noise_floor_position_mm.std
         );
+        blunder_line(&mut out, &summary.blunders);
     }
     out
+}
+
+/// What robust estimation made of the injected blunders (nothing when there were none and
+/// nothing was named).
+fn blunder_line(out: &mut String, counts: &[[usize; 3]; 2]) {
+    if counts.iter().flatten().all(|&c| c == 0) {
+        return;
+    }
+    let [rigid, compensated] = counts;
+    let _ = writeln!(
+        out,
+        "Blunders named / missed / clean measurements named as outliers: {} / {} / {} (rigid), {} / {} / {} (compensated).\n",
+        rigid[0], rigid[1], rigid[2], compensated[0], compensated[1], compensated[2]
+    );
 }

@@ -2,14 +2,15 @@
 //! deflections, measured by a noisy laser tracker, calibrated without and with flexibility
 //! compensation, and judged on the identification and on separate validation configurations.
 
+use super::blunders::inject_blunders;
 use super::collision::CollisionChecker;
 use super::noise::{observe, NoiseModel, Targets};
 use super::planning::{plan_poses, PlanningOptions, PlanningStage};
 use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, ErrorRanges};
 use crate::calibration::{
-    calibrate, CalibrationReport, Compensation, Deflected, IdentificationOptions, ParameterSet,
-    Plan,
+    calibrate_robust, CalibrationReport, Compensation, Deflected, IdentificationOptions,
+    ParameterSet, Plan, RobustLoss,
 };
 use crate::error::Result;
 use crate::kinematics::{FlexibilityModel, McpcModel};
@@ -47,6 +48,12 @@ pub struct SimulationOptions {
     /// with the nominal model (its `candidates`, `criterion` and `workspace` are used; poses,
     /// stage, targets, locks, seed and σ follow this simulation).
     pub planning: Option<PlanningOptions>,
+    /// The robust loss of both calibrations.
+    pub robust: RobustLoss,
+    /// Fraction of the measurements turned into blunders ([`inject_blunders`]).
+    pub outliers: f64,
+    /// How far a blunder moves its target (m).
+    pub outlier_size: f64,
 }
 
 impl Default for SimulationOptions {
@@ -62,6 +69,9 @@ impl Default for SimulationOptions {
             plan: Plan::staged(),
             seed: 0,
             planning: None,
+            robust: RobustLoss::default(),
+            outliers: 0.0,
+            outlier_size: 0.05,
         }
     }
 }
@@ -129,6 +139,26 @@ pub struct ArmErrors {
     pub orientation_deg: [Vec<f64>; 3],
 }
 
+/// Blunders injected into a trial's measurements and the outliers the calibrations named
+/// (indices into the measurements, torso stage then arms stage).
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct BlunderReport {
+    /// The measurements turned into blunders.
+    pub injected: Vec<usize>,
+    /// The outliers named by the calibration without / with compensation.
+    pub named: [Vec<usize>; 2],
+}
+
+impl BlunderReport {
+    /// Blunders named, blunders missed and clean measurements named, by the calibration
+    /// without (`0`) or with (`1`) compensation.
+    pub fn counts(&self, run: usize) -> [usize; 3] {
+        let named = &self.named[run];
+        let hits = self.injected.iter().filter(|i| named.contains(i)).count();
+        [hits, self.injected.len() - hits, named.len() - hits]
+    }
+}
+
 /// The outcome of one calibration run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunSummary {
@@ -154,6 +184,8 @@ pub struct TrialReport {
     pub rigid_run: RunSummary,
     /// How the compensated calibration went.
     pub compensated_run: RunSummary,
+    /// The blunders injected and the outliers each calibration named.
+    pub blunders: BlunderReport,
     /// The simulated measurements (torso stage, then arms stage).
     #[serde(skip)]
     pub measurements: Vec<Measurement>,
@@ -221,6 +253,12 @@ pub fn run_trial(
         };
     measure(&torso_configurations, "torso", &mut rng)?;
     measure(&arm_configurations, "arms", &mut rng)?;
+    let injected = inject_blunders(
+        &mut measurements,
+        options.outliers,
+        options.outlier_size,
+        seed,
+    );
     finish_trial(
         setup,
         options,
@@ -231,6 +269,13 @@ pub fn run_trial(
         &arm_configurations,
         &validation,
     )
+    .map(|report| TrialReport {
+        blunders: BlunderReport {
+            injected,
+            ..report.blunders
+        },
+        ..report
+    })
 }
 
 /// Configurations of the torso stage, then of the arms stage.
@@ -339,12 +384,15 @@ fn finish_trial(
     validation: &[Vec<f64>],
 ) -> Result<TrialReport> {
     let tree = setup.tree;
-    let identification_options = identification_options.clone();
+    let identification_options = IdentificationOptions {
+        robust: options.robust,
+        ..identification_options.clone()
+    };
     let source = Deflected {
         tree,
         flexibility: setup.model_flexibility,
     };
-    let rigid = calibrate(
+    let (rigid, rigid_robust) = calibrate_robust(
         setup.branches,
         setup.nominal,
         &measurements,
@@ -352,7 +400,7 @@ fn finish_trial(
         &options.plan,
         &identification_options,
     )?;
-    let compensated = calibrate(
+    let (compensated, compensated_robust) = calibrate_robust(
         setup.branches,
         setup.nominal,
         &measurements,
@@ -360,6 +408,10 @@ fn finish_trial(
         &options.plan,
         &identification_options,
     )?;
+    let blunders = BlunderReport {
+        injected: Vec::new(),
+        named: [rigid_robust.outliers(), compensated_robust.outliers()],
+    };
 
     let errors = |configurations: &[Vec<f64>]| -> Result<Vec<ArmErrors>> {
         arm_errors(
@@ -384,6 +436,7 @@ fn finish_trial(
         noise_floor_position_mm,
         rigid_run: summary(&rigid),
         compensated_run: summary(&compensated),
+        blunders,
         measurements,
         notes: compensated
             .notes

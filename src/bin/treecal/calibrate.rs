@@ -2,8 +2,10 @@
 
 use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame};
 use treecal::calibration::identifiability::NamedCombination;
+use treecal::calibration::robust::DataSet;
 use treecal::calibration::{
-    hold_out, run_calibration, CalibrationInput, Finding, IdentificationOptions, Plan, Status,
+    hold_out_indices, run_calibration, CalibrationInput, Finding, IdentificationOptions, Plan,
+    Status,
 };
 use treecal::io::{
     check_output_folder, read_measurements, read_plan, read_registration, read_stiffness,
@@ -12,7 +14,7 @@ use treecal::io::{
 use treecal::kinematics::FlexibilityModel;
 use treecal::limits;
 use treecal::report::{
-    calibration_markdown, calibration_plots, calibration_summary, parameter_file,
+    calibration_markdown, calibration_plots, calibration_summary, outlier_rows, parameter_file,
     CalibrationContext,
 };
 use treecal::urdf::{export_urdf_with, ExportOptions};
@@ -102,28 +104,35 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut notes: Vec<String> = Vec::new();
     let read = |path: &std::path::Path,
                 notes: &mut Vec<String>|
-     -> Result<Vec<treecal::measurement::Measurement>> {
+     -> Result<(Vec<treecal::measurement::Measurement>, Vec<String>)> {
         let set = read_measurements(path, tree, &nominal, &read_options)?;
         notes.extend(
             set.warnings
                 .iter()
                 .map(|warning| format!("treecal: warning: {warning}")),
         );
-        Ok(set.measurements)
+        Ok((set.measurements, set.ids))
     };
-    let all = read(&args.measurements, &mut notes)?;
-    let (measurements, validation, validation_source) = match &args.validation {
-        Some(path) => (all, read(path, &mut notes)?, path.display().to_string()),
+    let (all, all_ids) = read(&args.measurements, &mut notes)?;
+    // `ids`: the row ids of the identification and validation data, for the outlier report.
+    let (measurements, validation, validation_source, ids) = match &args.validation {
+        Some(path) => {
+            let (validation, validation_ids) = read(path, &mut notes)?;
+            let source = path.display().to_string();
+            (all, validation, source, [all_ids, validation_ids])
+        }
         None => {
-            let (identification, validation) = hold_out(&all, HOLD_OUT, args.seed)?;
+            let (kept, held) = hold_out_indices(&all, HOLD_OUT, args.seed)?;
             let source = format!(
                 "{} of {} observations held out from the measurements (a fifth of the configurations, seed {}; give --validation to use your own)",
-                validation.len(),
+                held.len(),
                 all.len(),
                 args.seed
             );
             notes.push(format!("treecal: note: {source}"));
-            (identification, validation, source)
+            let pick = |rows: &[usize]| rows.iter().map(|&i| all[i].clone()).collect();
+            let ids = [&kept, &held].map(|rows| rows.iter().map(|&i| all_ids[i].clone()).collect());
+            (pick(&kept), pick(&held), source, ids)
         }
     };
     let labelled = measurements
@@ -158,6 +167,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let options = IdentificationOptions {
         position_sigma: args.position_sigma,
         rotation_sigma: args.rotation_sigma,
+        robust: args.robust.into(),
         ..IdentificationOptions::default()
     };
     let input = CalibrationInput {
@@ -232,7 +242,20 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .iter()
         .flat_map(|e| e.changes.iter().map(|c| c.joint.clone()))
         .collect();
-    let summary = calibration_summary(context, &run, unidentifiable, changed);
+    // The outliers with the rows' own ids; the verdict's `outliers` warning names them too.
+    let outliers = outlier_rows(&run, tree, [&ids[0], &ids[1]]);
+    if let Some(finding) = run.findings.iter_mut().find(|f| f.code == "outliers") {
+        let rows: Vec<String> = outliers
+            .iter()
+            .map(|o| match o.set {
+                DataSet::Identification => o.id.clone(),
+                DataSet::Validation => format!("{} (validation)", o.id),
+            })
+            .collect();
+        finding.message = format!("{}; rows: {}", finding.message, rows.join(", "));
+    }
+    let mut summary = calibration_summary(context, &run, unidentifiable, changed);
+    summary.outliers = outliers;
     let markdown = calibration_markdown(&summary, &options);
     let params = to_yaml(&parameter_file(tree.name(), &run))?;
     let json = to_json(&summary)?;

@@ -167,6 +167,16 @@ pub struct SimulateArgs {
     /// Tracker noise: 0 (none), at901 (15 µm + 6 µm/m per coordinate), or CONSTANT+PER_METRE in µm.
     #[arg(long, default_value = "at901")]
     pub noise: String,
+    /// Robust estimation in both calibrations (see `calibrate --help`).
+    #[arg(long, value_enum, default_value = "huber")]
+    pub robust: RobustChoice,
+    /// Fraction of the measurements turned into blunders (one target bumped, or the position
+    /// moved, by --outlier-size in a random direction), e.g. 0.03.
+    #[arg(long, default_value_t = 0.0, value_name = "FRACTION")]
+    pub outliers: f64,
+    /// How far a blunder moves its target (mm).
+    #[arg(long, default_value_t = 50.0, value_name = "MM")]
+    pub outlier_size: f64,
     /// Targets per tool: 3 (a frame, as in the paper's section 5.3.1) or 1 (a position).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     pub targets: u8,
@@ -437,6 +447,10 @@ pub struct CalibrateArgs {
     /// Seed of the held-out validation fifth.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Robust estimation: measurements whose residual is far beyond the others' (a bumped
+    /// target) are down-weighted, named in the report and left out (docs/identification.md).
+    #[arg(long, value_enum, default_value = "huber")]
+    pub robust: RobustChoice,
     /// The frame the stiffness file's gravity vector is given in: the measurement frame (a
     /// levelled tracker) or the robot's root link frame (a level robot base).
     #[arg(long, value_enum, default_value = "measurement")]
@@ -451,6 +465,28 @@ pub struct CalibrateArgs {
         value_name = "auto|fit|base|REGISTRATION.yaml"
     )]
     pub measurement_frame: MeasurementFrame,
+}
+
+/// The robust loss (`--robust`).
+#[derive(Clone, Copy, ValueEnum)]
+pub enum RobustChoice {
+    /// Huber: weight 1 for residuals within 6.3–7.0 robust σ (clean data keep the
+    /// least-squares result exactly), less beyond; convex.
+    Huber,
+    /// Cauchy: every weight below 1, a blunder's pull vanishing; clean results change slightly.
+    Cauchy,
+    /// Plain least squares.
+    Off,
+}
+
+impl From<RobustChoice> for treecal::calibration::RobustLoss {
+    fn from(choice: RobustChoice) -> Self {
+        match choice {
+            RobustChoice::Huber => Self::Huber,
+            RobustChoice::Cauchy => Self::Cauchy,
+            RobustChoice::Off => Self::Off,
+        }
+    }
 }
 
 /// How the measurement frame is found (`--measurement-frame`).

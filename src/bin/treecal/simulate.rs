@@ -56,6 +56,18 @@ fn check_flags(args: &SimulateArgs) -> Result<()> {
     if args.torso_poses as usize > limits::MAX_POSES {
         crate::checks::count("--torso-poses", args.torso_poses, limits::MAX_POSES)?;
     }
+    if !(args.outliers.is_finite() && (0.0..=1.0).contains(&args.outliers)) {
+        return Err(invalid(
+            "--outliers",
+            format!("{} is not a fraction between 0 and 1", args.outliers),
+        ));
+    }
+    if !(args.outlier_size.is_finite() && args.outlier_size > 0.0) {
+        return Err(invalid(
+            "--outlier-size",
+            format!("{} mm must be positive", args.outlier_size),
+        ));
+    }
     let inputs: Vec<&Path> = args
         .robot
         .iter()
@@ -142,6 +154,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             candidates: args.candidates as usize,
             ..PlanningOptions::default()
         }),
+        robust: args.robust.into(),
+        outliers: args.outliers,
+        outlier_size: args.outlier_size * 1e-3,
     };
     if args.targets == 2 {
         return Err(invalid(
@@ -177,7 +192,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     }
 
     let header = format!(
-        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {} plan; model stiffness × {}.",
+        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {} plan; model stiffness × {}; robust loss {}{}.",
         tree.name(),
         trials,
         args.seed,
@@ -196,7 +211,17 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             PlanChoice::Staged => "staged",
             PlanChoice::Simultaneous => "simultaneous",
         },
-        args.model_stiffness_scale
+        args.model_stiffness_scale,
+        options.robust,
+        if args.outliers > 0.0 {
+            format!(
+                "; {} % of the measurements made blunders of {} mm",
+                args.outliers * 100.0,
+                args.outlier_size
+            )
+        } else {
+            String::new()
+        }
     );
     let markdown = simulation_markdown(&header, &reports, &summary);
     let results = serde_json::json!({
