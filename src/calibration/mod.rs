@@ -12,6 +12,7 @@
 
 pub mod identifiability;
 pub mod initial_guess;
+mod normal_equations;
 pub mod plan;
 pub mod run;
 pub mod solver;
