@@ -2,7 +2,7 @@
 //! times forward kinematics and the identification Jacobian of the MCPC model on seeded
 //! random configurations and prints JSON: the tools, the MCPC frames' URDF joints with their
 //! values per configuration (so that Pinocchio can be set to the same state), the tool poses
-//! (a cross-check) and median nanoseconds per call.
+//! (a cross-check) and the median and minimum nanoseconds per call.
 //!
 //! `cargo run --release --example peer -- [ROBOT.urdf] [--rounds N]`
 
@@ -18,15 +18,20 @@ use treecal::{detect_branches, load_urdf, McpcModel};
 
 const CONFIGURATIONS: usize = 64;
 
-/// Median over `rounds` of the mean time per call (ns) of `call` over all configurations.
-fn median_ns(rounds: usize, configurations: &[Vec<f64>], mut call: impl FnMut(&[f64])) -> f64 {
-    // Calls per round: about 20 ms of work.
+/// Median and minimum over `rounds` of the mean time per call (ns) of `call` over all
+/// configurations, in rounds of about 2 ms: on a loaded machine the minimum is the round no
+/// other process interrupted.
+fn timing_ns(
+    rounds: usize,
+    configurations: &[Vec<f64>],
+    mut call: impl FnMut(&[f64]),
+) -> (f64, f64) {
     let start = Instant::now();
     for q in configurations {
         call(q);
     }
     let once = start.elapsed().as_secs_f64() / configurations.len() as f64;
-    let repeats = ((0.02 / once.max(1e-9)) as usize / configurations.len()).max(1);
+    let repeats = ((0.002 / once.max(1e-9)) as usize / configurations.len()).max(1);
     let mut samples: Vec<f64> = (0..rounds)
         .map(|_| {
             let start = Instant::now();
@@ -39,7 +44,7 @@ fn median_ns(rounds: usize, configurations: &[Vec<f64>], mut call: impl FnMut(&[
         })
         .collect();
     samples.sort_by(f64::total_cmp);
-    samples[samples.len() / 2]
+    (samples[samples.len() / 2], samples[0])
 }
 
 /// Noise-free full poses of every tool at `configurations` from a truth off the nominal model
@@ -69,10 +74,10 @@ fn measurements(nominal: &McpcModel, configurations: &[Vec<f64>]) -> Vec<Measure
     measurements
 }
 
-/// Median ns of one Gauss–Newton iteration (linearisation, rank analysis, step, trial cost)
+/// Median and minimum ns of one Gauss–Newton iteration (linearisation, rank analysis, step, trial cost)
 /// with every parameter free on 200 configurations × every tool: `identify` with one
 /// iteration allowed minus `identify` with none (both end with an analysis and the RMS).
-fn gauss_newton_iteration(model: &McpcModel, dofs: usize, rounds: usize) -> f64 {
+fn gauss_newton_iteration(model: &McpcModel, dofs: usize, rounds: usize) -> (f64, f64) {
     let mut rng = ChaCha8Rng::seed_from_u64(200);
     let configurations: Vec<Vec<f64>> = (0..200)
         .map(|_| (0..dofs).map(|_| rng.random_range(-2.9..2.9)).collect())
@@ -85,18 +90,19 @@ fn gauss_newton_iteration(model: &McpcModel, dofs: usize, rounds: usize) -> f64 
             ..IdentificationOptions::default()
         };
         let once = [Vec::new()];
-        median_ns(rounds, &once, |_| {
+        timing_ns(rounds, &once, |_| {
             black_box(identify(model, &data, None, &Rigid, &free, &options).ok());
         })
     };
-    time(1) - time(0)
+    let (one, none) = (time(1), time(0));
+    (one.0 - none.0, one.1 - none.1)
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let mut robot =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/robonaut/robonaut.urdf");
-    let mut rounds = 31;
+    let mut rounds = 101;
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--rounds" => rounds = args.next().ok_or("--rounds needs a value")?.parse()?,
@@ -121,25 +127,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let timings = [
         (
             "fk_both_tools",
-            median_ns(rounds, &configurations, |q| {
+            timing_ns(rounds, &configurations, |q| {
                 black_box(model.tool_poses(q));
             }),
         ),
         (
             "fk_one_tool",
-            median_ns(rounds, &configurations, |q| {
+            timing_ns(rounds, &configurations, |q| {
                 black_box(model.tool_pose(0, q));
             }),
         ),
         (
             "jacobian_both_tools",
-            median_ns(rounds, &configurations, |q| {
+            timing_ns(rounds, &configurations, |q| {
                 black_box(model.tool_jacobians(q));
             }),
         ),
         (
             "jacobian_one_tool",
-            median_ns(rounds, &configurations, |q| {
+            timing_ns(rounds, &configurations, |q| {
                 black_box(model.tool_jacobian_into(0, q, &mut chain, &mut jacobian));
             }),
         ),
@@ -184,7 +190,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     let timing_json: Vec<String> = timings
         .iter()
-        .map(|(name, ns)| format!("{name:?}:{ns:.1}"))
+        .map(|(name, (median, min))| format!("{name:?}:[{median:.1},{min:.1}]"))
         .collect();
     println!(
         "{{\"robot\":{:?},\"tools\":[{}],\"parameters\":{},\"joints\":[{}],\"values\":[{}],\"tool_positions\":[{}],\"ns\":{{{}}},\"tool_count\":{tools}}}",

@@ -97,9 +97,10 @@ pub struct DeflectedWithDerivative<'a> {
 /// request, and `J_exact − J_chain` per tool.
 type Correction = (Vec<f64>, Vec<f64>, Vec<DMatrix<f64>>);
 
-/// The cache key of a configuration: its exact bits.
+/// The cache key of a configuration: its exact bits (`+ 0.0`: −0 and +0 are one key, as
+/// under `==`).
 fn configuration_key(q: &[f64]) -> Vec<u64> {
-    q.iter().map(|v| v.to_bits()).collect()
+    q.iter().map(|v| (v + 0.0).to_bits()).collect()
 }
 
 impl<'a> DeflectedWithDerivative<'a> {
