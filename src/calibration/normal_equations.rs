@@ -175,7 +175,8 @@ fn chunk_products(
             ..NormalEquations::zeros(problem.free.len(), products)
         });
     }
-    let columns = problem.free.len();
+    // As many columns as the linearisation has (the free parameters, and any a caller adds).
+    let columns = lin.jacobian.ncols();
     let mut normal = DMatrix::zeros(columns, columns);
     add_gram(&mut normal, &lin.jacobian);
     let gradient = lin.jacobian.tr_mul(&lin.residual);
@@ -195,17 +196,22 @@ pub(super) fn accumulate(
     problem: &Problem<'_>,
     products: Products,
 ) -> Result<NormalEquations> {
-    let columns = problem.free.len();
-    let mut total = NormalEquations::zeros(columns, products);
+    let mut total: Option<NormalEquations> = None;
     for window in chunks(problem.measurements).chunks(WINDOW) {
         let parts: Vec<Result<NormalEquations>> = window
             .par_iter()
             .map(|range| chunk_products(model, problem, range.clone(), products))
             .collect();
         for part in parts {
-            total.add(part?);
+            let part = part?;
+            match total.as_mut() {
+                Some(total) => total.add(part),
+                None => total = Some(part),
+            }
         }
     }
+    let mut total = total.unwrap_or_else(|| NormalEquations::zeros(problem.free.len(), products));
+    let columns = total.gradient.len().max(problem.free.len());
     if let Some(factor) = total.factor.as_mut() {
         if factor.nrows() < columns {
             *factor = factor.clone().resize_vertically(columns, 0.0);
