@@ -18,6 +18,7 @@ pub mod checks;
 pub mod frame;
 pub mod identifiability;
 pub mod initial_guess;
+mod normal_equations;
 pub mod plan;
 pub mod robust;
 pub mod run;

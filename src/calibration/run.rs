@@ -168,19 +168,19 @@ pub fn hold_out_indices(
     fraction: f64,
     seed: u64,
 ) -> Result<(Vec<usize>, Vec<usize>)> {
-    // Distinct configurations, in file order, with the stage they belong to.
+    // Distinct configurations, in file order, with the stage they belong to (hashed: a linear
+    // search made this O(N²)). `+ 0.0` makes −0 and +0 one key, as `==` does.
     let mut groups: Vec<(&[f64], Option<&str>)> = Vec::new();
+    let mut index: std::collections::HashMap<(Vec<u64>, Option<&str>), usize> =
+        std::collections::HashMap::new();
     let group_of: Vec<usize> = measurements
         .iter()
         .map(|m| {
-            let key = (m.q.as_slice(), m.stage.as_deref());
-            match groups.iter().position(|g| *g == key) {
-                Some(g) => g,
-                None => {
-                    groups.push(key);
-                    groups.len() - 1
-                }
-            }
+            let bits = m.q.iter().map(|v| (v + 0.0).to_bits()).collect();
+            *index.entry((bits, m.stage.as_deref())).or_insert_with(|| {
+                groups.push((m.q.as_slice(), m.stage.as_deref()));
+                groups.len() - 1
+            })
         })
         .collect();
     let mut eligible: Vec<usize> = (0..groups.len())
@@ -198,10 +198,13 @@ pub fn hold_out_indices(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     eligible.shuffle(&mut rng);
-    let held: Vec<usize> = eligible[..count].to_vec();
+    let mut held = vec![false; groups.len()];
+    for &g in &eligible[..count] {
+        held[g] = true;
+    }
     let (mut identification, mut validation) = (Vec::new(), Vec::new());
-    for (index, g) in group_of.iter().enumerate() {
-        if held.contains(g) {
+    for (index, &g) in group_of.iter().enumerate() {
+        if held[g] {
             validation.push(index);
         } else {
             identification.push(index);
