@@ -215,6 +215,13 @@ fn round_trip(seed: u64, extra: &[&str]) -> RoundTrip {
     args.extend_from_slice(extra);
     let run = treecal(&args);
     assert_success(&run, "calibrate");
+    // Good data: verdict ok, and no false alarm.
+    assert!(!run.stderr.contains("treecal: warning"), "{run}");
+    assert_eq!(
+        read_json(&out.join("report.json"))["verdict"]["status"],
+        "ok",
+        "{run}"
+    );
     RoundTrip {
         robot,
         flexibility,
@@ -399,6 +406,8 @@ fn robonaut2_staged_fit_through_the_cli() {
     ]);
     assert_success(&run, "calibrate robonaut 2");
     let report = read_json(&out.join("report.json"));
+    assert_eq!(report["verdict"]["status"], "ok", "{run}");
+    assert!(!run.stderr.contains("treecal: warning"), "{run}");
     assert_eq!(report["context"]["plan"], "staged", "{report}");
 
     let calibrated_path = out.join("calibrated.urdf");
@@ -803,7 +812,19 @@ fn a_seeded_fifth_is_held_out() {
         .iter()
         .map(|name| {
             let out = dir.path().join(name);
-            let run = calibrate_into(&out, &["--measurements", path_str(&csv), "--seed", "3"]);
+            // The simulated robot deflects by centimetres: compensated, or the verdict fails.
+            let stiffness = stiffness_path();
+            let run = calibrate_into(
+                &out,
+                &[
+                    "--measurements",
+                    path_str(&csv),
+                    "--stiffness",
+                    path_str(&stiffness),
+                    "--seed",
+                    "3",
+                ],
+            );
             assert_success(&run, "calibrate");
             assert!(
                 run.stderr.contains("8 of 60 observations held out"),

@@ -9,8 +9,11 @@
 //! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
+//! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
+//!   validation) that feed the verdict.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
+pub mod checks;
 pub mod frame;
 pub mod identifiability;
 pub mod initial_guess;

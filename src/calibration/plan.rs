@@ -88,6 +88,10 @@ pub struct StageReport {
     /// The solver's report (parameter indices refer to the stage's own model for a coupled
     /// stage, to the full model otherwise).
     pub identification: IdentificationReport,
+    /// Parameters (same indexing) deliberately not freed because the stage's observations
+    /// cannot see them: the orientation (α, β, γ) of a tool measured by positions only. They
+    /// keep their starting values ([`position_only_orientations`]).
+    pub kept: Vec<usize>,
 }
 
 impl StageReport {
@@ -255,7 +259,10 @@ pub fn calibrate(
                             }
                             None => locked_arm_model(&current, &coupled_frames, data, &stage.name)?,
                         };
-                        let free: Vec<usize> = (0..stage_model.parameter_count()).collect();
+                        let kept = position_only_orientations(&stage_model, &stage_data);
+                        let free: Vec<usize> = (0..stage_model.parameter_count())
+                            .filter(|p| !kept.contains(p))
+                            .collect();
                         let identification = identify(
                             &stage_model,
                             &stage_data,
@@ -295,12 +302,18 @@ pub fn calibrate(
                                 measurements: data.len(),
                                 locked_tools,
                                 identification,
+                                kept,
                             };
                         }
                     }
                 }
                 ParameterSet::Arms | ParameterSet::All => {
-                    let free = stage_parameters(&current, &coupled_frames, stage.parameters);
+                    let kept = position_only_orientations(&current, data);
+                    let free: Vec<usize> =
+                        stage_parameters(&current, &coupled_frames, stage.parameters)
+                            .into_iter()
+                            .filter(|p| !kept.contains(p))
+                            .collect();
                     let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
                         .as_ref()
                         .map(|o| selected.iter().map(|&i| o[i]).collect());
@@ -319,6 +332,7 @@ pub fn calibrate(
                         measurements: data.len(),
                         locked_tools: 0,
                         identification,
+                        kept,
                     }
                 }
             };
@@ -353,6 +367,34 @@ pub fn coupled_frames(model: &McpcModel, branches: &Branches) -> Vec<usize> {
         .joints
         .iter()
         .filter_map(|j| model.frame_of_joint(*j))
+        .collect()
+}
+
+/// The orientation parameters (α, β, γ) of every tool that `data` observe, but by positions
+/// only. A measured point does not see how the tool is turned about it, and the tool offsets
+/// x, y, z lie along the tool's own axes, so the unobservable directions mix orientation and
+/// offset: a minimum-norm step would turn the tool (by tens of degrees) while keeping the
+/// point. With the orientation fixed, x, y, z alone place the point and are identifiable, and
+/// the orientation stays at its starting (nominal) value.
+pub fn position_only_orientations(model: &McpcModel, data: &[Measurement]) -> Vec<usize> {
+    let tools = model.tools().len();
+    let mut positions = vec![false; tools];
+    let mut poses = vec![false; tools];
+    for m in data.iter().filter(|m| m.tool < tools) {
+        match m.observation {
+            crate::measurement::Observation::Position(_) => positions[m.tool] = true,
+            crate::measurement::Observation::Pose(_) => poses[m.tool] = true,
+        }
+    }
+    model
+        .parameter_layout()
+        .iter()
+        .enumerate()
+        .filter(|(_, (owner, kind))| {
+            matches!(owner, ParameterOwner::Tool(t) if positions[*t] && !poses[*t])
+                && kind.is_angle()
+        })
+        .map(|(i, _)| i)
         .collect()
 }
 

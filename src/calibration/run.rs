@@ -253,7 +253,7 @@ pub fn run_calibration(
                 .sqrt()
         })
         .filter(|rms| rms.is_finite());
-    Ok(CalibrationRun {
+    let mut run = CalibrationRun {
         guess,
         frame,
         frame_refinement,
@@ -264,7 +264,10 @@ pub fn run_calibration(
         predicted_validation_rms_mm,
         predicted_validation_sd_mm,
         findings: vec![frame_finding],
-    })
+    };
+    let found = super::checks::assess(&run, input.tree);
+    run.findings.extend(found);
+    Ok(run)
 }
 
 /// The covariance of all parameters (full-model order, rad and m), assembled from the stages:
@@ -313,6 +316,11 @@ fn estimates(
                 let sd = id.standard_deviations[k];
                 spread[p] = (sd.is_finite().then_some(sd), id.identifiable[k]);
             }
+        }
+        // Kept at their starting values: the observations cannot see them.
+        let count = spread.len();
+        for &p in stage.kept.iter().filter(|&&p| p < limit && p < count) {
+            spread[p] = (None, false);
         }
     }
     layout

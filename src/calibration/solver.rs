@@ -266,6 +266,8 @@ pub struct IdentificationReport {
     pub costs: Vec<f64>,
     /// Why it stopped.
     pub termination: Termination,
+    /// Rows (equations) of the stacked residual: 6 per pose, 3 per position observation.
+    pub rows: usize,
     /// Numerical rank of the scaled Jacobian at the solution.
     pub rank: usize,
     /// Scaled singular values at the solution, largest first.
@@ -650,6 +652,7 @@ pub fn identify(
         iterations,
         costs,
         termination,
+        rows,
         rank,
         singular_values,
         condition_number,

@@ -28,7 +28,7 @@ pub use stiffness::{parse_stiffness, read_stiffness};
 pub use units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
-pub use write::write_atomically;
+pub use write::{check_output_folder, replace_folder, write_atomically};
 
 use crate::error::{Error, Result};
 

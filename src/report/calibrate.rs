@@ -3,7 +3,9 @@
 //! parameter file (`params.yaml`) and the per-configuration error plots (Fig. 9–12 style).
 
 use super::plot::arm_error_plots;
-use crate::calibration::{ArmResiduals, CalibrationRun, IdentificationOptions, ParameterEstimate};
+use crate::calibration::{
+    ArmResiduals, CalibrationRun, IdentificationOptions, ParameterEstimate, Status, Verdict,
+};
 use crate::error::Result;
 use crate::math::{rpy_from_rotation, Pose};
 use serde::Serialize;
@@ -60,6 +62,8 @@ pub struct StageOutcome {
 /// The machine-readable report (`report.json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct CalibrationSummary {
+    /// `ok`, `warning` or `failed`, and every finding of the checks (notes included).
+    pub verdict: Verdict,
     /// Inputs.
     pub context: CalibrationContext,
     /// The fitted measurement frame: `xyz` (m) and `rpy` (rad) of the robot base in it.
@@ -141,6 +145,7 @@ pub fn calibration_summary(
         })
         .collect();
     CalibrationSummary {
+        verdict: Verdict::from_findings(run.findings.clone()),
         context,
         measurement_frame: FrameValues::of(&run.guess.world_from_base),
         initial_guess_rms_m: [run.guess.rms_before, run.guess.rms_after],
@@ -203,6 +208,7 @@ pub fn calibration_markdown(
     let mut out = String::new();
     let c = &summary.context;
     let _ = writeln!(out, "# Calibration of '{}'\n", c.robot);
+    verdict_markdown(&mut out, &summary.verdict);
     let _ = writeln!(
         out,
         "Measurements: {}. Validation: {}. Plan: {} ({} cycle(s)). Flexibility: {}. Assumed noise: σ = {:.4} mm, {:.4} mrad.\n",
@@ -375,6 +381,27 @@ pub fn calibration_markdown(
         );
     }
     out
+}
+
+/// The verdict and its reasons, as the report's first section.
+fn verdict_markdown(out: &mut String, verdict: &Verdict) {
+    let meaning = match verdict.status {
+        Status::Ok => "the result can be used",
+        Status::Warning => "the result can be used, but read the warnings",
+        Status::Failed => "the result must not be used; calibrated.urdf was not written",
+    };
+    let _ = writeln!(out, "**Verdict: {}** ({meaning}).\n", verdict.status);
+    for reason in &verdict.reasons {
+        let label = match reason.status {
+            Status::Ok => "note",
+            Status::Warning => "warning",
+            Status::Failed => "failed",
+        };
+        let _ = writeln!(out, "- {label} ({}): {}", reason.code, reason.message);
+    }
+    if !verdict.reasons.is_empty() {
+        out.push('\n');
+    }
 }
 
 /// The per-configuration error plots of one data set: `(file stem, SVG)` per arm and quantity,

@@ -9,6 +9,7 @@
 pub mod export;
 pub mod from_mcpc;
 pub mod import;
+mod tolerant;
 mod xml;
 
 pub use export::{export_urdf, ExportReport, JointChange};

@@ -3,6 +3,9 @@
 
 Usage:
     python3 tests/oracle/pinocchio_fk.py ROBOT.urdf < request.json > response.json
+    python3 tests/oracle/pinocchio_fk.py --batch < batch.json > responses.json
+      (batch.json: {"robots": [{"urdf": PATH, "links": ..., "configurations": ...}]},
+       responses.json: {"results": [{"poses": ...}, ...]}, one per robot, in order)
 
 request.json:
     {"links": ["link_a", ...],
@@ -60,7 +63,13 @@ import sys
 import xml.etree.ElementTree as ET
 
 
+# The robot being computed, named in errors (batch mode).
+CURRENT = {"urdf": None}
+
+
 def fail(msg, code=2):
+    if CURRENT["urdf"]:
+        msg = "%s: %s" % (CURRENT["urdf"], msg)
     sys.stderr.write("pinocchio_fk: error: %s\n" % msg)
     sys.exit(code)
 
@@ -108,17 +117,57 @@ def read_urdf_structure(path):
 
 
 def main():
+    if len(sys.argv) == 2 and sys.argv[1] == "--batch":
+        batch()
+        return
     if len(sys.argv) != 2:
-        fail("usage: python3 pinocchio_fk.py ROBOT.urdf < request.json > response.json")
+        fail("usage: python3 pinocchio_fk.py ROBOT.urdf < request.json > response.json\n"
+             "       python3 pinocchio_fk.py --batch < batch.json > responses.json")
     urdf_path = sys.argv[1]
-    if not os.path.isfile(urdf_path):
-        fail("URDF file not found: %r" % urdf_path)
 
     # ---- request -------------------------------------------------------
     try:
         request = json.load(sys.stdin)
     except (ValueError, UnicodeDecodeError) as e:
         fail("invalid request JSON on stdin: %s" % e)
+    write({"poses": poses_for(urdf_path, request)})
+
+
+def batch():
+    """Many robots in one process (Pinocchio's import dominates a single call's time):
+    stdin {"robots": [{"urdf": PATH, "links": [...], "configurations": [...]}, ...]},
+    stdout {"results": [{"poses": [...]}, ...]} in the same order."""
+    try:
+        request = json.load(sys.stdin)
+    except (ValueError, UnicodeDecodeError) as e:
+        fail("invalid request JSON on stdin: %s" % e)
+    robots = request.get("robots") if isinstance(request, dict) else None
+    if not isinstance(robots, list) or not all(isinstance(r, dict) for r in robots):
+        fail('batch request must be {"robots": [{"urdf": ..., "links": ..., "configurations": ...}]}')
+    results = []
+    for robot in robots:
+        urdf_path = robot.get("urdf")
+        if not isinstance(urdf_path, str):
+            fail('every batch entry needs a "urdf" path')
+        CURRENT["urdf"] = urdf_path
+        results.append({"poses": poses_for(urdf_path, robot)})
+        CURRENT["urdf"] = None
+    write({"results": results})
+
+
+def write(response):
+    try:
+        text = json.dumps(response, allow_nan=False)
+    except ValueError as e:
+        fail("non-finite number in result: %s" % e)
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def poses_for(urdf_path, request):
+    """Root_from_link of every requested link at every requested configuration."""
+    if not os.path.isfile(urdf_path):
+        fail("URDF file not found: %r" % urdf_path)
     if not isinstance(request, dict):
         fail("request must be a JSON object")
     links = request.get("links")
@@ -227,13 +276,7 @@ def main():
                 fail("configuration %d: non-orthonormal rotation for link %r" % (ci, lname))
             out[lname] = [float(x) for x in T.reshape(16)]  # row-major
         poses.append(out)
-
-    try:
-        text = json.dumps({"poses": poses}, allow_nan=False)
-    except ValueError as e:
-        fail("non-finite number in result: %s" % e)
-    sys.stdout.write(text + "\n")
-    sys.stdout.flush()
+    return poses
 
 
 if __name__ == "__main__":

@@ -3,11 +3,11 @@
 use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame};
 use treecal::calibration::identifiability::NamedCombination;
 use treecal::calibration::{
-    hold_out, run_calibration, CalibrationInput, IdentificationOptions, Plan, Status,
+    hold_out, run_calibration, CalibrationInput, Finding, IdentificationOptions, Plan, Status,
 };
 use treecal::io::{
-    read_measurements, read_plan, read_registration, read_stiffness, to_json, to_yaml,
-    write_atomically, MeasurementReadOptions,
+    check_output_folder, read_measurements, read_plan, read_registration, read_stiffness,
+    replace_folder, to_json, to_yaml, MeasurementReadOptions,
 };
 use treecal::kinematics::FlexibilityModel;
 use treecal::report::{
@@ -21,6 +21,14 @@ use treecal::{Error, McpcModel, Result};
 const HOLD_OUT: f64 = 0.2;
 
 const TOOL_PARAMETERS: [&str; 6] = ["alpha", "beta", "gamma", "x", "y", "z"];
+
+/// Whether a file name is one `calibrate` writes (a previous output may be replaced).
+fn is_output_file(name: &str) -> bool {
+    matches!(
+        name,
+        "calibrated.urdf" | "params.yaml" | "report.md" | "report.json"
+    ) || name.ends_with(".svg")
+}
 
 fn invalid(flag: &str, message: String) -> Error {
     Error::InvalidData {
@@ -38,6 +46,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             return Err(invalid(flag, format!("{value} must be a positive number")));
         }
     }
+    // The output folder is replaced as a whole at the end: refuse a folder that is not a
+    // previous output before computing anything.
+    check_output_folder(&args.out, &is_output_file)?;
     let measurement_frame = match &args.measurement_frame {
         MeasurementFrame::Auto => treecal::calibration::MeasurementFrame::Auto,
         MeasurementFrame::Fit => treecal::calibration::MeasurementFrame::Fit,
@@ -47,6 +58,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
     };
     let import = crate::robot::load(args.robot.as_deref())?;
+    let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
     let tree = &import.tree;
     let branches =
         crate::robot::measured_branches(&import, args.tools.as_deref(), &args.measurements)?;
@@ -130,20 +142,19 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         options: &options,
         measurement_frame,
     };
-    let run = run_calibration(&input, &measurements, &validation)?;
-    // Until the verdict prints them, the findings are printed with the notes.
-    notes.extend(run.findings.iter().map(|finding| {
-        let level = match finding.status {
-            Status::Ok => "note",
-            Status::Warning => "warning",
-            Status::Failed => "error",
-        };
-        format!("treecal: {level}: {}", finding.message)
-    }));
+    let mut run = run_calibration(&input, &measurements, &validation)?;
 
     // Everything is computed before anything is written.
-    let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
-    let export = export_urdf(&original, &origin, tree, &run.report.model)?;
+    let export = match export_urdf(&original, &origin, tree, &run.report.model) {
+        Ok(export) => Some(export),
+        Err(error) => {
+            run.findings.push(Finding::failed(
+                "urdf-export",
+                format!("the calibrated model cannot be written as a URDF: {error}"),
+            ));
+            None
+        }
+    };
     let unidentifiable: Vec<Vec<String>> = run
         .report
         .stages
@@ -183,7 +194,10 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         sigma: [args.position_sigma, args.rotation_sigma],
         measurement_frame: run.frame.reason.clone(),
     };
-    let changed: Vec<String> = export.changes.iter().map(|c| c.joint.clone()).collect();
+    let changed: Vec<String> = export
+        .iter()
+        .flat_map(|e| e.changes.iter().map(|c| c.joint.clone()))
+        .collect();
     let summary = calibration_summary(context, &run, unidentifiable, changed);
     let markdown = calibration_markdown(&summary, &options);
     let params = to_yaml(&parameter_file(tree.name(), &run))?;
@@ -191,21 +205,40 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut plots = calibration_plots(&run.identification, "measurement")?;
     plots.extend(calibration_plots(&run.validation, "validation")?);
 
+    let verdict = &summary.verdict;
+    let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+    if let (true, Some(export)) = (verdict.usable(), &export) {
+        files.push(("calibrated.urdf".into(), export.urdf.clone().into_bytes()));
+    }
+    files.push(("params.yaml".into(), params.into_bytes()));
+    files.push(("report.md".into(), markdown.clone().into_bytes()));
+    files.push(("report.json".into(), json.into_bytes()));
+    for (stem, svg) in plots {
+        files.push((format!("{stem}.svg"), svg.into_bytes()));
+    }
+
     for note in &notes {
         eprintln!("{note}");
     }
-    std::fs::create_dir_all(&args.out).map_err(|source| Error::Io {
-        path: args.out.clone(),
-        source,
-    })?;
-    write_atomically(&args.out.join("calibrated.urdf"), export.urdf.as_bytes())?;
-    write_atomically(&args.out.join("params.yaml"), params.as_bytes())?;
-    write_atomically(&args.out.join("report.md"), markdown.as_bytes())?;
-    write_atomically(&args.out.join("report.json"), json.as_bytes())?;
-    for (stem, svg) in &plots {
-        write_atomically(&args.out.join(format!("{stem}.svg")), svg.as_bytes())?;
+    for reason in &verdict.reasons {
+        let label = match reason.status {
+            Status::Ok => "note",
+            Status::Warning => "warning",
+            Status::Failed => "error",
+        };
+        eprintln!("treecal: {label}: {}", reason.message);
     }
+    replace_folder(&args.out, &files)?;
     print!("{markdown}");
     eprintln!("treecal: wrote {}", args.out.display());
+    if !verdict.usable() {
+        return Err(invalid(
+            "calibration",
+            format!(
+                "verdict failed (see the errors above and {}); calibrated.urdf was not written",
+                args.out.join("report.md").display()
+            ),
+        ));
+    }
     Ok(())
 }

@@ -221,6 +221,11 @@ pub fn run(args: CheckArgs) -> Result<()> {
         if staged { "staged" } else { "simultaneous" }.into(),
         stages,
     );
+    for stage in &report.stages {
+        for warning in stage.analysis.iter().flat_map(|a| a.warnings()) {
+            eprintln!("treecal: warning: stage {}: {warning}", stage.name);
+        }
+    }
     let text = match args.format {
         Format::Text => report.to_text(),
         Format::Yaml => to_yaml(&report)?,
