@@ -5,6 +5,7 @@ use super::solver::{
     identify, Deflected, DeflectedWithDerivative, IdentificationOptions, IdentificationReport,
     Rigid,
 };
+use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool, ParameterOwner};
 use crate::measurement::Measurement;
@@ -120,6 +121,9 @@ pub struct CalibrationReport {
     /// How many times the plan ran: 1, except for staged plans with exact flexibility
     /// compensation, which repeat until the parameters stop changing (at most [`MAX_CYCLES`]).
     pub cycles: usize,
+    /// What the user should know about how the plan ran (e.g. a torso stage skipped on a robot
+    /// without torso joints, code `empty-torso`).
+    pub notes: Vec<Finding>,
 }
 
 /// The most times a staged plan with exact flexibility compensation is repeated.
@@ -159,6 +163,14 @@ pub fn calibrate(
         });
     }
     let coupled_frames = coupled_frames(model, branches);
+    // A robot with no movable torso joint (arms straight on the base) has nothing for a
+    // coupled stage to identify: such stages are skipped, and said so.
+    let skipped: Vec<bool> = plan
+        .stages
+        .iter()
+        .map(|s| s.parameters == ParameterSet::Coupled && coupled_frames.is_empty())
+        .collect();
+    let notes = skipped_stage_notes(plan, &skipped, measurements);
     // Eq. (26): the linear D_f of every measurement, once, at the starting model.
     let linear_offsets: Option<Vec<Vector6<f64>>> = match compensation {
         Compensation::Linear(source) => Some(
@@ -179,7 +191,8 @@ pub fn calibrate(
     let staged = plan
         .stages
         .iter()
-        .any(|s| s.parameters == ParameterSet::Coupled);
+        .zip(&skipped)
+        .any(|(s, &skip)| s.parameters == ParameterSet::Coupled && !skip);
     let max_cycles = if staged && matches!(compensation, Compensation::Exact(_)) {
         MAX_CYCLES
     } else {
@@ -192,7 +205,11 @@ pub fn calibrate(
     };
     // Each stage's measurements (indices and copies): the same in every cycle.
     let mut stage_inputs: Vec<(Vec<usize>, Vec<Measurement>)> = Vec::new();
-    for stage in &plan.stages {
+    for (stage, &skip) in plan.stages.iter().zip(&skipped) {
+        if skip {
+            stage_inputs.push((Vec::new(), Vec::new()));
+            continue;
+        }
         let selected: Vec<usize> = (0..measurements.len())
             .filter(|&i| {
                 stage.measurements.is_none() || measurements[i].stage == stage.measurements
@@ -223,6 +240,9 @@ pub fn calibrate(
         let before = current.parameters();
         reports.clear();
         for (index, stage) in plan.stages.iter().enumerate() {
+            if skipped[index] {
+                continue;
+            }
             let (selected, data) = &stage_inputs[index];
             let report = match stage.parameters {
                 ParameterSet::Coupled => {
@@ -357,7 +377,38 @@ pub fn calibrate(
         model: current,
         stages: reports,
         cycles,
+        notes,
     })
+}
+
+/// The `empty-torso` notes of the stages skipped because the robot has no torso frames.
+fn skipped_stage_notes(
+    plan: &Plan,
+    skipped: &[bool],
+    measurements: &[Measurement],
+) -> Vec<Finding> {
+    plan.stages
+        .iter()
+        .zip(skipped)
+        .filter(|(_, &skip)| skip)
+        .map(|(stage, _)| {
+            let unused = measurements
+                .iter()
+                .filter(|m| stage.measurements.is_some() && m.stage == stage.measurements)
+                .count();
+            Finding::note(
+                "empty-torso",
+                format!(
+                    "the robot has no movable torso joints (its arms start at the base), so the plan's torso stage '{}' is skipped{}",
+                    stage.name,
+                    match unused {
+                        0 => String::new(),
+                        n => format!(" and its {n} measurements are not used"),
+                    }
+                ),
+            )
+        })
+        .collect()
 }
 
 /// The model frames of the coupled branch's joints (the torso), parents first.

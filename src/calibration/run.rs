@@ -253,6 +253,8 @@ pub fn run_calibration(
                 .sqrt()
         })
         .filter(|rms| rms.is_finite());
+    let mut findings = vec![frame_finding];
+    findings.extend(report.notes.iter().cloned());
     let mut run = CalibrationRun {
         guess,
         frame,
@@ -263,7 +265,7 @@ pub fn run_calibration(
         validation: validation_residuals,
         predicted_validation_rms_mm,
         predicted_validation_sd_mm,
-        findings: vec![frame_finding],
+        findings,
     };
     let found = super::checks::assess(&run, input.tree);
     run.findings.extend(found);
@@ -417,7 +419,12 @@ fn arm_residuals(
 /// covariance ([`assembled_covariance`]) (mm): the spread of the predicted position that the
 /// identification noise leaves.
 fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> Vec<f64> {
-    if validation.is_empty() {
+    // A stage without redundancy has no covariance: nothing can be predicted (not zero).
+    let undetermined = report
+        .stages
+        .iter()
+        .any(|s| s.identification.covariance.is_none());
+    if validation.is_empty() || undetermined {
         return Vec::new();
     }
     let covariance = assembled_covariance(report);

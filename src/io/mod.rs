@@ -19,7 +19,7 @@ pub use measurements_csv::{
     read_measured_tool_names, read_measurements, MeasurementReadOptions, MeasurementSet,
     MeasurementWriteOptions, ObservationKind,
 };
-pub use mesh_files::{mesh_file_loader, package_dirs, resolve_mesh};
+pub use mesh_files::{mesh_file_loader, package_dirs, read_mesh_vertices, resolve_mesh};
 pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};

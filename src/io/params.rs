@@ -28,6 +28,9 @@ struct File {
 struct Entry {
     name: String,
     calibrated: f64,
+    /// The calibration's standard deviation (SI), as `params.yaml` gives it.
+    #[serde(default)]
+    std_dev: Option<f64>,
 }
 
 /// The parameter vector a parameter file gives, and what the user should know about it.
@@ -37,6 +40,9 @@ pub struct ParameterValues {
     pub values: Vec<f64>,
     /// Parameters the file does not list (they keep their nominal value).
     pub warnings: Vec<String>,
+    /// The standard deviation (rad, m) the file gives for each parameter (`std_dev`, as the
+    /// calibration writes it), same order; `None` where not given or not a positive number.
+    pub std_devs: Vec<Option<f64>>,
 }
 
 /// Reads a parameter file for `model` (the nominal model of `tree`).
@@ -88,6 +94,7 @@ pub fn parse_parameters(
         .collect();
     let mut values = model.parameters();
     let mut given = vec![false; values.len()];
+    let mut std_devs = vec![None; values.len()];
     for (entry_index, entry) in file.parameters.iter().enumerate() {
         let name = entry.name.trim();
         let Some(&i) = index.get(name) else {
@@ -117,6 +124,7 @@ pub fn parse_parameters(
         }
         given[i] = true;
         values[i] = entry.calibrated;
+        std_devs[i] = entry.std_dev.filter(|s| s.is_finite() && *s >= 0.0);
     }
     let warnings = names
         .iter()
@@ -129,5 +137,9 @@ pub fn parse_parameters(
             )
         })
         .collect();
-    Ok(ParameterValues { values, warnings })
+    Ok(ParameterValues {
+        values,
+        warnings,
+        std_devs,
+    })
 }

@@ -199,6 +199,16 @@ pub fn parse_stiffness(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<Stiffness> {
+    // An empty file would read as every default: a model nobody wrote, "compensated exactly".
+    let content = text
+        .lines()
+        .any(|line| !line.trim().is_empty() && !line.trim_start().starts_with('#'));
+    if !content {
+        return Err(Error::InvalidData {
+            origin: origin.to_owned(),
+            message: "the stiffness file is empty; give the robot's stiffness and payloads (docs/flexibility.md; `{}` takes every default explicitly), or leave out --stiffness to calibrate a rigid robot".into(),
+        });
+    }
     let file: File = serde_yaml::from_str(text).map_err(|e| yaml_error(text, origin, &e))?;
     // serde_yaml keeps no positions for map keys, so a bad name is found in the text again.
     let at = |path: &[&str], name: &str, message: String| Error::InvalidData {

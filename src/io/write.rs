@@ -150,3 +150,66 @@ fn parent_of(path: &Path) -> std::path::PathBuf {
         _ => std::path::PathBuf::from("."),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ours(name: &str) -> bool {
+        name.ends_with(".txt")
+    }
+
+    fn names(folder: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(folder)
+            .map(|entries| {
+                entries
+                    .filter_map(|e| e.ok())
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .collect()
+            })
+            .unwrap_or_default();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn a_folder_is_replaced_as_a_set() -> Result<()> {
+        let dir = tempfile::tempdir().map_err(|source| Error::Io {
+            path: "tempdir".into(),
+            source,
+        })?;
+        let out = dir.path().join("nested").join("out");
+        check_output_folder(&out, &ours)?;
+        replace_folder(
+            &out,
+            &[
+                ("a.txt".into(), b"1".to_vec()),
+                ("b.txt".into(), b"2".to_vec()),
+            ],
+        )?;
+        assert_eq!(names(&out), ["a.txt", "b.txt"]);
+        check_output_folder(&out, &ours)?;
+        replace_folder(&out, &[("c.txt".into(), b"3".to_vec())])?;
+        assert_eq!(names(&out), ["c.txt"], "stale files must go");
+        assert_eq!(names(&dir.path().join("nested")), ["out"], "no temporaries");
+
+        std::fs::write(out.join("mine.dat"), "x").map_err(|source| Error::Io {
+            path: out.clone(),
+            source,
+        })?;
+        let refused = check_output_folder(&out, &ours);
+        assert!(
+            refused
+                .as_ref()
+                .is_err_and(|e| e.to_string().contains("mine.dat")),
+            "{refused:?}"
+        );
+        let file = dir.path().join("file");
+        std::fs::write(&file, "x").map_err(|source| Error::Io {
+            path: file.clone(),
+            source,
+        })?;
+        assert!(check_output_folder(&file, &ours).is_err());
+        Ok(())
+    }
+}

@@ -37,6 +37,8 @@ pub struct StageOutcome {
     pub name: String,
     /// Measurements used.
     pub measurements: usize,
+    /// Equations (rows: 6 per pose, 3 per position observation).
+    pub rows: usize,
     /// Accepted iterations (of the last plan cycle).
     pub iterations: usize,
     /// Why it stopped.
@@ -131,6 +133,7 @@ pub fn calibration_summary(
             StageOutcome {
                 name: stage.name.clone(),
                 measurements: stage.measurements,
+                rows: id.rows,
                 iterations: id.iterations,
                 termination: format!("{:?}", id.termination),
                 cost: id.costs.last().copied().unwrap_or(f64::NAN),
@@ -307,15 +310,16 @@ pub fn calibration_markdown(
     let _ = writeln!(out, "## Solver, per stage\n");
     let _ = writeln!(
         out,
-        "| stage | measurements | iterations | termination | cost | rank | condition | residual RMS | σ̂ |"
+        "| stage | measurements | equations | iterations | termination | cost | rank | condition | residual RMS | σ̂ |"
     );
-    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|");
     for s in &summary.stages {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {:.4e} | {}/{} | {:.3e} | {:.4} mm, {:.5} deg | {:.3} |",
+            "| {} | {} | {} | {} | {} | {:.4e} | {}/{} | {:.3e} | {:.4} mm, {:.5} deg | {:.3} |",
             s.name,
             s.measurements,
+            s.rows,
             s.iterations,
             s.termination,
             s.cost,

@@ -157,6 +157,10 @@ pub struct TrialReport {
     /// The simulated measurements (torso stage, then arms stage).
     #[serde(skip)]
     pub measurements: Vec<Measurement>,
+    /// Notes of how the plan ran (e.g. `empty-torso`: a torso stage skipped), in the words
+    /// of [`crate::calibration::CalibrationReport::notes`].
+    #[serde(skip)]
+    pub notes: Vec<String>,
 }
 
 /// The seed of trial `trial`, independent of how trials are spread over threads.
@@ -381,6 +385,11 @@ fn finish_trial(
         rigid_run: summary(&rigid),
         compensated_run: summary(&compensated),
         measurements,
+        notes: compensated
+            .notes
+            .iter()
+            .map(|n| n.message.clone())
+            .collect(),
     })
 }
 

@@ -14,7 +14,7 @@ use treecal::report::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file,
     CalibrationContext,
 };
-use treecal::urdf::export_urdf;
+use treecal::urdf::{export_urdf_with, ExportOptions};
 use treecal::{Error, McpcModel, Result};
 
 /// Fraction of the configurations held out for validation without `--validation`.
@@ -145,16 +145,23 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut run = run_calibration(&input, &measurements, &validation)?;
 
     // Everything is computed before anything is written.
-    let export = match export_urdf(&original, &origin, tree, &run.report.model) {
-        Ok(export) => Some(export),
-        Err(error) => {
-            run.findings.push(Finding::failed(
-                "urdf-export",
-                format!("the calibrated model cannot be written as a URDF: {error}"),
-            ));
-            None
-        }
-    };
+    let std_devs: Vec<Option<f64>> = run.parameters.iter().map(|p| p.std_dev).collect();
+    let export_options =
+        ExportOptions::with_uncertainty(tree, &run.report.model, &std_devs, args.add_tool_links);
+    let export =
+        match export_urdf_with(&original, &origin, tree, &run.report.model, &export_options) {
+            Ok(export) => {
+                notes.extend(crate::robot::export_notes(&export));
+                Some(export)
+            }
+            Err(error) => {
+                run.findings.push(Finding::failed(
+                    "urdf-export",
+                    format!("the calibrated model cannot be written as a URDF: {error}"),
+                ));
+                None
+            }
+        };
     let unidentifiable: Vec<Vec<String>> = run
         .report
         .stages

@@ -138,6 +138,10 @@ pub struct SimulateArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// A directory searched for `package://` collision meshes: a folder holding packages, or
+    /// a package folder itself; repeatable, searched in order before ROS_PACKAGE_PATH.
+    #[arg(long = "package-path", value_name = "DIR")]
+    pub package_path: Vec<PathBuf>,
     /// Stiffness YAML (gravity, payloads, joint and link stiffness) [default: the built-in
     /// Robonaut's; required with --robot].
     #[arg(long)]
@@ -237,12 +241,16 @@ pub enum StageChoice {
 /// Arguments of `treecal plan`.
 #[derive(Args)]
 #[command(
-    after_help = "Candidates are drawn uniformly within the joint limits; those in self-collision (URDF collision primitives, and STL/OBJ meshes that resolve: relative to the URDF, file://, or package:// through ROS_PACKAGE_PATH) or with a tool outside --workspace are rejected. The output CSV has one row per tool per configuration: [stage,]tool,<joint columns> (metres, radians), the measurement CSV without its measured columns (docs/file-formats.md). See docs/planning.md.\n\nExamples:\n  treecal plan --poses 20 -o poses.csv\n  treecal plan --robot robots/humanoid/humanoid.urdf --poses 30 --criterion d --stage staged -o poses.csv\n  treecal plan --poses 20 --workspace 0.2,-1,-0.5,1.5,1,1 -o poses.csv"
+    after_help = "Candidates are drawn uniformly within the joint limits; those in self-collision (URDF collision primitives, and STL, OBJ and COLLADA meshes that resolve: relative to the URDF, file://, or package:// through --package-path and ROS_PACKAGE_PATH) or with a tool outside --workspace are rejected. The output CSV has one row per tool per configuration: [stage,]tool,<joint columns> (metres, radians), the measurement CSV without its measured columns (docs/file-formats.md). See docs/planning.md.\n\nExamples:\n  treecal plan --poses 20 -o poses.csv\n  treecal plan --robot robots/humanoid/humanoid.urdf --poses 30 --criterion d --stage staged -o poses.csv\n  treecal plan --poses 20 --workspace 0.2,-1,-0.5,1.5,1,1 -o poses.csv"
 )]
 pub struct PlanArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// A directory searched for `package://` collision meshes: a folder holding packages, or
+    /// a package folder itself; repeatable, searched in order before ROS_PACKAGE_PATH.
+    #[arg(long = "package-path", value_name = "DIR")]
+    pub package_path: Vec<PathBuf>,
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
@@ -302,6 +310,12 @@ pub struct ExportArgs {
     /// The URDF file to write (written atomically).
     #[arg(short, long, value_name = "OUT.urdf")]
     pub output: PathBuf,
+    /// When a tool link is the child of a revolute joint and its calibrated origin lies off
+    /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
+    /// express), add a fixed child link `<tool>_calibrated` at the exact calibrated tool frame
+    /// instead of failing (docs/export.md).
+    #[arg(long)]
+    pub add_tool_links: bool,
 }
 
 /// Arguments of `treecal check`.
@@ -369,6 +383,12 @@ pub struct CalibrateArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// When a tool link is the child of a revolute joint and its calibrated origin lies off
+    /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
+    /// express), add a fixed child link `<tool>_calibrated` at the exact calibrated tool frame
+    /// instead of failing (docs/export.md).
+    #[arg(long)]
+    pub add_tool_links: bool,
     /// Measurement CSV (one row per tool observation).
     #[arg(long, value_name = "M.csv")]
     pub measurements: PathBuf,

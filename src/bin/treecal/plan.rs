@@ -99,7 +99,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
     let tree = &import.tree;
     let branches = crate::robot::branches(&import, args.tools.as_deref())?;
     let model = McpcModel::from_tree(tree, &branches)?;
-    let checker = crate::robot::checker(args.robot.as_deref(), tree)?;
+    let checker = crate::robot::checker(args.robot.as_deref(), tree, &args.package_path)?;
     let targets = if args.targets == 1 {
         Targets::One
     } else {

@@ -93,7 +93,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     }
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
     let model_flexibility = truth_flexibility.scaled(1.0 / args.model_stiffness_scale)?;
-    let checker = crate::robot::checker(args.robot.as_deref(), tree)?;
+    let checker = crate::robot::checker(args.robot.as_deref(), tree, &args.package_path)?;
     if args.poses_from == PosesFrom::Planned && args.candidates == 0 {
         return Err(invalid("--candidates", "must be at least 1".into()));
     }
@@ -149,6 +149,11 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         bar.finish_and_clear();
     }
     let summary = summarise(&reports);
+    if let Some(first) = reports.first() {
+        for note in &first.notes {
+            eprintln!("treecal: note: {note}");
+        }
+    }
 
     let header = format!(
         "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {} plan; model stiffness × {}.",
