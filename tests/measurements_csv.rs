@@ -709,3 +709,67 @@ fn prismatic_values_may_have_their_own_unit() {
     let read = parse_measurements(&lines.join("\n"), "j.csv", &tree, &model, &flag).unwrap();
     assert_same(&read, &written);
 }
+
+/// Joint values in the wrong angle unit are one diagnosis naming `--angle-unit`, not a warning
+/// per value; a few values outside their limits stay warnings, at most five listed.
+#[test]
+fn angle_unit_mistakes_are_one_diagnosis() {
+    let (tree, model) = load("robonaut/robonaut.urdf");
+    let written = simulated(&tree, &model, 5, true);
+    let degrees = MeasurementWriteOptions {
+        angle_unit: AngleUnit::Degree,
+        ..Default::default()
+    };
+    let text = measurements_to_csv_with(&tree, &model, &written, &degrees).unwrap();
+    let bare = text.split_once('\n').unwrap().1;
+    let error = parse_measurements(bare, "d.csv", &tree, &model, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.starts_with("d.csv: ") && error.contains("look like degrees; give --angle-unit deg"),
+        "{error}"
+    );
+    // Read with its units comment, the same file is fine and warns of nothing.
+    let read = parse_measurements(&text, "d.csv", &tree, &model, &Default::default()).unwrap();
+    assert!(read.warnings.is_empty(), "{:?}", read.warnings);
+
+    let radians = measurements_to_csv(&tree, &model, &written).unwrap();
+    let as_degrees = MeasurementReadOptions {
+        angle_unit: Some(AngleUnit::Degree),
+        ..Default::default()
+    };
+    let error = parse_measurements(&radians, "r.csv", &tree, &model, &as_degrees)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("look like radians; give --angle-unit rad"),
+        "{error}"
+    );
+
+    // Seven values just outside their limits: warnings, five listed and the rest counted.
+    let mut lines: Vec<String> = radians.lines().map(str::to_owned).collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let column = header.iter().position(|h| *h == "left_joint2").unwrap();
+    let joint = tree.joint(tree.joint_id("left_joint2").unwrap());
+    let upper = joint.limits.unwrap().upper;
+    let rows = lines.len();
+    for line in &mut lines[1..rows.min(8)] {
+        let mut fields: Vec<String> = line.split(',').map(str::to_owned).collect();
+        fields[column] = format!("{}", upper + 0.01);
+        *line = fields.join(",");
+    }
+    let read = parse_measurements(
+        &lines.join("\n"),
+        "l.csv",
+        &tree,
+        &model,
+        &Default::default(),
+    )
+    .unwrap();
+    assert_eq!(read.warnings.len(), 6, "{:?}", read.warnings);
+    assert!(
+        read.warnings[5].contains("2 more joint values"),
+        "{:?}",
+        read.warnings
+    );
+}

@@ -266,6 +266,16 @@ fn real_robots_calibrate_with_default_flags() {
                 "fitted frame chosen"
             };
             assert!(run.stderr.contains(expected), "{}: {run}", robot.urdf);
+            // Good data: verdict ok, no warning.
+            let report: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                    .unwrap();
+            assert_eq!(report["verdict"]["status"], "ok", "{}: {run}", robot.urdf);
+            assert!(
+                !run.stderr.contains("treecal: warning:"),
+                "{}: {run}",
+                robot.urdf
+            );
             let (position, orientation, offset) = error_against_truth(
                 &truth,
                 &out.join("calibrated.urdf"),
@@ -325,6 +335,8 @@ fn real_robot_mistakes_are_named() {
             && run.stderr.contains("hint: --measurement-frame fit"),
         "{run}"
     );
+    assert!(!run.success, "a failed verdict exits non-zero\n{run}");
+    assert!(!out.join("calibrated.urdf").exists(), "{run}");
     eprintln!("base declared for tracker data:\n{}", run.stderr);
 
     // The registration known: the exported root is the physical base, no alignment needed.
@@ -369,6 +381,7 @@ fn real_robot_mistakes_are_named() {
             .contains("the registration does not match the data"),
         "{run}"
     );
+    assert!(!run.success, "{run}");
 
     // Millimetres read as metres (the units comment dropped, no flag).
     let body = csv_text.split_once('\n').unwrap().1;

@@ -107,103 +107,20 @@ pub fn choose_measurement_frame(
     let fitted_offset = [change.rotation.angle(), change.translation.vector.norm()];
     let rms = [fixed.rms_after, fitted.rms_after];
     let explains = frame_explains(fitted_offset, rms);
-    let extra = (rms[0] * rms[0] - rms[1] * rms[1]).max(0.0).sqrt();
-    let numbers = format!(
-        "the fitted frame is {:.1} mm and {:.2}° from {}; closed-form position RMS {:.1} mm \
-         there, {:.1} mm fitted, {:.1} mm more in quadrature",
-        fitted_offset[1] * 1e3,
-        fitted_offset[0].to_degrees(),
-        match requested {
-            MeasurementFrame::Known(_) => "the registration",
-            _ => "the root frame",
-        },
-        rms[0] * 1e3,
-        rms[1] * 1e3,
-        extra * 1e3
+    let (chosen, reason, failed) = decide(
+        requested,
+        explains,
+        &describe(requested, fitted_offset, rms),
     );
-    let limits = format!(
-        "limits {:.0} mm, {:.1}°, {:.0} mm more",
-        FRAME_TRANSLATION_LIMIT * 1e3,
-        FRAME_ROTATION_LIMIT.to_degrees(),
-        (FRAME_EXTRA_RMS_RATIO * rms[1]).max(FRAME_EXTRA_RMS_FLOOR) * 1e3
-    );
-    let (guess, chosen, reason, finding) = match requested {
-        MeasurementFrame::Auto if explains => {
-            let reason = format!(
-                "root frame chosen (--measurement-frame auto): the data are already in the \
-                 robot's root frame ({numbers}; {limits}), so the exported URDF's root \
-                 is the physical base"
-            );
-            (
-                fixed,
-                ChosenFrame::Root,
-                reason.clone(),
-                Finding::note("measurement-frame", reason),
-            )
-        }
-        MeasurementFrame::Auto => {
-            let reason = format!(
-                "fitted frame chosen (--measurement-frame auto): the root frame cannot explain \
-                 the data ({numbers}; {limits}), so they are in another frame (a \
-                 tracker's); the exported URDF's root is the fitted frame"
-            );
-            (
-                fitted,
-                ChosenFrame::Fitted,
-                reason.clone(),
-                Finding::note("measurement-frame", reason),
-            )
-        }
-        MeasurementFrame::Fit => {
-            let mut reason = format!("fitted frame (--measurement-frame fit); {numbers}");
-            if explains {
-                reason.push_str(
-                    "; the data look as if they are in the root frame already, and the exported \
-                     URDF's root is the fitted frame, off the physical base by the errors it \
-                     absorbed: --measurement-frame auto or base would keep the base",
-                );
-            }
-            (
-                fitted,
-                ChosenFrame::Fitted,
-                reason.clone(),
-                Finding::note("measurement-frame", reason),
-            )
-        }
-        MeasurementFrame::Base | MeasurementFrame::Known(_) => {
-            let (chosen, what, hint) = match requested {
-                MeasurementFrame::Base => (
-                    ChosenFrame::Root,
-                    "root frame (--measurement-frame base)",
-                    "the data are not in the robot's root frame; hint: --measurement-frame fit \
-                     (or auto)",
-                ),
-                _ => (
-                    ChosenFrame::Known,
-                    "registration given (--measurement-frame FILE)",
-                    "the registration does not match the data (is it the robot base in the \
-                     tracker frame, in the stated units?); hint: --measurement-frame fit",
-                ),
-            };
-            if explains {
-                let reason = format!("{what}; {numbers}");
-                (
-                    fixed,
-                    chosen,
-                    reason.clone(),
-                    Finding::note("measurement-frame", reason),
-                )
-            } else {
-                let reason =
-                    format!("{what} cannot explain the data ({numbers}; {limits}): {hint}");
-                (
-                    fixed,
-                    chosen,
-                    reason.clone(),
-                    Finding::failed("measurement-frame", reason),
-                )
-            }
-        }
+    let finding = if failed {
+        Finding::failed("measurement-frame", reason.clone())
+    } else {
+        Finding::note("measurement-frame", reason.clone())
+    };
+    let guess = if chosen == ChosenFrame::Fitted {
+        fitted
+    } else {
+        fixed
     };
     Ok((
         guess,
@@ -216,6 +133,98 @@ pub fn choose_measurement_frame(
         },
         finding,
     ))
+}
+
+/// The numbers that decide, with the limits, for messages.
+fn describe(requested: MeasurementFrame, fitted_offset: [f64; 2], rms: [f64; 2]) -> String {
+    let extra = (rms[0] * rms[0] - rms[1] * rms[1]).max(0.0).sqrt();
+    format!(
+        "the fitted frame is {:.1} mm and {:.2}° from {}; closed-form position RMS {:.1} mm \
+         there, {:.1} mm fitted, {:.1} mm more in quadrature; limits {:.0} mm, {:.1}°, {:.0} mm \
+         more",
+        fitted_offset[1] * 1e3,
+        fitted_offset[0].to_degrees(),
+        match requested {
+            MeasurementFrame::Known(_) => "the registration",
+            _ => "the root frame",
+        },
+        rms[0] * 1e3,
+        rms[1] * 1e3,
+        extra * 1e3,
+        FRAME_TRANSLATION_LIMIT * 1e3,
+        FRAME_ROTATION_LIMIT.to_degrees(),
+        (FRAME_EXTRA_RMS_RATIO * rms[1]).max(FRAME_EXTRA_RMS_FLOOR) * 1e3
+    )
+}
+
+/// The frame used, the sentence that says why, and whether that is a failure (a fixed frame
+/// the user asked for that cannot explain the data).
+fn decide(
+    requested: MeasurementFrame,
+    explains: bool,
+    numbers: &str,
+) -> (ChosenFrame, String, bool) {
+    match requested {
+        MeasurementFrame::Auto if explains => (
+            ChosenFrame::Root,
+            format!(
+                "root frame chosen (--measurement-frame auto): the data are already in the \
+                 robot's root frame ({numbers}), so the exported URDF's root is the physical base"
+            ),
+            false,
+        ),
+        MeasurementFrame::Auto => (
+            ChosenFrame::Fitted,
+            format!(
+                "fitted frame chosen (--measurement-frame auto): the root frame cannot explain \
+                 the data ({numbers}), so they are in another frame (a tracker's); the exported \
+                 URDF's root is the fitted frame"
+            ),
+            false,
+        ),
+        MeasurementFrame::Fit if explains => (
+            ChosenFrame::Fitted,
+            format!(
+                "fitted frame (--measurement-frame fit; {numbers}); the data look as if they \
+                 are in the root frame already, and the exported URDF's root is the fitted \
+                 frame, off the physical base by the errors it absorbed: --measurement-frame \
+                 auto or base would keep the base"
+            ),
+            false,
+        ),
+        MeasurementFrame::Fit => (
+            ChosenFrame::Fitted,
+            format!("fitted frame (--measurement-frame fit; {numbers})"),
+            false,
+        ),
+        MeasurementFrame::Base if explains => (
+            ChosenFrame::Root,
+            format!("root frame (--measurement-frame base; {numbers})"),
+            false,
+        ),
+        MeasurementFrame::Base => (
+            ChosenFrame::Root,
+            format!(
+                "root frame (--measurement-frame base) cannot explain the data ({numbers}): the \
+                 data are not in the robot's root frame; hint: --measurement-frame fit (or auto)"
+            ),
+            true,
+        ),
+        MeasurementFrame::Known(_) if explains => (
+            ChosenFrame::Known,
+            format!("registration given (--measurement-frame FILE; {numbers})"),
+            false,
+        ),
+        MeasurementFrame::Known(_) => (
+            ChosenFrame::Known,
+            format!(
+                "registration given (--measurement-frame FILE) cannot explain the data \
+                 ({numbers}): the registration does not match the data (is it the robot base \
+                 in the tracker frame, in the stated units?); hint: --measurement-frame fit"
+            ),
+            true,
+        ),
+    }
 }
 
 /// The scale ratio beyond which measured positions cannot be in the unit assumed: the robot's
