@@ -188,7 +188,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let export =
         match export_urdf_with(&original, &origin, tree, &run.report.model, &export_options) {
             Ok(export) => {
-                notes.extend(crate::robot::export_notes(&export));
+                // In the verdict's reasons, so report.md and report.json name them too.
+                run.findings.extend(crate::robot::export_notes(&export));
                 Some(export)
             }
             Err(error) => {

@@ -37,8 +37,8 @@ pub fn run(args: ExportArgs) -> Result<()> {
         args.add_tool_links,
     );
     let report = export_urdf_with(&original, &origin, &import.tree, &model, &options)?;
-    for line in crate::robot::export_notes(&report) {
-        eprintln!("{line}");
+    for note in crate::robot::export_notes(&report) {
+        eprintln!("treecal: note: {}", note.message);
     }
     write_atomically(&args.output, report.urdf.as_bytes())?;
     eprintln!(

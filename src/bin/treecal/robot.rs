@@ -181,19 +181,23 @@ fn skipped_meshes_line(checker: &CollisionChecker) -> Option<String> {
     ))
 }
 
-/// The `treecal: note:` lines of what an export dropped or added (docs/export.md).
-pub fn export_notes(report: &treecal::urdf::ExportReport) -> Vec<String> {
+/// Notes on what an export dropped or added (docs/export.md): printed by `export`, among the
+/// verdict's reasons in `calibrate`.
+pub fn export_notes(report: &treecal::urdf::ExportReport) -> Vec<treecal::calibration::Finding> {
     let dropped = report.dropped.iter().map(|d| {
         format!(
-            "treecal: note: tool '{}' moved onto the axis of joint '{}' in the URDF: its calibrated origin lies {:.4} mm off the axis, within the calibration's uncertainty ({:.4} mm, 3σ); its orientation is exact",
+            "tool '{}' moved onto the axis of joint '{}' in the URDF: its calibrated origin lies {:.4} mm off the axis, within the calibration's uncertainty ({:.4} mm, 3σ); its orientation is exact",
             d.tool, d.joint, d.offset_mm, d.tolerance_mm
         )
     });
     let added = report.added_links.iter().map(|a| {
         format!(
-            "treecal: note: added link '{}' below tool '{}' at the exact calibrated tool frame ({:.4} mm off the joint axis, which the tool link itself cannot be)",
+            "added link '{}' below tool '{}' at the exact calibrated tool frame ({:.4} mm off the joint axis, which the tool link itself cannot be)",
             a.link, a.tool, a.offset_mm
         )
     });
-    dropped.chain(added).collect()
+    dropped
+        .chain(added)
+        .map(|message| treecal::calibration::Finding::note("urdf-export", message))
+        .collect()
 }
