@@ -17,5 +17,7 @@ mod measurements_csv;
 mod oracle;
 mod planning;
 mod plot;
+mod recalibration;
 mod simulate;
+mod stiffness;
 mod urdf_import;

@@ -8,6 +8,8 @@
 //! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
+//! - [`stiffness`]: compliance scale factors identified jointly with the MCPC parameters
+//!   (`--identify-stiffness`), and what a set of measurements can determine of them.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
 pub mod identifiability;
@@ -15,6 +17,7 @@ pub mod initial_guess;
 pub mod plan;
 pub mod run;
 pub mod solver;
+pub mod stiffness;
 pub mod verdict;
 
 pub use identifiability::{
@@ -32,5 +35,9 @@ pub use run::{
 pub use solver::{
     identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,
     IdentificationReport, Predictor, Rigid, Termination,
+};
+pub use stiffness::{
+    analyse_compliance, identified_stiffness, identify_stiffness, ComplianceEstimate,
+    ComplianceIdentifiability, StiffnessOptions, StiffnessReport,
 };
 pub use verdict::{Finding, Status, Verdict};

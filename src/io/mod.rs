@@ -8,6 +8,7 @@ pub mod params;
 pub mod plan;
 pub mod poses_csv;
 pub mod stiffness;
+pub mod stiffness_write;
 pub mod units;
 pub mod write;
 
@@ -22,6 +23,7 @@ pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
 pub use stiffness::{parse_stiffness, read_stiffness};
+pub use stiffness_write::stiffness_to_yaml;
 pub use units::{AngleUnit, LengthUnit};
 pub use write::write_atomically;
 

@@ -5,6 +5,7 @@ pub mod check;
 pub mod inspect;
 pub mod plot;
 pub mod simulate;
+pub mod stiffness;
 
 pub use calibrate::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file,
@@ -12,3 +13,4 @@ pub use calibrate::{
 };
 pub use check::{CheckReport, StageCheck};
 pub use inspect::{inspect, InspectReport};
+pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};

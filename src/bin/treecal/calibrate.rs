@@ -3,16 +3,18 @@
 use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame};
 use treecal::calibration::identifiability::NamedCombination;
 use treecal::calibration::{
-    hold_out, run_calibration, CalibrationInput, IdentificationOptions, Plan,
+    hold_out, identified_stiffness, identify_stiffness, run_calibration, CalibrationInput,
+    IdentificationOptions, Plan, StiffnessOptions,
 };
 use treecal::io::{
-    read_measurements, read_plan, read_stiffness, to_json, to_yaml, write_atomically,
+    read_measurements, read_plan, read_stiffness, stiffness_to_yaml, to_json, to_yaml,
+    write_atomically,
     MeasurementReadOptions,
 };
-use treecal::kinematics::FlexibilityModel;
+use treecal::kinematics::{FlexibilityModel, Stiffness};
 use treecal::report::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file,
-    CalibrationContext,
+    stiffness_markdown, CalibrationContext, StiffnessSummary,
 };
 use treecal::urdf::export_urdf;
 use treecal::{Error, McpcModel, Result};
@@ -95,10 +97,21 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             (Plan::simultaneous(), "simultaneous".to_owned())
         }
     };
-    let flexibility = match &args.stiffness {
-        Some(path) => {
-            let model =
-                FlexibilityModel::new(tree, &nominal, &read_stiffness(path, tree, &nominal)?)?;
+    if args.identify_stiffness && !(args.stiffness_prior.is_finite() && args.stiffness_prior > 0.0)
+    {
+        return Err(invalid(
+            "--stiffness-prior",
+            format!("{} must be a positive number", args.stiffness_prior),
+        ));
+    }
+    // With --identify-stiffness and no file, the library defaults are the prior.
+    let stiffness = match &args.stiffness {
+        Some(path) => Some(read_stiffness(path, tree, &nominal)?),
+        None => args.identify_stiffness.then(Stiffness::default),
+    };
+    let flexibility = match &stiffness {
+        Some(stiffness) => {
+            let model = FlexibilityModel::new(tree, &nominal, stiffness)?;
             Some(match args.gravity_frame {
                 GravityFrame::Measurement => model.with_gravity_in_measurement_frame(),
                 GravityFrame::Base => model,
@@ -120,7 +133,36 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         options: &options,
         fit_measurement_frame: matches!(args.measurement_frame, MeasurementFrame::Fit),
     };
-    let run = run_calibration(&input, &measurements, &validation)?;
+    let mut run = run_calibration(&input, &measurements, &validation)?;
+    // Stiffness identification: the joint fit from the calibrated geometry, then the plan
+    // again with the identified stiffness, so that every table below describes it.
+    let identified = match (&flexibility, &stiffness, args.identify_stiffness) {
+        (Some(prior), Some(stiffness), true) => {
+            let stiffness_options = StiffnessOptions {
+                prior_sigma: args.stiffness_prior,
+                ..StiffnessOptions::default()
+            };
+            let free: Vec<usize> = (0..run.report.model.parameter_count()).collect();
+            let report = identify_stiffness(
+                tree,
+                &run.report.model,
+                prior,
+                &measurements,
+                None,
+                &free,
+                &options,
+                &stiffness_options,
+            )?;
+            let again = CalibrationInput {
+                flexibility: Some(&report.flexibility),
+                ..input
+            };
+            run = run_calibration(&again, &measurements, &validation)?;
+            let file = identified_stiffness(stiffness, tree, &nominal, &report.estimates);
+            Some((StiffnessSummary::new(&report, args.stiffness_prior), file))
+        }
+        _ => None,
+    };
 
     // Everything is computed before anything is written.
     let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
@@ -157,9 +199,14 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         ),
         validation: validation_source,
         plan: plan_name,
-        compensation: match &args.stiffness {
-            Some(path) => format!("compensated exactly ({})", path.display()),
-            None => "not compensated (no --stiffness)".into(),
+        compensation: match (&args.stiffness, args.identify_stiffness) {
+            (Some(path), false) => format!("compensated exactly ({})", path.display()),
+            (Some(path), true) => format!(
+                "compensated exactly, stiffness identified (prior {})",
+                path.display()
+            ),
+            (None, true) => "compensated exactly, stiffness identified (prior: the defaults)".into(),
+            (None, false) => "not compensated (no --stiffness)".into(),
         },
         sigma: [args.position_sigma, args.rotation_sigma],
         measurement_frame: match args.measurement_frame {
@@ -175,9 +222,26 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     };
     let changed: Vec<String> = export.changes.iter().map(|c| c.joint.clone()).collect();
     let summary = calibration_summary(context, &run, unidentifiable, changed);
-    let markdown = calibration_markdown(&summary, &options);
-    let params = to_yaml(&parameter_file(tree.name(), &run))?;
-    let json = to_json(&summary)?;
+    let mut markdown = calibration_markdown(&summary, &options);
+    let mut params = to_yaml(&parameter_file(tree.name(), &run))?;
+    let mut json = to_json(&summary)?;
+    let mut stiffness_file = None;
+    if let Some((stiffness_summary, file)) = &identified {
+        markdown.push_str(&stiffness_markdown(stiffness_summary));
+        params.push_str(&to_yaml(&serde_json::json!({ "stiffness": stiffness_summary }))?);
+        let mut value = serde_json::to_value(&summary).map_err(|e| invalid("report.json", e.to_string()))?;
+        value["stiffness"] = serde_json::to_value(stiffness_summary)
+            .map_err(|e| invalid("report.json", e.to_string()))?;
+        json = to_json(&value)?;
+        stiffness_file = Some(stiffness_to_yaml(
+            file,
+            &format!(
+                "Identified by `treecal calibrate --identify-stiffness` from {} (robot '{}'):\nevery calibrated joint and body with its identified stiffness; see report.md.",
+                args.measurements.display(),
+                tree.name()
+            ),
+        ));
+    }
     let mut plots = calibration_plots(&run.identification, "measurement")?;
     plots.extend(calibration_plots(&run.validation, "validation")?);
 
@@ -192,6 +256,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     write_atomically(&args.out.join("params.yaml"), params.as_bytes())?;
     write_atomically(&args.out.join("report.md"), markdown.as_bytes())?;
     write_atomically(&args.out.join("report.json"), json.as_bytes())?;
+    if let Some(text) = &stiffness_file {
+        write_atomically(&args.out.join("stiffness.yaml"), text.as_bytes())?;
+    }
     for (stem, svg) in &plots {
         write_atomically(&args.out.join(format!("{stem}.svg")), svg.as_bytes())?;
     }

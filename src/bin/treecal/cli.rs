@@ -184,6 +184,10 @@ pub struct SimulateArgs {
     /// Stiffness the compensating model assumes, relative to the truth's (1.1 = 10 % too stiff).
     #[arg(long, default_value_t = 1.0)]
     pub model_stiffness_scale: f64,
+    /// Identify the compliances jointly with the geometry in the compensated calibration,
+    /// starting from the model's stiffness (see --model-stiffness-scale) as a ±50 % prior.
+    #[arg(long)]
+    pub identify_stiffness: bool,
     /// Output folder.
     #[arg(long, default_value = "out/simulate")]
     pub out: PathBuf,
@@ -413,6 +417,15 @@ pub struct CalibrateArgs {
     /// writes them).
     #[arg(long, value_enum, default_value = "fit")]
     pub measurement_frame: MeasurementFrame,
+    /// Identify the joint and link compliances the data determine, jointly with the geometry
+    /// (docs/identification.md); the stiffness file (default: the library defaults) is the
+    /// prior. Writes the identified stiffness to --out as stiffness.yaml.
+    #[arg(long)]
+    pub identify_stiffness: bool,
+    /// Relative uncertainty of the prior stiffness for --identify-stiffness (0.5: ±50 %): a
+    /// compliance is identified when the data determine it better than this.
+    #[arg(long, default_value_t = 0.5)]
+    pub stiffness_prior: f64,
 }
 
 /// How the measurement frame is found.

@@ -121,6 +121,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             candidates: args.candidates as usize,
             ..PlanningOptions::default()
         }),
+        identify_stiffness: args
+            .identify_stiffness
+            .then(treecal::calibration::StiffnessOptions::default),
     };
     if args.targets == 2 {
         return Err(invalid(
@@ -172,6 +175,11 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         },
         args.model_stiffness_scale
     );
+    let header = if args.identify_stiffness {
+        header + " Compliances identified jointly with the geometry (prior: the model's stiffness, ±50 %)."
+    } else {
+        header
+    };
     let markdown = simulation_markdown(&header, &reports, &summary);
     let results = serde_json::json!({
         "robot": tree.name(),

@@ -145,7 +145,20 @@ impl FlexibilityModel {
                 Place::Body(frame, point) => {
                     moved[frame].rotation * point + moved[frame].translation
                 }
-                Place::Tool(tool, point) => tools[tool].rotation * point + tools[tool].translation,
+                Place::Tool(tool, point) | Place::ToolBody(tool, point) => {
+                    tools[tool].rotation * point + tools[tool].translation
+                }
+                Place::ToolTree {
+                    tool,
+                    tool_link,
+                    link,
+                    point,
+                } => {
+                    let in_tool = tree_poses[tool_link.0].inverse()
+                        * tree_poses[link.0]
+                        * nalgebra::Point3::from(point);
+                    tools[tool].rotation * in_tool.coords + tools[tool].translation
+                }
                 Place::Tree {
                     frame,
                     body_link,
