@@ -473,7 +473,10 @@ impl<'a> Problem<'a> {
                 let chosen = selection.chosen.iter().position(|&c| c == k);
                 ComplianceEstimate {
                     name: name(tree, model, parameter),
-                    owner: tree.joint(model.frames()[parameter.frame].joint).name.clone(),
+                    owner: tree
+                        .joint(model.frames()[parameter.frame].joint)
+                        .name
+                        .clone(),
                     kind: parameter.kind,
                     unit: parameter.kind.stiffness_unit().into(),
                     prior_stiffness: prior,
@@ -550,7 +553,10 @@ fn select(
 ) -> Selection {
     let compliance_count = lin.jacobian.ncols() - geometry;
     let geometric = lin.jacobian.columns(0, geometry).into_owned();
-    let compliance = lin.jacobian.columns(geometry, compliance_count).into_owned();
+    let compliance = lin
+        .jacobian
+        .columns(geometry, compliance_count)
+        .into_owned();
     // An orthonormal basis of what the geometry can explain.
     let basis = if geometry > 0 {
         let scaled = scale_columns(&geometric, &column_scales(&geometric));
@@ -631,7 +637,7 @@ fn select(
 /// What a set of measurements (their configurations, tools and payloads; the observed values
 /// do not matter) can determine of the compliances, with the geometric parameters `free`:
 /// the identifiability analysis of the compliance parameters, before measuring.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize)]
 pub struct ComplianceIdentifiability {
     /// Per compliance parameter: its name, how well the data determine its scale (relative,
     /// infinite: not at all), and whether it would be identified.

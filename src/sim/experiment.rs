@@ -7,11 +7,11 @@ use super::noise::{observe, NoiseModel, Targets};
 use super::planning::{plan_poses, PlanningOptions, PlanningStage};
 use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, ErrorRanges};
+use crate::calibration::stiffness::{identify_stiffness, ComplianceEstimate, StiffnessOptions};
 use crate::calibration::{
     calibrate, CalibrationReport, Compensation, Deflected, IdentificationOptions, ParameterSet,
     Plan,
 };
-use crate::calibration::stiffness::{identify_stiffness, ComplianceEstimate, StiffnessOptions};
 use crate::error::Result;
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::math::Pose;

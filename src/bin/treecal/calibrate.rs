@@ -8,8 +8,7 @@ use treecal::calibration::{
 };
 use treecal::io::{
     read_measurements, read_plan, read_stiffness, stiffness_to_yaml, to_json, to_yaml,
-    write_atomically,
-    MeasurementReadOptions,
+    write_atomically, MeasurementReadOptions,
 };
 use treecal::kinematics::{FlexibilityModel, Stiffness};
 use treecal::report::{
@@ -205,7 +204,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 "compensated exactly, stiffness identified (prior {})",
                 path.display()
             ),
-            (None, true) => "compensated exactly, stiffness identified (prior: the defaults)".into(),
+            (None, true) => {
+                "compensated exactly, stiffness identified (prior: the defaults)".into()
+            }
             (None, false) => "not compensated (no --stiffness)".into(),
         },
         sigma: [args.position_sigma, args.rotation_sigma],
@@ -228,8 +229,11 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut stiffness_file = None;
     if let Some((stiffness_summary, file)) = &identified {
         markdown.push_str(&stiffness_markdown(stiffness_summary));
-        params.push_str(&to_yaml(&serde_json::json!({ "stiffness": stiffness_summary }))?);
-        let mut value = serde_json::to_value(&summary).map_err(|e| invalid("report.json", e.to_string()))?;
+        params.push_str(&to_yaml(
+            &serde_json::json!({ "stiffness": stiffness_summary }),
+        )?);
+        let mut value =
+            serde_json::to_value(&summary).map_err(|e| invalid("report.json", e.to_string()))?;
         value["stiffness"] = serde_json::to_value(stiffness_summary)
             .map_err(|e| invalid("report.json", e.to_string()))?;
         json = to_json(&value)?;

@@ -356,6 +356,21 @@ pub struct CheckArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "text")]
     pub format: Format,
+    /// Also analyse which joint and link compliances the poses determine with the geometry
+    /// free (docs/flexibility.md, section 12), with the stiffness of --stiffness.
+    #[arg(long)]
+    pub identify_stiffness: bool,
+    /// Stiffness YAML for --identify-stiffness [default: the built-in Robonaut's, or the
+    /// library defaults with --robot].
+    #[arg(long)]
+    pub stiffness: Option<PathBuf>,
+    /// Payloads (kg at every tool) at which every pose is measured, for --identify-stiffness
+    /// [default: the stiffness file's payloads].
+    #[arg(long, value_delimiter = ',', value_name = "KG,KG")]
+    pub payloads: Option<Vec<f64>>,
+    /// Relative uncertainty of the prior stiffness (0.5: ±50 %).
+    #[arg(long, default_value_t = 0.5)]
+    pub stiffness_prior: f64,
 }
 
 /// Arguments of `treecal calibrate`.

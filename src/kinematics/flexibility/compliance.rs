@@ -277,7 +277,10 @@ impl ComplianceBasis {
                 }
                 let tip = transform.translation;
                 let (dp, dr) = if parameter.kind.is_joint() {
-                    let w = unit.joints[parameter.frame].local.fixed_rows::<3>(3).into_owned();
+                    let w = unit.joints[parameter.frame]
+                        .local
+                        .fixed_rows::<3>(3)
+                        .into_owned();
                     joint_derivative(&deflection, parameter.frame, &w, &tip)
                 } else {
                     let mut sum = (Vec3::zeros(), Vec3::zeros());
@@ -285,8 +288,7 @@ impl ComplianceBasis {
                         if current.segments[index].frame != parameter.frame {
                             continue;
                         }
-                        let (dp, dr) =
-                            segment_derivative(&current, &deflection, unit, index, &tip);
+                        let (dp, dr) = segment_derivative(&current, &deflection, unit, index, &tip);
                         sum.0 += dp;
                         sum.1 += dr;
                     }
@@ -363,10 +365,7 @@ fn exp_jacobian_coefficients(v: &Vec3) -> (f64, f64) {
         )
     } else {
         let angle = t.sqrt();
-        (
-            (1.0 - angle.cos()) / t,
-            (angle - angle.sin()) / (t * angle),
-        )
+        ((1.0 - angle.cos()) / t, (angle - angle.sin()) / (t * angle))
     }
 }
 

@@ -23,10 +23,8 @@ mod model;
 pub(crate) mod names;
 pub mod stiffness;
 
-pub use compliance::{
-    ComplianceBasis, ComplianceJacobian, ComplianceKind, ComplianceParameter,
-};
 pub use beam::{point_load_deflection, uniform_load_deflection, BeamCompliance};
+pub use compliance::{ComplianceBasis, ComplianceJacobian, ComplianceKind, ComplianceParameter};
 pub use loads::{Deformations, JointDeformation, SegmentDeformation};
 pub use model::{FlexibilityModel, Segment, SegmentEnd};
 pub use stiffness::{JointStiffness, LinkStiffness, Payload, Stiffness, STANDARD_GRAVITY};

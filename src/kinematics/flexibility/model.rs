@@ -70,8 +70,10 @@ pub(crate) struct Mass {
     pub(crate) place: Place,
     /// The MCPC frame whose subtree carries it.
     pub(crate) frame: usize,
-    /// The segment it loads along its length (self-weight); `None` for payloads, which load
-    /// their tool's segment at its tip.
+    /// The segment it loads along its length (self-weight), as built; `None` for payloads,
+    /// which load their tool's segment at its tip. Evaluation loads the body's segment nearest
+    /// to it at the current geometry (the same one unless the geometry moved it closer to
+    /// another).
     pub(crate) segment: Option<usize>,
 }
 
