@@ -11,7 +11,7 @@
 //! compliances together, with the exact deflected kinematics as the model. See
 //! `docs/identification.md` (stiffness identification) and `docs/flexibility.md`, section 11.
 
-use super::solver::{column_scales, scale_columns, singular_decomposition, Deflected, Predictor};
+use super::solver::{column_scales, scale_columns, singular_decomposition};
 use super::solver::{IdentificationOptions, Termination};
 use crate::error::{Error, Result};
 use crate::kinematics::flexibility::{
@@ -267,7 +267,10 @@ impl<'a> Problem<'a> {
     }
 
     /// Weighted residual and, if asked, the Jacobian over the free geometry and the compliance
-    /// scales `chosen`.
+    /// scales `chosen`: the compliance columns exact (see `ComplianceBasis::jacobian`), the
+    /// geometric ones by forward differences of the deflected poses (a deflection changes with
+    /// the geometry through its lever arms, which the deflected-chain Jacobian leaves out; with
+    /// compliances moving by tens of percent that slows the joint fit to a crawl).
     fn linearise(
         &self,
         model: &McpcModel,
@@ -288,57 +291,76 @@ impl<'a> Problem<'a> {
             .iter()
             .map(|(_, b)| b.scaled(scales))
             .collect::<Result<Vec<_>>>()?;
-        type Evaluated = (Vec<Pose>, Vec<DMatrix<f64>>, Vec<DMatrix<f64>>);
-        let mut cache: Option<(&[f64], usize, Evaluated)> = None;
+        // Distinct (configuration, payload) pairs: several tools measured there share them.
+        let mut groups: Vec<(&[f64], usize)> = Vec::new();
+        let group_of: Vec<usize> = self
+            .measurements
+            .iter()
+            .zip(&self.basis_of)
+            .map(|(m, &basis)| {
+                let key = (m.q.as_slice(), basis);
+                match groups.iter().rposition(|g| *g == key) {
+                    Some(g) => g,
+                    None => {
+                        groups.push(key);
+                        groups.len() - 1
+                    }
+                }
+            })
+            .collect();
+        let mut poses: Vec<Vec<Pose>> = Vec::with_capacity(groups.len());
+        let mut compliance: Vec<Vec<DMatrix<f64>>> = Vec::new();
+        for &(q, basis) in &groups {
+            if with_jacobian {
+                let found = self.bases[basis].1.jacobian(scales, self.tree, model, q)?;
+                poses.push(found.poses);
+                compliance.push(found.jacobians);
+            } else {
+                poses.push(flexibilities[basis].deflected_tool_poses(self.tree, model, q)?);
+            }
+        }
+        // Per group and free parameter, the change of every tool pose per unit parameter.
+        let mut geometry: Vec<Vec<Vec<Vector6<f64>>>> = Vec::new();
+        if with_jacobian {
+            geometry = vec![Vec::with_capacity(self.free.len()); groups.len()];
+            let step = 1e-7;
+            let values = model.parameters();
+            let mut shifted = model.clone();
+            for &p in self.free {
+                shifted.set_parameter(p, values[p] + step)?;
+                for (g, &(q, basis)) in groups.iter().enumerate() {
+                    let moved =
+                        flexibilities[basis].deflected_tool_poses(self.tree, &shifted, q)?;
+                    geometry[g].push(
+                        moved
+                            .iter()
+                            .zip(&poses[g])
+                            .map(|(a, b)| pose_error(a, b) / step)
+                            .collect(),
+                    );
+                }
+                shifted.set_parameter(p, values[p])?;
+            }
+        }
         let mut row = 0;
         for (index, m) in self.measurements.iter().enumerate() {
-            let basis = self.basis_of[index];
-            if cache
-                .as_ref()
-                .is_none_or(|(q, b, _)| *q != m.q.as_slice() || *b != basis)
-            {
-                let flexibility = &flexibilities[basis];
-                let evaluated = if with_jacobian {
-                    let chain = Deflected {
-                        tree: self.tree,
-                        flexibility,
-                    }
-                    .jacobians(model, &m.q)?;
-                    let compliance = self.bases[basis]
-                        .1
-                        .jacobian(scales, self.tree, model, &m.q)?;
-                    (
-                        compliance.poses,
-                        chain.into_iter().map(|c| c.jacobian).collect(),
-                        compliance.jacobians,
-                    )
-                } else {
-                    (
-                        flexibility.deflected_tool_poses(self.tree, model, &m.q)?,
-                        Vec::new(),
-                        Vec::new(),
-                    )
-                };
-                cache = Some((&m.q, basis, evaluated));
-            }
-            let Some((_, _, (poses, geometry, compliance))) = &cache else {
-                continue;
-            };
-            let predicted = poses.get(m.tool).ok_or_else(|| Error::InvalidData {
+            let g = group_of[index];
+            let predicted = poses[g].get(m.tool).ok_or_else(|| Error::InvalidData {
                 origin: "stiffness identification".into(),
                 message: format!("measurement {index} names tool {}", m.tool),
             })?;
             let error = raw_residual(&m.observation, predicted);
             let count = m.observation.rows();
             for k in 0..count {
-                residual[row + k] = error[k] * weights[k / 3];
+                let weight = weights[k / 3];
+                residual[row + k] = error[k] * weight;
                 if with_jacobian {
-                    for (column, &p) in self.free.iter().enumerate() {
-                        jacobian[(row + k, column)] = geometry[m.tool][(k, p)] * weights[k / 3];
+                    for (column, change) in geometry[g].iter().enumerate() {
+                        jacobian[(row + k, column)] = change[m.tool][k] * weight;
                     }
                     for (column, &c) in chosen.iter().enumerate() {
                         jacobian[(row + k, self.free.len() + column)] =
-                            compliance[m.tool][(k, c)] * weights[k / 3];
+                            compliance[g][m.tool][(k, c)] * weight;
                     }
                 }
             }
