@@ -358,9 +358,11 @@ impl<'a> Problem<'a> {
                     for (column, change) in geometry[g].iter().enumerate() {
                         jacobian[(row + k, column)] = change[m.tool][k] * weight;
                     }
+                    // Columns per unit log-scale (d/d ln s = s·d/ds): the fit moves ln s, so a
+                    // compliance never turns negative and a large step is a factor, not a jump.
                     for (column, &c) in chosen.iter().enumerate() {
                         jacobian[(row + k, self.free.len() + column)] =
-                            compliance[g][m.tool][(k, c)] * weight;
+                            compliance[g][m.tool][(k, c)] * scales[c] * weight;
                     }
                 }
             }
@@ -369,8 +371,9 @@ impl<'a> Problem<'a> {
         Ok(Linearisation { residual, jacobian })
     }
 
-    /// Levenberg–Marquardt over the free geometry and the compliance scales `chosen`, with
-    /// SVD-truncated steps (directions the data cannot determine stay where they start).
+    /// Levenberg–Marquardt over the free geometry and the logarithms of the compliance scales
+    /// `chosen`, with SVD-truncated steps (directions the data cannot determine stay where they
+    /// start).
     fn fit(&self, start: &McpcModel, chosen: &[usize], max_iterations: usize) -> Result<Fit> {
         let count = self.parameters().len();
         let mut model = start.clone();
@@ -442,6 +445,12 @@ impl<'a> Problem<'a> {
             }
         }
         let (rank, residual_scale, standard_deviations) = covariance(&lin, cost, tolerance);
+        // σ of ln s times s: the standard deviation of the scale, to first order.
+        let scale_std_devs = standard_deviations[self.free.len()..]
+            .iter()
+            .zip(chosen)
+            .map(|(sd, &c)| sd * scales[c])
+            .collect();
         Ok(Fit {
             model,
             scales,
@@ -450,12 +459,12 @@ impl<'a> Problem<'a> {
             termination,
             rank,
             residual_scale,
-            scale_std_devs: standard_deviations[self.free.len()..].to_vec(),
+            scale_std_devs,
         })
     }
 
-    /// The model and scales after `step` (`None` scales when a compliance would turn
-    /// negative).
+    /// The model and scales after `step` (geometry additive, compliance scales by the factor
+    /// `exp(step)`; `None` scales if one is not finite).
     fn moved(
         &self,
         model: &McpcModel,
@@ -471,7 +480,7 @@ impl<'a> Problem<'a> {
         moved.set_parameters(&values)?;
         let mut next = scales.to_vec();
         for (k, &c) in chosen.iter().enumerate() {
-            next[c] += step[self.free.len() + k];
+            next[c] *= step[self.free.len() + k].exp();
         }
         let valid = next.iter().all(|s| s.is_finite() && *s >= 0.0);
         Ok((moved, valid.then_some(next)))

@@ -15,6 +15,8 @@ pub struct StiffnessSummary {
     pub cost: [f64; 2],
     /// Iterations of the joint fit.
     pub iterations: usize,
+    /// Why the joint fit stopped.
+    pub termination: crate::calibration::Termination,
     /// Identified compliance parameters / all.
     pub identified: [usize; 2],
     /// `σ̂` of the joint fit.
@@ -32,6 +34,7 @@ impl StiffnessSummary {
             prior_sigma,
             cost: report.cost,
             iterations: report.iterations,
+            termination: report.termination,
             identified: [
                 report.estimates.iter().filter(|e| e.identified).count(),
                 report.estimates.len(),
@@ -49,13 +52,14 @@ pub fn stiffness_markdown(summary: &StiffnessSummary) -> String {
     let _ = writeln!(out, "\n## Stiffness identification\n");
     let _ = writeln!(
         out,
-        "Prior: the stiffness file, ±{:.0} % (relative). Identified {} of {} compliance parameters jointly with the geometry (cost {:.4} → {:.4}, {} iterations, σ̂ = {:.3}); the others are kept at the prior. Scale = identified compliance / prior compliance.\n",
+        "Prior: the stiffness file, ±{:.0} % (relative). Identified {} of {} compliance parameters jointly with the geometry (cost {:.4} → {:.4}, {} iterations, {:?}, σ̂ = {:.3}); the others are kept at the prior. Scale = identified compliance / prior compliance.\n",
         summary.prior_sigma * 100.0,
         summary.identified[0],
         summary.identified[1],
         summary.cost[0],
         summary.cost[1],
         summary.iterations,
+        summary.termination,
         summary.residual_scale
     );
     let _ = writeln!(
