@@ -28,7 +28,8 @@ use serde::Serialize;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct StiffnessOptions {
     /// Relative standard deviation of the prior compliances (0.5: the stiffness file is right
-    /// to ±50 %). A compliance is identified when the data determine its scale better than this.
+    /// to ±50 %). A compliance is identified when the data determine its scale to
+    /// [`DETERMINED`] of this or better.
     pub prior_sigma: f64,
     /// Iteration limit of the joint fit.
     pub max_iterations: usize,
@@ -98,6 +99,9 @@ pub struct StiffnessReport {
     pub free: usize,
     /// `σ̂ = √(2·cost / (rows − rank))`.
     pub residual_scale: f64,
+    /// The common scale of all joint compliances and of all link compliances, with its
+    /// standard deviation (`None`: not identified, kept at 1).
+    pub group_scales: [(f64, Option<f64>); 2],
     /// Compliance combinations the data cannot tell from the geometry or from each other, in
     /// words (kept at the prior).
     pub unidentifiable: Vec<String>,
@@ -127,16 +131,33 @@ pub fn identify_stiffness(
             ),
         });
     }
-    let count = problem.parameters().len();
+    let count = problem.parameters().len() + GROUPS;
     let all: Vec<usize> = (0..count).collect();
     let ones = vec![1.0; count];
     let first = problem.linearise(start, &ones, &all, true)?;
-    let selection = select(&first, free.len(), stiffness.prior_sigma, options);
+    let selection = select(
+        &first,
+        free.len(),
+        problem.parameters(),
+        stiffness.prior_sigma,
+        options,
+    );
     let chosen = selection.chosen.clone();
     let fit = problem.fit(start, &chosen, stiffness.max_iterations)?;
     let estimates = problem.estimates(tree, start, &fit, &selection)?;
     // The prior's own payloads, whatever the rows carried.
-    let flexibility = prior.with_compliance_scales(problem.parameters(), &fit.scales)?;
+    let flexibility =
+        prior.with_compliance_scales(problem.parameters(), &problem.effective(&fit.scales))?;
+    let group_scales = [0, 1].map(|g| {
+        let index = problem.parameters().len() + g;
+        (
+            fit.scales[index],
+            chosen
+                .iter()
+                .position(|&c| c == index)
+                .map(|c| fit.scales[index] * fit.log_covariance[(c, c)].max(0.0).sqrt()),
+        )
+    });
     Ok(StiffnessReport {
         model: fit.model,
         flexibility,
@@ -147,6 +168,7 @@ pub fn identify_stiffness(
         rank: fit.rank,
         free: free.len() + chosen.len(),
         residual_scale: fit.residual_scale,
+        group_scales,
         unidentifiable: selection
             .combinations
             .iter()
@@ -154,6 +176,20 @@ pub fn identify_stiffness(
             .collect(),
     })
 }
+
+/// Common scale factors after the individual ones: all joint compliances, all link compliances.
+/// A compliance's scale is its own times its group's, so a stiffness file that is off by the
+/// same factor everywhere is corrected everywhere, also where the data cannot tell one joint or
+/// link from another.
+const GROUPS: usize = 2;
+
+/// A compliance is identified when the data alone determine its scale to this fraction of the
+/// prior's uncertainty or better (a third: the data carry nine times the prior's information),
+/// so that what is identified is determined by the data rather than fitted to their noise.
+pub const DETERMINED: f64 = 1.0 / 3.0;
+
+/// The groups in words.
+const GROUP_NAMES: [&str; GROUPS] = ["all joints", "all links"];
 
 /// "left_joint1 bending (+0.71) with torso_joint2 EI_z (−0.71)".
 fn describe(
@@ -164,7 +200,13 @@ fn describe(
 ) -> String {
     terms
         .iter()
-        .map(|&(k, w)| format!("{} ({w:+.2})", name(tree, model, &parameters[k])))
+        .map(|&(k, w)| {
+            let name = match parameters.get(k) {
+                Some(parameter) => name(tree, model, parameter),
+                None => GROUP_NAMES[k - parameters.len()].to_owned(),
+            };
+            format!("{name} ({w:+.2})")
+        })
         .collect::<Vec<_>>()
         .join(" with ")
 }
@@ -204,8 +246,8 @@ struct Fit {
     termination: Termination,
     rank: usize,
     residual_scale: f64,
-    /// Standard deviation of each chosen compliance scale, in `chosen` order.
-    scale_std_devs: Vec<f64>,
+    /// Covariance of the logarithms of the chosen scales, in `chosen` order.
+    log_covariance: DMatrix<f64>,
 }
 
 impl<'a> Problem<'a> {
@@ -266,6 +308,16 @@ impl<'a> Problem<'a> {
         self.bases[0].1.parameters()
     }
 
+    /// Each parameter's scale times its group's.
+    fn effective(&self, scales: &[f64]) -> Vec<f64> {
+        let count = self.parameters().len();
+        self.parameters()
+            .iter()
+            .enumerate()
+            .map(|(k, p)| scales[k] * scales[count + usize::from(!p.kind.is_joint())])
+            .collect()
+    }
+
     /// Weighted residual and, if asked, the Jacobian over the free geometry and the compliance
     /// scales `chosen`: the compliance columns exact (see `ComplianceBasis::jacobian`), the
     /// geometric ones by forward differences of the deflected poses (a deflection changes with
@@ -286,10 +338,11 @@ impl<'a> Problem<'a> {
             1.0 / self.options.position_sigma,
             1.0 / self.options.rotation_sigma,
         ];
+        let effective = self.effective(scales);
         let flexibilities = self
             .bases
             .iter()
-            .map(|(_, b)| b.scaled(scales))
+            .map(|(_, b)| b.scaled(&effective))
             .collect::<Result<Vec<_>>>()?;
         // Distinct (configuration, payload) pairs: several tools measured there share them.
         let mut groups: Vec<(&[f64], usize)> = Vec::new();
@@ -312,7 +365,9 @@ impl<'a> Problem<'a> {
         let mut compliance: Vec<Vec<DMatrix<f64>>> = Vec::new();
         for &(q, basis) in &groups {
             if with_jacobian {
-                let found = self.bases[basis].1.jacobian(scales, self.tree, model, q)?;
+                let found = self.bases[basis]
+                    .1
+                    .jacobian(&effective, self.tree, model, q)?;
                 poses.push(found.poses);
                 compliance.push(found.jacobians);
             } else {
@@ -360,9 +415,22 @@ impl<'a> Problem<'a> {
                     }
                     // Columns per unit log-scale (d/d ln s = s·d/ds): the fit moves ln s, so a
                     // compliance never turns negative and a large step is a factor, not a jump.
+                    let per_unit = &compliance[g][m.tool];
                     for (column, &c) in chosen.iter().enumerate() {
-                        jacobian[(row + k, self.free.len() + column)] =
-                            compliance[g][m.tool][(k, c)] * scales[c] * weight;
+                        let value = match self.parameters().get(c) {
+                            Some(_) => per_unit[(k, c)] * effective[c],
+                            // A group: the sum over its members.
+                            None => self
+                                .parameters()
+                                .iter()
+                                .enumerate()
+                                .filter(|(_, p)| {
+                                    usize::from(!p.kind.is_joint()) == c - self.parameters().len()
+                                })
+                                .map(|(j, _)| per_unit[(k, j)] * effective[j])
+                                .sum(),
+                        };
+                        jacobian[(row + k, self.free.len() + column)] = value * weight;
                     }
                 }
             }
@@ -375,7 +443,7 @@ impl<'a> Problem<'a> {
     /// `chosen`, with SVD-truncated steps (directions the data cannot determine stay where they
     /// start).
     fn fit(&self, start: &McpcModel, chosen: &[usize], max_iterations: usize) -> Result<Fit> {
-        let count = self.parameters().len();
+        let count = self.parameters().len() + GROUPS;
         let mut model = start.clone();
         let mut scales = vec![1.0; count];
         let mut lin = self.linearise(&model, &scales, chosen, true)?;
@@ -444,13 +512,11 @@ impl<'a> Problem<'a> {
                 break;
             }
         }
-        let (rank, residual_scale, standard_deviations) = covariance(&lin, cost, tolerance);
-        // σ of ln s times s: the standard deviation of the scale, to first order.
-        let scale_std_devs = standard_deviations[self.free.len()..]
-            .iter()
-            .zip(chosen)
-            .map(|(sd, &c)| sd * scales[c])
-            .collect();
+        let (rank, residual_scale, full) = covariance(&lin, cost, tolerance);
+        let offset = self.free.len();
+        let log_covariance = full
+            .view((offset, offset), (chosen.len(), chosen.len()))
+            .into_owned();
         Ok(Fit {
             model,
             scales,
@@ -459,7 +525,7 @@ impl<'a> Problem<'a> {
             termination,
             rank,
             residual_scale,
-            scale_std_devs,
+            log_covariance,
         })
     }
 
@@ -500,8 +566,19 @@ impl<'a> Problem<'a> {
             .enumerate()
             .map(|(k, parameter)| {
                 let prior = reference.compliance(parameter).recip();
-                let scale = fit.scales[k];
-                let chosen = selection.chosen.iter().position(|&c| c == k);
+                let effective = self.effective(&fit.scales);
+                let scale = effective[k];
+                let position = |index: usize| selection.chosen.iter().position(|&c| c == index);
+                let chosen = position(k);
+                let group =
+                    position(self.parameters().len() + usize::from(!parameter.kind.is_joint()));
+                // var(ln s·g) = var(ln s) + var(ln g) + 2·cov.
+                let c = &fit.log_covariance;
+                let variance = match (chosen, group) {
+                    (Some(a), Some(b)) => Some(c[(a, a)] + c[(b, b)] + 2.0 * c[(a, b)]),
+                    (Some(a), None) | (None, Some(a)) => Some(c[(a, a)]),
+                    (None, None) => None,
+                };
                 ComplianceEstimate {
                     name: name(tree, model, parameter),
                     owner: tree
@@ -513,8 +590,8 @@ impl<'a> Problem<'a> {
                     prior_stiffness: prior,
                     stiffness: prior / scale,
                     scale,
-                    scale_std_dev: chosen
-                        .map(|c| fit.scale_std_devs[c])
+                    scale_std_dev: variance
+                        .map(|v| scale * v.max(0.0).sqrt())
                         .filter(|s| s.is_finite()),
                     data_std_dev: selection.data_std_dev[k],
                     identified: chosen.is_some(),
@@ -534,8 +611,8 @@ fn raw_residual(measured: &Observation, predicted: &Pose) -> Vector6<f64> {
     }
 }
 
-/// Rank, `σ̂` and the standard deviation of every column from `σ̂²·(JᵀJ)⁺`.
-fn covariance(lin: &Linearisation, cost: f64, tolerance: f64) -> (usize, f64, Vec<f64>) {
+/// Rank, `σ̂` and the covariance `σ̂²·(JᵀJ)⁺` of the columns.
+fn covariance(lin: &Linearisation, cost: f64, tolerance: f64) -> (usize, f64, DMatrix<f64>) {
     let columns = column_scales(&lin.jacobian);
     let (singular, v_t) = singular_decomposition(scale_columns(&lin.jacobian, &columns));
     let largest = singular.max();
@@ -548,16 +625,13 @@ fn covariance(lin: &Linearisation, cost: f64, tolerance: f64) -> (usize, f64, Ve
     } else {
         f64::NAN
     };
-    let deviations = (0..columns.len())
-        .map(|k| {
-            let variance: f64 = kept
-                .iter()
-                .map(|&i| (v_t[(i, k)] / singular[i]).powi(2))
-                .sum();
-            residual_scale * variance.sqrt() / columns[k]
-        })
-        .collect();
-    (kept.len(), residual_scale, deviations)
+    // W = S⁻¹·V_k·Σ_k⁻¹; covariance σ̂²·W·Wᵀ.
+    let n = columns.len();
+    let w = DMatrix::from_fn(n, kept.len(), |k, j| {
+        v_t[(kept[j], k)] / singular[kept[j]] / columns[k]
+    });
+    let covariance = (&w * w.transpose()) * residual_scale.powi(2);
+    (kept.len(), residual_scale, covariance)
 }
 
 /// Which compliances the data determine, and how well.
@@ -579,10 +653,12 @@ struct Selection {
 fn select(
     lin: &Linearisation,
     geometry: usize,
+    parameters: &[ComplianceParameter],
     prior_sigma: f64,
     options: &IdentificationOptions,
 ) -> Selection {
     let compliance_count = lin.jacobian.ncols() - geometry;
+    let individual = compliance_count - GROUPS;
     let geometric = lin.jacobian.columns(0, geometry).into_owned();
     let compliance = lin
         .jacobian
@@ -631,7 +707,12 @@ fn select(
                 .map(|(c, &w)| (chosen[c], w))
                 .collect();
             terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-            let worst = terms[0].0;
+            // A group only goes when its members cannot.
+            let worst = terms
+                .iter()
+                .map(|t| t.0)
+                .find(|&k| k < individual)
+                .unwrap_or(terms[0].0);
             if terms.len() > 1 {
                 combinations.push(terms);
             }
@@ -647,15 +728,31 @@ fn select(
         for (c, &k) in chosen.iter().enumerate() {
             data_std_dev[k] = deviations[c];
         }
-        let (worst, &deviation) = deviations
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.total_cmp(b.1))
-            .unwrap_or((0, &0.0));
-        if deviation <= prior_sigma {
-            break;
+        // The least determined individual compliance goes first. Then, while a group is not
+        // determined, its least determined member goes (the common scale matters more than
+        // one member's deviation from it), and the group itself only when it has none left.
+        let group_of = |c: usize| usize::from(!parameters[chosen[c]].kind.is_joint());
+        let worst = |keep: &dyn Fn(usize) -> bool, limit: f64| {
+            deviations
+                .iter()
+                .enumerate()
+                .filter(|(c, _)| keep(*c))
+                .max_by(|a, b| a.1.total_cmp(b.1))
+                .filter(|(_, &d)| d > limit)
+                .map(|(c, _)| c)
+        };
+        let limit = prior_sigma * DETERMINED;
+        let undetermined_group = worst(&|c| chosen[c] >= individual, limit);
+        let drop = worst(&|c| chosen[c] < individual, limit).or_else(|| {
+            let group = chosen[undetermined_group?] - individual;
+            worst(&|c| chosen[c] < individual && group_of(c) == group, 0.0).or(undetermined_group)
+        });
+        match drop {
+            Some(c) => {
+                chosen.remove(c);
+            }
+            None => break,
         }
-        chosen.remove(worst);
     }
     chosen.sort_unstable();
     Selection {
@@ -691,18 +788,19 @@ pub fn analyse_compliance(
     prior_sigma: f64,
 ) -> Result<ComplianceIdentifiability> {
     let problem = Problem::new(tree, prior, measurements, payloads, free, options)?;
-    let count = problem.parameters().len();
+    let count = problem.parameters().len() + GROUPS;
     let all: Vec<usize> = (0..count).collect();
     let lin = problem.linearise(model, &vec![1.0; count], &all, true)?;
-    let selection = select(&lin, free.len(), prior_sigma, options);
+    let selection = select(&lin, free.len(), problem.parameters(), prior_sigma, options);
     Ok(ComplianceIdentifiability {
-        parameters: problem
-            .parameters()
-            .iter()
-            .enumerate()
-            .map(|(k, p)| {
+        parameters: (0..count)
+            .map(|k| {
+                let name = match problem.parameters().get(k) {
+                    Some(p) => name(tree, model, p),
+                    None => GROUP_NAMES[k - problem.parameters().len()].to_owned(),
+                };
                 (
-                    name(tree, model, p),
+                    name,
                     selection.data_std_dev[k],
                     selection.chosen.contains(&k),
                 )
