@@ -2,8 +2,11 @@
 //!
 //! Targets (issue 3): the full identification Jacobian of both tools (64 parameters) for one
 //! configuration under 2 µs; one full calibration on 20 and on 100 configurations under 5 ms
-//! and 17 ms. Stiffness identification (issue 13): the joint fit of the geometry and the
-//! compliances from 20 configurations, the model 50 % too stiff.
+//! and 17 ms. Issue 14: one Gauss–Newton iteration on 200 configurations × 2 tools within 3×
+//! of the compute limit (the difference of the two `identify_…_iterations` benches; see
+//! `docs/performance.md`, and `benches/peer/peer.py` for the comparison with Pinocchio).
+//! Stiffness identification (issue 13): the joint fit of the geometry and the compliances
+//! from 20 configurations, the model 50 % too stiff.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rand::rngs::ChaCha8Rng;
@@ -132,8 +135,39 @@ fn benchmarks(c: &mut Criterion) {
     c.bench_function("jacobian_both_tools_robonaut", |b| {
         b.iter(|| model.tool_jacobians(black_box(&q)))
     });
+    // Caller-provided buffers, one tool's chain only (issue 14).
+    let mut chain = treecal::kinematics::ChainFrames::default();
+    let mut jacobian = nalgebra::DMatrix::zeros(6, model.parameter_count());
+    c.bench_function("jacobian_one_tool_into_robonaut", |b| {
+        b.iter(|| model.tool_jacobian_into(0, black_box(&q), &mut chain, &mut jacobian))
+    });
     let free: Vec<usize> = (0..model.parameter_count()).collect();
     let options = IdentificationOptions::default();
+    // One Gauss–Newton iteration on 200 configurations × 2 tools (issue 14): the difference
+    // between these two (the second also linearises, analyses, steps and re-evaluates once).
+    let measurements = problem(&tree, &model, 200);
+    for iterations in [0, 1] {
+        let options = IdentificationOptions {
+            max_iterations: iterations,
+            ..IdentificationOptions::default()
+        };
+        c.bench_function(
+            &format!("identify_robonaut_200_configurations_{iterations}_iterations"),
+            |b| {
+                b.iter(|| {
+                    identify(
+                        &model,
+                        black_box(&measurements),
+                        None,
+                        &Rigid,
+                        &free,
+                        &options,
+                    )
+                    .expect("identify")
+                })
+            },
+        );
+    }
     for configurations in [20, 100] {
         let measurements = problem(&tree, &model, configurations);
         c.bench_function(

@@ -4,6 +4,7 @@ pub mod calibration;
 pub mod error;
 pub mod io;
 pub mod kinematics;
+pub mod limits;
 pub mod math;
 pub mod measurement;
 pub mod report;

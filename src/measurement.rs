@@ -77,10 +77,19 @@ pub fn frame_from_targets(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<Pose> {
 /// than [`MIN_TARGET_SEPARATION`] (coincident), or AB and AC within [`MIN_TARGET_ANGLE`] of
 /// parallel (collinear).
 pub fn targets_problem(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<String> {
+    if !a
+        .iter()
+        .chain(b.iter())
+        .chain(c.iter())
+        .all(|v| v.is_finite())
+    {
+        return Some("a target coordinate is not a finite number".into());
+    }
     let pairs = [("A", "B", a, b), ("A", "C", a, c), ("B", "C", b, c)];
     for (first, second, p, q) in pairs {
         let distance = (q - p).norm();
-        if distance < MIN_TARGET_SEPARATION {
+        // Written so that NaN (from an overflow) fails the test too.
+        if distance.is_nan() || distance < MIN_TARGET_SEPARATION {
             return Some(format!(
                 "targets {first} and {second} are {:.3} mm apart (coincident; at least {} mm needed)",
                 distance * 1e3,
@@ -90,7 +99,7 @@ pub fn targets_problem(a: &Vec3, b: &Vec3, c: &Vec3) -> Option<String> {
     }
     let (ab, ac) = (b - a, c - a);
     let sine = ab.cross(&ac).norm() / (ab.norm() * ac.norm());
-    if sine < MIN_TARGET_ANGLE.sin() {
+    if sine.is_nan() || sine < MIN_TARGET_ANGLE.sin() {
         return Some(format!(
             "targets A, B, C are collinear (AB and AC are {:.3}° from parallel; at least {}° needed)",
             sine.clamp(0.0, 1.0).asin().to_degrees(),

@@ -215,6 +215,13 @@ fn round_trip(seed: u64, extra: &[&str]) -> RoundTrip {
     args.extend_from_slice(extra);
     let run = treecal(&args);
     assert_success(&run, "calibrate");
+    // Good data: verdict ok, and no false alarm.
+    assert!(!run.stderr.contains("treecal: warning"), "{run}");
+    assert_eq!(
+        read_json(&out.join("report.json"))["verdict"]["status"],
+        "ok",
+        "{run}"
+    );
     RoundTrip {
         robot,
         flexibility,
@@ -399,6 +406,8 @@ fn robonaut2_staged_fit_through_the_cli() {
     ]);
     assert_success(&run, "calibrate robonaut 2");
     let report = read_json(&out.join("report.json"));
+    assert_eq!(report["verdict"]["status"], "ok", "{run}");
+    assert!(!run.stderr.contains("treecal: warning"), "{run}");
     assert_eq!(report["context"]["plan"], "staged", "{report}");
 
     let calibrated_path = out.join("calibrated.urdf");
@@ -495,7 +504,7 @@ fn rigid_simultaneous(
         flexibility: None,
         plan: &plan,
         options: &options,
-        fit_measurement_frame: false,
+        measurement_frame: treecal::calibration::MeasurementFrame::Base,
     };
     run_calibration(&input, measurements, &[]).unwrap()
 }
@@ -803,7 +812,19 @@ fn a_seeded_fifth_is_held_out() {
         .iter()
         .map(|name| {
             let out = dir.path().join(name);
-            let run = calibrate_into(&out, &["--measurements", path_str(&csv), "--seed", "3"]);
+            // The simulated robot deflects by centimetres: compensated, or the verdict fails.
+            let stiffness = stiffness_path();
+            let run = calibrate_into(
+                &out,
+                &[
+                    "--measurements",
+                    path_str(&csv),
+                    "--stiffness",
+                    path_str(&stiffness),
+                    "--seed",
+                    "3",
+                ],
+            );
             assert_success(&run, "calibrate");
             assert!(
                 run.stderr.contains("8 of 60 observations held out"),
@@ -826,7 +847,8 @@ fn a_seeded_fifth_is_held_out() {
     assert_eq!(reports[0], reports[1], "the same seed, the same report");
 }
 
-/// The same round trip with the measurement frame fitted (the default) instead of given: the
+/// The same round trip with the measurement frame fitted (`--measurement-frame fit`; the
+/// default `auto` would see that the data are in the root frame) instead of given: the
 /// closed-form fit is off by the geometric errors (centimetres, a degree), which rigid
 /// kinematics absorbs but the deflections do not; the joint refinement of the frame brings the
 /// calibrated robot, placed in the refined frame, to the noise floor again (without it: about
@@ -839,7 +861,7 @@ fn round_trip_with_a_fitted_frame_reaches_the_noise_floor() {
         truth,
         mut rng,
         dir,
-    } = round_trip(52, &[]);
+    } = round_trip(52, &["--measurement-frame", "fit"]);
     let out = dir.path().join("out");
     let report = read_json(&out.join("report.json"));
     let refinement = &report["frame_refinement"];

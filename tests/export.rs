@@ -564,3 +564,350 @@ fn cli_export_refuses_unknown_parameter_names() {
     ]);
     assert_error(&run, &["params.yaml", "calibrated"], "missing value");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Tools carried by a revolute joint, off its axis (a palm on the wrist joint)
+
+/// How far a tool's calibrated origin lies off the axis of the last joint (m).
+fn off_axis(model: &McpcModel, tool: usize) -> f64 {
+    model.tools()[tool]
+        .constant_transform()
+        .translation
+        .vector
+        .xy()
+        .norm()
+}
+
+/// Palms as the wrist joints' children, every parameter perturbed (the palms end up
+/// centimetres off the wrist axes): refused by default with a way out; exported with the
+/// offsets dropped when they are within the given tolerances (orientation exact, position off
+/// by exactly the reported offset); exported with `<palm>_calibrated` links at the exact tool
+/// frames (1e-9) when asked; `check_urdf` accepts both files.
+#[test]
+fn palm_on_the_wrist_joint_is_exported_dropped_or_with_an_added_link() {
+    use treecal::urdf::{export_urdf_with, ExportOptions};
+    let tools = ["l_hand", "r_hand"];
+    let calibrated = case(humanoid_with_palms_on_wrists(), Some(&tools), Some(21));
+    let (tree, model) = (&calibrated.tree, &calibrated.model);
+    let offsets: Vec<f64> = (0..2).map(|t| off_axis(model, t)).collect();
+    assert!(offsets.iter().all(|&d| d > 1e-3), "{offsets:?}");
+
+    let message = export_urdf(&calibrated.text, "palms", tree, model)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("l_hand")
+            && message.contains("--add-tool-links")
+            && message.contains("l_hand_calibrated"),
+        "{message}"
+    );
+
+    // Dropped: within a (generous) tolerance of 10 cm.
+    let mut options = ExportOptions::default();
+    for tool in tools {
+        options.tool_tolerances.insert(tool.into(), 0.1);
+    }
+    let report = export_urdf_with(&calibrated.text, "palms", tree, model, &options).unwrap();
+    assert_eq!(report.dropped.len(), 2, "{:?}", report.dropped);
+    assert!(report.added_links.is_empty());
+    for (dropped, offset) in report.dropped.iter().zip(&offsets) {
+        assert!(
+            (dropped.offset_mm - offset * 1e3).abs() < 1e-9,
+            "{dropped:?}"
+        );
+        assert_eq!(dropped.tolerance_mm, 100.0);
+    }
+    let exported = parse_urdf(&report.urdf, "dropped").unwrap().tree;
+    let mut random = rng(22);
+    for _ in 0..CONFIGURATIONS {
+        let q = random_configuration(tree, &mut random);
+        let poses = exported.link_poses(&q).unwrap();
+        for (t, tool_pose) in model.tool_poses(&q).iter().enumerate() {
+            let got = &poses[model.tools()[t].link.0];
+            let (position, rotation) = pose_gap(got, tool_pose);
+            assert!(rotation < TOLERANCE, "orientation is exported exactly");
+            assert!(
+                (position - offsets[t]).abs() < TOLERANCE,
+                "{position} vs {}",
+                offsets[t]
+            );
+        }
+    }
+    check_urdf_accepts(&report.urdf, "palms, offsets dropped");
+
+    // Added links at the exact calibrated frames.
+    let options = ExportOptions {
+        add_tool_links: true,
+        ..ExportOptions::default()
+    };
+    let report = export_urdf_with(&calibrated.text, "palms", tree, model, &options).unwrap();
+    assert!(report.dropped.is_empty());
+    let added: Vec<&str> = report.added_links.iter().map(|a| a.link.as_str()).collect();
+    assert_eq!(added, ["l_hand_calibrated", "r_hand_calibrated"]);
+    let exported = parse_urdf(&report.urdf, "added").unwrap().tree;
+    assert_eq!(exported.links().len(), tree.links().len() + 2);
+    let mut random = rng(23);
+    for _ in 0..CONFIGURATIONS {
+        let q = random_configuration(tree, &mut random);
+        let poses = exported.link_poses(&q).unwrap();
+        for (t, tool_pose) in model.tool_poses(&q).iter().enumerate() {
+            let link = exported.link_id(added[t]).unwrap();
+            assert_close(&poses[link.0], tool_pose, TOLERANCE, added[t]);
+        }
+        // Every modelled link but the palms is where the model puts it.
+        for (f, link_pose) in model.link_poses(&q).iter().enumerate() {
+            let link = tree.joint(model.frames()[f].joint).child;
+            let name = &tree.link(link).name;
+            if !tools.contains(&name.as_str()) {
+                let exported_link = exported.link_id(name).unwrap();
+                assert_close(&poses[exported_link.0], link_pose, TOLERANCE, name);
+            }
+        }
+    }
+    check_urdf_accepts(&report.urdf, "palms, tool links added");
+    // Exporting the result again with the flag would add the links a second time: refused.
+    let again = parse_urdf(&report.urdf, "again").unwrap().tree;
+    let branches = branches_with_tools(&again, Some(&tools));
+    let mut model_again = McpcModel::from_tree(&again, &branches).unwrap();
+    model_again.set_parameters(&model.parameters()).unwrap();
+    let message = export_urdf_with(&report.urdf, "again", &again, &model_again, &options)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("already has a link 'l_hand_calibrated'"),
+        "{message}"
+    );
+
+    // A palm put back on its axis exports exactly, with nothing dropped or added.
+    let mut on_axis = case(humanoid_with_palms_on_wrists(), Some(&tools), Some(21));
+    let mut values = on_axis.model.parameters();
+    for t in 0..2 {
+        let transform = on_axis.model.tools()[t].constant_transform();
+        let along = treecal::math::Vec3::new(0.0, 0.0, transform.translation.vector.z);
+        let local = transform.rotation.inverse() * along;
+        let offset = on_axis.model.tool_parameter_offset(t);
+        values[offset + 3..offset + 6].copy_from_slice(local.as_slice());
+    }
+    on_axis.model.set_parameters(&values).unwrap();
+    let (report, _) = export_and_check(&on_axis, "palms on their axes");
+    assert!(report.dropped.is_empty() && report.added_links.is_empty());
+}
+
+/// The tolerance from a calibration's standard deviations: 3·√(σx² + σy² + σz² + |t|²·Σσ²_angles);
+/// a tool without position standard deviations keeps the strict 1e-9 m; angles without one
+/// count as exact.
+#[test]
+fn export_tolerance_is_three_sigma_of_the_tool_origin() {
+    use treecal::urdf::ExportOptions;
+    let tools = ["l_hand", "r_hand"];
+    let c = case(humanoid_with_palms_on_wrists(), Some(&tools), Some(21));
+    let mut std_devs = vec![Some(1e-4); c.model.parameter_count()];
+    let right = c.model.tool_parameter_offset(1);
+    std_devs[right + 4] = None; // the right palm's y
+    let left = c.model.tool_parameter_offset(0);
+    std_devs[left] = None; // the left palm's alpha: held, exact
+    let options = ExportOptions::with_uncertainty(&c.tree, &c.model, &std_devs, false);
+    let t = c.model.parameters()[left + 3..left + 6]
+        .iter()
+        .map(|v| v * v)
+        .sum::<f64>();
+    let expected = 3.0 * (3.0e-8 + t * 2.0e-8).sqrt();
+    assert!((options.tolerance("l_hand") - expected).abs() < 1e-15);
+    assert_eq!(
+        options.tolerance("r_hand"),
+        treecal::urdf::export::ON_AXIS_TOLERANCE
+    );
+}
+
+/// The palms-on-wrists humanoid, rigid, simulated (one trial, AT901 noise) with `errors`
+/// (`--angle-error`, `--length-error`) and calibrated through the CLI with `extra` flags.
+fn palms_through_the_cli(dir: &Path, errors: &str, extra: &[&str]) -> (Run, std::path::PathBuf) {
+    let urdf = dir.join("palms.urdf");
+    std::fs::write(&urdf, humanoid_with_palms_on_wrists()).unwrap();
+    // A rigid robot: no self-weight, no payload, so `calibrate` needs no --stiffness.
+    let stiffness = dir.join("stiffness.yaml");
+    std::fs::write(
+        &stiffness,
+        "gravity_m_per_s2: [0, 0, -9.81]\nself_weight: false\npayloads: {}\njoints:\n  default: {bending_nm_per_rad: 5000, torsion_nm_per_rad: 5000}\nlinks:\n  default: {ea_n: 4.420e7, ei_y_nm2: 2.485e4, ei_z_nm2: 2.485e4, gi_p_nm2: 1.846e4}\n",
+    )
+    .unwrap();
+    let csv = dir.join(format!("m{errors}.csv"));
+    let run = treecal(&[
+        "simulate",
+        "--robot",
+        path_str(&urdf),
+        "--stiffness",
+        path_str(&stiffness),
+        "--tools",
+        "l_hand,r_hand",
+        "--trials",
+        "1",
+        "--angle-error",
+        errors,
+        "--length-error",
+        errors,
+        "--write-measurements",
+        path_str(&csv),
+        "--out",
+        path_str(&dir.join("simulate")),
+    ]);
+    assert_success(&run, "simulate");
+    let out = dir.join(format!("out{errors}"));
+    let mut args = vec![
+        "calibrate",
+        "--robot",
+        path_str(&urdf),
+        "--tools",
+        "l_hand,r_hand",
+        "--measurements",
+        path_str(&csv),
+        "--measurement-frame",
+        "base",
+        "--out",
+        path_str(&out),
+    ];
+    args.extend_from_slice(extra);
+    (treecal(&args), out)
+}
+
+/// The calibrated model of `params` (a params.yaml text) on the palms-on-wrists humanoid.
+fn palms_model(params: &str) -> (KinematicTree, McpcModel) {
+    let tree = parse_urdf(&humanoid_with_palms_on_wrists(), "palms")
+        .unwrap()
+        .tree;
+    let branches = branches_with_tools(&tree, Some(&["l_hand", "r_hand"]));
+    let mut model = McpcModel::from_tree(&tree, &branches).unwrap();
+    let values = treecal::io::parse_parameters(params, "params", &tree, &model).unwrap();
+    model.set_parameters(&values.values).unwrap();
+    (tree, model)
+}
+
+/// `urdf`'s `<palm>_calibrated` links are at `params`' calibrated tool frames (1e-9).
+fn assert_added_links_exact(urdf: &str, params: &str) {
+    let (tree, model) = palms_model(params);
+    let with_links = parse_urdf(urdf, "with links").unwrap().tree;
+    let mut random = rng(24);
+    for _ in 0..10 {
+        let q = random_configuration(&tree, &mut random);
+        let poses = with_links.link_poses(&q).unwrap();
+        for (name, tool_pose) in ["l_hand_calibrated", "r_hand_calibrated"]
+            .iter()
+            .zip(model.tool_poses(&q))
+        {
+            let link = with_links.link_id(name).unwrap();
+            assert_close(&poses[link.0], &tool_pose, TOLERANCE, name);
+        }
+    }
+}
+
+/// `treecal calibrate` on the palms-on-wrists humanoid. A true robot with the palms on the
+/// wrist axes (no kinematic errors, AT901 noise): the calibrated palm origin lies off the axis
+/// by noise only, which the export drops and reports; the palms stay the wrist joints' children;
+/// `export --add-tool-links` from params.yaml then has nothing to add, and from a params.yaml
+/// without standard deviations it adds `<palm>_calibrated` links at the exact calibrated tool
+/// frames (1e-9), refusing without the flag.
+#[test]
+fn palm_on_the_wrist_joint_calibrates_and_exports_through_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    let (run, out) = palms_through_the_cli(dir.path(), "0", &[]);
+    assert_success(&run, "calibrate");
+    assert!(run.stderr.contains("moved onto the axis"), "{run}");
+    let calibrated = parse_urdf(&read(&out.join("calibrated.urdf")), "calibrated")
+        .unwrap()
+        .tree;
+    for (palm, joint) in [("l_hand", "l_wrist_roll"), ("r_hand", "r_wrist_roll")] {
+        let parent = calibrated
+            .link(calibrated.link_id(palm).unwrap())
+            .parent_joint
+            .unwrap();
+        assert_eq!(calibrated.joint(parent).name, joint);
+    }
+    let robot = dir.path().join("palms.urdf");
+    let robot = path_str(&robot);
+    let tools = "l_hand,r_hand";
+    let exported = dir.path().join("exported.urdf");
+    let params = out.join("params.yaml");
+    let run = treecal(&[
+        "export",
+        "--robot",
+        robot,
+        "--tools",
+        tools,
+        "--params",
+        path_str(&params),
+        "--add-tool-links",
+        "-o",
+        path_str(&exported),
+    ]);
+    assert_success(&run, "export");
+    assert_eq!(read(&exported), read(&out.join("calibrated.urdf")));
+    let params = read(&params);
+    let stripped: String = params
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("std_dev"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let bare = dir.path().join("bare.yaml");
+    std::fs::write(&bare, &stripped).unwrap();
+    let run = treecal(&[
+        "export",
+        "--robot",
+        robot,
+        "--tools",
+        tools,
+        "--params",
+        path_str(&bare),
+        "-o",
+        path_str(&exported),
+    ]);
+    assert_error(
+        &run,
+        &["l_hand", "--add-tool-links"],
+        "export without std_dev",
+    );
+    let run = treecal(&[
+        "export",
+        "--robot",
+        robot,
+        "--tools",
+        tools,
+        "--params",
+        path_str(&bare),
+        "--add-tool-links",
+        "-o",
+        path_str(&exported),
+    ]);
+    assert_success(&run, "export --add-tool-links");
+    assert!(
+        run.stderr.contains("added link 'l_hand_calibrated'"),
+        "{run}"
+    );
+    assert_added_links_exact(&read(&exported), &params);
+}
+
+/// A true robot whose palms sit centimetres off the wrist axes (`simulate`'s default errors):
+/// `calibrate`'s verdict fails, naming `--add-tool-links`, and writes params.yaml and the
+/// reports but no calibrated.urdf; with it, calibrated.urdf has the
+/// `<palm>_calibrated` links at the calibrated tool frames (1e-9).
+#[test]
+fn palm_off_the_wrist_axis_needs_added_tool_links() {
+    let dir = tempfile::tempdir().unwrap();
+    let (run, out) = palms_through_the_cli(dir.path(), "0.05", &[]);
+    assert!(!out.join("calibrated.urdf").exists(), "{run}");
+    assert!(out.join("params.yaml").exists(), "{run}");
+    assert_failed_verdict(
+        &run,
+        &["l_hand", "mm off the joint axis", "--add-tool-links"],
+        "calibrate",
+    );
+    let (run, out) = palms_through_the_cli(dir.path(), "0.05", &["--add-tool-links"]);
+    assert_success(&run, "calibrate --add-tool-links");
+    assert!(
+        run.stderr.contains("added link 'r_hand_calibrated'"),
+        "{run}"
+    );
+    assert_added_links_exact(
+        &read(&out.join("calibrated.urdf")),
+        &read(&out.join("params.yaml")),
+    );
+}

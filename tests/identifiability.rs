@@ -627,9 +627,21 @@ fn check_reads_a_measurement_file() {
     assert!(run.stdout.contains("stage torso:"), "{run}");
     assert!(run.stdout.contains("rank 56 of 56"), "{run}");
     assert!(run.stdout.ends_with("verdict: well conditioned\n"), "{run}");
-    // In metres the same numbers are 1000× off: the joint values in degrees read as radians
-    // break the limits (warnings), but the file still reads.
-    let wrong = treecal(&["check", "--measurements", example.to_str().unwrap()]);
-    assert_success(&wrong, "check --measurements without units");
-    assert!(wrong.stderr.contains("outside the limits"), "{wrong}");
+    // Without the flags the file's units comment (`# units: length=mm angle=deg`) decides: the
+    // same report; a flag that contradicts it is an error.
+    let plain = treecal(&["check", "--measurements", example.to_str().unwrap()]);
+    assert_success(&plain, "check --measurements without unit flags");
+    assert_eq!(plain.stdout, run.stdout);
+    let wrong = treecal(&[
+        "check",
+        "--measurements",
+        example.to_str().unwrap(),
+        "--angle-unit",
+        "rad",
+    ]);
+    assert_error(
+        &wrong,
+        &["--angle-unit rad contradicts", "angle=deg"],
+        "conflict",
+    );
 }

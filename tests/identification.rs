@@ -324,6 +324,7 @@ fn staged_and_simultaneous_plans_agree() {
     )
     .unwrap();
     assert_eq!(staged.stages.len(), 2);
+    assert!(staged.notes.is_empty(), "{:?}", staged.notes);
     assert_eq!(staged.stages[0].locked_tools, 4, "two locks × two arms");
     let torso = &staged.stages[0].identification;
     assert_eq!(
@@ -630,4 +631,82 @@ fn noise_free_round_trip_with_flexibility() {
     let none = error_of(Compensation::None);
     eprintln!("validation position error: linear eq. (26) {linear:.3e} m, without compensation {none:.3e} m");
     assert!(linear < 0.5 * none, "linear {linear} vs none {none}");
+}
+
+/// A robot with no movable torso joint (Robonaut with its torso joints made fixed): the staged
+/// plan skips its torso stage and says so (an `empty-torso` note that counts the unused torso
+/// rows, passed on to the calibration's findings), and its result is exactly that of the arms
+/// stage alone. (Robonaut with its torso gets no note: `staged_and_simultaneous_plans_agree`.)
+#[test]
+fn staged_plan_on_an_empty_torso_skips_the_torso_stage() {
+    use treecal::calibration::{calibrate, Compensation, ParameterSet, Plan, Stage};
+    let mut text = std::fs::read_to_string(robot("robonaut/robonaut.urdf")).unwrap();
+    for joint in ["torso_joint1", "torso_joint2"] {
+        let revolute = format!("<joint name=\"{joint}\" type=\"revolute\">");
+        assert!(text.contains(&revolute));
+        text = text.replace(
+            &revolute,
+            &format!("<joint name=\"{joint}\" type=\"fixed\">"),
+        );
+    }
+    let tree = treecal::parse_urdf(&text, "no torso").unwrap().tree;
+    let branches = detect_branches(&tree, None).unwrap();
+    assert!(branches.coupled.dofs(&tree).is_empty());
+    let nominal = McpcModel::from_tree(&tree, &branches).unwrap();
+    let truth = perturbed(&nominal, 5);
+    let mut measurements = torso_measurements(&tree, &truth, 6, 2, 42);
+    let torso_rows = measurements.len();
+    for mut m in measure(&tree, &truth, 20, 43, false) {
+        m.stage = Some("arms".into());
+        measurements.push(m);
+    }
+    let options = IdentificationOptions::default();
+    let run = |plan: &Plan| {
+        calibrate(
+            &branches,
+            &nominal,
+            &measurements,
+            Compensation::None,
+            plan,
+            &options,
+        )
+        .unwrap()
+    };
+    let staged = run(&Plan::staged());
+    let arms_only = run(&Plan {
+        stages: vec![Stage {
+            name: "arms".into(),
+            parameters: ParameterSet::Arms,
+            measurements: Some("arms".into()),
+        }],
+    });
+    assert_eq!(staged.stages.len(), 1);
+    assert_eq!(staged.stages[0].name, "arms");
+    assert_eq!(staged.model.parameters(), arms_only.model.parameters());
+    assert_eq!(staged.notes.len(), 1, "{:?}", staged.notes);
+    let note = &staged.notes[0];
+    assert_eq!(note.code, "empty-torso");
+    assert_eq!(note.status, treecal::calibration::Status::Ok);
+    assert!(
+        note.message.contains("torso stage 'torso' is skipped")
+            && note
+                .message
+                .contains(&format!("its {torso_rows} measurements are not used")),
+        "{}",
+        note.message
+    );
+    assert!(arms_only.notes.is_empty());
+    // Without torso rows at all the staged plan runs too (before, the torso stage demanded them).
+    let arms_rows: Vec<_> = measurements[torso_rows..].to_vec();
+    let staged = calibrate(
+        &branches,
+        &nominal,
+        &arms_rows,
+        Compensation::None,
+        &Plan::staged(),
+        &options,
+    )
+    .unwrap();
+    assert_eq!(staged.model.parameters(), arms_only.model.parameters());
+    assert!(!staged.notes[0].message.contains("not used"));
 }

@@ -342,3 +342,122 @@ fn urdf_to_mcpc_to_urdf_round_trip() {
         );
     }
 }
+
+/// A palm that is the child link of the wrist joint (no fixed tool joint) survives
+/// URDF → table → URDF: the table names the palm as the last row's link and as the tool, and
+/// the regenerated URDF moves the palm with the wrist joint again (tool poses to 1e-9).
+#[test]
+fn palm_on_the_wrist_joint_round_trips_through_a_table() {
+    let text = humanoid_with_palms_on_wrists();
+    let tools = ["l_hand", "r_hand"];
+    check_round_trip(&text, "palms on wrists", Some(&tools));
+
+    let tree = treecal::parse_urdf(&text, "palms").unwrap().tree;
+    let branches = branches_with_tools(&tree, Some(&tools));
+    let model = McpcModel::from_tree(&tree, &branches).unwrap();
+    let table = treecal::McpcTable::from_model(&tree, &branches, &model).unwrap();
+    let carried: Vec<&str> = table
+        .branches
+        .iter()
+        .filter_map(|b| b.carried_tool().map(|t| t.link.as_str()))
+        .collect();
+    assert_eq!(carried, tools);
+    let urdf = treecal::urdf_from_mcpc_table(&table, "palms");
+    let regenerated = treecal::parse_urdf(&urdf, "regenerated").unwrap().tree;
+    for (tool, joint) in tools.iter().zip(["l_wrist_roll", "r_wrist_roll"]) {
+        let parent = regenerated
+            .link(regenerated.link_id(tool).unwrap())
+            .parent_joint
+            .unwrap();
+        assert_eq!(regenerated.joint(parent).name, joint, "{urdf}");
+    }
+}
+
+/// A table whose palm (the last row's link) lies off the wrist axis cannot be a URDF joint's
+/// child: the joint then moves a `<palm>_mount` link and the palm hangs below it, at the same
+/// pose (1e-9); a tool sharing a name with any other row is still rejected.
+#[test]
+fn palm_off_the_wrist_axis_gets_a_mount_link() {
+    use treecal::io::parse_mcpc_table;
+    let text = humanoid_with_palms_on_wrists();
+    let tools = ["l_hand", "r_hand"];
+    let tree = treecal::parse_urdf(&text, "palms").unwrap().tree;
+    let branches = branches_with_tools(&tree, Some(&tools));
+    let model = McpcModel::from_tree(&tree, &branches).unwrap();
+    let mut table = treecal::McpcTable::from_model(&tree, &branches, &model).unwrap();
+    let arm = table
+        .branches
+        .iter_mut()
+        .find(|b| b.carried_tool().is_some_and(|t| t.link == "l_hand"))
+        .unwrap();
+    arm.tool.as_mut().unwrap().x += 0.004;
+    let expected = arm.tool.as_ref().unwrap().transform();
+    let urdf = treecal::urdf_from_mcpc_table(&table, "off axis");
+    let regenerated = treecal::parse_urdf(&urdf, "off axis").unwrap().tree;
+    let mount = regenerated.link_id("l_hand_mount").unwrap();
+    let palm = regenerated.link_id("l_hand").unwrap();
+    let q = regenerated.zero_configuration();
+    let base_from_mount = regenerated.link_pose(mount, &q).unwrap();
+    let base_from_palm = regenerated.link_pose(palm, &q).unwrap();
+    // The mount is the moved wrist frame; the palm sits at the tool transform below it.
+    assert_pose_eq(
+        &(base_from_mount.inverse() * base_from_palm),
+        &expected,
+        1e-9,
+        "palm below its mount",
+    );
+    let parent_of_mount = regenerated.link(mount).parent_joint.unwrap();
+    assert_eq!(regenerated.joint(parent_of_mount).name, "l_wrist_roll");
+
+    let duplicate = "robot: r\nunits: {angle: deg, length: mm}\nbranches:\n  - name: a\n    rows:\n      - {joint: j1, link: l1, alpha: 0, beta: 0, x: 0, y: 0}\n      - {joint: j2, link: l2, alpha: 0, beta: 0, x: 10, y: 0}\n    tool: {link: l1, alpha: 0, beta: 0, gamma: 0, x: 0, y: 0, z: 5}\n";
+    let message = parse_mcpc_table(duplicate, "t.yaml")
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("'l1' is used twice"), "{message}");
+    let carried = duplicate.replace("tool: {link: l1", "tool: {link: l2");
+    let table = parse_mcpc_table(&carried, "t.yaml").unwrap();
+    assert!(table.branches[0].carried_tool().is_some());
+}
+
+/// The failing commands: `to-mcpc` then `from-mcpc` on a robot whose palms are the
+/// wrist joints' children (before: "link name 'l_hand' is used twice"); the generated URDF's
+/// palms are at the original palm poses (1e-9) at random configurations.
+#[test]
+fn cli_to_mcpc_and_from_mcpc_keep_a_palm_on_the_wrist_joint() {
+    use crate::common::cli::*;
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = dir.path().join("palms.urdf");
+    let text = humanoid_with_palms_on_wrists();
+    std::fs::write(&urdf, &text).unwrap();
+    let table = dir.path().join("table.yaml");
+    let run = treecal(&[
+        "to-mcpc",
+        path_str(&urdf),
+        "--tools",
+        "l_hand,r_hand",
+        "-o",
+        path_str(&table),
+    ]);
+    assert_success(&run, "to-mcpc");
+    let generated = dir.path().join("generated.urdf");
+    let run = treecal(&["from-mcpc", path_str(&table), "-o", path_str(&generated)]);
+    assert_success(&run, "from-mcpc");
+    let tree = treecal::parse_urdf(&text, "palms").unwrap().tree;
+    let regenerated = treecal::load_urdf(&generated).unwrap().tree;
+    let mut random = rng(12);
+    for _ in 0..20 {
+        let q = random_configuration(&tree, &mut random);
+        let mut q_again = regenerated.zero_configuration();
+        for (dof, joint) in regenerated.dofs().iter().enumerate() {
+            let original = tree.joint_id(&regenerated.joint(*joint).name).unwrap();
+            q_again[dof] = tree.joint_value(original, &q);
+        }
+        for palm in ["l_hand", "r_hand"] {
+            let expected = tree.link_pose(tree.link_id(palm).unwrap(), &q).unwrap();
+            let got = regenerated
+                .link_pose(regenerated.link_id(palm).unwrap(), &q_again)
+                .unwrap();
+            assert_pose_eq(&got, &expected, 1e-9, palm);
+        }
+    }
+}

@@ -154,13 +154,10 @@ fn round_trips_in_millimetres_degrees_and_three_targets() {
             three_targets,
         };
         let text = measurements_to_csv_with(&tree, &model, &written, &write).unwrap();
-        assert!(
-            text.starts_with("# lengths in mm, angles in deg\n"),
-            "{text}"
-        );
+        assert!(text.starts_with("# units: length=mm angle=deg\n"), "{text}");
         let read_options = MeasurementReadOptions {
-            length_unit: LengthUnit::Millimetre,
-            angle_unit: AngleUnit::Degree,
+            length_unit: Some(LengthUnit::Millimetre),
+            angle_unit: Some(AngleUnit::Degree),
             ..Default::default()
         };
         let read = parse_measurements(&text, "mm.csv", &tree, &model, &read_options).unwrap();
@@ -175,8 +172,24 @@ fn round_trips_in_millimetres_degrees_and_three_targets() {
             ObservationKind::Pose
         };
         assert_eq!(read.observation, kind);
-        // Read in the wrong units, the same file gives other numbers.
-        let wrong = parse_measurements(&text, "mm.csv", &tree, &model, &Default::default());
+        // Without flags the units comment decides; a flag against it is an error; without the
+        // comment the same numbers read in metres and radians are other measurements.
+        let from_comment =
+            parse_measurements(&text, "mm.csv", &tree, &model, &Default::default()).unwrap();
+        assert_same(&from_comment, &written);
+        let against = MeasurementReadOptions {
+            angle_unit: Some(AngleUnit::Radian),
+            ..Default::default()
+        };
+        let conflict = parse_measurements(&text, "mm.csv", &tree, &model, &against)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            conflict.starts_with("mm.csv:1: --angle-unit rad contradicts"),
+            "{conflict}"
+        );
+        let bare = text.split_once('\n').unwrap().1;
+        let wrong = parse_measurements(bare, "mm.csv", &tree, &model, &Default::default());
         assert!(wrong.is_err() || wrong.unwrap().measurements != read.measurements);
     }
     let positions = simulated(&tree, &model, 9, false);
@@ -240,8 +253,8 @@ fn unit_flags_scale_lengths_and_angles() {
     ];
     for (length_unit, angle_unit, lift, yaw, position) in cases {
         let options = MeasurementReadOptions {
-            length_unit,
-            angle_unit,
+            length_unit: Some(length_unit),
+            angle_unit: Some(angle_unit),
             ..Default::default()
         };
         let set = parse_measurements(text, "units.csv", &tree, &model, &options).unwrap();
@@ -300,7 +313,7 @@ fn three_targets_give_the_frame_they_were_placed_on() {
             .collect();
         let text = format!("{header}\nleft_tool,0,0,0,0,0,0,0,0,{}\n", cells.join(","));
         let options = MeasurementReadOptions {
-            length_unit: LengthUnit::Millimetre,
+            length_unit: Some(LengthUnit::Millimetre),
             ..Default::default()
         };
         let set = parse_measurements(&text, "targets.csv", &tree, &model, &options).unwrap();
@@ -342,7 +355,13 @@ fn every_bad_value_is_reported_at_its_line_and_column() {
         (format!("{HEADER}\n{ROW},4\n"), &plain, "bad.csv:2", "row has 15 fields but the header has 14"),
         (String::new(), &plain, "bad.csv", "the file is empty"),
         ("# only a comment\n\n".into(), &plain, "bad.csv", "the file is empty"),
-        (format!("# units: m\n{HEADER}\n"), &plain, "bad.csv", "no data rows"),
+        (format!("# made today\n{HEADER}\n"), &plain, "bad.csv", "no data rows"),
+        (
+            format!("# units: m\n{HEADER}\n"),
+            &plain,
+            "bad.csv:1",
+            "'m' in the units comment is not key=value",
+        ),
     ];
     for (text, options, place, expected) in cases {
         let message = error(&text, options, place);
@@ -359,7 +378,7 @@ fn collinear_and_coincident_targets_are_errors() {
     let joints = "left_tool,0,0,0,0,0,0,0,0";
     let good = format!("{header}\nA7,{joints},0,0,0,100,0,0,0,100,0\n");
     let mm = MeasurementReadOptions {
-        length_unit: LengthUnit::Millimetre,
+        length_unit: Some(LengthUnit::Millimetre),
         ..Default::default()
     };
     let set = parse(&good, &mm).unwrap();
@@ -402,7 +421,7 @@ fn collinear_and_coincident_targets_are_errors() {
 fn limits_warn_unless_strict() {
     let text = with_cell("left_joint3", "-170.5");
     let degrees = MeasurementReadOptions {
-        angle_unit: AngleUnit::Degree,
+        angle_unit: Some(AngleUnit::Degree),
         ..Default::default()
     };
     let set = parse(&text, &degrees).unwrap();
@@ -442,7 +461,7 @@ fn continuous_joints_have_no_limits() {
     // The prismatic lift is limited to [0, 0.4] m, i.e. [0, 400] mm.
     let text = text.replace("0.1,", "500,");
     let options = MeasurementReadOptions {
-        length_unit: LengthUnit::Millimetre,
+        length_unit: Some(LengthUnit::Millimetre),
         ..Default::default()
     };
     let set = parse_measurements(&text, "c.csv", &tree, &model, &options).unwrap();
@@ -642,4 +661,115 @@ fn corrupted_files_never_panic() {
         }
     }
     assert!(ok > 10 && err > 100, "{ok} accepted, {err} rejected");
+}
+
+/// Prismatic joint values logged in metres beside a tracker in millimetres:
+/// `joint_length=m` in the units comment (or `--joint-length-unit m`) reads them right.
+#[test]
+fn prismatic_values_may_have_their_own_unit() {
+    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let written = simulated(&tree, &model, 8, true);
+    let write = MeasurementWriteOptions {
+        length_unit: LengthUnit::Millimetre,
+        angle_unit: AngleUnit::Degree,
+        three_targets: false,
+    };
+    let text = measurements_to_csv_with(&tree, &model, &written, &write).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let header: Vec<String> = lines[1].split(',').map(str::to_owned).collect();
+    let prismatic: Vec<usize> = header
+        .iter()
+        .enumerate()
+        .filter(|(_, name)| {
+            tree.joint_id(name)
+                .is_ok_and(|j| tree.joint(j).kind == treecal::tree::JointKind::Prismatic)
+        })
+        .map(|(column, _)| column)
+        .collect();
+    assert!(!prismatic.is_empty());
+    for line in &mut lines[2..] {
+        let mut fields: Vec<String> = line.split(',').map(str::to_owned).collect();
+        for &column in &prismatic {
+            let mm: f64 = fields[column].parse().unwrap();
+            fields[column] = format!("{}", mm / 1e3);
+        }
+        *line = fields.join(",");
+    }
+    lines[0] = "# units: length=mm angle=deg joint_length=m".into();
+    let metres = lines.join("\n");
+    let read = parse_measurements(&metres, "j.csv", &tree, &model, &Default::default()).unwrap();
+    assert_same(&read, &written);
+    assert_eq!(read.units.joint_length, LengthUnit::Metre);
+    // The same through the option, with the comment silent about it.
+    lines[0] = "# units: length=mm angle=deg".into();
+    let flag = MeasurementReadOptions {
+        joint_length_unit: Some(LengthUnit::Metre),
+        ..Default::default()
+    };
+    let read = parse_measurements(&lines.join("\n"), "j.csv", &tree, &model, &flag).unwrap();
+    assert_same(&read, &written);
+}
+
+/// Joint values in the wrong angle unit are one diagnosis naming `--angle-unit`, not a warning
+/// per value; a few values outside their limits stay warnings, at most five listed.
+#[test]
+fn angle_unit_mistakes_are_one_diagnosis() {
+    let (tree, model) = load("robonaut/robonaut.urdf");
+    let written = simulated(&tree, &model, 5, true);
+    let degrees = MeasurementWriteOptions {
+        angle_unit: AngleUnit::Degree,
+        ..Default::default()
+    };
+    let text = measurements_to_csv_with(&tree, &model, &written, &degrees).unwrap();
+    let bare = text.split_once('\n').unwrap().1;
+    let error = parse_measurements(bare, "d.csv", &tree, &model, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.starts_with("d.csv: ") && error.contains("look like degrees; give --angle-unit deg"),
+        "{error}"
+    );
+    // Read with its units comment, the same file is fine and warns of nothing.
+    let read = parse_measurements(&text, "d.csv", &tree, &model, &Default::default()).unwrap();
+    assert!(read.warnings.is_empty(), "{:?}", read.warnings);
+
+    let radians = measurements_to_csv(&tree, &model, &written).unwrap();
+    let as_degrees = MeasurementReadOptions {
+        angle_unit: Some(AngleUnit::Degree),
+        ..Default::default()
+    };
+    let error = parse_measurements(&radians, "r.csv", &tree, &model, &as_degrees)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("look like radians; give --angle-unit rad"),
+        "{error}"
+    );
+
+    // Seven values just outside their limits: warnings, five listed and the rest counted.
+    let mut lines: Vec<String> = radians.lines().map(str::to_owned).collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let column = header.iter().position(|h| *h == "left_joint2").unwrap();
+    let joint = tree.joint(tree.joint_id("left_joint2").unwrap());
+    let upper = joint.limits.unwrap().upper;
+    let rows = lines.len();
+    for line in &mut lines[1..rows.min(8)] {
+        let mut fields: Vec<String> = line.split(',').map(str::to_owned).collect();
+        fields[column] = format!("{}", upper + 0.01);
+        *line = fields.join(",");
+    }
+    let read = parse_measurements(
+        &lines.join("\n"),
+        "l.csv",
+        &tree,
+        &model,
+        &Default::default(),
+    )
+    .unwrap();
+    assert_eq!(read.warnings.len(), 6, "{:?}", read.warnings);
+    assert!(
+        read.warnings[5].contains("2 more joint values"),
+        "{:?}",
+        read.warnings
+    );
 }

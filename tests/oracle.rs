@@ -26,7 +26,7 @@ const TOLERANCE: f64 = 1e-9;
 /// At most this many individual disagreements are listed in a failure message.
 const MAX_LISTED: usize = 10;
 
-fn oracle_script() -> PathBuf {
+pub(crate) fn oracle_script() -> PathBuf {
     repo().join("tests/oracle/pinocchio_fk.py")
 }
 
@@ -84,16 +84,7 @@ pub(crate) fn pinocchio_poses(
 ) -> Vec<Vec<Pose>> {
     let joint_values: Vec<Value> = configurations
         .iter()
-        .map(|q| {
-            let mut values = serde_json::Map::new();
-            for (index, joint) in tree.joints().iter().enumerate() {
-                if joint.kind.is_movable() {
-                    let id = treecal::tree::JointId(index);
-                    values.insert(joint.name.clone(), json!(tree.joint_value(id, q)));
-                }
-            }
-            Value::Object(values)
-        })
+        .map(|q| joint_values_json(tree, q))
         .collect();
     let request = json!({ "links": links, "configurations": joint_values }).to_string();
 
@@ -148,8 +139,20 @@ pub(crate) fn pinocchio_poses(
         .collect()
 }
 
+/// The value of every movable joint (mimic joints included, computed by treecal) by name.
+pub(crate) fn joint_values_json(tree: &KinematicTree, q: &[f64]) -> Value {
+    let mut values = serde_json::Map::new();
+    for (index, joint) in tree.joints().iter().enumerate() {
+        if joint.kind.is_movable() {
+            let id = treecal::tree::JointId(index);
+            values.insert(joint.name.clone(), json!(tree.joint_value(id, q)));
+        }
+    }
+    Value::Object(values)
+}
+
 /// A 4×4 homogeneous transform, row-major, as a pose.
-fn pose_from_row_major(m: &[f64], link: &str) -> Pose {
+pub(crate) fn pose_from_row_major(m: &[f64], link: &str) -> Pose {
     assert_eq!(
         m.len(),
         16,

@@ -224,6 +224,12 @@ pub fn weighted_jacobian(
             }
         }
     }
+    // Every decomposition of identifiability starts from this matrix.
+    let squares = jacobian.norm_squared();
+    crate::limits::ensure_finite(
+        jacobian.iter().chain([&squares]),
+        "identifiability: the weighted Jacobian",
+    )?;
     Ok(jacobian)
 }
 
@@ -243,7 +249,11 @@ pub fn scaled_jacobian(
 
 /// The singular values of a weighted Jacobian after column scaling, largest first: what
 /// [`criterion_value`] and [`observability_indices`] take. One value per column.
+/// A matrix with a non-finite entry gives NaN values (its decomposition would never end).
 pub fn scaled_singular_values(weighted: &DMatrix<f64>) -> Vec<f64> {
+    if !weighted.iter().all(|v| v.is_finite()) {
+        return vec![f64::NAN; weighted.ncols()];
+    }
     let scales = column_scales(weighted);
     let (values, _) = singular_decomposition(scale_columns(weighted, &scales));
     let mut values: Vec<f64> = values.iter().copied().collect();
@@ -345,6 +355,9 @@ pub struct IdentifiabilityReport {
     pub poorly_determined: Vec<NamedCombination>,
     /// The condition limit the verdict used.
     pub condition_limit: f64,
+    /// Unidentifiable directions the observation type explains: with positions only, the
+    /// orientation (3 parameters) of every observed tool, which no measured point can see.
+    pub expected_unidentifiable: usize,
 }
 
 impl IdentifiabilityReport {
@@ -356,6 +369,44 @@ impl IdentifiabilityReport {
     /// Full rank and a condition number within the limit.
     pub fn is_well_conditioned(&self) -> bool {
         self.rank == self.parameter_count() && self.condition_number <= self.condition_limit
+    }
+
+    /// What a user must hear about this pose set before measuring it: fewer equations than
+    /// identifiable parameters, or a rank deficiency beyond what the observation type explains
+    /// ([`Self::expected_unidentifiable`]). Empty when neither.
+    pub fn warnings(&self) -> Vec<String> {
+        let count = self.parameter_count();
+        let identifiable = count.saturating_sub(self.expected_unidentifiable);
+        let explained = if self.expected_unidentifiable > 0 {
+            format!(
+                " (not counting the {} tool orientation parameters that position-only data cannot see)",
+                self.expected_unidentifiable
+            )
+        } else {
+            String::new()
+        };
+        let mut warnings = Vec::new();
+        if self.rows < identifiable {
+            warnings.push(format!(
+                "{} equations for {identifiable} parameters{explained}: too few to identify them; use at least {} configurations",
+                self.rows,
+                (identifiable * self.configurations.max(1)).div_ceil(self.rows.max(1))
+            ));
+        }
+        if self.rank < identifiable {
+            // A measured point on a joint axis does not move when that joint turns.
+            let hint = if self.expected_unidentifiable > 0 {
+                "; with positions only, a target on the last joint's axis cannot see that axis: place the targets off it"
+            } else {
+                ""
+            };
+            warnings.push(format!(
+                "rank-deficient: rank {} of {identifiable}{explained}; {} parameter combination(s) cannot be identified from these poses{hint}",
+                self.rank,
+                identifiable - self.rank
+            ));
+        }
+        warnings
     }
 
     /// One line: `well conditioned (…)` or `poorly conditioned: …`.
@@ -472,6 +523,15 @@ pub fn analyse(
         .collect();
     let mut distinct: Vec<&[f64]> = analysed_rows.iter().map(|r| r.q.as_slice()).collect();
     distinct.dedup();
+    let expected_unidentifiable = match observation {
+        ObservationKind::Pose => 0,
+        ObservationKind::Position => {
+            let mut tools: Vec<usize> = analysed_rows.iter().map(|r| r.tool).collect();
+            tools.sort_unstable();
+            tools.dedup();
+            3 * tools.len()
+        }
+    };
     Ok(IdentifiabilityReport {
         parameters: options.parameters,
         observations,
@@ -487,6 +547,7 @@ pub fn analyse(
         unidentifiable,
         poorly_determined,
         condition_limit: options.condition_limit,
+        expected_unidentifiable,
     })
 }
 

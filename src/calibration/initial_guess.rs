@@ -28,7 +28,8 @@ pub struct InitialGuess {
     pub rms_after: f64,
 }
 
-fn measured_position(m: &Measurement) -> Vec3 {
+/// The measured position of an observation (the pose's origin, or the point).
+pub(crate) fn measured_position(m: &Measurement) -> Vec3 {
     match &m.observation {
         Observation::Pose(p) => p.translation.vector,
         Observation::Position(p) => *p,
@@ -47,6 +48,10 @@ fn position_rms(model: &McpcModel, measurements: &[Measurement]) -> f64 {
 
 /// The rotation closest (Frobenius) to `m`, via SVD; `None` if `m` is degenerate.
 fn nearest_rotation(m: &Mat3) -> Option<Rotation> {
+    // The SVD of a non-finite matrix never ends.
+    if !m.iter().all(|v| v.is_finite()) {
+        return None;
+    }
     let svd = m.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
     let mut d = Mat3::identity();
@@ -77,6 +82,38 @@ pub fn fit_rigid_transform(from: &[Vec3], to: &[Vec3]) -> Option<Pose> {
     }
     let rotation = nearest_rotation(&covariance)?;
     Some(pose(to_mean - rotation * from_mean, rotation))
+}
+
+/// Umeyama: the scale `s` of the similarity transform `s·R·from + t` closest to `to` (least
+/// squares), `s = trace(D·Σ)/σ²_from` with `Σ` the singular values of the cross-covariance and
+/// `D` the reflection fix; `None` when `from` does not spread (fewer than three points, or all
+/// at one place).
+pub fn fit_similarity_scale(from: &[Vec3], to: &[Vec3]) -> Option<f64> {
+    if from.len() < 3 || from.len() != to.len() {
+        return None;
+    }
+    let n = from.len() as f64;
+    let from_mean = from.iter().sum::<Vec3>() / n;
+    let to_mean = to.iter().sum::<Vec3>() / n;
+    let mut covariance = Mat3::zeros();
+    let mut spread = 0.0;
+    for (a, b) in from.iter().zip(to) {
+        covariance += (b - to_mean) * (a - from_mean).transpose() / n;
+        spread += (a - from_mean).norm_squared() / n;
+    }
+    if spread <= 1e-18 {
+        return None;
+    }
+    let svd = covariance.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let sign = if (u * v_t).determinant() < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let s = svd.singular_values;
+    let scale = (s[0] + s[1] + sign * s[2]) / spread;
+    (scale.is_finite() && scale > 0.0).then_some(scale)
 }
 
 /// Fits the measurement frame and every measured tool's frame in closed form (see the module

@@ -2,6 +2,7 @@
 //!
 //! - [`identifiability`]: rank, condition number, observability indices O1–O5 and the
 //!   unidentifiable parameter combinations of a set of configurations, before measuring.
+//! - [`frame`]: which measurement frame (root, fitted, known), and the unit-scale check.
 //! - [`initial_guess`](mod@initial_guess): closed-form measurement frame and tool frames to start from.
 //! - [`run`]: a calibration from measured data end to end (hold-out, initial guess, plan,
 //!   uncertainties, errors before and after per arm).
@@ -10,27 +11,38 @@
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
 //! - [`stiffness`]: compliance scale factors identified jointly with the MCPC parameters
 //!   (`--identify-stiffness`), and what a set of measurements can determine of them.
+//! - [`robust`]: robust estimation (Huber or Cauchy by IRLS): blunders named and left out.
+//! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
+//!   validation) that feed the verdict.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
+pub mod checks;
+pub mod frame;
 pub mod identifiability;
 pub mod initial_guess;
+mod normal_equations;
 pub mod plan;
+pub mod robust;
 pub mod run;
 pub mod solver;
 pub mod stiffness;
 pub mod verdict;
 
+pub use frame::{
+    check_length_scale, choose_measurement_frame, ChosenFrame, FrameDecision, MeasurementFrame,
+};
 pub use identifiability::{
     analyse, criterion_value, observability_indices, Criterion, IdentifiabilityOptions,
     IdentifiabilityReport, NamedCombination, ObservabilityIndices, ObservationKind, PoseRow,
 };
-pub use initial_guess::{fit_rigid_transform, initial_guess, InitialGuess};
+pub use initial_guess::{fit_rigid_transform, fit_similarity_scale, initial_guess, InitialGuess};
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
 };
+pub use robust::{calibrate_robust, RobustLoss, RobustReport};
 pub use run::{
-    assembled_covariance, hold_out, run_calibration, ArmResiduals, CalibrationInput,
-    CalibrationRun, ErrorSummary, ParameterEstimate,
+    assembled_covariance, hold_out, hold_out_indices, run_calibration, ArmResiduals,
+    CalibrationInput, CalibrationRun, ErrorSummary, ParameterEstimate,
 };
 pub use solver::{
     identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,

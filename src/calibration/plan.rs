@@ -5,6 +5,7 @@ use super::solver::{
     identify, Deflected, DeflectedWithDerivative, IdentificationOptions, IdentificationReport,
     Rigid,
 };
+use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool, ParameterOwner};
 use crate::measurement::Measurement;
@@ -88,6 +89,10 @@ pub struct StageReport {
     /// The solver's report (parameter indices refer to the stage's own model for a coupled
     /// stage, to the full model otherwise).
     pub identification: IdentificationReport,
+    /// Parameters (same indexing) deliberately not freed because the stage's observations
+    /// cannot see them: the orientation (α, β, γ) of a tool measured by positions only. They
+    /// keep their starting values ([`position_only_orientations`]).
+    pub kept: Vec<usize>,
 }
 
 impl StageReport {
@@ -116,6 +121,9 @@ pub struct CalibrationReport {
     /// How many times the plan ran: 1, except for staged plans with exact flexibility
     /// compensation, which repeat until the parameters stop changing (at most [`MAX_CYCLES`]).
     pub cycles: usize,
+    /// What the user should know about how the plan ran (e.g. a torso stage skipped on a robot
+    /// without torso joints, code `empty-torso`).
+    pub notes: Vec<Finding>,
 }
 
 /// The most times a staged plan with exact flexibility compensation is repeated.
@@ -155,6 +163,14 @@ pub fn calibrate(
         });
     }
     let coupled_frames = coupled_frames(model, branches);
+    // A robot with no movable torso joint (arms straight on the base) has nothing for a
+    // coupled stage to identify: such stages are skipped, and said so.
+    let skipped: Vec<bool> = plan
+        .stages
+        .iter()
+        .map(|s| s.parameters == ParameterSet::Coupled && coupled_frames.is_empty())
+        .collect();
+    let notes = skipped_stage_notes(plan, &skipped, measurements);
     // Eq. (26): the linear D_f of every measurement, once, at the starting model.
     let linear_offsets: Option<Vec<Vector6<f64>>> = match compensation {
         Compensation::Linear(source) => Some(
@@ -175,7 +191,8 @@ pub fn calibrate(
     let staged = plan
         .stages
         .iter()
-        .any(|s| s.parameters == ParameterSet::Coupled);
+        .zip(&skipped)
+        .any(|(s, &skip)| s.parameters == ParameterSet::Coupled && !skip);
     let max_cycles = if staged && matches!(compensation, Compensation::Exact(_)) {
         MAX_CYCLES
     } else {
@@ -188,7 +205,14 @@ pub fn calibrate(
     };
     // Each stage's measurements (indices and copies): the same in every cycle.
     let mut stage_inputs: Vec<(Vec<usize>, Vec<Measurement>)> = Vec::new();
-    for stage in &plan.stages {
+    // Each stage's options: the observation weights (robust estimation) of its measurements.
+    let mut stage_options: Vec<IdentificationOptions> = Vec::new();
+    for (stage, &skip) in plan.stages.iter().zip(&skipped) {
+        if skip {
+            stage_inputs.push((Vec::new(), Vec::new()));
+            stage_options.push(options.for_measurements(&[]));
+            continue;
+        }
         let selected: Vec<usize> = (0..measurements.len())
             .filter(|&i| {
                 stage.measurements.is_none() || measurements[i].stage == stage.measurements
@@ -204,6 +228,7 @@ pub fn calibrate(
             });
         }
         let data = selected.iter().map(|&i| measurements[i].clone()).collect();
+        stage_options.push(options.for_measurements(&selected));
         stage_inputs.push((selected, data));
     }
     let mut reports = Vec::new();
@@ -219,6 +244,9 @@ pub fn calibrate(
         let before = current.parameters();
         reports.clear();
         for (index, stage) in plan.stages.iter().enumerate() {
+            if skipped[index] {
+                continue;
+            }
             let (selected, data) = &stage_inputs[index];
             let report = match stage.parameters {
                 ParameterSet::Coupled => {
@@ -255,7 +283,10 @@ pub fn calibrate(
                             }
                             None => locked_arm_model(&current, &coupled_frames, data, &stage.name)?,
                         };
-                        let free: Vec<usize> = (0..stage_model.parameter_count()).collect();
+                        let kept = position_only_orientations(&stage_model, &stage_data);
+                        let free: Vec<usize> = (0..stage_model.parameter_count())
+                            .filter(|p| !kept.contains(p))
+                            .collect();
                         let identification = identify(
                             &stage_model,
                             &stage_data,
@@ -263,7 +294,7 @@ pub fn calibrate(
                             // The reduced model is rigid; its deflections come as offsets.
                             &Rigid,
                             &free,
-                            options,
+                            &stage_options[index],
                         )?;
                         // Copy the torso frames back into the full model.
                         let before = current.parameters();
@@ -295,23 +326,39 @@ pub fn calibrate(
                                 measurements: data.len(),
                                 locked_tools,
                                 identification,
+                                kept,
                             };
                         }
                     }
                 }
                 ParameterSet::Arms | ParameterSet::All => {
-                    let free = stage_parameters(&current, &coupled_frames, stage.parameters);
+                    let kept = position_only_orientations(&current, data);
+                    let free: Vec<usize> =
+                        stage_parameters(&current, &coupled_frames, stage.parameters)
+                            .into_iter()
+                            .filter(|p| !kept.contains(p))
+                            .collect();
                     let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
                         .as_ref()
                         .map(|o| selected.iter().map(|&i| o[i]).collect());
                     // The exact predictor exists exactly under exact compensation.
                     let identification = match &exact_predictor {
-                        Some(predictor) => {
-                            identify(&current, data, None, predictor, &free, options)?
-                        }
-                        None => {
-                            identify(&current, data, offsets.as_deref(), &Rigid, &free, options)?
-                        }
+                        Some(predictor) => identify(
+                            &current,
+                            data,
+                            None,
+                            predictor,
+                            &free,
+                            &stage_options[index],
+                        )?,
+                        None => identify(
+                            &current,
+                            data,
+                            offsets.as_deref(),
+                            &Rigid,
+                            &free,
+                            &stage_options[index],
+                        )?,
                     };
                     current.set_parameters(&identification.parameters)?;
                     StageReport {
@@ -319,6 +366,7 @@ pub fn calibrate(
                         measurements: data.len(),
                         locked_tools: 0,
                         identification,
+                        kept,
                     }
                 }
             };
@@ -343,7 +391,38 @@ pub fn calibrate(
         model: current,
         stages: reports,
         cycles,
+        notes,
     })
+}
+
+/// The `empty-torso` notes of the stages skipped because the robot has no torso frames.
+fn skipped_stage_notes(
+    plan: &Plan,
+    skipped: &[bool],
+    measurements: &[Measurement],
+) -> Vec<Finding> {
+    plan.stages
+        .iter()
+        .zip(skipped)
+        .filter(|(_, &skip)| skip)
+        .map(|(stage, _)| {
+            let unused = measurements
+                .iter()
+                .filter(|m| stage.measurements.is_some() && m.stage == stage.measurements)
+                .count();
+            Finding::note(
+                "empty-torso",
+                format!(
+                    "the robot has no movable torso joints (its arms start at the base), so the plan's torso stage '{}' is skipped{}",
+                    stage.name,
+                    match unused {
+                        0 => String::new(),
+                        n => format!(" and its {n} measurements are not used"),
+                    }
+                ),
+            )
+        })
+        .collect()
 }
 
 /// The model frames of the coupled branch's joints (the torso), parents first.
@@ -353,6 +432,34 @@ pub fn coupled_frames(model: &McpcModel, branches: &Branches) -> Vec<usize> {
         .joints
         .iter()
         .filter_map(|j| model.frame_of_joint(*j))
+        .collect()
+}
+
+/// The orientation parameters (α, β, γ) of every tool that `data` observe, but by positions
+/// only. A measured point does not see how the tool is turned about it, and the tool offsets
+/// x, y, z lie along the tool's own axes, so the unobservable directions mix orientation and
+/// offset: a minimum-norm step would turn the tool (by tens of degrees) while keeping the
+/// point. With the orientation fixed, x, y, z alone place the point and are identifiable, and
+/// the orientation stays at its starting (nominal) value.
+pub fn position_only_orientations(model: &McpcModel, data: &[Measurement]) -> Vec<usize> {
+    let tools = model.tools().len();
+    let mut positions = vec![false; tools];
+    let mut poses = vec![false; tools];
+    for m in data.iter().filter(|m| m.tool < tools) {
+        match m.observation {
+            crate::measurement::Observation::Position(_) => positions[m.tool] = true,
+            crate::measurement::Observation::Pose(_) => poses[m.tool] = true,
+        }
+    }
+    model
+        .parameter_layout()
+        .iter()
+        .enumerate()
+        .filter(|(_, (owner, kind))| {
+            matches!(owner, ParameterOwner::Tool(t) if positions[*t] && !poses[*t])
+                && kind.is_angle()
+        })
+        .map(|(i, _)| i)
         .collect()
 }
 
@@ -497,6 +604,10 @@ impl Anderson {
         }
         // Small least-squares problem: SVD with a relative cut keeps it stable when the
         // differences are nearly parallel.
+        if !delta_f.iter().chain(f.iter()).all(|v| v.is_finite()) {
+            // No SVD of a non-finite matrix (it never ends): take the plain step.
+            return g.as_slice().to_vec();
+        }
         let svd = delta_f.svd(true, true);
         match svd.solve(&f, 1e-10 * svd.singular_values.max()) {
             Ok(gamma) if gamma.iter().all(|v| v.is_finite()) => {

@@ -1,8 +1,11 @@
 //! A calibration from measured data, end to end: hold-out, initial guess, the plan, parameter
 //! uncertainties and the errors before and after, per arm (`treecal calibrate`).
 
-use super::initial_guess::{initial_guess, initial_tool_frames, InitialGuess};
+pub use super::frame::MeasurementFrame;
+use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame, FrameDecision};
+use super::initial_guess::InitialGuess;
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
+use super::robust::{self, calibrate_robust, DataSet, Outlier, RobustLoss, RobustReport};
 use super::solver::{Deflected, IdentificationOptions};
 use super::verdict::Finding;
 use crate::error::{Error, Result};
@@ -32,9 +35,9 @@ pub struct CalibrationInput<'a> {
     pub plan: &'a Plan,
     /// Row weights, tolerances.
     pub options: &'a IdentificationOptions,
-    /// Fit the measurement frame in closed form (`true`), or take the measurements to be in
-    /// the robot's root frame already (`false`; tool frames are still fitted).
-    pub fit_measurement_frame: bool,
+    /// Where the measurements are: fitted, the root frame, a known registration, or `Auto`
+    /// (see [`MeasurementFrame`]); the tool frames are always fitted.
+    pub measurement_frame: MeasurementFrame,
 }
 
 /// One MCPC parameter before and after, with its uncertainty: a row of the paper's Table 2.
@@ -114,6 +117,8 @@ pub struct ArmResiduals {
 pub struct CalibrationRun {
     /// The closed-form start: measurement frame and tool frames.
     pub guess: InitialGuess,
+    /// Which measurement frame was used and why.
+    pub frame: FrameDecision,
     /// With flexibility compensation and a fitted measurement frame: how the frame was
     /// refined jointly with the parameters (`None` otherwise).
     pub frame_refinement: Option<FrameRefinement>,
@@ -135,6 +140,12 @@ pub struct CalibrationRun {
     /// [`Verdict::from_findings`](super::verdict::Verdict::from_findings) turns them into
     /// the verdict.
     pub findings: Vec<Finding>,
+    /// What the robust estimation did (loss, scale, weights and residuals of the
+    /// identification data).
+    pub robust: RobustReport,
+    /// The measurements named as outliers, identification then validation: left out of the
+    /// fit and of the error statistics (`identification`, `validation`).
+    pub outliers: Vec<Outlier>,
 }
 
 /// Splits off a seeded fifth of the configurations for validation: whole configurations
@@ -145,19 +156,31 @@ pub fn hold_out(
     fraction: f64,
     seed: u64,
 ) -> Result<(Vec<Measurement>, Vec<Measurement>)> {
-    // Distinct configurations, in file order, with the stage they belong to.
+    let (identification, validation) = hold_out_indices(measurements, fraction, seed)?;
+    let pick = |indices: Vec<usize>| indices.iter().map(|&i| measurements[i].clone()).collect();
+    Ok((pick(identification), pick(validation)))
+}
+
+/// [`hold_out`] as indices into `measurements` (each part in file order), so that callers can
+/// carry row ids along.
+pub fn hold_out_indices(
+    measurements: &[Measurement],
+    fraction: f64,
+    seed: u64,
+) -> Result<(Vec<usize>, Vec<usize>)> {
+    // Distinct configurations, in file order, with the stage they belong to (hashed: a linear
+    // search made this O(N²)). `+ 0.0` makes −0 and +0 one key, as `==` does.
     let mut groups: Vec<(&[f64], Option<&str>)> = Vec::new();
+    let mut index: std::collections::HashMap<(Vec<u64>, Option<&str>), usize> =
+        std::collections::HashMap::new();
     let group_of: Vec<usize> = measurements
         .iter()
         .map(|m| {
-            let key = (m.q.as_slice(), m.stage.as_deref());
-            match groups.iter().position(|g| *g == key) {
-                Some(g) => g,
-                None => {
-                    groups.push(key);
-                    groups.len() - 1
-                }
-            }
+            let bits = m.q.iter().map(|v| (v + 0.0).to_bits()).collect();
+            *index.entry((bits, m.stage.as_deref())).or_insert_with(|| {
+                groups.push((m.q.as_slice(), m.stage.as_deref()));
+                groups.len() - 1
+            })
         })
         .collect();
     let mut eligible: Vec<usize> = (0..groups.len())
@@ -175,13 +198,16 @@ pub fn hold_out(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     eligible.shuffle(&mut rng);
-    let held: Vec<usize> = eligible[..count].to_vec();
+    let mut held = vec![false; groups.len()];
+    for &g in &eligible[..count] {
+        held[g] = true;
+    }
     let (mut identification, mut validation) = (Vec::new(), Vec::new());
-    for (m, g) in measurements.iter().zip(&group_of) {
-        if held.contains(g) {
-            validation.push(m.clone());
+    for (index, &g) in group_of.iter().enumerate() {
+        if held[g] {
+            validation.push(index);
         } else {
-            identification.push(m.clone());
+            identification.push(index);
         }
     }
     Ok((identification, validation))
@@ -193,11 +219,10 @@ pub fn run_calibration(
     measurements: &[Measurement],
     validation: &[Measurement],
 ) -> Result<CalibrationRun> {
-    let guess = if input.fit_measurement_frame {
-        initial_guess(input.nominal, measurements, 3)?
-    } else {
-        tools_only_guess(input.nominal, measurements)?
-    };
+    check_length_scale(input.nominal, measurements)?;
+    let (guess, frame, frame_finding) =
+        choose_measurement_frame(input.nominal, measurements, input.measurement_frame)?;
+    let fitted_frame = frame.chosen == ChosenFrame::Fitted;
     let compensation = match input.flexibility {
         Some(flexibility) => Compensation::Exact(Deflected {
             tree: input.tree,
@@ -206,7 +231,7 @@ pub fn run_calibration(
         None => Compensation::None,
     };
     let mut guess = guess;
-    let mut report = calibrate(
+    let (mut report, mut robust) = calibrate_robust(
         input.branches,
         &guess.model,
         measurements,
@@ -215,12 +240,46 @@ pub fn run_calibration(
         input.options,
     )?;
     let mut frame_refinement = None;
-    if let (true, Some(flexibility)) = (input.fit_measurement_frame, input.flexibility) {
-        let refined = refine_measurement_frame(input, flexibility, measurements, &report)?;
+    if let (true, Some(flexibility)) = (fitted_frame, input.flexibility) {
+        // The frame is refined with the robust weights found, the outliers left out.
+        let weighted = IdentificationOptions {
+            observation_weights: robust.fit_weights(),
+            ..input.options.clone()
+        };
+        let weighted_input = CalibrationInput {
+            options: &weighted,
+            ..*input
+        };
+        let refined =
+            refine_measurement_frame(&weighted_input, flexibility, measurements, &report)?;
         guess.world_from_base = refined.report.model.world_from_base();
         report = refined.report;
         frame_refinement = Some(refined.summary);
+        robust.residuals = robust::residuals(
+            &report.model,
+            measurements,
+            compensation,
+            None,
+            input.options,
+        )?;
     }
+    let outliers = name_outliers(
+        input,
+        &report,
+        &robust,
+        compensation,
+        measurements,
+        validation,
+    )?;
+    let kept = |data: &[Measurement], set: DataSet| -> Vec<Measurement> {
+        data.iter()
+            .enumerate()
+            .filter(|(i, _)| !outliers.iter().any(|o| o.set == set && o.index == *i))
+            .map(|(_, m)| m.clone())
+            .collect()
+    };
+    let measurements = &kept(measurements, DataSet::Identification)[..];
+    let validation = &kept(validation, DataSet::Validation)[..];
     let parameters = estimates(input, &guess.model, &report);
     let predict = |model: &McpcModel, q: &[f64]| -> Result<Vec<Pose>> {
         match input.flexibility {
@@ -250,8 +309,17 @@ pub fn run_calibration(
                 .sqrt()
         })
         .filter(|rms| rms.is_finite());
-    Ok(CalibrationRun {
+    let mut findings = vec![frame_finding];
+    findings.extend(report.notes.iter().cloned());
+    findings.extend(outlier_finding(
+        &robust,
+        &outliers,
+        measurements.len(),
+        validation.len(),
+    ));
+    let mut run = CalibrationRun {
         guess,
+        frame,
         frame_refinement,
         report,
         parameters,
@@ -259,8 +327,81 @@ pub fn run_calibration(
         validation: validation_residuals,
         predicted_validation_rms_mm,
         predicted_validation_sd_mm,
-        findings: Vec::new(),
-    })
+        findings,
+        robust,
+        outliers,
+    };
+    let found = super::checks::assess(&run, input.tree);
+    run.findings.extend(found);
+    Ok(run)
+}
+
+/// The outliers of the identification data (the robust fit's) and of the validation data
+/// (judged by the same loss at the larger of the identification data's robust scale and
+/// their own): none when the loss is off. Validation data are never fitted, so a blunder there would only inflate the
+/// validation statistics; it is named and left out of them instead.
+fn name_outliers(
+    input: &CalibrationInput<'_>,
+    report: &CalibrationReport,
+    robust: &RobustReport,
+    compensation: Compensation<'_>,
+    measurements: &[Measurement],
+    validation: &[Measurement],
+) -> Result<Vec<Outlier>> {
+    if robust.loss == RobustLoss::Off {
+        return Ok(Vec::new());
+    }
+    let mut outliers = robust.name_outliers(
+        DataSet::Identification,
+        measurements,
+        &robust.residuals,
+        &robust.weights,
+        robust.scale,
+    );
+    let residuals =
+        robust::residuals(&report.model, validation, compensation, None, input.options)?;
+    // A validation row is an outlier only if it stands out from the other validation rows as
+    // well as from the fit's noise: validation data that are all off (another robot, a moved
+    // tracker) are the validation checks' business, not blunders.
+    let scale = robust
+        .scale
+        .max(robust::robust_scale(&residuals, validation));
+    let weights = robust::weights_of(robust.loss, &residuals, validation, scale);
+    outliers.extend(robust.name_outliers(
+        DataSet::Validation,
+        validation,
+        &residuals,
+        &weights,
+        scale,
+    ));
+    Ok(outliers)
+}
+
+/// The warning that names how many measurements were left out as outliers; `kept` counts
+/// what the statistics still use.
+fn outlier_finding(
+    robust: &RobustReport,
+    outliers: &[Outlier],
+    kept_identification: usize,
+    kept_validation: usize,
+) -> Option<Finding> {
+    if outliers.is_empty() {
+        return None;
+    }
+    let count = |set: DataSet| outliers.iter().filter(|o| o.set == set).count();
+    let (identification, validation) = (count(DataSet::Identification), count(DataSet::Validation));
+    Some(Finding::warning(
+        "outliers",
+        format!(
+            "{identification} of {} identification and {validation} of {} validation measurements were down-weighted as outliers by the robust {} loss (residuals beyond {:.0}–{:.0} robust σ, robust σ = {:.3} of the assumed noise) and left out of the fit and the error statistics; see \"outliers\" in report.json, check those rows (a bumped target, a wrong row), or compare with --robust off",
+            identification + kept_identification,
+            validation + kept_validation,
+            robust.loss,
+            robust.loss.outlier_norm(3),
+            robust.loss.outlier_norm(6),
+            robust.scale,
+        ),
+    ))
 }
 
 /// The covariance of all parameters (full-model order, rad and m), assembled from the stages:
@@ -309,6 +450,11 @@ fn estimates(
                 let sd = id.standard_deviations[k];
                 spread[p] = (sd.is_finite().then_some(sd), id.identifiable[k]);
             }
+        }
+        // Kept at their starting values: the observations cannot see them.
+        let count = spread.len();
+        for &p in stage.kept.iter().filter(|&&p| p < limit && p < count) {
+            spread[p] = (None, false);
         }
     }
     layout
@@ -405,7 +551,12 @@ fn arm_residuals(
 /// covariance ([`assembled_covariance`]) (mm): the spread of the predicted position that the
 /// identification noise leaves.
 fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> Vec<f64> {
-    if validation.is_empty() {
+    // A stage without redundancy has no covariance: nothing can be predicted (not zero).
+    let undetermined = report
+        .stages
+        .iter()
+        .any(|s| s.identification.covariance.is_none());
+    if validation.is_empty() || undetermined {
         return Vec::new();
     }
     let covariance = assembled_covariance(report);
@@ -422,14 +573,6 @@ fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> V
                 * 1e3
         })
         .collect()
-}
-
-/// The initial guess with the measurement frame fixed at the root frame: only the tool frames
-/// are fitted.
-fn tools_only_guess(nominal: &McpcModel, measurements: &[Measurement]) -> Result<InitialGuess> {
-    let mut start = nominal.clone();
-    start.set_world_from_base(&Pose::identity());
-    initial_tool_frames(&start, measurements)
 }
 
 /// How the measurement frame was refined (see [`run_calibration`]).
@@ -536,6 +679,10 @@ fn refine_measurement_frame(
             })
             .collect::<Result<_>>()?;
         let jacobian = DMatrix::from_columns(&columns);
+        crate::limits::ensure_finite(
+            jacobian.iter().chain(residual.iter()),
+            "measurement frame refinement: the Jacobian",
+        )?;
         let singular_values = jacobian.clone().svd(false, false).singular_values;
         let largest = singular_values.max();
         // Directions the data determine better than the prior does.

@@ -9,6 +9,7 @@
 //! (Levenberg–Marquardt) until it does. Not converging is an outcome in the report, not an
 //! error. See `docs/identification.md`.
 
+use super::normal_equations::{accumulate, NormalEquations, Problem, Products};
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ToolJacobian};
 use crate::math::{pose_error, Pose};
@@ -19,8 +20,9 @@ use nalgebra::{DMatrix, DVector, Vector6};
 /// [`DeflectedWithDerivative`] is recomputed.
 pub const CORRECTION_RADIUS: f64 = 1e-2;
 
-/// How the model predicts the observed tool poses at a configuration.
-pub trait Predictor {
+/// How the model predicts the observed tool poses at a configuration. `Sync`: configurations
+/// are evaluated in parallel (`calibration::normal_equations`).
+pub trait Predictor: Sync {
     /// Poses of all tools (in `model.tools()` order) at configuration `q`.
     fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Pose>>;
 
@@ -86,20 +88,27 @@ impl Deflected<'_> {
 #[derive(Debug)]
 pub struct DeflectedWithDerivative<'a> {
     source: Deflected<'a>,
-    /// Per configuration: where the correction was computed (q, parameters) and the correction.
-    cache: std::cell::RefCell<Vec<Correction>>,
+    /// Per configuration (keyed by the bits of `q`: O(1) lookup): where the correction was
+    /// computed and the correction.
+    cache: std::sync::Mutex<std::collections::HashMap<Vec<u64>, Correction>>,
 }
 
-/// A cached Jacobian correction: configuration, parameters where it was computed,
-/// parameters of the latest request, and `J_exact − J_chain` per tool.
-type Correction = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<DMatrix<f64>>);
+/// A cached Jacobian correction: parameters where it was computed, parameters of the latest
+/// request, and `J_exact − J_chain` per tool.
+type Correction = (Vec<f64>, Vec<f64>, Vec<DMatrix<f64>>);
+
+/// The cache key of a configuration: its exact bits (`+ 0.0`: −0 and +0 are one key, as
+/// under `==`).
+fn configuration_key(q: &[f64]) -> Vec<u64> {
+    q.iter().map(|v| (v + 0.0).to_bits()).collect()
+}
 
 impl<'a> DeflectedWithDerivative<'a> {
     /// Wraps a deflected predictor.
     pub fn new(source: Deflected<'a>) -> Self {
         Self {
             source,
-            cache: std::cell::RefCell::new(Vec::new()),
+            cache: std::sync::Mutex::new(std::collections::HashMap::new()),
         }
     }
 
@@ -122,10 +131,13 @@ impl<'a> DeflectedWithDerivative<'a> {
                 .zip(&parameters)
                 .all(|(a, b)| (a - b).abs() <= CORRECTION_RADIUS)
         };
+        let key = configuration_key(q);
         {
-            let mut cache = self.cache.borrow_mut();
-            if let Some((_, at, latest, found)) = cache.iter_mut().find(|(k, ..)| k.as_slice() == q)
-            {
+            let mut cache = self
+                .cache
+                .lock()
+                .unwrap_or_else(|poisoned| poisoned.into_inner());
+            if let Some((at, latest, found)) = cache.get_mut(&key) {
                 let settled = close(latest);
                 latest.clone_from(&parameters);
                 if close(at) || !settled {
@@ -136,12 +148,14 @@ impl<'a> DeflectedWithDerivative<'a> {
                 // steers well enough; the correction waits until the iterates settle.
                 let zero: Vec<DMatrix<f64>> =
                     chain.iter().map(|c| c.jacobian.map(|_| 0.0)).collect();
-                cache.push((
-                    q.to_vec(),
-                    vec![f64::INFINITY; parameters.len()],
-                    parameters,
-                    zero.clone(),
-                ));
+                cache.insert(
+                    key,
+                    (
+                        vec![f64::INFINITY; parameters.len()],
+                        parameters,
+                        zero.clone(),
+                    ),
+                );
                 return Ok(zero);
             }
         }
@@ -158,14 +172,11 @@ impl<'a> DeflectedWithDerivative<'a> {
             }
             shifted.set_parameter(index, value)?;
         }
-        let mut cache = self.cache.borrow_mut();
-        cache.retain(|(k, ..)| k.as_slice() != q);
-        cache.push((
-            q.to_vec(),
-            parameters.clone(),
-            parameters,
-            correction.clone(),
-        ));
+        let mut cache = self
+            .cache
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        cache.insert(key, (parameters.clone(), parameters, correction.clone()));
         Ok(correction)
     }
 }
@@ -205,6 +216,29 @@ pub struct IdentificationOptions {
     pub step_tolerance: f64,
     /// Stop when an accepted step lowers the cost by less than this fraction.
     pub cost_tolerance: f64,
+    /// Per-measurement weights (robust estimation, [`super::robust`]): measurement `i`'s rows
+    /// are multiplied by `√weights[i]`, so its share of the cost is `weights[i]·½‖r_i‖²`.
+    /// Empty: every weight is 1 (the plain least-squares problem, bit for bit).
+    pub observation_weights: Vec<f64>,
+    /// How [`super::run::run_calibration`] and [`super::robust::calibrate_robust`] weight
+    /// measurements by their residuals (default Huber); [`identify`] itself only applies
+    /// `observation_weights`.
+    pub robust: super::robust::RobustLoss,
+}
+
+impl IdentificationOptions {
+    /// The same options for the measurements at `selected` (a stage's subset): the
+    /// observation weights follow the measurements.
+    pub fn for_measurements(&self, selected: &[usize]) -> Self {
+        let mut options = self.clone();
+        if !self.observation_weights.is_empty() {
+            options.observation_weights = selected
+                .iter()
+                .map(|&i| self.observation_weights.get(i).copied().unwrap_or(1.0))
+                .collect();
+        }
+        options
+    }
 }
 
 impl Default for IdentificationOptions {
@@ -216,6 +250,8 @@ impl Default for IdentificationOptions {
             rank_tolerance: 1e-8,
             step_tolerance: 1e-12,
             cost_tolerance: 1e-8,
+            observation_weights: Vec::new(),
+            robust: super::robust::RobustLoss::default(),
         }
     }
 }
@@ -266,6 +302,8 @@ pub struct IdentificationReport {
     pub costs: Vec<f64>,
     /// Why it stopped.
     pub termination: Termination,
+    /// Rows (equations) of the stacked residual: 6 per pose, 3 per position observation.
+    pub rows: usize,
     /// Numerical rank of the scaled Jacobian at the solution.
     pub rank: usize,
     /// Scaled singular values at the solution, largest first.
@@ -299,9 +337,9 @@ pub struct IdentificationReport {
 pub const IDENTIFIABLE_NULL_WEIGHT: f64 = 1e-3;
 
 /// The stacked, weighted residual and its Jacobian over the free parameters.
-struct Linearisation {
-    residual: DVector<f64>,
-    jacobian: DMatrix<f64>,
+pub(super) struct Linearisation {
+    pub(super) residual: DVector<f64>,
+    pub(super) jacobian: DMatrix<f64>,
 }
 
 fn rows_of(measurements: &[Measurement]) -> usize {
@@ -339,7 +377,7 @@ fn raw_residual(
     error
 }
 
-fn linearise(
+pub(super) fn linearise(
     model: &McpcModel,
     measurements: &[Measurement],
     offsets: Option<&[Vector6<f64>]>,
@@ -358,6 +396,12 @@ fn linearise(
     let mut cached_poses: Option<(&[f64], Vec<Pose>)> = None;
     for (index, m) in measurements.iter().enumerate() {
         let count = m.observation.rows();
+        // Multiplying by exactly 1.0 keeps unweighted problems bit for bit as before.
+        let observation = options
+            .observation_weights
+            .get(index)
+            .map_or(1.0, |w| w.sqrt());
+        let weights = [weights[0] * observation, weights[1] * observation];
         let predicted = if with_jacobian {
             if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
                 cached = Some((&m.q, predictor.jacobians(model, &m.q)?));
@@ -405,9 +449,15 @@ fn residual_rms(
     measurements: &[Measurement],
     offsets: Option<&[Vector6<f64>]>,
     predictor: &dyn Predictor,
+    options: &IdentificationOptions,
 ) -> Result<(f64, f64)> {
-    let (mut position, mut rotation, mut poses) = (0.0, 0.0, 0usize);
+    let (mut position, mut rotation, mut poses, mut count) = (0.0, 0.0, 0usize, 0usize);
     for (index, m) in measurements.iter().enumerate() {
+        // Measurements left out (weight 0, robust estimation) are not part of the fit.
+        if options.observation_weights.get(index) == Some(&0.0) {
+            continue;
+        }
+        count += 1;
         let predicted = predictor.predict(model, &m.q)?;
         let error = raw_residual(
             &m.observation,
@@ -420,7 +470,7 @@ fn residual_rms(
             poses += 1;
         }
     }
-    let n = measurements.len().max(1) as f64;
+    let n = count.max(1) as f64;
     let rotation_rms = if poses > 0 {
         (rotation / poses as f64).sqrt()
     } else {
@@ -446,16 +496,17 @@ pub fn identify(
     validate(model, measurements, offsets, free, options)?;
     let mut current = model.clone();
     let mut parameters = current.parameters();
-    let mut lin = linearise(
-        &current,
+    // JᵀWJ and JᵀWr streamed over the configurations (`normal_equations`), with the triangle
+    // R of J too once a problem has proved rank-deficient.
+    let problem = Problem {
         measurements,
         offsets,
         predictor,
         free,
         options,
-        true,
-    )?;
-    let mut cost = 0.5 * lin.residual.norm_squared();
+    };
+    let mut lin = accumulate(&current, &problem, Products::Normal)?;
+    let mut cost = lin.cost;
     let mut costs = vec![cost];
     let mut damping = 0.0;
     let mut iterations = 0;
@@ -464,7 +515,19 @@ pub fn identify(
     let mut final_analysis: Option<Analysis> = None;
 
     while iterations < options.max_iterations {
-        let analysis = analyse(&lin, options.rank_tolerance);
+        // An SVD of a non-finite matrix never ends: stop with an error instead. The normal
+        // matrix's diagonal holds the squared column norms, so it is finite exactly when the
+        // weighted Jacobian is and no square overflows (e.g. a tiny sigma); the cost likewise.
+        crate::limits::ensure_finite(
+            lin.normal
+                .iter()
+                .chain(lin.gradient.iter())
+                .chain(std::iter::once(&lin.cost)),
+            "identification: the weighted Jacobian and residual",
+        )?;
+        let analysis = analyse(&mut lin, options.rank_tolerance, || {
+            accumulate(&current, &problem, Products::NormalAndFactor)
+        })?;
         let sigma_max = analysis.singular_values.iter().copied().fold(0.0, f64::max);
         let threshold = options.rank_tolerance * sigma_max;
         // Minimum-norm (damped) Gauss–Newton step in scaled units over the retained singular
@@ -510,16 +573,7 @@ pub fn identify(
             }
             let mut candidate = current.clone();
             candidate.set_parameters(&trial)?;
-            let trial_lin = linearise(
-                &candidate,
-                measurements,
-                offsets,
-                predictor,
-                free,
-                options,
-                false,
-            )?;
-            let trial_cost = 0.5 * trial_lin.residual.norm_squared();
+            let trial_cost = accumulate(&candidate, &problem, Products::Cost)?.cost;
             if trial_cost < cost {
                 let previous = cost;
                 current = candidate;
@@ -551,15 +605,12 @@ pub fn identify(
             final_analysis = Some(analysis);
             break;
         }
-        lin = linearise(
-            &current,
-            measurements,
-            offsets,
-            predictor,
-            free,
-            options,
-            true,
-        )?;
+        let products = if lin.factor.is_some() {
+            Products::NormalAndFactor
+        } else {
+            Products::Normal
+        };
+        lin = accumulate(&current, &problem, products)?;
         if termination != Termination::MaxIterations {
             break;
         }
@@ -568,7 +619,9 @@ pub fn identify(
     // Identifiability at the solution.
     let analysis = match final_analysis {
         Some(analysis) => analysis,
-        None => analyse(&lin, options.rank_tolerance),
+        None => analyse(&mut lin, options.rank_tolerance, || {
+            accumulate(&current, &problem, Products::NormalAndFactor)
+        })?,
     };
     let mut order: Vec<usize> = (0..analysis.singular_values.len()).collect();
     order.sort_by(|&a, &b| analysis.singular_values[b].total_cmp(&analysis.singular_values[a]));
@@ -595,11 +648,18 @@ pub fn identify(
         })
         .collect();
     let (residual_rms_position, residual_rms_rotation) =
-        residual_rms(&current, measurements, offsets, predictor)?;
+        residual_rms(&current, measurements, offsets, predictor, options)?;
     // A-posteriori scale of the assumed σ's, and the covariance σ̂²·(JᵀWJ)⁺ on the
     // identifiable subspace, back in parameter units: Σ over retained directions of
     // (v_k / s_k)² / σᵢ².
-    let rows = rows_of(measurements);
+    // Rows of measurements left out (weight 0, robust estimation) carry no information.
+    let rows = rows_of(measurements)
+        - measurements
+            .iter()
+            .zip(&options.observation_weights)
+            .filter(|(_, &w)| w == 0.0)
+            .map(|(m, _)| m.observation.rows())
+            .sum::<usize>();
     let residual_scale = if rows > rank {
         (2.0 * cost / (rows - rank) as f64).sqrt()
     } else {
@@ -650,6 +710,7 @@ pub fn identify(
         iterations,
         costs,
         termination,
+        rows,
         rank,
         singular_values,
         condition_number,
@@ -673,43 +734,57 @@ struct Analysis {
 
 /// Column scaling, then the SVD of the small triangle `R` of `J_s = Q·R` (same singular values
 /// and `V` as `J_s`, at a fraction of the cost). With fewer rows than columns, zero rows
-/// complete the matrix so that `V` spans the whole null space.
-fn analyse(lin: &Linearisation, rank_tolerance: f64) -> Analysis {
-    let scales = column_scales(&lin.jacobian);
-    let scaled = scale_columns(&lin.jacobian, &scales);
-    let gradient = scaled.tr_mul(&lin.residual);
+/// complete the matrix so that `V` spans the whole null space. All from the streamed normal
+/// equations; `with_factor` recomputes them with `R` when `lin` lacks it and it is needed.
+fn analyse(
+    lin: &mut NormalEquations,
+    rank_tolerance: f64,
+    with_factor: impl FnOnce() -> Result<NormalEquations>,
+) -> Result<Analysis> {
+    let scales = floored_scales(lin.normal.diagonal().iter().map(|d| d.max(0.0).sqrt()));
+    let gradient = lin.gradient.component_div(&scales);
     // Fast path: the singular values from the eigenvalues of the normal matrix alone, and the
     // steps and the covariance by Cholesky, when it is well conditioned (see
     // `singular_decomposition`); no singular vectors are needed then (nothing is
     // unidentifiable).
-    let normal = normal_matrix(&scaled);
+    let normal = DMatrix::from_fn(scales.len(), scales.len(), |a, b| {
+        lin.normal[(a, b)] / (scales[a] * scales[b])
+    });
     let eigenvalues = normal.symmetric_eigenvalues();
     let largest = eigenvalues.max();
     // Full rank with a margin, also for a caller's coarser rank tolerance.
     let ratio = WELL_CONDITIONED.max(100.0 * rank_tolerance * rank_tolerance);
     if largest > 0.0 && eigenvalues.min() > ratio * largest {
-        return Analysis {
+        return Ok(Analysis {
             scales,
             singular_values: eigenvalues.map(f64::sqrt),
             v_t: DMatrix::zeros(0, 0),
             gradient,
             normal: Some(normal),
-        };
+        });
     }
     // Singular vectors are needed: from the same normal matrix while squaring still resolves
     // the spectrum (a caller's coarse rank tolerance), else from QR + SVD.
     let (singular_values, v_t) = if well_conditioned(&eigenvalues) {
         eigen_decomposition(normal)
     } else {
-        qr_svd(scaled)
+        if lin.factor.is_none() {
+            *lin = with_factor()?;
+        }
+        let factor = lin.factor.as_ref().ok_or_else(|| Error::InvalidData {
+            origin: "identification".into(),
+            message: "no triangular factor".into(),
+        })?;
+        // R·S⁻¹ is the triangle of the scaled Jacobian J·S⁻¹.
+        qr_svd(scale_columns(factor, &scales))
     };
-    Analysis {
+    Ok(Analysis {
         scales,
         singular_values,
         v_t,
         gradient,
         normal: None,
-    }
+    })
 }
 
 /// Smallest eigenvalue ratio of the scaled normal matrix for which squaring the Jacobian
@@ -766,11 +841,13 @@ fn qr_svd(scaled: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
     (svd.singular_values, v_t)
 }
 
-/// `AᵀA`. nalgebra's dense product (blocked, vectorised) beat both a row-sparse and a
-/// block-sparse accumulation that skip the zeros outside each tool's chain (measured: 100
-/// configurations 12.1 → 7.1 ms per calibration).
+/// `AᵀA`. A dense product beat both a row-sparse and a block-sparse accumulation that skip the
+/// zeros outside each tool's chain (measured: 100 configurations 12.1 → 7.1 ms per
+/// calibration); the blocked kernel ([`super::normal_equations::add_gram`]) beats `tr_mul`.
 fn normal_matrix(a: &DMatrix<f64>) -> DMatrix<f64> {
-    a.tr_mul(a)
+    let mut normal = DMatrix::zeros(a.ncols(), a.ncols());
+    super::normal_equations::add_gram(&mut normal, a);
+    normal
 }
 
 pub(crate) fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
@@ -790,7 +867,12 @@ pub(crate) fn combination(direction: &DVector<f64>, free: &[usize]) -> Combinati
 /// rotation about an axis through the tool point, say) must stay negligible after scaling,
 /// not be blown up into a unit column of noise.
 pub(crate) fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
-    let norms: Vec<f64> = jacobian.column_iter().map(|c| c.norm()).collect();
+    floored_scales(jacobian.column_iter().map(|c| c.norm()))
+}
+
+/// [`column_scales`] from the column norms.
+fn floored_scales(norms: impl Iterator<Item = f64>) -> DVector<f64> {
+    let norms: Vec<f64> = norms.collect();
     let floor = norms.iter().copied().fold(0.0, f64::max) * 1e-6;
     DVector::from_iterator(
         norms.len(),
@@ -837,6 +919,22 @@ fn validate(
     if let Some(&p) = free.iter().find(|&&p| p >= count) {
         return Err(bad(format!(
             "free parameter {p} does not exist (the model has {count})"
+        )));
+    }
+    let observation_weights = &options.observation_weights;
+    if !observation_weights.is_empty() && observation_weights.len() != measurements.len() {
+        return Err(bad(format!(
+            "{} observation weights for {} measurements",
+            observation_weights.len(),
+            measurements.len()
+        )));
+    }
+    if let Some(w) = observation_weights
+        .iter()
+        .find(|w| !(w.is_finite() && **w >= 0.0))
+    {
+        return Err(bad(format!(
+            "observation weight {w} is not a non-negative number"
         )));
     }
     if let Some(offsets) = offsets {

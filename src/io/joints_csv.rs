@@ -1,6 +1,9 @@
 //! Joint-value CSV files (`treecal fk`): a header naming joints, one configuration per row.
 
 use crate::error::{Error, Result};
+use crate::limits::{
+    self, check_count, check_text_size, Quantity, MAX_CSV_BYTES, MAX_CSV_COLUMNS, MAX_CSV_ROWS,
+};
 use crate::math::Pose;
 use crate::tree::{Actuation, JointKind, KinematicTree};
 
@@ -15,26 +18,48 @@ pub struct CsvTable {
     pub records: Vec<(usize, Vec<String>)>,
 }
 
-/// Parses CSV text: `#` comment lines and blank lines skipped, fields trimmed.
+/// Parses CSV text: `#` comment lines and blank lines skipped, fields trimmed. Line breaks
+/// may be `\n`, `\r\n` or a lone `\r`; rows and columns are limited to
+/// [`MAX_CSV_ROWS`] and [`MAX_CSV_COLUMNS`]. Linear in the size of the text.
 pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
+    check_text_size(text, MAX_CSV_BYTES, origin)?;
+    // csv-core ends `#` comments (and fields) at `\n` only: a file with lone `\r` line
+    // breaks would be one comment or one row. Those breaks become `\n` (lines keep their
+    // numbers: a lone `\r` counts as a line break below too).
+    let normalised;
+    let text = if has_lone_carriage_return(text) {
+        normalised = text.replace("\r\n", "\n").replace('\r', "\n");
+        normalised.as_str()
+    } else {
+        text
+    };
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(false)
         .comment(Some(b'#'))
         .trim(csv::Trim::All)
         .flexible(true)
         .from_reader(text.as_bytes());
+    let mut lines = LineCounter::new(text);
     let mut headers: Option<Vec<String>> = None;
     let mut header_line = 1;
     let mut records = Vec::new();
     for record in reader.records() {
         let record = record.map_err(|e| Error::InvalidData {
             origin: match e.position() {
-                Some(p) => format!("{origin}:{}", record_line(text, p.byte())),
+                Some(p) => format!("{origin}:{}", lines.line_at(p.byte())),
                 None => origin.to_owned(),
             },
             message: format!("not readable as CSV: {e}"),
         })?;
-        let line = record.position().map_or(0, |p| record_line(text, p.byte()));
+        let line = record.position().map_or(0, |p| lines.line_at(p.byte()));
+        if record.len() > MAX_CSV_COLUMNS {
+            check_count(
+                record.len(),
+                MAX_CSV_COLUMNS,
+                &format!("{origin}:{line}"),
+                "columns",
+            )?;
+        }
         let fields: Vec<String> = record.iter().map(str::to_owned).collect();
         if fields.iter().all(String::is_empty) {
             continue;
@@ -55,6 +80,14 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
                         ),
                     });
                 }
+                if records.len() == MAX_CSV_ROWS {
+                    check_count(
+                        MAX_CSV_ROWS + 1,
+                        MAX_CSV_ROWS,
+                        &format!("{origin}:{line}"),
+                        "data rows",
+                    )?;
+                }
                 records.push((line, fields));
             }
         }
@@ -63,8 +96,9 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
         origin: origin.to_owned(),
         message: "the file is empty; it needs a header row naming joints".into(),
     })?;
-    for (index, name) in headers.iter().enumerate() {
-        if headers[..index].contains(name) {
+    let mut seen = std::collections::HashSet::with_capacity(headers.len());
+    for name in &headers {
+        if !seen.insert(name.as_str()) {
             return Err(Error::InvalidData {
                 origin: format!("{origin}:{header_line}"),
                 message: format!("column '{name}' appears twice in the header"),
@@ -78,34 +112,70 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
     })
 }
 
-/// The 1-based line on which the record at reader byte offset `byte` starts.
+/// Whether `text` has a `\r` that is not followed by `\n`.
+fn has_lone_carriage_return(text: &str) -> bool {
+    let bytes = text.as_bytes();
+    bytes
+        .iter()
+        .enumerate()
+        .any(|(i, &b)| b == b'\r' && bytes.get(i + 1) != Some(&b'\n'))
+}
+
+/// The 1-based line of records at increasing byte offsets, counted incrementally (so reading
+/// a whole file is linear in its size).
 ///
 /// The csv crate takes a record's position before skipping what precedes it (blank lines,
 /// `#` comment lines, the `\n` of a `\r\n`), so its `line()` is too small after any of those.
-/// This skips the same bytes csv-core does at the start of a record, then counts line breaks.
-fn record_line(text: &str, byte: u64) -> usize {
-    let bytes = text.as_bytes();
-    let mut start = usize::try_from(byte).map_or(bytes.len(), |b| b.min(bytes.len()));
-    loop {
-        match bytes.get(start) {
-            Some(b'\r' | b'\n') => start += 1,
-            Some(b'#') => {
-                start = bytes[start..]
-                    .iter()
-                    .position(|&b| b == b'\n')
-                    .map_or(bytes.len(), |i| start + i + 1)
-            }
-            _ => break,
+/// This skips the same bytes csv-core does at the start of a record, then counts line breaks
+/// from the previous record on.
+struct LineCounter<'a> {
+    bytes: &'a [u8],
+    /// Where counting stopped, and the 1-based line there.
+    offset: usize,
+    line: usize,
+}
+
+impl<'a> LineCounter<'a> {
+    fn new(text: &'a str) -> Self {
+        Self {
+            bytes: text.as_bytes(),
+            offset: 0,
+            line: 1,
         }
     }
-    let before = &bytes[..start];
-    // A line break is `\n`, or a `\r` not followed by `\n`.
-    let breaks = before
-        .iter()
-        .enumerate()
-        .filter(|&(i, &b)| b == b'\n' || (b == b'\r' && bytes.get(i + 1) != Some(&b'\n')))
-        .count();
-    breaks + 1
+
+    /// The line on which the record at reader byte offset `byte` starts.
+    fn line_at(&mut self, byte: u64) -> usize {
+        let bytes = self.bytes;
+        let mut start = usize::try_from(byte).map_or(bytes.len(), |b| b.min(bytes.len()));
+        loop {
+            match bytes.get(start) {
+                Some(b'\r' | b'\n') => start += 1,
+                Some(b'#') => {
+                    start = bytes[start..]
+                        .iter()
+                        .position(|&b| b == b'\n')
+                        .map_or(bytes.len(), |i| start + i + 1)
+                }
+                _ => break,
+            }
+        }
+        if start < self.offset {
+            // Offsets only grow while reading; start again rather than count wrongly.
+            self.offset = 0;
+            self.line = 1;
+        }
+        // A line break is `\n`, or a `\r` not followed by `\n`.
+        self.line += bytes[self.offset..start]
+            .iter()
+            .enumerate()
+            .filter(|&(i, &b)| {
+                b == b'\n' || (b == b'\r' && bytes.get(self.offset + i + 1) != Some(&b'\n'))
+            })
+            .count();
+        self.offset = start;
+        self.line
+    }
 }
 
 /// How the columns of a joint CSV map onto a robot.
@@ -161,9 +231,9 @@ pub fn configurations(
             }
             let joint = tree.joint(tree.dofs()[dof]);
             q[dof] = if joint.kind == JointKind::Prismatic {
-                value
+                limits::check(value, Quantity::Length, place)?
             } else {
-                value * angle_scale
+                limits::check(value * angle_scale, Quantity::Angle, place)?
             };
         }
         configurations.push(q);

@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::kinematics::{FrameKind, McpcTable, TableBranch, TableRow, TableTool};
+use crate::limits::{magnitude_problem, name_problem, Quantity};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -77,15 +78,13 @@ struct Tool {
 
 /// Reads an MCPC table file.
 pub fn read_mcpc_table(path: &Path) -> Result<McpcTable> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_YAML_BYTES)?;
     parse_mcpc_table(&text, &path.display().to_string())
 }
 
 /// Parses an MCPC table; `origin` names the source in messages.
 pub fn parse_mcpc_table(text: &str, origin: &str) -> Result<McpcTable> {
+    crate::limits::check_yaml_depth(text, origin)?;
     let file: File = serde_yaml::from_str(text).map_err(|e| {
         let place = e
             .location()
@@ -186,8 +185,71 @@ pub fn parse_mcpc_table(text: &str, origin: &str) -> Result<McpcTable> {
         base_link: file.base_link,
         branches,
     };
+    check_bounds(&table, origin)?;
     table.validate(origin)?;
     Ok(table)
+}
+
+/// Every name printable and of sane length, every number (converted to rad and m) finite and
+/// within the bound of its quantity ([`crate::limits`]); errors name the joint or tool and key.
+fn check_bounds(table: &McpcTable, origin: &str) -> Result<()> {
+    let bad = |message: String| Error::InvalidTable {
+        origin: origin.to_owned(),
+        message,
+    };
+    let named = [("robot", &table.robot), ("base_link", &table.base_link)];
+    for (key, name) in named {
+        if let Some(problem) = name_problem(name) {
+            return Err(bad(format!("{key}: {problem}")));
+        }
+    }
+    let number = |what: &str, key: &str, value: f64, quantity: Quantity| match magnitude_problem(
+        value, quantity,
+    ) {
+        Some(problem) => Err(bad(format!(
+            "{what}, {key}: {problem} (after unit conversion)"
+        ))),
+        None => Ok(()),
+    };
+    for branch in &table.branches {
+        let mut names = vec![&branch.name];
+        names.extend(&branch.parent);
+        for row in &branch.rows {
+            names.extend([&row.joint, &row.link]);
+            let what = format!("joint '{}'", row.joint);
+            for (key, value) in [("phi", row.phi), ("alpha", row.alpha), ("beta", row.beta)] {
+                number(&what, key, value, Quantity::Angle)?;
+            }
+            for (key, value) in [("x", row.x), ("y", row.y)] {
+                number(&what, key, value, Quantity::Length)?;
+            }
+            // URDFs write ±1e16 for "unbounded", and to-mcpc passes it on.
+            number(&what, "limits", row.limits.0, Quantity::JointLimit)?;
+            number(&what, "limits", row.limits.1, Quantity::JointLimit)?;
+        }
+        if let Some(t) = &branch.tool {
+            names.push(&t.link);
+            let what = format!("tool '{}'", t.link);
+            let angles = [
+                ("phi", t.phi),
+                ("alpha", t.alpha),
+                ("beta", t.beta),
+                ("gamma", t.gamma),
+            ];
+            for (key, value) in angles {
+                number(&what, key, value, Quantity::Angle)?;
+            }
+            for (key, value) in [("x", t.x), ("y", t.y), ("z", t.z)] {
+                number(&what, key, value, Quantity::Length)?;
+            }
+        }
+        for name in names {
+            if let Some(problem) = name_problem(name) {
+                return Err(bad(format!("branch '{}': {problem}", branch.name)));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Writes a table in the YAML format [`parse_mcpc_table`] reads, in degrees and millimetres,
@@ -198,7 +260,8 @@ pub fn mcpc_table_to_yaml(table: &McpcTable, header: &[String]) -> String {
     let mm = |v: f64| number(v * 1e3);
     let mut out = String::new();
     for line in header {
-        let _ = writeln!(out, "# {line}");
+        // A line break in a header line (a file name can hold one) would end the comment.
+        let _ = writeln!(out, "# {}", line.replace(char::is_control, " "));
     }
     let _ = writeln!(out, "robot: {}", quoted(&table.robot));
     let _ = writeln!(out, "base_link: {}", quoted(&table.base_link));
@@ -266,7 +329,22 @@ fn number(value: f64) -> String {
     }
 }
 
-/// A YAML string scalar, quoted so that names like `r2/left_palm` or `yes` stay strings.
+/// A YAML string scalar, quoted so that names like `r2/left_palm` or `yes` stay strings;
+/// characters YAML does not allow raw (control characters, line and paragraph separators,
+/// byte-order marks) are written as escapes, so that the file reads back.
 fn quoted(text: &str) -> String {
-    format!("\"{}\"", text.replace('\\', "\\\\").replace('"', "\\\""))
+    let mut out = String::with_capacity(text.len() + 2);
+    out.push('"');
+    for c in text.chars() {
+        match c {
+            '\\' => out.push_str("\\\\"),
+            '"' => out.push_str("\\\""),
+            c if c.is_control() || matches!(c, '\u{2028}' | '\u{2029}' | '\u{feff}') => {
+                out.push_str(&format!("\\u{:04x}", u32::from(c)))
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
 }

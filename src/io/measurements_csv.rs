@@ -3,9 +3,12 @@
 //! targets A, B, C), in metres and radians or the units the options name.
 
 use super::joints_csv::parse_csv;
-use super::units::{AngleUnit, LengthUnit};
+use super::units::{
+    parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
+};
 use crate::error::{did_you_mean, Error, Result};
 use crate::kinematics::McpcModel;
+use crate::limits::{self, Quantity};
 use crate::math::{Pose, Vec3};
 use crate::measurement::{
     frame_from_targets, targets_on, targets_problem, Measurement, Observation,
@@ -15,13 +18,18 @@ use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use std::collections::HashMap;
 use std::path::Path;
 
-/// How to read a measurement CSV.
+/// How to read a measurement CSV. A unit left `None` is taken from the file's units comment
+/// (`# units: length=mm angle=deg`), else the default; a unit given here that contradicts the
+/// comment is an error.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct MeasurementReadOptions {
-    /// Unit of positions, targets and prismatic joint values (default m).
-    pub length_unit: LengthUnit,
-    /// Unit of revolute and continuous joint values (default rad).
-    pub angle_unit: AngleUnit,
+    /// Unit of positions, targets (and prismatic joint values unless `joint_length_unit`
+    /// says otherwise); default m.
+    pub length_unit: Option<LengthUnit>,
+    /// Unit of revolute and continuous joint values; default rad.
+    pub angle_unit: Option<AngleUnit>,
+    /// Unit of prismatic joint values; default `length_unit`.
+    pub joint_length_unit: Option<LengthUnit>,
     /// Columns to skip (e.g. a tracker's timestamp); any other unknown column is an error.
     pub ignore_columns: Vec<String>,
     /// A joint value outside its URDF limits is an error (otherwise a warning).
@@ -67,6 +75,8 @@ pub struct MeasurementSet {
     /// Accepted oddities (joint values outside their limits, ignored columns not present),
     /// each naming its place.
     pub warnings: Vec<String>,
+    /// The units the numbers were read in.
+    pub units: MeasurementUnits,
 }
 
 /// Reads a measurement CSV file; see [`parse_measurements`].
@@ -76,10 +86,7 @@ pub fn read_measurements(
     model: &McpcModel,
     options: &MeasurementReadOptions,
 ) -> Result<MeasurementSet> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
     parse_measurements(&text, &path.display().to_string(), tree, model, options)
 }
 
@@ -124,6 +131,13 @@ pub fn parse_measurements(
         }
         other => other,
     })?;
+    let stated = StatedUnits {
+        length: options.length_unit,
+        angle: options.angle_unit,
+        joint_length: options.joint_length_unit,
+        line: None,
+    };
+    let units = resolve_units(&stated, &parse_units_header(text, origin)?, origin)?;
     let mut warnings = Vec::new();
     let columns = classify(
         &table.headers,
@@ -171,16 +185,19 @@ pub fn parse_measurements(
             dofs
         })
         .collect();
-    let length = options.length_unit;
-    let angle = options.angle_unit;
+    let (length, angle, joint_length) = (units.length, units.angle, units.joint_length);
+    let mut outside = Vec::new();
+    let mut revolute_values = 0;
     let mut set = MeasurementSet {
         measurements: Vec::with_capacity(table.records.len()),
         ids: Vec::with_capacity(table.records.len()),
         lines: Vec::with_capacity(table.records.len()),
         observation: columns.observation,
         warnings,
+        units,
     };
     let mut first_line_of_id: HashMap<String, usize> = HashMap::new();
+    let mut repeats = Repeats::new(columns.id);
     for (row, (line, fields)) in table.records.iter().enumerate() {
         let line = *line;
         let place = |column: usize| format!("{origin}:{line}:{}", table.headers[column]);
@@ -230,12 +247,17 @@ pub fn parse_measurements(
             }
             let joint = tree.joint(tree.dofs()[dof]);
             let (scale, unit) = if joint.kind == JointKind::Prismatic {
-                (length.in_metres(), length.symbol())
+                (joint_length.in_metres(), joint_length.symbol())
             } else {
+                revolute_values += 1;
                 (angle.in_radians(), angle.symbol())
             };
             let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
-            q[dof] = value * scale;
+            let quantity = match joint.kind {
+                JointKind::Prismatic => Quantity::Length,
+                _ => Quantity::Angle,
+            };
+            q[dof] = limits::check(value * scale, quantity, || place(column))?;
             given[dof] = true;
             if let Some(limits) = joint.limits.filter(|_| joint.kind != JointKind::Continuous) {
                 const TOLERANCE: f64 = 1e-9;
@@ -252,7 +274,14 @@ pub fn parse_measurements(
                             format!("{message}; correct the value, or accept it with a warning by not asking for strict limits"),
                         ));
                     }
-                    set.warnings.push(format!("{}: {message}", place(column)));
+                    outside.push(OutsideLimits {
+                        place: place(column),
+                        message,
+                        revolute: joint.kind != JointKind::Prismatic,
+                        within_in_degrees: joint.kind != JointKind::Prismatic
+                            && (limits.lower - TOLERANCE..=limits.upper + TOLERANCE)
+                                .contains(&(value.to_radians())),
+                    });
                 }
             }
         }
@@ -280,7 +309,9 @@ pub fn parse_measurements(
             let unit = if is_length { length.symbol() } else { "" };
             let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
             values.push(if is_length {
-                value * length.in_metres()
+                limits::check(value * length.in_metres(), Quantity::Length, || {
+                    place(column)
+                })?
             } else {
                 value
             });
@@ -333,8 +364,205 @@ pub fn parse_measurements(
         });
         set.ids.push(id);
         set.lines.push(line);
+        repeats.see(fields, line);
     }
+    set.warnings.extend(limit_warnings(
+        &outside,
+        revolute_values,
+        units.angle,
+        origin,
+    )?);
+    angles_look_like_radians(&set, tree, units.angle, origin)?;
+    set.warnings.extend(repeats.warning(origin));
     Ok(set)
+}
+
+/// A joint value outside its URDF limits, as read.
+struct OutsideLimits {
+    place: String,
+    message: String,
+    revolute: bool,
+    /// A revolute value read as radians that would be within the limits in degrees.
+    within_in_degrees: bool,
+}
+
+/// At most this many values outside their limits are listed one by one.
+const LISTED_OUTSIDE: usize = 5;
+
+/// The warnings for values outside their limits: a few listed, the rest counted. When many
+/// revolute values read as radians are outside their limits and nearly all of them would be
+/// within in degrees, the file is in degrees: one error naming `--angle-unit` instead.
+fn limit_warnings(
+    outside: &[OutsideLimits],
+    revolute_values: usize,
+    angle: AngleUnit,
+    origin: &str,
+) -> Result<Vec<String>> {
+    let revolute = outside.iter().filter(|o| o.revolute).count();
+    let explained = outside.iter().filter(|o| o.within_in_degrees).count();
+    // "Many": a tenth of the revolute values (and at least 3), nine in ten of them explained.
+    if angle == AngleUnit::Radian
+        && revolute >= 3
+        && 10 * revolute >= revolute_values
+        && 10 * explained >= 9 * revolute
+    {
+        let first = outside
+            .iter()
+            .find(|o| o.revolute)
+            .map_or(String::new(), |o| {
+                format!(" (first: {}: {})", o.place, o.message)
+            });
+        return Err(Error::InvalidData {
+            origin: origin.to_owned(),
+            message: format!(
+                "{revolute} of {revolute_values} revolute joint values are outside their limits \
+                when read as radians{first}, and {explained} of them are within the limits when \
+                read as degrees: the joint values look like degrees; give --angle-unit deg (or \
+                state `# units: angle=deg` in the file)"
+            ),
+        });
+    }
+    let mut warnings: Vec<String> = outside
+        .iter()
+        .take(LISTED_OUTSIDE)
+        .map(|o| format!("{}: {}", o.place, o.message))
+        .collect();
+    if outside.len() > LISTED_OUTSIDE {
+        warnings.push(format!(
+            "{origin}: {} more joint values are outside their limits (the first {LISTED_OUTSIDE} are listed)",
+            outside.len() - LISTED_OUTSIDE
+        ));
+    }
+    Ok(warnings)
+}
+
+/// Joint values read in degrees that are all within ±2π while the joints could move far more:
+/// radians read as degrees (every revolute joint would have moved less than 6.3°, too little
+/// to calibrate anything). Only checked with at least 10 revolute values.
+fn angles_look_like_radians(
+    set: &MeasurementSet,
+    tree: &KinematicTree,
+    angle: AngleUnit,
+    origin: &str,
+) -> Result<()> {
+    if angle != AngleUnit::Degree {
+        return Ok(());
+    }
+    let revolute: Vec<usize> = tree
+        .dofs()
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| tree.joint(**j).kind != JointKind::Prismatic)
+        .map(|(dof, _)| dof)
+        .collect();
+    let values: Vec<f64> = set
+        .measurements
+        .iter()
+        .flat_map(|m| revolute.iter().map(|&d| m.q[d]))
+        .filter(|v| *v != 0.0)
+        .collect();
+    let largest_in_degrees = values
+        .iter()
+        .fold(0.0_f64, |a, v| a.max(v.abs().to_degrees()));
+    if values.len() >= 10 && largest_in_degrees <= std::f64::consts::TAU {
+        return Err(Error::InvalidData {
+            origin: origin.to_owned(),
+            message: format!(
+                "all {} non-zero revolute joint values are within ±{largest_in_degrees:.3} deg, \
+                too small a motion to calibrate from: the joint values look like radians; \
+                give --angle-unit rad (or state `# units: angle=rad` in the file)",
+                values.len()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The distinct links named in the `tool` column of measurement CSV `text`, in order of first
+/// appearance: the measured tools, read without a robot model (so that the arms can be built
+/// from them). An error when there is no `tool` column or no data row.
+pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
+    let table = parse_csv(text, origin)?;
+    let column = table
+        .headers
+        .iter()
+        .position(|h| h == "tool")
+        .ok_or_else(|| Error::InvalidData {
+            origin: format!("{origin}:{}", table.header_line),
+            message: "the header has no 'tool' column; add one naming the measured tool link \
+                of each row"
+                .into(),
+        })?;
+    let mut names: Vec<String> = Vec::new();
+    for (line, fields) in &table.records {
+        let name = &fields[column];
+        if name.is_empty() {
+            return Err(Error::InvalidData {
+                origin: format!("{origin}:{line}:tool"),
+                message: "the tool is empty; name the measured tool link".into(),
+            });
+        }
+        if !names.contains(name) {
+            names.push(name.clone());
+        }
+    }
+    if names.is_empty() {
+        return Err(Error::InvalidData {
+            origin: origin.to_owned(),
+            message: "the file has a header but no data rows; add one row per measurement".into(),
+        });
+    }
+    Ok(names)
+}
+
+/// Reads a measurement CSV file's tool column; see [`measured_tool_names`].
+pub fn read_measured_tool_names(path: &Path) -> Result<Vec<String>> {
+    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
+    measured_tool_names(&text, &path.display().to_string())
+}
+
+/// Rows that repeat an earlier row in every column but the id: accepted (a repeated
+/// measurement is legitimate), with one warning, since an accidentally duplicated row weighs
+/// double in the fit.
+struct Repeats {
+    id: Option<usize>,
+    first_line: HashMap<Vec<String>, usize>,
+    /// `(line, line it repeats)` of every repeated row.
+    found: Vec<(usize, usize)>,
+}
+
+impl Repeats {
+    fn new(id: Option<usize>) -> Self {
+        Self {
+            id,
+            first_line: HashMap::new(),
+            found: Vec::new(),
+        }
+    }
+
+    fn see(&mut self, fields: &[String], line: usize) {
+        let mut key = fields.to_vec();
+        if let Some(id) = self.id {
+            key[id].clear();
+        }
+        if let Some(&first) = self.first_line.get(&key) {
+            self.found.push((line, first));
+        } else {
+            self.first_line.insert(key, line);
+        }
+    }
+
+    fn warning(&self, origin: &str) -> Option<String> {
+        let &(line, first) = self.found.first()?;
+        let more = match self.found.len() {
+            1 => String::new(),
+            n => format!(" ({} repeated rows in all)", n),
+        };
+        Some(format!(
+            "{origin}:{line}: the row repeats line {first} in every column but the id{more}; \
+             a repeated row weighs double in the fit: remove it if it was copied by mistake"
+        ))
+    }
 }
 
 /// A finite number, or what is wrong with the text.
@@ -513,7 +741,7 @@ pub fn measurements_to_csv(
 }
 
 /// Writes measurements as CSV in the units and layout `options` name; output in units other
-/// than metres and radians starts with a `#` comment naming them.
+/// than metres and radians starts with the units comment `# units: length=… angle=…`.
 pub fn measurements_to_csv_with(
     tree: &KinematicTree,
     model: &McpcModel,
@@ -601,10 +829,11 @@ pub fn measurements_to_csv_with(
     if options.length_unit == LengthUnit::Metre && options.angle_unit == AngleUnit::Radian {
         Ok(body)
     } else {
-        Ok(format!(
-            "# lengths in {}, angles in {}\n{body}",
-            options.length_unit.symbol(),
-            options.angle_unit.symbol()
-        ))
+        let units = MeasurementUnits {
+            length: options.length_unit,
+            angle: options.angle_unit,
+            joint_length: options.length_unit,
+        };
+        Ok(format!("{}\n{body}", StatedUnits::line_for(&units)))
     }
 }

@@ -7,6 +7,7 @@ pub mod mesh_files;
 pub mod params;
 pub mod plan;
 pub mod poses_csv;
+pub mod registration;
 pub mod stiffness;
 pub mod stiffness_write;
 pub mod units;
@@ -15,17 +16,21 @@ pub mod write;
 pub use joints_csv::{append_poses, configurations, parse_csv, ColumnMapping, CsvTable};
 pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
 pub use measurements_csv::{
-    measurements_to_csv, measurements_to_csv_with, parse_measurements, read_measurements,
-    MeasurementReadOptions, MeasurementSet, MeasurementWriteOptions, ObservationKind,
+    measured_tool_names, measurements_to_csv, measurements_to_csv_with, parse_measurements,
+    read_measured_tool_names, read_measurements, MeasurementReadOptions, MeasurementSet,
+    MeasurementWriteOptions, ObservationKind,
 };
-pub use mesh_files::{mesh_file_loader, package_dirs, resolve_mesh};
+pub use mesh_files::{mesh_file_loader, package_dirs, read_mesh_vertices, resolve_mesh};
 pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
+pub use registration::{parse_registration, read_registration};
 pub use stiffness::{parse_stiffness, read_stiffness};
 pub use stiffness_write::stiffness_to_yaml;
-pub use units::{AngleUnit, LengthUnit};
-pub use write::write_atomically;
+pub use units::{
+    parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
+};
+pub use write::{check_output_folder, replace_folder, write_atomically};
 
 use crate::error::{Error, Result};
 

@@ -15,6 +15,7 @@
 
 use crate::error::{did_you_mean, Error, Result};
 use crate::kinematics::McpcModel;
+use crate::limits::{magnitude_problem, Quantity};
 use crate::tree::KinematicTree;
 use std::collections::HashMap;
 use std::path::Path;
@@ -28,6 +29,9 @@ struct File {
 struct Entry {
     name: String,
     calibrated: f64,
+    /// The calibration's standard deviation (SI), as `params.yaml` gives it.
+    #[serde(default)]
+    std_dev: Option<f64>,
 }
 
 /// The parameter vector a parameter file gives, and what the user should know about it.
@@ -37,6 +41,9 @@ pub struct ParameterValues {
     pub values: Vec<f64>,
     /// Parameters the file does not list (they keep their nominal value).
     pub warnings: Vec<String>,
+    /// The standard deviation (rad, m) the file gives for each parameter (`std_dev`, as the
+    /// calibration writes it), same order; `None` where not given or not a positive number.
+    pub std_devs: Vec<Option<f64>>,
 }
 
 /// Reads a parameter file for `model` (the nominal model of `tree`).
@@ -45,10 +52,7 @@ pub fn read_parameters(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<ParameterValues> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_YAML_BYTES)?;
     parse_parameters(&text, &path.display().to_string(), tree, model)
 }
 
@@ -59,6 +63,7 @@ pub fn parse_parameters(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<ParameterValues> {
+    crate::limits::check_yaml_depth(text, origin)?;
     let file: File = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
         origin: match e.location() {
             Some(l) => format!("{origin}:{}:{}", l.line(), l.column()),
@@ -88,6 +93,7 @@ pub fn parse_parameters(
         .collect();
     let mut values = model.parameters();
     let mut given = vec![false; values.len()];
+    let mut std_devs = vec![None; values.len()];
     for (entry_index, entry) in file.parameters.iter().enumerate() {
         let name = entry.name.trim();
         let Some(&i) = index.get(name) else {
@@ -107,16 +113,22 @@ pub fn parse_parameters(
                 ),
             });
         }
-        if !entry.calibrated.is_finite() {
+        let quantity = if model.parameter_layout()[i].1.is_angle() {
+            Quantity::Angle
+        } else {
+            Quantity::Length
+        };
+        if let Some(problem) = magnitude_problem(entry.calibrated, quantity) {
             return Err(Error::InvalidData {
                 origin: at(name),
                 message: format!(
-                    "parameters[{entry_index}]: '{name}' has a calibrated value that is not a finite number"
+                    "parameters[{entry_index}]: '{name}' has calibrated value {problem}"
                 ),
             });
         }
         given[i] = true;
         values[i] = entry.calibrated;
+        std_devs[i] = entry.std_dev.filter(|s| s.is_finite() && *s >= 0.0);
     }
     let warnings = names
         .iter()
@@ -129,5 +141,9 @@ pub fn parse_parameters(
             )
         })
         .collect();
-    Ok(ParameterValues { values, warnings })
+    Ok(ParameterValues {
+        values,
+        warnings,
+        std_devs,
+    })
 }

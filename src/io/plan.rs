@@ -16,6 +16,7 @@ use std::path::Path;
 
 /// Parses a plan; `origin` names the file in messages.
 pub fn parse_plan(text: &str, origin: &str) -> Result<Plan> {
+    crate::limits::check_yaml_depth(text, origin)?;
     let plan: Plan = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
         origin: match e.location() {
             Some(l) => format!("{origin}:{}:{}", l.line(), l.column()),
@@ -34,9 +35,6 @@ pub fn parse_plan(text: &str, origin: &str) -> Result<Plan> {
 
 /// Reads a plan file.
 pub fn read_plan(path: &Path) -> Result<Plan> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_YAML_BYTES)?;
     parse_plan(&text, &path.display().to_string())
 }

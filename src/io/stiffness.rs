@@ -7,6 +7,7 @@ use crate::kinematics::flexibility::names::Names;
 use crate::kinematics::flexibility::stiffness::{mass_problem, stiffness_problem};
 use crate::kinematics::flexibility::{JointStiffness, LinkStiffness, Payload, Stiffness};
 use crate::kinematics::McpcModel;
+use crate::limits::{magnitude_problem, Quantity, MAX_MASS, MIN_STIFFNESS};
 use crate::math::Vec3;
 use crate::tree::KinematicTree;
 use serde::{Deserialize, Deserializer};
@@ -123,6 +124,10 @@ fn positive<'de, D: Deserializer<'de>>(
     let value = f64::deserialize(deserializer)?;
     match stiffness_problem(value) {
         Some(problem) => Err(serde::de::Error::custom(format!("{key} {problem}"))),
+        // Below it the compliance, and the deflections, overflow.
+        None if value < MIN_STIFFNESS => Err(serde::de::Error::custom(format!(
+            "{key} is {value}; must be at least {MIN_STIFFNESS:e} (docs/file-formats.md, \"Limits\")"
+        ))),
         None => Ok(Some(value)),
     }
 }
@@ -161,7 +166,14 @@ mod checked {
 
 fn mass<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Error> {
     let value = f64::deserialize(deserializer)?;
-    match mass_problem(value) {
+    let problem = mass_problem(value).or_else(|| {
+        (value > MAX_MASS).then(|| {
+            format!(
+                "is {value}, beyond the limit {MAX_MASS:e} kg (docs/file-formats.md, \"Limits\")"
+            )
+        })
+    });
+    match problem {
         Some(problem) => Err(serde::de::Error::custom(format!("mass_kg {problem}"))),
         None => Ok(value),
     }
@@ -172,22 +184,28 @@ fn finite_vector<'de, D: Deserializer<'de>>(
     key: &str,
 ) -> Result<Option<[f64; 3]>, D::Error> {
     let value = <[f64; 3]>::deserialize(deserializer)?;
-    if value.iter().all(|v| v.is_finite()) {
-        Ok(Some(value))
+    let quantity = if key == "gravity_m_per_s2" {
+        Quantity::Acceleration
     } else {
+        Quantity::Length
+    };
+    if !value.iter().all(|v| v.is_finite()) {
         Err(serde::de::Error::custom(format!(
             "{key} is {value:?}; must be three finite numbers"
         )))
+    } else if let Some(problem) = value.iter().find_map(|&v| magnitude_problem(v, quantity)) {
+        Err(serde::de::Error::custom(format!(
+            "{key} is {value:?}: {problem}"
+        )))
+    } else {
+        Ok(Some(value))
     }
 }
 
 /// Reads a stiffness file for the robot `tree` with MCPC model `model` (names are checked
 /// against them).
 pub fn read_stiffness(path: &Path, tree: &KinematicTree, model: &McpcModel) -> Result<Stiffness> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_YAML_BYTES)?;
     parse_stiffness(&text, &path.display().to_string(), tree, model)
 }
 
@@ -199,6 +217,17 @@ pub fn parse_stiffness(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<Stiffness> {
+    // An empty file would read as every default: a model nobody wrote, "compensated exactly".
+    let content = text
+        .lines()
+        .any(|line| !line.trim().is_empty() && !line.trim_start().starts_with('#'));
+    if !content {
+        return Err(Error::InvalidData {
+            origin: origin.to_owned(),
+            message: "the stiffness file is empty; give the robot's stiffness and payloads (docs/flexibility.md; `{}` takes every default explicitly), or leave out --stiffness to calibrate a rigid robot".into(),
+        });
+    }
+    crate::limits::check_yaml_depth(text, origin)?;
     let file: File = serde_yaml::from_str(text).map_err(|e| yaml_error(text, origin, &e))?;
     // serde_yaml keeps no positions for map keys, so a bad name is found in the text again.
     let at = |path: &[&str], name: &str, message: String| Error::InvalidData {

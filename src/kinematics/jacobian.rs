@@ -27,7 +27,9 @@ pub struct ToolJacobian {
 }
 
 /// The frames of one configuration that the Jacobian is built from, in the measurement frame.
-#[derive(Debug, Clone)]
+/// Reusable: [`McpcModel::chain_frames_into`] and [`McpcModel::tool_jacobian_into`] refill
+/// its buffers without allocating.
+#[derive(Debug, Clone, Default)]
 pub struct ChainFrames {
     /// For each MCPC frame, the frame its constant part is applied to (`P`: the previous frame
     /// moved by its joint, and by any deformation).
@@ -43,79 +45,108 @@ pub struct ChainFrames {
 impl McpcModel {
     /// The rigid chain at configuration `q`.
     pub fn chain_frames(&self, q: &[f64]) -> ChainFrames {
-        let frames = self.frame_transforms(q);
-        let moved_parent = |parent: Option<usize>| match parent {
-            Some(p) => self.moved(p, q, &frames[p]),
-            None => *self.world_from_base_transform(),
-        };
-        let previous: Vec<Transform> = self
-            .frames()
-            .iter()
-            .map(|f| moved_parent(f.parent))
-            .collect();
-        let tool_previous: Vec<Transform> = self
-            .tools()
-            .iter()
-            .map(|t| moved_parent(t.parent))
-            .collect();
-        let tools = tool_previous
-            .iter()
-            .enumerate()
-            .map(|(t, p)| p.then(self.tool_constant(t)))
-            .collect();
-        ChainFrames {
-            previous,
-            frames,
-            tool_previous,
-            tools,
+        let mut chain = ChainFrames::default();
+        self.chain_frames_into(q, &mut chain);
+        chain
+    }
+
+    /// The rigid chain at configuration `q`, written into `chain`'s buffers (no allocation
+    /// once they have grown). Each frame's joint motion is applied once per child.
+    pub fn chain_frames_into(&self, q: &[f64], chain: &mut ChainFrames) {
+        self.size_chain(chain);
+        for frame in 0..self.frames().len() {
+            self.set_chain_frame(frame, q, chain);
+        }
+        for tool in 0..self.tools().len() {
+            self.set_chain_tool(tool, q, chain);
         }
     }
 
-    /// Writes the Jacobian columns of tool `tool` into `jacobian` (6 × parameter_count, zeroed
-    /// by the caller).
-    fn fill_tool_jacobian(&self, tool: usize, chain: &ChainFrames, jacobian: &mut DMatrix<f64>) {
-        let tip = chain.tools[tool].translation;
-        let mut rotation_column = |column: usize, axis: Vec3, through: Vec3| {
-            let linear = axis.cross(&(tip - through));
-            for row in 0..3 {
-                jacobian[(row, column)] = linear[row];
-                jacobian[(row + 3, column)] = axis[row];
-            }
+    /// Sizes `chain`'s buffers for this model (new entries are identities; entries not
+    /// recomputed keep what they held).
+    fn size_chain(&self, chain: &mut ChainFrames) {
+        let (frames, tools) = (self.frames().len(), self.tools().len());
+        for (buffer, size) in [
+            (&mut chain.previous, frames),
+            (&mut chain.frames, frames),
+            (&mut chain.tool_previous, tools),
+            (&mut chain.tools, tools),
+        ] {
+            buffer.resize(size, Transform::identity());
+        }
+    }
+
+    /// `previous` and `frames` of `frame`, from its parent's (already set) frame.
+    #[inline]
+    fn set_chain_frame(&self, frame: usize, q: &[f64], chain: &mut ChainFrames) {
+        let previous = match self.frames()[frame].parent {
+            Some(p) => self.moved(p, q, &chain.frames[p]),
+            None => *self.world_from_base_transform(),
         };
+        chain.frames[frame] = previous.then(self.frame_constant(frame));
+        chain.previous[frame] = previous;
+    }
+
+    /// `tool_previous` and `tools` of `tool`, from its last frame (already set).
+    #[inline]
+    fn set_chain_tool(&self, tool: usize, q: &[f64], chain: &mut ChainFrames) {
+        let previous = match self.tools()[tool].parent {
+            Some(p) => self.moved(p, q, &chain.frames[p]),
+            None => *self.world_from_base_transform(),
+        };
+        chain.tools[tool] = previous.then(self.tool_constant(tool));
+        chain.tool_previous[tool] = previous;
+    }
+
+    /// Writes the Jacobian columns of tool `tool` into `jacobian` (6 × parameter_count, zeroed
+    /// by the caller), one whole column (6 contiguous values) at a time.
+    fn fill_tool_jacobian(&self, tool: usize, chain: &ChainFrames, jacobian: &mut DMatrix<f64>) {
+        debug_assert_eq!(jacobian.nrows(), 6);
+        let tip = chain.tools[tool].translation;
+        let data = jacobian.as_mut_slice();
+        let mut put = |column: usize, values: [f64; 6]| {
+            data[6 * column..6 * column + 6].copy_from_slice(&values);
+        };
+        let rotation = |axis: Vec3, through: &Vec3| {
+            let linear = axis.cross(&(tip - through));
+            [linear.x, linear.y, linear.z, axis.x, axis.y, axis.z]
+        };
+        let translation = |d: Vec3| [d.x, d.y, d.z, 0.0, 0.0, 0.0];
         for &frame in self.tool_chain(tool) {
             let previous = &chain.previous[frame];
             let [alpha_axis, beta_axis] = self.frame_axes(frame);
             let offset = self.frame_parameter_offset(frame);
-            rotation_column(offset, previous.rotation * alpha_axis, previous.translation);
-            rotation_column(
-                offset + 1,
-                previous.rotation * beta_axis,
-                previous.translation,
+            put(
+                offset,
+                rotation(previous.rotation * alpha_axis, &previous.translation),
             );
+            put(
+                offset + 1,
+                rotation(previous.rotation * beta_axis, &previous.translation),
+            );
+            // Translations along the frame's own x and y (revolute frames only).
+            if self.frames()[frame].kind == FrameKind::Revolute {
+                let axes = &chain.frames[frame].rotation;
+                put(offset + 2, translation(axes.column(0).into_owned()));
+                put(offset + 3, translation(axes.column(1).into_owned()));
+            }
         }
         let last = &chain.tool_previous[tool];
-        let [alpha_axis, beta_axis, gamma_axis] = self.tool_axes(tool);
+        let axes = self.tool_axes(tool);
         let offset = self.tool_parameter_offset(tool);
-        rotation_column(offset, last.rotation * alpha_axis, last.translation);
-        rotation_column(offset + 1, last.rotation * beta_axis, last.translation);
-        rotation_column(offset + 2, last.rotation * gamma_axis, last.translation);
-        // Translations: along the frame's own x, y (revolute frames) and the tool's x, y, z.
-        for &frame in self.tool_chain(tool) {
-            if self.frames()[frame].kind == FrameKind::Revolute {
-                let offset = self.frame_parameter_offset(frame);
-                for (k, column) in [offset + 2, offset + 3].into_iter().enumerate() {
-                    let direction = chain.frames[frame].rotation.column(k);
-                    for row in 0..3 {
-                        jacobian[(row, column)] = direction[row];
-                    }
-                }
-            }
+        for (k, axis) in axes.iter().enumerate() {
+            put(
+                offset + k,
+                rotation(last.rotation * axis, &last.translation),
+            );
         }
+        // Translations along the tool's x, y, z.
+        let tool_axes = &chain.tools[tool].rotation;
         for k in 0..3 {
-            let direction = chain.tools[tool].rotation.column(k);
-            for row in 0..3 {
-                jacobian[(row, offset + 3 + k)] = direction[row];
-            }
+            put(
+                offset + 3 + k,
+                translation(tool_axes.column(k).into_owned()),
+            );
         }
     }
 
@@ -135,13 +166,33 @@ impl McpcModel {
 
     /// Tool pose and identification Jacobian of tool `tool` at configuration `q`.
     pub fn tool_jacobian(&self, tool: usize, q: &[f64]) -> ToolJacobian {
-        let chain = self.chain_frames(q);
         let mut jacobian = DMatrix::zeros(6, self.parameter_count());
-        self.fill_tool_jacobian(tool, &chain, &mut jacobian);
-        ToolJacobian {
-            pose: chain.tools[tool].to_pose(),
-            jacobian,
+        let pose = self.tool_jacobian_into(tool, q, &mut ChainFrames::default(), &mut jacobian);
+        ToolJacobian { pose, jacobian }
+    }
+
+    /// [`McpcModel::tool_jacobian`] into caller-provided buffers (no allocation once they
+    /// have their size): only the frames on the tool's own chain are computed; `jacobian` is
+    /// resized to 6 × parameter_count if needed and overwritten. Returns the tool pose.
+    pub fn tool_jacobian_into(
+        &self,
+        tool: usize,
+        q: &[f64],
+        chain: &mut ChainFrames,
+        jacobian: &mut DMatrix<f64>,
+    ) -> Pose {
+        self.size_chain(chain);
+        for &frame in self.tool_chain(tool) {
+            self.set_chain_frame(frame, q, chain);
         }
+        self.set_chain_tool(tool, q, chain);
+        if jacobian.shape() != (6, self.parameter_count()) {
+            *jacobian = DMatrix::zeros(6, self.parameter_count());
+        } else {
+            jacobian.fill(0.0);
+        }
+        self.fill_tool_jacobian(tool, chain, jacobian);
+        chain.tools[tool].to_pose()
     }
 
     /// Poses and Jacobians of every tool at configuration `q`; shared frames computed once

@@ -371,8 +371,16 @@ impl McpcModel {
     }
 
     /// The MCPC model of `branches` of `tree` at its nominal (URDF) geometry.
+    /// At most [`crate::limits::MAX_PARAMETERS`] parameters.
     pub fn from_tree(tree: &KinematicTree, branches: &Branches) -> Result<Self> {
-        convert(tree, branches)
+        let model = convert(tree, branches)?;
+        crate::limits::check_count(
+            model.parameter_count(),
+            crate::limits::MAX_PARAMETERS,
+            &format!("robot '{}'", tree.name()),
+            "MCPC parameters on the selected branches",
+        )?;
+        Ok(model)
     }
 
     /// The joint frames, parents first.

@@ -74,8 +74,18 @@ pub struct TableBranch {
     pub parent: Option<String>,
     /// Joint rows.
     pub rows: Vec<TableRow>,
-    /// The tool row, if the branch ends in a tool.
+    /// The tool row, if the branch ends in a tool. Its link may be the last row's link (the
+    /// tool link is then the child link of the branch's last joint, as a palm on a wrist).
     pub tool: Option<TableTool>,
+}
+
+impl TableBranch {
+    /// The tool, if its link is the link the branch's last joint moves (not a link of its own).
+    pub fn carried_tool(&self) -> Option<&TableTool> {
+        self.tool
+            .as_ref()
+            .filter(|t| self.rows.last().is_some_and(|r| r.link == t.link))
+    }
 }
 
 /// A whole MCPC table.
@@ -111,6 +121,12 @@ impl McpcTable {
                     Some(p) if p.rows.is_empty() => {
                         return Err(bad(format!(
                             "branch '{}' hangs from branch '{parent}', which has no joint rows",
+                            branch.name
+                        )))
+                    }
+                    Some(p) if p.carried_tool().is_some() => {
+                        return Err(bad(format!(
+                            "branch '{}' hangs from branch '{parent}', whose last link is its tool; give that tool a link of its own",
                             branch.name
                         )))
                     }
@@ -154,10 +170,18 @@ impl McpcTable {
                 if values.iter().any(|v| !v.is_finite()) {
                     return Err(bad(format!("tool '{}' has a non-finite value", tool.link)));
                 }
-                if links.contains(&tool.link.as_str()) {
-                    return Err(bad(format!("link name '{}' is used twice", tool.link)));
+                // A tool may be the link its branch's last joint moves (a palm on the wrist
+                // joint): then the table names that link twice, in the last row and the tool.
+                let carried = branch.rows.last().is_some_and(|r| r.link == tool.link);
+                if !carried && links.contains(&tool.link.as_str()) {
+                    return Err(bad(format!(
+                        "link name '{}' is used twice (a tool may share a name only with its own branch's last row, when the last joint moves the tool link)",
+                        tool.link
+                    )));
                 }
-                links.push(&tool.link);
+                if !carried {
+                    links.push(&tool.link);
+                }
             }
         }
         Ok(())

@@ -2,8 +2,11 @@
 //! (errors before and after, per arm) layouts in markdown, a serialisable summary for JSON, the
 //! parameter file (`params.yaml`) and the per-configuration error plots (Fig. 9–12 style).
 
+use super::outliers::{outliers_markdown, robust_summary, OutlierRow, RobustSummary};
 use super::plot::arm_error_plots;
-use crate::calibration::{ArmResiduals, CalibrationRun, IdentificationOptions, ParameterEstimate};
+use crate::calibration::{
+    ArmResiduals, CalibrationRun, IdentificationOptions, ParameterEstimate, Status, Verdict,
+};
 use crate::error::Result;
 use crate::math::{rpy_from_rotation, Pose};
 use serde::Serialize;
@@ -35,6 +38,8 @@ pub struct StageOutcome {
     pub name: String,
     /// Measurements used.
     pub measurements: usize,
+    /// Equations (rows: 6 per pose, 3 per position observation).
+    pub rows: usize,
     /// Accepted iterations (of the last plan cycle).
     pub iterations: usize,
     /// Why it stopped.
@@ -60,6 +65,8 @@ pub struct StageOutcome {
 /// The machine-readable report (`report.json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct CalibrationSummary {
+    /// `ok`, `warning` or `failed`, and every finding of the checks (notes included).
+    pub verdict: Verdict,
     /// Inputs.
     pub context: CalibrationContext,
     /// The fitted measurement frame: `xyz` (m) and `rpy` (rad) of the robot base in it.
@@ -84,6 +91,11 @@ pub struct CalibrationSummary {
     pub predicted_validation_sd_mm: Vec<f64>,
     /// Joints whose URDF origin (or axis) the export changed.
     pub changed_joints: Vec<String>,
+    /// How the robust estimation ran.
+    pub robust: RobustSummary,
+    /// The measurements named as outliers (left out of the fit or the statistics); filled by
+    /// the caller with [`super::outliers::outlier_rows`], which needs the rows' ids.
+    pub outliers: Vec<OutlierRow>,
 }
 
 /// A frame as URDF writes it.
@@ -127,6 +139,7 @@ pub fn calibration_summary(
             StageOutcome {
                 name: stage.name.clone(),
                 measurements: stage.measurements,
+                rows: id.rows,
                 iterations: id.iterations,
                 termination: format!("{:?}", id.termination),
                 cost: id.costs.last().copied().unwrap_or(f64::NAN),
@@ -141,6 +154,7 @@ pub fn calibration_summary(
         })
         .collect();
     CalibrationSummary {
+        verdict: Verdict::from_findings(run.findings.clone()),
         context,
         measurement_frame: FrameValues::of(&run.guess.world_from_base),
         initial_guess_rms_m: [run.guess.rms_before, run.guess.rms_after],
@@ -153,6 +167,9 @@ pub fn calibration_summary(
         predicted_validation_rms_mm: run.predicted_validation_rms_mm,
         predicted_validation_sd_mm: run.predicted_validation_sd_mm.clone(),
         changed_joints,
+        robust: robust_summary(run),
+        // The caller knows the rows' ids and the tool names: see `outlier_rows`.
+        outliers: Vec::new(),
     }
 }
 
@@ -203,6 +220,7 @@ pub fn calibration_markdown(
     let mut out = String::new();
     let c = &summary.context;
     let _ = writeln!(out, "# Calibration of '{}'\n", c.robot);
+    verdict_markdown(&mut out, &summary.verdict);
     let _ = writeln!(
         out,
         "Measurements: {}. Validation: {}. Plan: {} ({} cycle(s)). Flexibility: {}. Assumed noise: σ = {:.4} mm, {:.4} mrad.\n",
@@ -297,19 +315,22 @@ pub fn calibration_markdown(
         );
     }
 
+    out.push_str(&outliers_markdown(&summary.robust, &summary.outliers));
+
     // Solver outcome.
     let _ = writeln!(out, "## Solver, per stage\n");
     let _ = writeln!(
         out,
-        "| stage | measurements | iterations | termination | cost | rank | condition | residual RMS | σ̂ |"
+        "| stage | measurements | equations | iterations | termination | cost | rank | condition | residual RMS | σ̂ |"
     );
-    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|");
     for s in &summary.stages {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {:.4e} | {}/{} | {:.3e} | {:.4} mm, {:.5} deg | {:.3} |",
+            "| {} | {} | {} | {} | {} | {:.4e} | {}/{} | {:.3e} | {:.4} mm, {:.5} deg | {:.3} |",
             s.name,
             s.measurements,
+            s.rows,
             s.iterations,
             s.termination,
             s.cost,
@@ -375,6 +396,27 @@ pub fn calibration_markdown(
         );
     }
     out
+}
+
+/// The verdict and its reasons, as the report's first section.
+fn verdict_markdown(out: &mut String, verdict: &Verdict) {
+    let meaning = match verdict.status {
+        Status::Ok => "the result can be used",
+        Status::Warning => "the result can be used, but read the warnings",
+        Status::Failed => "the result must not be used; calibrated.urdf was not written",
+    };
+    let _ = writeln!(out, "**Verdict: {}** ({meaning}).\n", verdict.status);
+    for reason in &verdict.reasons {
+        let label = match reason.status {
+            Status::Ok => "note",
+            Status::Warning => "warning",
+            Status::Failed => "failed",
+        };
+        let _ = writeln!(out, "- {label} ({}): {}", reason.code, reason.message);
+    }
+    if !verdict.reasons.is_empty() {
+        out.push('\n');
+    }
 }
 
 /// The per-configuration error plots of one data set: `(file stem, SVG)` per arm and quantity,

@@ -94,6 +94,9 @@ impl CheckReport {
             let _ = writeln!(out, "\nstage {}:", stage.name);
             if let Some(analysis) = &stage.analysis {
                 stage_text(&mut out, analysis);
+                for warning in analysis.warnings() {
+                    let _ = writeln!(out, "  warning: {warning}");
+                }
             }
             let _ = writeln!(out, "  verdict: {}", stage.verdict);
         }

@@ -362,10 +362,11 @@ impl InspectReport {
             .mcpc
             .rows
             .iter()
-            .map(|r| r.name.len())
+            .map(|r| r.name.chars().count())
             .max()
             .unwrap_or(4)
-            .max(5);
+            // A longer name overflows its column (a format width above 65,535 panics).
+            .clamp(5, 60);
         let _ = writeln!(
             out,
             "  {:<10} {:>3}  {:<width$} {:>9} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",

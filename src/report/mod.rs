@@ -3,6 +3,7 @@
 pub mod calibrate;
 pub mod check;
 pub mod inspect;
+pub mod outliers;
 pub mod plot;
 pub mod simulate;
 pub mod stiffness;
@@ -13,4 +14,5 @@ pub use calibrate::{
 };
 pub use check::{CheckReport, StageCheck};
 pub use inspect::{inspect, InspectReport};
+pub use outliers::{outlier_rows, OutlierRow, RobustSummary};
 pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};

@@ -1,10 +1,11 @@
 //! Tables of a simulation in the layout of the paper's Table 3.
 
+use crate::measurement::Observation;
 use crate::sim::experiment::{ArmErrors, TrialReport};
 use crate::sim::monte_carlo::{ArmSummary, SimulationSummary};
 use std::fmt::Write;
 
-fn trial_table(out: &mut String, title: &str, arms: &[ArmErrors]) {
+fn trial_table(out: &mut String, title: &str, arms: &[ArmErrors], orientation: bool) {
     let _ = writeln!(out, "### {title}\n");
     let _ = writeln!(
         out,
@@ -28,6 +29,9 @@ fn trial_table(out: &mut String, title: &str, arms: &[ArmErrors]) {
             arm.position_removed_percent[0],
             arm.position_removed_percent[1]
         );
+        if !orientation {
+            continue;
+        }
         let _ = writeln!(
             out,
             "| {} | orientation (deg) | {:.4} | {:.4} | {:.4} | {:.4} | {:.5} | {:.5} | {:.2} % | {:.3} % |",
@@ -45,7 +49,7 @@ fn trial_table(out: &mut String, title: &str, arms: &[ArmErrors]) {
     out.push('\n');
 }
 
-fn summary_table(out: &mut String, title: &str, arms: &[ArmSummary]) {
+fn summary_table(out: &mut String, title: &str, arms: &[ArmSummary], orientation: bool) {
     let _ = writeln!(out, "### {title} (mean ± standard deviation over trials)\n");
     let _ = writeln!(
         out,
@@ -68,6 +72,9 @@ fn summary_table(out: &mut String, title: &str, arms: &[ArmSummary]) {
             arm.position_removed_percent[1].mean,
             arm.position_removed_percent[1].std
         );
+        if !orientation {
+            continue;
+        }
         let _ = writeln!(
             out,
             "| {} | orientation (deg) | {:.4} ± {:.4} | {:.4} ± {:.4} | {:.5} ± {:.5} | {:.2} ± {:.2} % | {:.3} ± {:.3} % |",
@@ -101,18 +108,42 @@ pub fn simulation_markdown(
         out,
         "Errors are against the true (deflected, noise-free) tool poses. \"rigid\": calibrated ignoring flexibility, predicted rigidly; \"compensated\": calibrated and predicted with the flexibility model. \"removed\": share of the mean error removed.\n"
     );
+    // Position-only measurements (one target) cannot see the tool orientation, which is kept at
+    // its nominal value: its error is not the calibration's to remove, so it is not shown.
+    let orientation = !trials.first().is_some_and(|t| {
+        !t.measurements.is_empty()
+            && t.measurements
+                .iter()
+                .all(|m| matches!(m.observation, Observation::Position(_)))
+    });
+    if !orientation {
+        let _ = writeln!(
+            out,
+            "Position-only measurements (one target per tool): the tool orientation cannot be observed and is kept at its nominal value, so orientation errors are not shown.\n"
+        );
+    }
     if let Some(first) = trials.first() {
         let _ = writeln!(out, "## Trial 1 (seed {})\n", first.seed);
         trial_table(
             &mut out,
             "Identification configurations",
             &first.identification,
+            orientation,
         );
-        trial_table(&mut out, "Validation configurations", &first.validation);
+        trial_table(
+            &mut out,
+            "Validation configurations",
+            &first.validation,
+            orientation,
+        );
         let _ = writeln!(
             out,
             "Measurement noise alone predicts an RMS validation position error of {:.4} mm.\n",
             first.noise_floor_position_mm
+        );
+        blunder_line(
+            &mut out,
+            &[first.blunders.counts(0), first.blunders.counts(1)],
         );
     }
     if trials.len() > 1 {
@@ -121,13 +152,34 @@ pub fn simulation_markdown(
             &mut out,
             "Identification configurations",
             &summary.identification,
+            orientation,
         );
-        summary_table(&mut out, "Validation configurations", &summary.validation);
+        summary_table(
+            &mut out,
+            "Validation configurations",
+            &summary.validation,
+            orientation,
+        );
         let _ = writeln!(
             out,
             "Noise floor (RMS validation position error predicted from the noise): {:.4} ± {:.4} mm.\n",
             summary.noise_floor_position_mm.mean, summary.noise_floor_position_mm.std
         );
+        blunder_line(&mut out, &summary.blunders);
     }
     out
+}
+
+/// What robust estimation made of the injected blunders (nothing when there were none and
+/// nothing was named).
+fn blunder_line(out: &mut String, counts: &[[usize; 3]; 2]) {
+    if counts.iter().flatten().all(|&c| c == 0) {
+        return;
+    }
+    let [rigid, compensated] = counts;
+    let _ = writeln!(
+        out,
+        "Blunders named / missed / clean measurements named as outliers: {} / {} / {} (rigid), {} / {} / {} (compensated).\n",
+        rigid[0], rigid[1], rigid[2], compensated[0], compensated[1], compensated[2]
+    );
 }

@@ -4,18 +4,20 @@
 //! construction; a check then places them with the link poses of one configuration and tests
 //! every pair of links that are not *adjacent*. Links welded together by fixed joints form one
 //! rigid body: all links of a body are mutually adjacent, and adjacent to every link of the
-//! bodies joined to it by a single movable joint. Adjacent links may touch (that is how joints
+//! bodies joined to it by a single movable joint, or by several whose bodies in between have no
+//! collision shapes (a two-joint shoulder). Adjacent links may touch (that is how joints
 //! are drawn), so they are never checked.
 //!
-//! Mesh shapes (STL, OBJ) are loaded when a loader is given
+//! Mesh shapes (STL, OBJ, COLLADA) are loaded when a loader is given
 //! ([`CollisionChecker::with_meshes`]) and the file resolves; each becomes its *convex hull*,
-//! which is fast and conservative (a concave link counts as its hull). Meshes that do not
-//! resolve or are in another format (e.g. `.dae`) are skipped and listed.
+//! computed once per file and scale however many links use it, which is fast and conservative
+//! (a concave link counts as its hull). Meshes that cannot be found or read are skipped and
+//! listed.
 //!
 //! parry 0.31 works in glam types; poses are converted from [`crate::math::Pose`] here and
 //! nowhere else, so nothing of parry leaks out of this module.
 
-use super::mesh::{mesh_vertices, MeshFormat};
+use super::mesh::MeshLookup;
 use crate::error::{Error, Result};
 use crate::math::Pose;
 use crate::tree::{JointKind, KinematicTree, LinkId, Shape};
@@ -66,12 +68,16 @@ pub struct CollisionChecker {
     pairs: Vec<(usize, usize)>,
     margin: f64,
     skipped_meshes: Vec<String>,
+    unreadable_meshes: Vec<(String, String)>,
     loaded_meshes: usize,
 }
 
-/// Returns the bytes of a URDF mesh `filename` (as written in the URDF), or `None` when it
-/// cannot be found; see [`crate::io::mesh_file_loader`].
-pub type MeshLoader<'a> = &'a (dyn Fn(&str) -> Option<Vec<u8>> + 'a);
+/// Returns the vertices of a URDF mesh `filename` (as written in the URDF), or why there are
+/// none; see [`crate::io::mesh_file_loader`].
+pub type MeshLoader<'a> = &'a (dyn Fn(&str) -> MeshLookup + 'a);
+
+/// A mesh's convex hull and its placement, or why it was left out (`None`: not found).
+type MeshHull = std::result::Result<(SharedShape, ShapePose), Option<String>>;
 
 impl std::fmt::Debug for CollisionChecker {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -93,13 +99,12 @@ impl CollisionChecker {
 
     /// A checker for `tree` with the given options; mesh shapes are skipped.
     pub fn with_options(tree: &KinematicTree, options: &CollisionOptions) -> Result<Self> {
-        Self::with_meshes(tree, options, &|_| None)
+        Self::with_meshes(tree, options, &|_| MeshLookup::NotFound)
     }
 
-    /// A checker for `tree` whose STL and OBJ mesh shapes are read through `load` (as their
-    /// convex hulls, scaled by the URDF `scale`); meshes it cannot find or in other formats
-    /// are skipped ([`Self::skipped_meshes`]). A mesh file that is found but unreadable is an
-    /// error naming it.
+    /// A checker for `tree` whose mesh shapes are read through `load` (as their convex hulls,
+    /// scaled by the URDF `scale`, each file and scale once); meshes it cannot find or read are
+    /// skipped ([`Self::skipped_mesh_files`], [`Self::unreadable_meshes`]).
     pub fn with_meshes(
         tree: &KinematicTree,
         options: &CollisionOptions,
@@ -116,7 +121,10 @@ impl CollisionChecker {
         }
         let mut links = Vec::new();
         let mut skipped_meshes = Vec::new();
+        let mut unreadable_meshes = Vec::new();
         let mut loaded_meshes = 0;
+        let mut hulls: std::collections::HashMap<(String, [u64; 3]), MeshHull> =
+            std::collections::HashMap::new();
         for (index, link) in tree.links().iter().enumerate() {
             let mut shapes = Vec::new();
             for (link_from_urdf_shape, shape) in &link.geometry.collisions {
@@ -130,14 +138,29 @@ impl CollisionChecker {
                 };
                 let found = match shape {
                     Shape::Mesh { filename, scale } => {
-                        let hull = mesh_hull(filename, scale, load, &link.name)?;
-                        if hull.is_some() {
-                            loaded_meshes += 1;
-                        } else {
+                        let key = (filename.clone(), scale.map(f64::to_bits).into());
+                        let hull = match hulls.get(&key) {
+                            Some(hull) => hull.clone(),
+                            None => {
+                                let hull = mesh_hull(filename, scale, load, &link.name)?;
+                                hulls.insert(key, hull.clone());
+                                hull
+                            }
+                        };
+                        match hull {
+                            Ok(hull) => {
+                                loaded_meshes += 1;
+                                Some(hull)
+                            }
                             // The link is checked with its other shapes only (or not at all).
-                            skipped_meshes.push(filename.clone());
+                            Err(reason) => {
+                                skipped_meshes.push(filename.clone());
+                                if let Some(reason) = reason {
+                                    unreadable_meshes.push((filename.clone(), reason));
+                                }
+                                None
+                            }
                         }
-                        hull
                     }
                     _ => parry_shape(shape, &invalid)?,
                 };
@@ -163,7 +186,11 @@ impl CollisionChecker {
                 });
             }
         }
-        let body = rigid_bodies(tree);
+        let mut has_shapes = vec![false; tree.links().len()];
+        for link in &links {
+            has_shapes[link.link.0] = true;
+        }
+        let body = rigid_bodies(tree, &has_shapes);
         let mut pairs = Vec::new();
         for a in 0..links.len() {
             for b in a + 1..links.len() {
@@ -181,6 +208,7 @@ impl CollisionChecker {
             pairs,
             margin: options.margin,
             skipped_meshes,
+            unreadable_meshes,
             loaded_meshes,
         })
     }
@@ -197,7 +225,7 @@ impl CollisionChecker {
             .map(|&(a, b)| (self.links[a].link, self.links[b].link))
     }
 
-    /// Number of `<collision>` meshes left out (not found, or not STL/OBJ).
+    /// Number of `<collision>` meshes left out (not found, or unreadable).
     pub fn skipped_meshes(&self) -> usize {
         self.skipped_meshes.len()
     }
@@ -205,6 +233,12 @@ impl CollisionChecker {
     /// The file names (as in the URDF) of the `<collision>` meshes left out.
     pub fn skipped_mesh_files(&self) -> &[String] {
         &self.skipped_meshes
+    }
+
+    /// The `<collision>` meshes found but left out, with the reason (not a mesh format that
+    /// can be read, a parse error, no vertices, a flat mesh).
+    pub fn unreadable_meshes(&self) -> &[(String, String)] {
+        &self.unreadable_meshes
     }
 
     /// Number of `<collision>` meshes loaded (as convex hulls).
@@ -250,6 +284,41 @@ impl CollisionChecker {
             .filter(|&&(a, b)| self.pair_collides(&placed[a], a, &placed[b], b))
             .map(|&(a, b)| (self.links[a].link, self.links[b].link))
             .collect()
+    }
+
+    /// Stops checking the pairs that collide at every one of `configurations` (the link poses
+    /// of random configurations, see [`crate::sim::sampling::sample_configurations`]): links
+    /// whose meshes overlap by design (two links of a compact wrist), which no configuration
+    /// can separate and which MoveIt's setup assistant disables as "always in collision".
+    /// Returns the pairs no longer checked; none when `configurations` is empty.
+    ///
+    /// # Panics
+    ///
+    /// As [`Self::in_collision`].
+    pub fn ignore_pairs_always_colliding(
+        &mut self,
+        configurations: &[Vec<Pose>],
+    ) -> Vec<(LinkId, LinkId)> {
+        let mut always = vec![!configurations.is_empty(); self.pairs.len()];
+        for link_poses in configurations {
+            let placed = self.place(link_poses);
+            for (k, &(a, b)) in self.pairs.iter().enumerate() {
+                if always[k] && !self.pair_collides(&placed[a], a, &placed[b], b) {
+                    always[k] = false;
+                }
+            }
+        }
+        let mut removed = Vec::new();
+        let mut kept = Vec::with_capacity(self.pairs.len());
+        for (&(a, b), &drop) in self.pairs.iter().zip(&always) {
+            if drop {
+                removed.push((self.links[a].link, self.links[b].link));
+            } else {
+                kept.push((a, b));
+            }
+        }
+        self.pairs = kept;
+        removed
     }
 
     /// Each shape-carrying link's pose (parry form) and bounding-sphere centre, root frame.
@@ -444,39 +513,36 @@ fn parry_shape(
     }))
 }
 
-/// The convex hull of a mesh file, scaled; `None` when the loader cannot find it or its format
-/// is not STL or OBJ.
+/// The convex hull of a mesh file, scaled; `Err(None)` when the loader cannot find it,
+/// `Err(Some(reason))` when it cannot be read or has no volume. A non-finite scale is an error.
 fn mesh_hull(
     filename: &str,
     scale: &crate::math::Vec3,
     load: MeshLoader<'_>,
     link: &str,
-) -> Result<Option<(SharedShape, ShapePose)>> {
-    let Some(format) = MeshFormat::of(filename) else {
-        return Ok(None);
-    };
-    let Some(bytes) = load(filename) else {
-        return Ok(None);
-    };
+) -> Result<MeshHull> {
     if !scale.iter().all(|s| s.is_finite()) {
         return Err(Error::InvalidData {
             origin: filename.into(),
             message: format!("link '{link}' gives this mesh a scale that is not finite"),
         });
     }
-    let points: Vec<ShapeVector> = mesh_vertices(&bytes, format, filename)?
+    let vertices = match load(filename) {
+        MeshLookup::Vertices(vertices) => vertices,
+        MeshLookup::NotFound => return Ok(Err(None)),
+        MeshLookup::Unreadable(reason) => return Ok(Err(Some(reason))),
+    };
+    let points: Vec<ShapeVector> = vertices
         .iter()
         .map(|v| ShapeVector::new(v.x * scale.x, v.y * scale.y, v.z * scale.z))
         .collect();
-    match SharedShape::convex_hull(&points) {
-        Some(hull) => Ok(Some((hull, ShapePose::IDENTITY))),
-        None => Err(Error::InvalidData {
-            origin: filename.into(),
-            message: format!(
-                "the collision mesh of link '{link}' is flat or degenerate (no convex hull);                  fix the mesh or give the link a primitive <collision> shape"
-            ),
-        }),
-    }
+    Ok(match SharedShape::convex_hull(&points) {
+        Some(hull) => Ok((hull, ShapePose::IDENTITY)),
+        None => Err(Some(
+            "flat or degenerate (no convex hull); give the link a primitive <collision> shape"
+                .into(),
+        )),
+    })
 }
 
 /// A sphere (centre in the link frame, radius) around all shapes of a link.
@@ -511,7 +577,11 @@ struct Bodies {
     parent_body: Vec<Option<LinkId>>,
 }
 
-fn rigid_bodies(tree: &KinematicTree) -> Bodies {
+/// `has_shapes`: whether each link has collision shapes. A body without any (the small link
+/// between the two joints of a shoulder or wrist, as real descriptions have them) does not
+/// separate the bodies on either side: they count as joined by one movable joint, since that
+/// is how they are drawn meeting.
+fn rigid_bodies(tree: &KinematicTree, has_shapes: &[bool]) -> Bodies {
     let count = tree.links().len();
     let mut body_of: Vec<LinkId> = (0..count).map(LinkId).collect();
     let mut parent_body = vec![None; count];
@@ -522,6 +592,20 @@ fn rigid_bodies(tree: &KinematicTree) -> Bodies {
             body_of[joint.child.0] = parent;
         } else {
             parent_body[joint.child.0] = Some(parent);
+        }
+    }
+    let mut body_has_shapes = vec![false; count];
+    for (link, &shapes) in has_shapes.iter().enumerate() {
+        body_has_shapes[body_of[link].0] |= shapes;
+    }
+    // Parents come before children, so a parent's own parent is already skipped to a body with
+    // shapes when its children are visited.
+    for joint in tree.joints() {
+        let child = joint.child.0;
+        if let Some(parent) = parent_body[child] {
+            if !body_has_shapes[parent.0] {
+                parent_body[child] = parent_body[parent.0].or(Some(parent));
+            }
         }
     }
     Bodies {

@@ -2,6 +2,7 @@
 //! deflections, measured by a noisy laser tracker, calibrated without and with flexibility
 //! compensation, and judged on the identification and on separate validation configurations.
 
+use super::blunders::inject_blunders;
 use super::collision::CollisionChecker;
 use super::noise::{observe, NoiseModel, Targets};
 use super::planning::{plan_poses, PlanningOptions, PlanningStage};
@@ -9,8 +10,8 @@ use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, ErrorRanges};
 use crate::calibration::stiffness::{identify_stiffness, ComplianceEstimate, StiffnessOptions};
 use crate::calibration::{
-    calibrate, CalibrationReport, Compensation, Deflected, IdentificationOptions, ParameterSet,
-    Plan,
+    calibrate_robust, CalibrationReport, Compensation, Deflected, IdentificationOptions,
+    ParameterSet, Plan, RobustLoss,
 };
 use crate::error::Result;
 use crate::kinematics::{FlexibilityModel, McpcModel};
@@ -51,6 +52,12 @@ pub struct SimulationOptions {
     /// `Some`: identify the compliances jointly with the geometry in the compensated
     /// calibration, from the model's flexibility as the prior.
     pub identify_stiffness: Option<StiffnessOptions>,
+    /// The robust loss of both calibrations.
+    pub robust: RobustLoss,
+    /// Fraction of the measurements turned into blunders ([`inject_blunders`]).
+    pub outliers: f64,
+    /// How far a blunder moves its target (m).
+    pub outlier_size: f64,
 }
 
 impl Default for SimulationOptions {
@@ -67,6 +74,9 @@ impl Default for SimulationOptions {
             seed: 0,
             planning: None,
             identify_stiffness: None,
+            robust: RobustLoss::default(),
+            outliers: 0.0,
+            outlier_size: 0.05,
         }
     }
 }
@@ -134,6 +144,26 @@ pub struct ArmErrors {
     pub orientation_deg: [Vec<f64>; 3],
 }
 
+/// Blunders injected into a trial's measurements and the outliers the calibrations named
+/// (indices into the measurements, torso stage then arms stage).
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct BlunderReport {
+    /// The measurements turned into blunders.
+    pub injected: Vec<usize>,
+    /// The outliers named by the calibration without / with compensation.
+    pub named: [Vec<usize>; 2],
+}
+
+impl BlunderReport {
+    /// Blunders named, blunders missed and clean measurements named, by the calibration
+    /// without (`0`) or with (`1`) compensation.
+    pub fn counts(&self, run: usize) -> [usize; 3] {
+        let named = &self.named[run];
+        let hits = self.injected.iter().filter(|i| named.contains(i)).count();
+        [hits, self.injected.len() - hits, named.len() - hits]
+    }
+}
+
 /// The outcome of one calibration run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunSummary {
@@ -163,9 +193,15 @@ pub struct TrialReport {
     /// model's prior (the truth's scale is the model's stiffness over the truth's).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stiffness: Option<Vec<ComplianceEstimate>>,
+    /// The blunders injected and the outliers each calibration named.
+    pub blunders: BlunderReport,
     /// The simulated measurements (torso stage, then arms stage).
     #[serde(skip)]
     pub measurements: Vec<Measurement>,
+    /// Notes of how the plan ran (e.g. `empty-torso`: a torso stage skipped), in the words
+    /// of [`crate::calibration::CalibrationReport::notes`].
+    #[serde(skip)]
+    pub notes: Vec<String>,
 }
 
 /// The seed of trial `trial`, independent of how trials are spread over threads.
@@ -226,6 +262,12 @@ pub fn run_trial(
         };
     measure(&torso_configurations, "torso", &mut rng)?;
     measure(&arm_configurations, "arms", &mut rng)?;
+    let injected = inject_blunders(
+        &mut measurements,
+        options.outliers,
+        options.outlier_size,
+        seed,
+    );
     finish_trial(
         setup,
         options,
@@ -236,6 +278,13 @@ pub fn run_trial(
         &arm_configurations,
         &validation,
     )
+    .map(|report| TrialReport {
+        blunders: BlunderReport {
+            injected,
+            ..report.blunders
+        },
+        ..report
+    })
 }
 
 /// Configurations of the torso stage, then of the arms stage.
@@ -344,12 +393,15 @@ fn finish_trial(
     validation: &[Vec<f64>],
 ) -> Result<TrialReport> {
     let tree = setup.tree;
-    let identification_options = identification_options.clone();
+    let identification_options = IdentificationOptions {
+        robust: options.robust,
+        ..identification_options.clone()
+    };
     let source = Deflected {
         tree,
         flexibility: setup.model_flexibility,
     };
-    let rigid = calibrate(
+    let (rigid, rigid_robust) = calibrate_robust(
         setup.branches,
         setup.nominal,
         &measurements,
@@ -357,7 +409,7 @@ fn finish_trial(
         &options.plan,
         &identification_options,
     )?;
-    let compensated = calibrate(
+    let (compensated, compensated_robust) = calibrate_robust(
         setup.branches,
         setup.nominal,
         &measurements,
@@ -365,6 +417,10 @@ fn finish_trial(
         &options.plan,
         &identification_options,
     )?;
+    let blunders = BlunderReport {
+        injected: Vec::new(),
+        named: [rigid_robust.outliers(), compensated_robust.outliers()],
+    };
 
     let identified = match &options.identify_stiffness {
         Some(stiffness) => {
@@ -410,7 +466,13 @@ fn finish_trial(
         rigid_run: summary(&rigid),
         compensated_run: summary(&compensated),
         stiffness: identified.map(|r| r.estimates),
+        blunders,
         measurements,
+        notes: compensated
+            .notes
+            .iter()
+            .map(|n| n.message.clone())
+            .collect(),
     })
 }
 

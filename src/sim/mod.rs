@@ -1,5 +1,6 @@
 //! Simulation: random and planned configurations and the self-collision checks they must pass.
 
+pub mod blunders;
 pub mod collision;
 mod detmax;
 pub mod experiment;

@@ -59,6 +59,9 @@ pub struct SimulationSummary {
     pub validation: Vec<ArmSummary>,
     /// RMS validation position error the noise alone predicts (mm), over trials.
     pub noise_floor_position_mm: Spread,
+    /// Over all trials, without / with compensation: blunders named, blunders missed, clean
+    /// measurements named as outliers.
+    pub blunders: [[usize; 3]; 2],
 }
 
 /// Runs `trials` trials on all cores; `progress` is called once per finished trial.
@@ -127,5 +130,11 @@ pub fn summarise(reports: &[TrialReport]) -> SimulationSummary {
                 .map(|r| r.noise_floor_position_mm)
                 .collect::<Vec<_>>(),
         ),
+        blunders: [0, 1].map(|run| {
+            reports.iter().fold([0; 3], |total, r| {
+                let counts = r.blunders.counts(run);
+                [0, 1, 2].map(|k| total[k] + counts[k])
+            })
+        }),
     }
 }

@@ -54,11 +54,9 @@ impl NoiseModel {
                 let (constant, per_metre) = other.split_once('+').ok_or_else(bad)?;
                 let constant: f64 = constant.trim().parse().map_err(|_| bad())?;
                 let per_metre: f64 = per_metre.trim().parse().map_err(|_| bad())?;
-                if !(constant.is_finite()
-                    && per_metre.is_finite()
-                    && constant >= 0.0
-                    && per_metre >= 0.0)
-                {
+                // Up to 1 m (and 1 m per metre) of noise: more overflows nothing, but means nothing.
+                let range = 0.0..=1e6;
+                if !(range.contains(&constant) && range.contains(&per_metre)) {
                     return Err(bad());
                 }
                 Ok(Self {

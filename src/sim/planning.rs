@@ -272,6 +272,14 @@ fn check_options(options: &PlanningOptions) -> Result<()> {
     if options.poses == 0 {
         return bad("ask for at least 1 pose".into());
     }
+    if options.candidates > crate::limits::MAX_CANDIDATES {
+        return bad(format!(
+            "{} candidates is more than the limit of {} (each costs a Jacobian block in memory; \
+             docs/file-formats.md, \"Limits\")",
+            options.candidates,
+            crate::limits::MAX_CANDIDATES
+        ));
+    }
     if options.candidates < options.poses {
         return bad(format!(
             "{} candidates cannot give {} poses; ask for at least as many candidates as poses",
@@ -433,12 +441,21 @@ fn jacobian_blocks(
             }
         }
     }
+    let squares = blocks.norm_squared();
+    crate::limits::ensure_finite(
+        blocks.iter().chain([&squares]),
+        "planning: the candidates' Jacobians",
+    )?;
     Ok((blocks, rows, kept.len()))
 }
 
 /// Singular values of a Jacobian from its information matrix `JᵀJ` (√ of the eigenvalues,
 /// negative rounding clamped to 0).
 fn singular_values(information: &DMatrix<f64>) -> Vec<f64> {
+    if !information.iter().all(|v| v.is_finite()) {
+        // Its eigen-decomposition would never end; NaN ranks below every finite criterion.
+        return vec![f64::NAN; information.ncols()];
+    }
     information
         .clone()
         .symmetric_eigenvalues()

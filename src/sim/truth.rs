@@ -1,8 +1,9 @@
 //! The simulated "true" robot: the nominal model with every parameter off by a random error
 //! (paper section 5.2: ±0.05 rad on angles, ±5 cm on lengths).
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
+use crate::limits::{MAX_ANGLE, MAX_LENGTH};
 use rand::rngs::ChaCha8Rng;
 use rand::RngExt;
 
@@ -25,12 +26,27 @@ impl Default for ErrorRanges {
     }
 }
 
-/// A copy of `nominal` with every MCPC parameter off by a uniform random error.
+/// A copy of `nominal` with every MCPC parameter off by a uniform random error; the ranges
+/// must be finite, ≥ 0 and within [`MAX_ANGLE`] and [`MAX_LENGTH`].
 pub fn true_model(
     nominal: &McpcModel,
     ranges: &ErrorRanges,
     rng: &mut ChaCha8Rng,
 ) -> Result<McpcModel> {
+    for (name, range, bound) in [
+        ("angle", ranges.angle, MAX_ANGLE),
+        ("length", ranges.length, MAX_LENGTH),
+    ] {
+        if !(range.is_finite() && (0.0..=bound).contains(&range)) {
+            return Err(Error::InvalidData {
+                origin: "simulation".into(),
+                message: format!(
+                    "the {name} error range {range} must be a number from 0 to {bound:e} \
+                     (docs/file-formats.md, \"Limits\")"
+                ),
+            });
+        }
+    }
     let values: Vec<f64> = nominal
         .parameters()
         .iter()

@@ -50,7 +50,9 @@ impl fmt::Display for DecisionRule {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
             DecisionRule::GivenTools => "tool links given by the user",
-            DecisionRule::ArmNames => "automatic: chains whose joint or link names look like arms",
+            DecisionRule::ArmNames => {
+                "automatic: chains named like arms (arm/hand/palm/wrist/gripper/tool…), never like legs, heads, fingers or wheels"
+            }
             DecisionRule::Structure => {
                 "automatic: the two chains that diverge furthest from the root, then the longest"
             }
@@ -134,7 +136,7 @@ impl Branches {
 pub fn detect_branches(tree: &KinematicTree, tools: Option<&[LinkId]>) -> Result<Branches> {
     let (tips, selection) = match tools {
         Some(tools) => (tools.to_vec(), DecisionRule::GivenTools),
-        None => automatic_tips(tree)?,
+        None => super::arm_search::automatic_tips(tree)?,
     };
     if tips.is_empty() {
         return Err(Error::Branches("no tool links given".into()));
@@ -214,7 +216,8 @@ pub fn detect_branches(tree: &KinematicTree, tools: Option<&[LinkId]>) -> Result
     })
 }
 
-fn common_ancestor(tree: &KinematicTree, a: LinkId, b: LinkId) -> LinkId {
+/// The deepest link that is an ancestor of (or equal to) both `a` and `b`.
+pub(super) fn common_ancestor(tree: &KinematicTree, a: LinkId, b: LinkId) -> LinkId {
     let mut current = a;
     while !tree.is_ancestor(current, b) {
         match tree.link(current).parent_joint {
@@ -225,8 +228,9 @@ fn common_ancestor(tree: &KinematicTree, a: LinkId, b: LinkId) -> LinkId {
     current
 }
 
+/// Left or right.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Side {
+pub(super) enum Side {
     Left,
     Right,
 }
@@ -246,6 +250,11 @@ fn side_from_name(name: &str) -> Option<Side> {
         (false, true) => Some(Side::Right),
         _ => None,
     }
+}
+
+/// The side a tool link's name points to.
+pub(super) fn side_from_tip(tree: &KinematicTree, tip: LinkId) -> Option<Side> {
+    side_from_name(&tree.link(tip).name)
 }
 
 /// The side the names of an arm point to: the tool link's name, else a majority of the arm's
@@ -307,205 +316,6 @@ fn assign_sides(
             tree.link(arms[0].tool.unwrap_or(arms[0].start)).name,
             tree.link(arms[1].tool.unwrap_or(arms[1].start)).name
         )))
-    }
-}
-
-/// Words that mark a chain as an arm, and words that mark it as something else.
-const ARM_WORDS: &[&str] = &[
-    "arm", "hand", "palm", "wrist", "tool", "gripper", "elbow", "shoulder", "tcp", "flange",
-];
-const NON_ARM_WORDS: &[&str] = &[
-    "leg", "foot", "hip", "knee", "ankle", "head", "neck", "finger", "thumb", "camera", "eye",
-    "wheel", "toe",
-];
-/// Words that mark a link as the end-effector link of an arm's last rigid body.
-const TIP_WORDS: &[&str] = &[
-    "tool",
-    "tcp",
-    "end_effector",
-    "eef",
-    "ee_link",
-    "palm",
-    "hand",
-    "gripper",
-    "flange",
-];
-
-/// A chain ending in a leaf or a hand, as seen by the automatic tool search.
-struct Candidate {
-    /// The last movable joint of the chain.
-    end: JointId,
-    /// Its movable joints, root side first, from the last branching point.
-    run: Vec<JointId>,
-    /// The chosen end link.
-    tip: LinkId,
-}
-
-fn automatic_tips(tree: &KinematicTree) -> Result<(Vec<LinkId>, DecisionRule)> {
-    let joints = tree.joints();
-    // The nearest movable joint at or above each link (None: the root's rigid body).
-    let mut body_of: Vec<Option<JointId>> = vec![None; tree.links().len()];
-    for (index, joint) in joints.iter().enumerate() {
-        body_of[joint.child.0] = if joint.kind.is_movable() {
-            Some(JointId(index))
-        } else {
-            body_of[joint.parent.0]
-        };
-    }
-    let movable_parent = |j: JointId| body_of[joints[j.0].parent.0];
-    let mut movable_children: Vec<Vec<JointId>> = vec![Vec::new(); joints.len()];
-    for (index, joint) in joints.iter().enumerate() {
-        if joint.kind.is_movable() {
-            if let Some(parent) = movable_parent(JointId(index)) {
-                movable_children[parent.0].push(JointId(index));
-            }
-        }
-    }
-    // Longest chain of movable joints below each joint (children come after parents).
-    let mut depth_below = vec![0usize; joints.len()];
-    for index in (0..joints.len()).rev() {
-        depth_below[index] = movable_children[index]
-            .iter()
-            .map(|c| 1 + depth_below[c.0])
-            .max()
-            .unwrap_or(0);
-    }
-
-    let mut candidates: Vec<Candidate> = Vec::new();
-    for (index, joint) in joints.iter().enumerate() {
-        let end = JointId(index);
-        let children = &movable_children[index];
-        if !joint.kind.is_movable() || children.len() == 1 {
-            continue;
-        }
-        let mut run = vec![end];
-        let mut current = end;
-        while let Some(parent) = movable_parent(current) {
-            if movable_children[parent.0].len() != 1 {
-                break;
-            }
-            run.push(parent);
-            current = parent;
-        }
-        run.reverse();
-        // A hand: a branching whose sub-chains (fingers) are all shorter than the arm itself.
-        let is_hand = !children.is_empty() && depth_below[index] < run.len();
-        if run.len() < 2 || !(children.is_empty() || is_hand) {
-            continue;
-        }
-        let tip = choose_tip(tree, end, &body_of, children);
-        candidates.push(Candidate { end, run, tip });
-    }
-    // Chains inside a hand (fingers) are not arms.
-    let all_ends: Vec<(JointId, bool)> = candidates
-        .iter()
-        .map(|c| (c.end, !movable_children[c.end.0].is_empty()))
-        .collect();
-    candidates.retain(|c| {
-        !all_ends.iter().any(|&(other, is_hand)| {
-            is_hand
-                && other != c.end
-                && tree.is_ancestor(joints[other.0].child, joints[c.run[0].0].parent)
-        })
-    });
-
-    let names_of = |c: &Candidate| -> Vec<String> {
-        let mut names: Vec<String> = c
-            .run
-            .iter()
-            .flat_map(|j| {
-                [
-                    joints[j.0].name.to_lowercase(),
-                    tree.link(joints[j.0].child).name.to_lowercase(),
-                ]
-            })
-            .collect();
-        names.push(tree.link(c.tip).name.to_lowercase());
-        names
-    };
-    let has_word = |c: &Candidate, words: &[&str]| {
-        names_of(c)
-            .iter()
-            .any(|n| words.iter().any(|w| n.contains(w)))
-    };
-    let arm_like: Vec<usize> = (0..candidates.len())
-        .filter(|&i| {
-            has_word(&candidates[i], ARM_WORDS) && !has_word(&candidates[i], NON_ARM_WORDS)
-        })
-        .collect();
-    let not_other: Vec<usize> = (0..candidates.len())
-        .filter(|&i| !has_word(&candidates[i], NON_ARM_WORDS))
-        .collect();
-    let (pool, mut rule) = if arm_like.len() >= 2 {
-        (arm_like, DecisionRule::ArmNames)
-    } else if not_other.len() >= 2 && not_other.len() < candidates.len() {
-        (not_other, DecisionRule::ArmNames)
-    } else {
-        ((0..candidates.len()).collect(), DecisionRule::Structure)
-    };
-    match pool.len() {
-        0 => Err(Error::Branches(
-            "no arm-like chain of two or more movable joints found; name the tool links with --tools".into(),
-        )),
-        1 => Ok((vec![candidates[pool[0]].tip], rule)),
-        2 => Ok((pool.iter().map(|&i| candidates[i].tip).collect(), rule)),
-        _ => {
-            // The arms share the most torso: the pair whose common ancestor has the most movable
-            // joints above it; then the longest pair of chains.
-            let movable_above = |link: LinkId| {
-                tree.path_from_root(link)
-                    .iter()
-                    .filter(|j| joints[j.0].kind.is_movable())
-                    .count()
-            };
-            let mut best: Option<((usize, usize), (usize, usize))> = None;
-            for (a, &i) in pool.iter().enumerate() {
-                for &k in &pool[a + 1..] {
-                    let lca = common_ancestor(tree, candidates[i].tip, candidates[k].tip);
-                    let score = (movable_above(lca), candidates[i].run.len() + candidates[k].run.len());
-                    if best.is_none_or(|(s, _)| score > s) {
-                        best = Some((score, (i, k)));
-                    }
-                }
-            }
-            rule = if rule == DecisionRule::ArmNames { DecisionRule::ArmNames } else { DecisionRule::Structure };
-            let (_, (i, k)) = best.ok_or_else(|| Error::Branches("no pair of arms found".into()))?;
-            Ok((vec![candidates[i].tip, candidates[k].tip], rule))
-        }
-    }
-}
-
-/// The end link of a chain ending at movable joint `end`: in the rigid body the joint moves,
-/// the first link whose name says tool/palm/hand/…; else where that body's own sub-tree ends
-/// (the common ancestor of its leaves and of the joints hanging off it).
-fn choose_tip(
-    tree: &KinematicTree,
-    end: JointId,
-    body_of: &[Option<JointId>],
-    movable_children: &[JointId],
-) -> LinkId {
-    let body: Vec<LinkId> = (0..tree.links().len())
-        .map(LinkId)
-        .filter(|l| body_of[l.0] == Some(end))
-        .collect();
-    if let Some(&named) = body.iter().find(|l| {
-        let name = tree.link(**l).name.to_lowercase();
-        TIP_WORDS.iter().any(|w| name.contains(w))
-    }) {
-        return named;
-    }
-    let mut ends: Vec<LinkId> = body
-        .iter()
-        .copied()
-        .filter(|l| tree.link(*l).child_joints.is_empty())
-        .collect();
-    ends.extend(movable_children.iter().map(|j| tree.joint(*j).parent));
-    let first = tree.joint(end).child;
-    match ends.split_first() {
-        Some((&head, rest)) => rest
-            .iter()
-            .fold(head, |lca, &l| common_ancestor(tree, lca, l)),
-        None => first,
     }
 }
 

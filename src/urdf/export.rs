@@ -8,10 +8,11 @@
 //! changed joint's origin is `parent_pose⁻¹ · child_pose`. The measurement frame
 //! ([`McpcModel::world_from_base`]) is not part of a URDF and is not exported.
 
+use super::export_options::{added_links_xml, AddedToolLink, DroppedOffset, ExportOptions};
 use super::xml::{position, scan, unescape, Element};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
-use crate::math::{rpy_from_rotation, Pose, Rotation, Vec3};
+use crate::math::{pose, rpy_from_rotation, Pose, Rotation, Vec3};
 use crate::tree::{JointKind, KinematicTree};
 
 /// A joint origin change smaller than this (m, and rad as twice the relative quaternion's
@@ -50,6 +51,10 @@ pub struct ExportReport {
     pub urdf: String,
     /// The joints whose origin or axis changed, in tree order.
     pub changes: Vec<JointChange>,
+    /// Tool offsets left out because they are within the calibration's uncertainty.
+    pub dropped: Vec<DroppedOffset>,
+    /// Links added at exact calibrated tool frames ([`ExportOptions::add_tool_links`]).
+    pub added_links: Vec<AddedToolLink>,
 }
 
 /// Writes the calibrated `model` into the URDF text `original` (from which `tree` was
@@ -64,8 +69,36 @@ pub fn export_urdf(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<ExportReport> {
-    let placements = calibrated_placements(tree, model)?;
+    export_urdf_with(original, origin, tree, model, &ExportOptions::default())
+}
+
+/// [`export_urdf`] with `options`: a tool link carried by a revolute joint whose calibrated
+/// origin lies off the joint axis is moved onto the axis when the offset is within
+/// [`ExportOptions::tolerance`] ([`ExportReport::dropped`]), else gets a fixed child link at the
+/// exact tool frame when [`ExportOptions::add_tool_links`] is set
+/// ([`ExportReport::added_links`]), else the export fails with an error saying both.
+pub fn export_urdf_with(
+    original: &str,
+    origin: &str,
+    tree: &KinematicTree,
+    model: &McpcModel,
+    options: &ExportOptions,
+) -> Result<ExportReport> {
+    let mut dropped = Vec::new();
+    let mut added_links = Vec::new();
+    let placements = calibrated_placements(tree, model, options, &mut dropped, &mut added_links)?;
     let document = Document::new(original, origin)?;
+    for added in &added_links {
+        if tree.link_id(&added.link).is_ok() {
+            return Err(Error::InvalidRobot {
+                origin: origin.to_owned(),
+                message: format!(
+                    "the robot already has a link '{}', which the export would add below tool '{}'; remove that link (and its fixed joint) from the URDF, or rename it, and export again",
+                    added.link, added.tool
+                ),
+            });
+        }
+    }
     let mut edits: Vec<(usize, usize, String)> = Vec::new();
     let mut changes = Vec::new();
     for (index, placement) in placements.iter().enumerate() {
@@ -97,12 +130,20 @@ pub fn export_urdf(
             new_axis,
         });
     }
+    if !added_links.is_empty() {
+        edits.push(document.before_root_end(&added_links)?);
+    }
     edits.sort_by_key(|(start, _, _)| std::cmp::Reverse(*start));
     let mut urdf = original.to_owned();
     for (start, end, replacement) in edits {
         urdf.replace_range(start..end, &replacement);
     }
-    Ok(ExportReport { urdf, changes })
+    Ok(ExportReport {
+        urdf,
+        changes,
+        dropped,
+        added_links,
+    })
 }
 
 /// A joint's new placement: its origin and, where it changes, its axis (in the joint frame).
@@ -124,6 +165,9 @@ fn rotation_gap(a: &Rotation, b: &Rotation) -> f64 {
 fn calibrated_placements(
     tree: &KinematicTree,
     model: &McpcModel,
+    options: &ExportOptions,
+    dropped: &mut Vec<DroppedOffset>,
+    added_links: &mut Vec<AddedToolLink>,
 ) -> Result<Vec<Option<Placement>>> {
     // Calibrated poses in the base frame at zero joint values (the URDF origin is the child's
     // pose at joint value 0; mimic offsets are joint values like any other, so nothing to undo).
@@ -173,16 +217,44 @@ fn calibrated_placements(
             });
         }
         let off_axis = last_from_tool.translation.vector.xy().norm();
+        let mut link_pose = last_from_tool;
         if joint.kind.is_rotational() && off_axis > ON_AXIS_TOLERANCE {
-            return Err(Error::InvalidRobot {
-                origin: tree.name().to_owned(),
-                message: format!(
-                    "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {off_axis:e} m off the joint axis, which a URDF joint cannot express; calibrate a tool link below a fixed joint instead (add a <link> and a fixed <joint> under '{}')",
-                    link.name, joint.name, link.name
-                ),
-            });
+            // The closest frame a URDF joint can carry: the same orientation, the origin
+            // projected onto the axis.
+            let along = Vec3::new(0.0, 0.0, last_from_tool.translation.vector.z);
+            link_pose = pose(along, last_from_tool.rotation);
+            let tolerance = options.tolerance(&link.name);
+            if off_axis <= tolerance {
+                dropped.push(DroppedOffset {
+                    tool: link.name.clone(),
+                    joint: joint.name.clone(),
+                    offset_mm: off_axis * 1e3,
+                    tolerance_mm: tolerance * 1e3,
+                });
+            } else if options.add_tool_links {
+                added_links.push(AddedToolLink {
+                    tool: link.name.clone(),
+                    link: format!("{}_calibrated", link.name),
+                    offset_mm: off_axis * 1e3,
+                    tool_from_calibrated: link_pose.inverse() * last_from_tool,
+                });
+            } else {
+                return Err(Error::InvalidRobot {
+                    origin: tree.name().to_owned(),
+                    message: format!(
+                        "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {:.4} mm off the joint axis, which a URDF joint cannot express, and more than the calibration's uncertainty allows to drop ({:.4} mm); export with --add-tool-links (ExportOptions::add_tool_links) to add a fixed link '{}_calibrated' at the exact calibrated tool frame, or calibrate a tool link below a fixed joint (add a <link> and a fixed <joint> under '{}')",
+                        link.name,
+                        joint.name,
+                        off_axis * 1e3,
+                        tolerance * 1e3,
+                        link.name,
+                        link.name
+                    ),
+                });
+            }
         }
-        new_axis[joint_id.0] = Some(last_from_tool.rotation.inverse() * Vec3::z());
+        target[tool.link.0] = Some(previous * link_pose);
+        new_axis[joint_id.0] = Some(link_pose.rotation.inverse() * Vec3::z());
     }
 
     // The exported poses, joint by joint, so that an origin left unchanged (below the
@@ -343,6 +415,29 @@ impl<'a> Document<'a> {
             }
         }
         Ok(())
+    }
+
+    /// An edit that inserts the `added` links before the root's `</robot>`.
+    fn before_root_end(&self, added: &[AddedToolLink]) -> Result<(usize, usize, String)> {
+        let Some(end) = self.text.rfind("</robot") else {
+            return Err(Error::InvalidRobot {
+                origin: self.origin.to_owned(),
+                message: "the text has no </robot> end tag to add the tool links before".into(),
+            });
+        };
+        let indent = self
+            .elements
+            .iter()
+            .find(|e| e.name == "link")
+            .map(|e| {
+                let line_start = self.text[..e.start].rfind('\n').map_or(0, |n| n + 1);
+                self.text[line_start..e.start]
+                    .chars()
+                    .take_while(|c| c.is_whitespace())
+                    .collect::<String>()
+            })
+            .unwrap_or_else(|| "  ".into());
+        Ok((end, end, added_links_xml(added, &indent)))
     }
 
     fn set_origin(

@@ -2,10 +2,15 @@
 //!
 //! Each joint row becomes a joint whose `<origin>` is `Rx(α)·Ry(β)·Trans(x, y, 0)` relative to
 //! the previous row's link and whose axis is z, so every generated link frame is the MCPC frame
-//! Σᵢ moved by its joint. Tool rows become fixed joints. Links get simple cylinders and plausible
+//! Σᵢ moved by its joint. Tool rows become fixed joints, except a tool that is the link of its
+//! branch's last row (a palm moved by the wrist joint): that joint's child link is then the
+//! tool link itself, at the tool frame, with the axis written in that frame; a URDF can do so
+//! only while the tool origin lies on the joint axis, else the joint moves a `<tool>_mount`
+//! link and the tool hangs below it on a fixed joint. Links get simple cylinders and plausible
 //! masses so that later steps (gravity loads, self-collision) have something to work with.
 
-use crate::kinematics::{FrameKind, McpcTable};
+use super::export::ON_AXIS_TOLERANCE;
+use crate::kinematics::{FrameKind, McpcTable, TableBranch};
 use crate::math::{pose, rpy_from_rotation, Pose, Rotation, Vec3};
 use std::fmt::Write;
 
@@ -106,8 +111,52 @@ fn link_element(name: &str, segment_ends: &[Vec3], with_housing: bool) -> String
     )
 }
 
+/// How a tool that is its branch's last row's link ([`TableBranch::carried_tool`]) is written.
+enum Carried<'a> {
+    /// Not such a tool (or no tool).
+    No,
+    /// On the last joint's axis: the joint's child link is the tool link, placed at the tool
+    /// frame, its axis turned into that frame.
+    OnAxis(&'a crate::kinematics::TableTool),
+    /// Off the axis, which a URDF joint cannot express: the joint moves a link called `mount`
+    /// and the tool hangs below it on a fixed joint, as any other tool.
+    OffAxis {
+        /// A link name not used in the table.
+        mount: String,
+    },
+}
+
+fn carried_tool<'a>(table: &McpcTable, branch: &'a TableBranch) -> Carried<'a> {
+    let Some(tool) = branch.carried_tool() else {
+        return Carried::No;
+    };
+    let revolute = branch
+        .rows
+        .last()
+        .is_some_and(|r| r.kind == FrameKind::Revolute);
+    let off_axis = tool.transform().translation.vector.xy().norm();
+    if !revolute || off_axis <= ON_AXIS_TOLERANCE {
+        return Carried::OnAxis(tool);
+    }
+    let used = |name: &str| {
+        name == table.base_link
+            || table.branches.iter().any(|b| {
+                b.rows.iter().any(|r| r.link == name)
+                    || b.tool.as_ref().is_some_and(|t| t.link == name)
+            })
+    };
+    let mut mount = format!("{}_mount", tool.link);
+    while used(&mount) {
+        mount.push('_');
+    }
+    Carried::OffAxis { mount }
+}
+
 /// Generates a URDF document from an MCPC table (SI units). The output is deterministic.
 pub fn urdf_from_mcpc_table(table: &McpcTable, source_note: &str) -> String {
+    // Names go into attributes and the note into a comment: escaped once, here.
+    let table = &escaped_names(table);
+    let source_note = source_note.replace("--", "- -");
     let mut out = String::new();
     let _ = writeln!(out, "<?xml version=\"1.0\"?>");
     let _ = writeln!(
@@ -143,8 +192,17 @@ pub fn urdf_from_mcpc_table(table: &McpcTable, source_note: &str) -> String {
             .and_then(last_link)
             .unwrap_or(&table.base_link)
             .to_owned();
-        for row in &branch.rows {
-            let placement = row.transform();
+        let carried = carried_tool(table, branch);
+        for (index, row) in branch.rows.iter().enumerate() {
+            let last = index + 1 == branch.rows.len();
+            // The last joint moves the tool link itself: its link frame is the tool frame.
+            let (link, link_from_moved) = match (last, &carried) {
+                (true, Carried::OnAxis(tool)) => (row.link.clone(), tool.transform()),
+                (true, Carried::OffAxis { mount }) => (mount.clone(), Pose::identity()),
+                _ => (row.link.clone(), Pose::identity()),
+            };
+            let placement = row.transform() * link_from_moved;
+            let axis = link_from_moved.rotation.inverse() * Vec3::z();
             if let Some(entry) = ends.iter_mut().find(|(n, _)| *n == parent) {
                 entry.1.push(placement.translation.vector);
             }
@@ -154,17 +212,21 @@ pub fn urdf_from_mcpc_table(table: &McpcTable, source_note: &str) -> String {
             };
             let _ = write!(
                 joints,
-                "  <joint name=\"{}\" type=\"{kind}\">\n    <parent link=\"{parent}\"/>\n    <child link=\"{}\"/>\n    {}\n    <axis xyz=\"0 0 1\"/>\n    <limit lower=\"{}\" upper=\"{}\" effort=\"150\" velocity=\"1\"/>\n  </joint>\n",
+                "  <joint name=\"{}\" type=\"{kind}\">\n    <parent link=\"{parent}\"/>\n    <child link=\"{link}\"/>\n    {}\n    <axis xyz=\"{}\"/>\n    <limit lower=\"{}\" upper=\"{}\" effort=\"150\" velocity=\"1\"/>\n  </joint>\n",
                 row.joint,
-                row.link,
                 origin_element(&placement),
+                triple(axis.into()),
                 number(row.limits.0),
                 number(row.limits.1)
             );
-            ends.push((row.link.clone(), Vec::new()));
-            parent = row.link.clone();
+            ends.push((link.clone(), Vec::new()));
+            parent = link;
         }
-        if let Some(tool) = &branch.tool {
+        let tool = match carried {
+            Carried::OnAxis(_) => None,
+            _ => branch.tool.as_ref(),
+        };
+        if let Some(tool) = tool {
             let placement = tool.transform();
             if let Some(entry) = ends.iter_mut().find(|(n, _)| *n == parent) {
                 entry.1.push(placement.translation.vector);
@@ -205,4 +267,39 @@ pub fn urdf_from_mcpc_table(table: &McpcTable, source_note: &str) -> String {
     out += &joints;
     out += "</robot>\n";
     out
+}
+
+/// `text` as an XML attribute value: `&`, `<`, `>`, `"` and `'` as entities.
+fn xml_escaped(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&apos;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// A copy of `table` with every name XML-escaped.
+fn escaped_names(table: &McpcTable) -> McpcTable {
+    let mut table = table.clone();
+    table.robot = xml_escaped(&table.robot);
+    table.base_link = xml_escaped(&table.base_link);
+    for branch in &mut table.branches {
+        branch.name = xml_escaped(&branch.name);
+        branch.parent = branch.parent.as_deref().map(xml_escaped);
+        for row in &mut branch.rows {
+            row.joint = xml_escaped(&row.joint);
+            row.link = xml_escaped(&row.link);
+        }
+        if let Some(tool) = &mut branch.tool {
+            tool.link = xml_escaped(&tool.link);
+        }
+    }
+    table
 }

@@ -24,82 +24,28 @@ pub struct UrdfImport {
 
 /// Reads and converts a URDF file.
 pub fn load_urdf(path: &Path) -> Result<UrdfImport> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::MAX_URDF_BYTES)?;
     parse_urdf(&text, &path.display().to_string())
 }
 
 /// Converts URDF text; `origin` names the source in messages (a file path or `<string>`).
-pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
-    check_nesting(text, origin)?;
-    let robot = urdf_rs::read_from_string(text).map_err(|e| Error::UrdfParse {
-        origin: origin.to_owned(),
-        message: e.to_string(),
-    })?;
-    Importer { text, origin }.convert(&robot)
-}
-
-/// The deepest element nesting accepted. Real URDFs nest about six deep; urdf-rs and its XML
-/// parser recurse once per level and overflow the stack (an abort, not an error) a few
-/// thousand levels down.
-const MAX_NESTING: usize = 256;
-
-/// Fails if elements nest deeper than [`MAX_NESTING`], naming the line where they do.
 ///
-/// A light scan, not a parser: comments, CDATA, processing instructions and declarations are
-/// skipped and quoted attribute values may contain `>`; anything malformed is left to urdf-rs.
-fn check_nesting(text: &str, origin: &str) -> Result<()> {
-    let mut depth = 0usize;
-    let mut from = 0;
-    while let Some(found) = text[from..].find('<') {
-        let at = from + found;
-        let rest = &text[at..];
-        let past = |end: &str| rest.find(end).map(|e| at + e + end.len());
-        let next = if rest.starts_with("<!--") {
-            past("-->")
-        } else if rest.starts_with("<![CDATA[") {
-            past("]]>")
-        } else if rest.starts_with("<?") {
-            past("?>")
-        } else if rest.starts_with("<!") {
-            past(">")
-        } else {
-            // A start or end tag: its '>' is the first one outside quotes.
-            let mut quote = None;
-            let close = rest.bytes().enumerate().skip(1).find_map(|(k, b)| {
-                match (quote, b) {
-                    (Some(q), _) if b == q => quote = None,
-                    (None, b'"' | b'\'') => quote = Some(b),
-                    (None, b'>') => return Some(k),
-                    _ => {}
-                }
-                None
-            });
-            close.map(|k| {
-                if rest.starts_with("</") {
-                    depth = depth.saturating_sub(1);
-                } else if rest.as_bytes()[k - 1] != b'/' {
-                    depth += 1;
-                }
-                at + k + 1
-            })
-        };
-        if depth > MAX_NESTING {
-            return Err(Error::UrdfParse {
-                origin: format!("{origin}:{}", text[..at].matches('\n').count() + 1),
-                message: format!(
-                    "elements are nested more than {MAX_NESTING} levels deep; a URDF needs only a few levels"
-                ),
-            });
-        }
-        match next {
-            Some(next) => from = next,
-            None => break,
-        }
-    }
-    Ok(())
+/// The text's structure is checked first (one `<robot>` root, matching end tags, nothing
+/// after the root; the same check `export` applies), then only its kinematic elements are
+/// read: materials, textures, gazebo, transmissions, sensors and unknown elements never
+/// stop a robot loading (see `docs/robots.md`).
+pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
+    crate::limits::check_text_size(text, crate::limits::MAX_URDF_BYTES, origin)?;
+    let elements = super::xml::scan(text, origin)?;
+    let mut warnings = Vec::new();
+    let robot = super::tolerant::read_robot(text, origin, &elements, &mut warnings)?;
+    super::bounds::check_sizes(&robot, text, origin)?;
+    let mut import = Importer { text, origin }.convert(&robot)?;
+    // After the importer's own checks (NaN, negative masses), which keep their messages.
+    super::bounds::check_numbers(&robot, text, origin)?;
+    warnings.append(&mut import.warnings);
+    import.warnings = warnings;
+    Ok(import)
 }
 
 struct Importer<'a> {
@@ -283,13 +229,32 @@ impl Importer<'_> {
             links[joint.parent.0].child_joints.push(JointId(index));
         }
 
+        // A <mimic> of a joint that does not exist is ignored by urdfdom (check_urdf accepts
+        // it); the joint is then independent, with a warning.
+        let mut dangling: Vec<&str> = Vec::new();
+        for joint in &robot.joints {
+            if let Some(mimic) = &joint.mimic {
+                if !joint_names.contains_key(mimic.joint.as_str()) {
+                    warnings.push(format!(
+                        "joint '{}' mimics joint '{}', which does not exist{}; treating '{}' as an independent joint",
+                        joint.name,
+                        mimic.joint,
+                        crate::error::did_you_mean(&mimic.joint, joint_names.keys().copied()),
+                        joint.name
+                    ));
+                    dangling.push(joint.name.as_str());
+                }
+            }
+        }
+
         // Independent joints get configuration slots in topological order; mimics follow them.
         let mut dofs = Vec::new();
         for (index, joint) in joints.iter_mut().enumerate() {
             if joint.kind.is_movable()
-                && robot.joints[source_index(robot, &joint.name)]
-                    .mimic
-                    .is_none()
+                && (dangling.contains(&joint.name.as_str())
+                    || robot.joints[source_index(robot, &joint.name)]
+                        .mimic
+                        .is_none())
             {
                 joint.actuation = Actuation::Independent(DofId(dofs.len()));
                 dofs.push(JointId(index));
@@ -491,6 +456,10 @@ impl Importer<'_> {
             let Some(first) = robot.joints[source_index(robot, &name)].mimic.as_ref() else {
                 continue;
             };
+            if matches!(joints[index].actuation, Actuation::Independent(_)) {
+                // A mimic of a joint that does not exist, made independent above.
+                continue;
+            }
             // Follow mimic → mimic chains to an independent joint, composing the affine maps.
             let (mut multiplier, mut offset) = (1.0, 0.0);
             let mut mimic = first;
@@ -667,7 +636,7 @@ fn urdf_pose(p: &urdf_rs::Pose) -> Pose {
 }
 
 /// The 1-based line of `<tag ... name="name"`, if it can be found in the text.
-fn element_line(text: &str, tag: &str, name: &str) -> Option<usize> {
+pub(super) fn element_line(text: &str, tag: &str, name: &str) -> Option<usize> {
     for quote in ['"', '\''] {
         let needle = format!("name={quote}{name}{quote}");
         let mut start = 0;

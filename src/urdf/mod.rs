@@ -6,12 +6,16 @@
 //! - [`export`]: a calibrated MCPC model → the original URDF with corrected joint origins,
 //!   edited in place.
 
+mod bounds;
 pub mod export;
+pub mod export_options;
 pub mod from_mcpc;
 pub mod import;
+mod tolerant;
 mod xml;
 
-pub use export::{export_urdf, ExportReport, JointChange};
+pub use export::{export_urdf, export_urdf_with, ExportReport, JointChange};
+pub use export_options::{AddedToolLink, DroppedOffset, ExportOptions};
 pub use from_mcpc::urdf_from_mcpc_table;
 
 pub use import::{load_urdf, parse_urdf, UrdfImport};

@@ -1,11 +1,13 @@
-//! A minimal XML element scanner with byte spans, for editing a URDF in place.
+//! A minimal XML element scanner with byte spans, and the one structural check every command
+//! applies to a URDF before anything else reads it.
 //!
-//! urdf-rs (through its XML parser) gives values but no positions and drops whatever it does
-//! not model (`<transmission>`, `<gazebo>`, comments, attribute order), so the exporter edits
-//! the original text instead. This scanner finds every element's start tag and attribute value
-//! spans; comments, CDATA sections, processing instructions and declarations are skipped,
-//! attribute values may use either quote and contain `>`. Well-formedness beyond that is left
-//! to urdf-rs, which has already read the same text.
+//! urdf-rs (through its XML parser) gives values but no positions, drops whatever it does
+//! not model (`<transmission>`, `<gazebo>`, comments, attribute order) and silently ignores
+//! whatever follows the first root element, so treecal scans the text itself: to check its
+//! structure (one root, end tags that match, nothing after the root, bounded nesting), to hand
+//! urdf-rs only the kinematic elements, and to edit the original text in place on export.
+//! Comments, CDATA sections, processing instructions and declarations are skipped; attribute
+//! values may use either quote and contain `>`.
 
 use crate::error::{Error, Result};
 use std::ops::Range;
@@ -37,6 +39,9 @@ pub(crate) struct Element {
     pub attributes: Vec<Attribute>,
     /// The enclosing element, by index in the scan result.
     pub parent: Option<usize>,
+    /// Byte offset just past the element's end (its end tag, or the `/>` of a self-closing
+    /// tag).
+    pub end: usize,
 }
 
 impl Element {
@@ -54,23 +59,49 @@ pub(crate) fn position(text: &str, origin: &str, at: usize) -> String {
     format!("{origin}:{line}:{column}")
 }
 
-/// Every element of `text` in document order.
+/// The 1-based line of byte offset `at`.
+pub(crate) fn line_at(text: &str, at: usize) -> usize {
+    text[..at.min(text.len())].matches('\n').count() + 1
+}
+
+/// The deepest element nesting accepted. Real URDFs nest about six deep; urdf-rs and its XML
+/// parser recurse once per level and overflow the stack (an abort, not an error) a few
+/// thousand levels down.
+pub(crate) const MAX_NESTING: usize = 256;
+
+/// Every element of `text` in document order, after checking the document's structure: one
+/// `<robot>` root element, every end tag matching its start tag, nothing but comments and
+/// processing instructions after the root, at most [`MAX_NESTING`] levels. Errors name
+/// `origin:line`.
+///
+/// This is the one structural check: loading (`inspect`, `calibrate`, …) and `export` both
+/// go through it, so a file one command accepts is never refused by another for its shape.
 pub(crate) fn scan(text: &str, origin: &str) -> Result<Vec<Element>> {
-    let bytes = text.as_bytes();
-    let fail = |at: usize, message: &str| Error::UrdfParse {
-        origin: position(text, origin, at),
-        message: message.to_owned(),
+    let fail = |at: usize, message: String| Error::UrdfParse {
+        origin: format!("{origin}:{}", line_at(text, at)),
+        message,
     };
     let mut elements: Vec<Element> = Vec::new();
     let mut open: Vec<usize> = Vec::new();
+    // Where the root element was closed, once it has been.
+    let mut root_closed: Option<usize> = None;
     let mut from = 0;
-    while let Some(found) = text[from..].find('<') {
-        let at = from + found;
+    loop {
+        let next = text[from..]
+            .find('<')
+            .map_or(text.len(), |found| from + found);
+        if open.is_empty() {
+            outside_root(text, from, next, root_closed, &fail)?;
+        }
+        if next == text.len() {
+            break;
+        }
+        let at = next;
         let rest = &text[at..];
         let past = |end: &str, what: &str| {
             rest.find(end)
                 .map(|e| at + e + end.len())
-                .ok_or_else(|| fail(at, &format!("unterminated {what}")))
+                .ok_or_else(|| fail(at, format!("unterminated {what}")))
         };
         if rest.starts_with("<!--") {
             from = past("-->", "comment")?;
@@ -86,23 +117,116 @@ pub(crate) fn scan(text: &str, origin: &str) -> Result<Vec<Element>> {
                 (Some(b), Some(c)) if b < c => past("]>", "declaration")?,
                 _ => past(">", "declaration")?,
             };
-        } else if rest.starts_with("</") {
+        } else if let Some(tag) = rest.strip_prefix("</") {
             from = past(">", "end tag")?;
-            open.pop();
+            let name = tag[..from - at - 3].trim_end();
+            let Some(index) = open.pop() else {
+                return Err(fail(
+                    at,
+                    format!("end tag </{name}> has no matching start tag"),
+                ));
+            };
+            let element = &mut elements[index];
+            if element.name != name {
+                return Err(fail(
+                    at,
+                    format!(
+                        "end tag </{name}> closes <{}>, opened at line {}; check the elements between them",
+                        element.name,
+                        line_at(text, element.start)
+                    ),
+                ));
+            }
+            element.end = from;
+            if open.is_empty() {
+                root_closed = Some(at);
+            }
         } else {
+            if let Some(closed) = root_closed {
+                return Err(after_root(text, at, closed, &fail));
+            }
             let element = start_tag(text, at, open.last().copied())
-                .ok_or_else(|| fail(at, "malformed start tag"))?;
+                .ok_or_else(|| fail(at, "malformed start tag".into()))?;
             from = element.tag_end;
-            if !element.self_closing {
+            if element.self_closing {
+                root_closed = root_closed.or(open.is_empty().then_some(at));
+            } else {
                 open.push(elements.len());
+                if open.len() > MAX_NESTING {
+                    return Err(fail(
+                        at,
+                        format!("elements are nested more than {MAX_NESTING} levels deep; a URDF needs only a few levels"),
+                    ));
+                }
             }
             elements.push(element);
         }
-        if from > bytes.len() {
-            break;
-        }
     }
-    Ok(elements)
+    if let Some(&index) = open.last() {
+        let element = &elements[index];
+        return Err(fail(
+            element.start,
+            format!("element <{}> is never closed", element.name),
+        ));
+    }
+    match elements.first() {
+        None => Err(Error::UrdfParse {
+            origin: origin.to_owned(),
+            message: "no XML element found; a URDF is a <robot> element".into(),
+        }),
+        Some(root) if root.name != "robot" => Err(fail(
+            root.start,
+            format!(
+                "the root element is <{}>; a URDF's root element is <robot>",
+                root.name
+            ),
+        )),
+        Some(_) => Ok(elements),
+    }
+}
+
+/// Checks the text between elements outside the root (`from..to`): only white space.
+fn outside_root(
+    text: &str,
+    from: usize,
+    to: usize,
+    root_closed: Option<usize>,
+    fail: &impl Fn(usize, String) -> Error,
+) -> Result<()> {
+    let between = &text[from..to];
+    let Some(offset) = between.find(|c: char| !c.is_whitespace() && c != '\u{feff}') else {
+        return Ok(());
+    };
+    let at = from + offset;
+    Err(match root_closed {
+        Some(closed) => after_root(text, at, closed, fail),
+        None => fail(
+            at,
+            "text before the root element; a URDF starts with <?xml …?> or <robot>".into(),
+        ),
+    })
+}
+
+/// The error for content at `at` after the root element ended at `closed`.
+fn after_root(
+    text: &str,
+    at: usize,
+    closed: usize,
+    fail: &impl Fn(usize, String) -> Error,
+) -> Error {
+    let snippet: String = text[at..]
+        .chars()
+        .take_while(|c| *c != '\n')
+        .take(40)
+        .collect();
+    fail(
+        at,
+        format!(
+            "content after the root element, which ended at line {}: '{}'; a URDF has exactly one root element (a stray end tag there would silently drop everything after it)",
+            line_at(text, closed),
+            snippet.trim_end()
+        ),
+    )
 }
 
 fn is_space(b: u8) -> bool {
@@ -125,6 +249,7 @@ fn start_tag(text: &str, at: usize, parent: Option<usize>) -> Option<Element> {
         self_closing: false,
         attributes: Vec::new(),
         parent,
+        end: 0,
     };
     let mut k = name_end;
     loop {
@@ -142,6 +267,7 @@ fn start_tag(text: &str, at: usize, parent: Option<usize>) -> Option<Element> {
                 }
                 element.self_closing = true;
                 element.tag_end = k + 2;
+                element.end = k + 2;
                 return Some(element);
             }
             _ => {
@@ -247,6 +373,6 @@ mod tests {
     #[test]
     fn reports_where_a_tag_is_unterminated() {
         let error = scan("<robot>\n  <!-- open", "f.urdf").unwrap_err();
-        assert!(error.to_string().contains("f.urdf:2:3"), "{error}");
+        assert!(error.to_string().contains("f.urdf:2:"), "{error}");
     }
 }

@@ -67,6 +67,31 @@ pub fn assert_error(run: &Run, needles: &[&str], what: &str) {
     assert!(!run.stderr.contains("panicked"), "{what}: panic\n{run}");
 }
 
+/// A calibration whose verdict failed: exit 1, notes may come first, then `treecal: error:`
+/// lines that contain every needle; no panic.
+#[track_caller]
+pub fn assert_failed_verdict(run: &Run, needles: &[&str], what: &str) {
+    assert!(!run.success, "{what}: expected failure\n{run}");
+    assert_eq!(run.code, Some(1), "{what}: exit code\n{run}");
+    let errors: String = run
+        .stderr
+        .lines()
+        .filter(|line| line.starts_with("treecal: error: "))
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert!(
+        !errors.is_empty(),
+        "{what}: no 'treecal: error:' line\n{run}"
+    );
+    for needle in needles {
+        assert!(
+            errors.contains(needle),
+            "{what}: the error lines should contain {needle:?}\n{run}"
+        );
+    }
+    assert!(!run.stderr.contains("panicked"), "{what}: panic\n{run}");
+}
+
 pub fn path_str(path: &Path) -> &str {
     path.to_str().expect("temporary path is not UTF-8")
 }

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod cli;
+pub mod fuzz;
 
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
@@ -149,4 +150,41 @@ pub fn example_robot_data() -> Option<PathBuf> {
 /// (e.g. `"talos_data/robots/talos_reduced.urdf"`); `None` as [`example_robot_data`].
 pub fn example_robot(relative: &str) -> Option<PathBuf> {
     example_robot_data().map(|dir| dir.join(relative))
+}
+
+/// `robots/humanoid` with each palm (`l_hand`, `r_hand`) as the child link of its wrist roll
+/// joint, as on real humanoids: the `*_wrist_roll_link` links and the fixed `*_hand_joint`s are
+/// removed, and the wrist roll joints get oblique origins (and, on the right, an oblique axis),
+/// so the palm frames are neither aligned with nor offset along the axis in a trivial way.
+pub fn humanoid_with_palms_on_wrists() -> String {
+    let mut text = std::fs::read_to_string(robot("humanoid/humanoid.urdf")).unwrap();
+    for (side, rpy, axis) in [
+        ("l", "0.3 -0.2 0.7", "0 0 1"),
+        ("r", "-0.25 0.15 -0.6", "0.6 0 0.8"),
+    ] {
+        let remove = |text: &mut String, start: &str, end: &str| {
+            let from = text.find(start).unwrap_or_else(|| panic!("{start}"));
+            let to = from + text[from..].find(end).unwrap() + end.len();
+            text.replace_range(from..to, "");
+        };
+        remove(
+            &mut text,
+            &format!("<link name=\"{side}_wrist_roll_link\">"),
+            "</link>",
+        );
+        remove(
+            &mut text,
+            &format!("<joint name=\"{side}_hand_joint\" type=\"fixed\">"),
+            "</joint>",
+        );
+        let old = format!(
+            "<child link=\"{side}_wrist_roll_link\"/>\n    <origin xyz=\"0 0 -0.03\" rpy=\"0 0 0\"/>\n    <axis xyz=\"0 0 1\"/>"
+        );
+        let new = format!(
+            "<child link=\"{side}_hand\"/>\n    <origin xyz=\"0 0 -0.06\" rpy=\"{rpy}\"/>\n    <axis xyz=\"{axis}\"/>"
+        );
+        assert!(text.contains(&old), "{old}");
+        text = text.replace(&old, &new);
+    }
+    text
 }

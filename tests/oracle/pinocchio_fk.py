@@ -3,6 +3,9 @@
 
 Usage:
     python3 tests/oracle/pinocchio_fk.py ROBOT.urdf < request.json > response.json
+    python3 tests/oracle/pinocchio_fk.py --batch < batch.json > responses.json
+      (batch.json: {"robots": [{"urdf": PATH, "links": ..., "configurations": ...}]},
+       responses.json: {"results": [{"poses": ...}, ...]}, one per robot, in order)
 
 request.json:
     {"links": ["link_a", ...],
@@ -37,7 +40,9 @@ pin 4.1.0):
   own configuration entry; the <mimic> relation is neither enforced nor is the
   joint dropped.  (mimic=True would instead make it a JointModelMimic with
   nq=0, i.e. not settable.)  The caller computes and passes every mimic
-  joint's value itself.
+  joint's value itself; this script checks each one independently against
+  the <mimic> element (value = multiplier * master + offset) and fails on a
+  mismatch.
 * Continuous joints are Pinocchio "unbounded" revolute joints with nq=2 and
   configuration (cos q, sin q); we write both entries.
 * Non-unit axes (e.g. `0 0 2`): Pinocchio normalises the URDF axis (a
@@ -60,7 +65,13 @@ import sys
 import xml.etree.ElementTree as ET
 
 
+# The robot being computed, named in errors (batch mode).
+CURRENT = {"urdf": None}
+
+
 def fail(msg, code=2):
+    if CURRENT["urdf"]:
+        msg = "%s: %s" % (CURRENT["urdf"], msg)
     sys.stderr.write("pinocchio_fk: error: %s\n" % msg)
     sys.exit(code)
 
@@ -107,18 +118,88 @@ def read_urdf_structure(path):
     return set(links), joint_types, roots[0]
 
 
+def read_mimics(path):
+    """{joint: (master, multiplier, offset)} for every <mimic> whose master joint exists
+    (urdfdom ignores a mimic of a missing joint; so does treecal)."""
+    robot = ET.parse(path).getroot()
+    names = {j.get("name") for j in robot.findall("joint")}
+    mimics = {}
+    for j in robot.findall("joint"):
+        m = j.find("mimic")
+        if m is not None and m.get("joint") in names:
+            mimics[j.get("name")] = (
+                m.get("joint"),
+                float(m.get("multiplier", "1")),
+                float(m.get("offset", "0")),
+            )
+    return mimics
+
+
+def check_mimics(mimics, ci, cfg):
+    """The caller computes mimic joints' values; check them independently:
+    value = multiplier * master + offset (URDF convention)."""
+    for jname, (master, multiplier, offset) in mimics.items():
+        if jname in cfg and master in cfg:
+            expected = multiplier * float(cfg[master]) + offset
+            if abs(float(cfg[jname]) - expected) > 1e-9 * (1.0 + abs(expected)):
+                fail(
+                    "configuration %d: mimic joint %r = %r, but %r * %r + %r = %r"
+                    % (ci, jname, cfg[jname], multiplier, cfg[master], offset, expected)
+                )
+
+
 def main():
+    if len(sys.argv) == 2 and sys.argv[1] == "--batch":
+        batch()
+        return
     if len(sys.argv) != 2:
-        fail("usage: python3 pinocchio_fk.py ROBOT.urdf < request.json > response.json")
+        fail("usage: python3 pinocchio_fk.py ROBOT.urdf < request.json > response.json\n"
+             "       python3 pinocchio_fk.py --batch < batch.json > responses.json")
     urdf_path = sys.argv[1]
-    if not os.path.isfile(urdf_path):
-        fail("URDF file not found: %r" % urdf_path)
 
     # ---- request -------------------------------------------------------
     try:
         request = json.load(sys.stdin)
     except (ValueError, UnicodeDecodeError) as e:
         fail("invalid request JSON on stdin: %s" % e)
+    write({"poses": poses_for(urdf_path, request)})
+
+
+def batch():
+    """Many robots in one process (Pinocchio's import dominates a single call's time):
+    stdin {"robots": [{"urdf": PATH, "links": [...], "configurations": [...]}, ...]},
+    stdout {"results": [{"poses": [...]}, ...]} in the same order."""
+    try:
+        request = json.load(sys.stdin)
+    except (ValueError, UnicodeDecodeError) as e:
+        fail("invalid request JSON on stdin: %s" % e)
+    robots = request.get("robots") if isinstance(request, dict) else None
+    if not isinstance(robots, list) or not all(isinstance(r, dict) for r in robots):
+        fail('batch request must be {"robots": [{"urdf": ..., "links": ..., "configurations": ...}]}')
+    results = []
+    for robot in robots:
+        urdf_path = robot.get("urdf")
+        if not isinstance(urdf_path, str):
+            fail('every batch entry needs a "urdf" path')
+        CURRENT["urdf"] = urdf_path
+        results.append({"poses": poses_for(urdf_path, robot)})
+        CURRENT["urdf"] = None
+    write({"results": results})
+
+
+def write(response):
+    try:
+        text = json.dumps(response, allow_nan=False)
+    except ValueError as e:
+        fail("non-finite number in result: %s" % e)
+    sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def poses_for(urdf_path, request):
+    """Root_from_link of every requested link at every requested configuration."""
+    if not os.path.isfile(urdf_path):
+        fail("URDF file not found: %r" % urdf_path)
     if not isinstance(request, dict):
         fail("request must be a JSON object")
     links = request.get("links")
@@ -187,7 +268,9 @@ def main():
 
     # ---- forward kinematics ------------------------------------------------
     poses = []
+    mimics = read_mimics(urdf_path)
     for ci, cfg in enumerate(configs):
+        check_mimics(mimics, ci, cfg)
         q = q0.copy()
         for jname, value in cfg.items():
             if jname not in joint_types:
@@ -227,13 +310,7 @@ def main():
                 fail("configuration %d: non-orthonormal rotation for link %r" % (ci, lname))
             out[lname] = [float(x) for x in T.reshape(16)]  # row-major
         poses.append(out)
-
-    try:
-        text = json.dumps({"poses": poses}, allow_nan=False)
-    except ValueError as e:
-        fail("non-finite number in result: %s" % e)
-    sys.stdout.write(text + "\n")
-    sys.stdout.flush()
+    return poses
 
 
 if __name__ == "__main__":

@@ -2,26 +2,36 @@
 
 use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame};
 use treecal::calibration::identifiability::NamedCombination;
+use treecal::calibration::robust::DataSet;
 use treecal::calibration::{
-    hold_out, identified_stiffness, identify_stiffness, run_calibration, CalibrationInput,
-    IdentificationOptions, Plan, StiffnessOptions,
+    hold_out_indices, identified_stiffness, identify_stiffness, run_calibration, CalibrationInput,
+    Finding, IdentificationOptions, Plan, Status, StiffnessOptions,
 };
 use treecal::io::{
-    read_measurements, read_plan, read_stiffness, stiffness_to_yaml, to_json, to_yaml,
-    write_atomically, MeasurementReadOptions,
+    check_output_folder, read_measurements, read_plan, read_registration, read_stiffness,
+    replace_folder, stiffness_to_yaml, to_json, to_yaml, MeasurementReadOptions,
 };
 use treecal::kinematics::{FlexibilityModel, Stiffness};
+use treecal::limits;
 use treecal::report::{
-    calibration_markdown, calibration_plots, calibration_summary, parameter_file,
+    calibration_markdown, calibration_plots, calibration_summary, outlier_rows, parameter_file,
     stiffness_markdown, CalibrationContext, StiffnessSummary,
 };
-use treecal::urdf::export_urdf;
+use treecal::urdf::{export_urdf_with, ExportOptions};
 use treecal::{Error, McpcModel, Result};
 
 /// Fraction of the configurations held out for validation without `--validation`.
 const HOLD_OUT: f64 = 0.2;
 
 const TOOL_PARAMETERS: [&str; 6] = ["alpha", "beta", "gamma", "x", "y", "z"];
+
+/// Whether a file name is one `calibrate` writes (a previous output may be replaced).
+fn is_output_file(name: &str) -> bool {
+    matches!(
+        name,
+        "calibrated.urdf" | "params.yaml" | "report.md" | "report.json"
+    ) || name.ends_with(".svg")
+}
 
 fn invalid(flag: &str, message: String) -> Error {
     Error::InvalidData {
@@ -31,21 +41,61 @@ fn invalid(flag: &str, message: String) -> Error {
 }
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
-    for (flag, value) in [
-        ("--position-sigma", args.position_sigma),
-        ("--rotation-sigma", args.rotation_sigma),
-    ] {
-        if !(value.is_finite() && value > 0.0) {
-            return Err(invalid(flag, format!("{value} must be a positive number")));
-        }
+    // A tiny sigma overflows the weighted cost, a huge one hides every residual.
+    let sigmas = [
+        (
+            "--position-sigma",
+            args.position_sigma,
+            limits::POSITION_SIGMA,
+            "m",
+        ),
+        (
+            "--rotation-sigma",
+            args.rotation_sigma,
+            limits::ROTATION_SIGMA,
+            "rad",
+        ),
+    ];
+    for (flag, value, range, unit) in sigmas {
+        limits::check_range(value, range, flag, unit)?;
     }
+    let measurement_frame = match &args.measurement_frame {
+        MeasurementFrame::Auto => treecal::calibration::MeasurementFrame::Auto,
+        MeasurementFrame::Fit => treecal::calibration::MeasurementFrame::Fit,
+        MeasurementFrame::Base => treecal::calibration::MeasurementFrame::Base,
+        MeasurementFrame::File(path) => {
+            treecal::calibration::MeasurementFrame::Known(read_registration(path)?)
+        }
+    };
+    let plan_file = args
+        .plan
+        .as_deref()
+        .filter(|p| !matches!(*p, "staged" | "simultaneous"))
+        .map(std::path::Path::new);
+    let inputs: Vec<&std::path::Path> = [args.robot.as_deref(), Some(args.measurements.as_path())]
+        .into_iter()
+        .chain([
+            args.validation.as_deref(),
+            args.stiffness.as_deref(),
+            plan_file,
+        ])
+        .flatten()
+        .collect();
+    let written = ["calibrated.urdf", "params.yaml", "report.md", "report.json"];
+    crate::checks::refuse_overwrite_in(&args.out, &written, "svg", &inputs)?;
+    // The output folder is replaced as a whole at the end: refuse a folder that is not a
+    // previous output before computing anything.
+    check_output_folder(&args.out, &is_output_file)?;
     let import = crate::robot::load(args.robot.as_deref())?;
+    let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
     let tree = &import.tree;
-    let branches = crate::robot::branches(&import, args.tools.as_deref())?;
+    let branches =
+        crate::robot::measured_branches(&import, args.tools.as_deref(), &args.measurements)?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
     let read_options = MeasurementReadOptions {
         length_unit: args.length_unit,
         angle_unit: args.angle_unit,
+        joint_length_unit: args.joint_length_unit,
         ignore_columns: args.ignore_columns.clone(),
         strict_limits: args.strict,
     };
@@ -54,28 +104,35 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut notes: Vec<String> = Vec::new();
     let read = |path: &std::path::Path,
                 notes: &mut Vec<String>|
-     -> Result<Vec<treecal::measurement::Measurement>> {
+     -> Result<(Vec<treecal::measurement::Measurement>, Vec<String>)> {
         let set = read_measurements(path, tree, &nominal, &read_options)?;
         notes.extend(
             set.warnings
                 .iter()
                 .map(|warning| format!("treecal: warning: {warning}")),
         );
-        Ok(set.measurements)
+        Ok((set.measurements, set.ids))
     };
-    let all = read(&args.measurements, &mut notes)?;
-    let (measurements, validation, validation_source) = match &args.validation {
-        Some(path) => (all, read(path, &mut notes)?, path.display().to_string()),
+    let (all, all_ids) = read(&args.measurements, &mut notes)?;
+    // `ids`: the row ids of the identification and validation data, for the outlier report.
+    let (measurements, validation, validation_source, ids) = match &args.validation {
+        Some(path) => {
+            let (validation, validation_ids) = read(path, &mut notes)?;
+            let source = path.display().to_string();
+            (all, validation, source, [all_ids, validation_ids])
+        }
         None => {
-            let (identification, validation) = hold_out(&all, HOLD_OUT, args.seed)?;
+            let (kept, held) = hold_out_indices(&all, HOLD_OUT, args.seed)?;
             let source = format!(
                 "{} of {} observations held out from the measurements (a fifth of the configurations, seed {}; give --validation to use your own)",
-                validation.len(),
+                held.len(),
                 all.len(),
                 args.seed
             );
             notes.push(format!("treecal: note: {source}"));
-            (identification, validation, source)
+            let pick = |rows: &[usize]| rows.iter().map(|&i| all[i].clone()).collect();
+            let ids = [&kept, &held].map(|rows| rows.iter().map(|&i| all_ids[i].clone()).collect());
+            (pick(&kept), pick(&held), source, ids)
         }
     };
     let labelled = measurements
@@ -121,6 +178,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let options = IdentificationOptions {
         position_sigma: args.position_sigma,
         rotation_sigma: args.rotation_sigma,
+        robust: args.robust.into(),
         ..IdentificationOptions::default()
     };
     let input = CalibrationInput {
@@ -130,7 +188,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         flexibility: flexibility.as_ref(),
         plan: &plan,
         options: &options,
-        fit_measurement_frame: matches!(args.measurement_frame, MeasurementFrame::Fit),
+        measurement_frame,
     };
     let mut run = run_calibration(&input, &measurements, &validation)?;
     // Stiffness identification: the joint fit from the calibrated geometry, then the plan
@@ -164,8 +222,23 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     };
 
     // Everything is computed before anything is written.
-    let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
-    let export = export_urdf(&original, &origin, tree, &run.report.model)?;
+    let std_devs: Vec<Option<f64>> = run.parameters.iter().map(|p| p.std_dev).collect();
+    let export_options =
+        ExportOptions::with_uncertainty(tree, &run.report.model, &std_devs, args.add_tool_links);
+    let export =
+        match export_urdf_with(&original, &origin, tree, &run.report.model, &export_options) {
+            Ok(export) => {
+                notes.extend(crate::robot::export_notes(&export));
+                Some(export)
+            }
+            Err(error) => {
+                run.findings.push(Finding::failed(
+                    "urdf-export",
+                    format!("the calibrated model cannot be written as a URDF: {error}"),
+                ));
+                None
+            }
+        };
     let unidentifiable: Vec<Vec<String>> = run
         .report
         .stages
@@ -210,19 +283,26 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             (None, false) => "not compensated (no --stiffness)".into(),
         },
         sigma: [args.position_sigma, args.rotation_sigma],
-        measurement_frame: match args.measurement_frame {
-            MeasurementFrame::Fit => {
-                "fitted in closed form to the nominal model, then kept; the tool frames fitted too"
-                    .into()
-            }
-            MeasurementFrame::Base => {
-                "the robot's root link frame (--measurement-frame base); the tool frames fitted"
-                    .into()
-            }
-        },
+        measurement_frame: run.frame.reason.clone(),
     };
-    let changed: Vec<String> = export.changes.iter().map(|c| c.joint.clone()).collect();
-    let summary = calibration_summary(context, &run, unidentifiable, changed);
+    let changed: Vec<String> = export
+        .iter()
+        .flat_map(|e| e.changes.iter().map(|c| c.joint.clone()))
+        .collect();
+    // The outliers with the rows' own ids; the verdict's `outliers` warning names them too.
+    let outliers = outlier_rows(&run, tree, [&ids[0], &ids[1]]);
+    if let Some(finding) = run.findings.iter_mut().find(|f| f.code == "outliers") {
+        let rows: Vec<String> = outliers
+            .iter()
+            .map(|o| match o.set {
+                DataSet::Identification => o.id.clone(),
+                DataSet::Validation => format!("{} (validation)", o.id),
+            })
+            .collect();
+        finding.message = format!("{}; rows: {}", finding.message, rows.join(", "));
+    }
+    let mut summary = calibration_summary(context, &run, unidentifiable, changed);
+    summary.outliers = outliers;
     let mut markdown = calibration_markdown(&summary, &options);
     let mut params = to_yaml(&parameter_file(tree.name(), &run))?;
     let mut json = to_json(&summary)?;
@@ -249,24 +329,43 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut plots = calibration_plots(&run.identification, "measurement")?;
     plots.extend(calibration_plots(&run.validation, "validation")?);
 
+    let verdict = &summary.verdict;
+    let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+    if let (true, Some(export)) = (verdict.usable(), &export) {
+        files.push(("calibrated.urdf".into(), export.urdf.clone().into_bytes()));
+    }
+    files.push(("params.yaml".into(), params.into_bytes()));
+    files.push(("report.md".into(), markdown.clone().into_bytes()));
+    files.push(("report.json".into(), json.into_bytes()));
+    for (stem, svg) in plots {
+        files.push((format!("{stem}.svg"), svg.into_bytes()));
+    }
+    if let Some(text) = stiffness_file {
+        files.push(("stiffness.yaml".into(), text.into_bytes()));
+    }
+
     for note in &notes {
         eprintln!("{note}");
     }
-    std::fs::create_dir_all(&args.out).map_err(|source| Error::Io {
-        path: args.out.clone(),
-        source,
-    })?;
-    write_atomically(&args.out.join("calibrated.urdf"), export.urdf.as_bytes())?;
-    write_atomically(&args.out.join("params.yaml"), params.as_bytes())?;
-    write_atomically(&args.out.join("report.md"), markdown.as_bytes())?;
-    write_atomically(&args.out.join("report.json"), json.as_bytes())?;
-    if let Some(text) = &stiffness_file {
-        write_atomically(&args.out.join("stiffness.yaml"), text.as_bytes())?;
+    for reason in &verdict.reasons {
+        let label = match reason.status {
+            Status::Ok => "note",
+            Status::Warning => "warning",
+            Status::Failed => "error",
+        };
+        eprintln!("treecal: {label}: {}", reason.message);
     }
-    for (stem, svg) in &plots {
-        write_atomically(&args.out.join(format!("{stem}.svg")), svg.as_bytes())?;
-    }
+    replace_folder(&args.out, &files)?;
     print!("{markdown}");
     eprintln!("treecal: wrote {}", args.out.display());
+    if !verdict.usable() {
+        return Err(invalid(
+            "calibration",
+            format!(
+                "verdict failed (see the errors above and {}); calibrated.urdf was not written",
+                args.out.join("report.md").display()
+            ),
+        ));
+    }
     Ok(())
 }

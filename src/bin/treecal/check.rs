@@ -10,6 +10,7 @@ use treecal::io::{
     MeasurementReadOptions,
 };
 use treecal::kinematics::{FlexibilityModel, Stiffness};
+use treecal::limits;
 use treecal::measurement::{Measurement, Observation};
 use treecal::report::compliance_identifiability_markdown;
 use treecal::report::{CheckReport, StageCheck};
@@ -31,13 +32,23 @@ fn invalid(flag: &str, message: String) -> Error {
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
-    for (flag, value) in [
-        ("--position-sigma", args.position_sigma),
-        ("--rotation-sigma", args.rotation_sigma),
-    ] {
-        if !(value.is_finite() && value > 0.0) {
-            return Err(invalid(flag, format!("{value} must be a positive number")));
-        }
+    // A tiny sigma overflows the weighted cost, a huge one hides every residual.
+    let sigmas = [
+        (
+            "--position-sigma",
+            args.position_sigma,
+            limits::POSITION_SIGMA,
+            "m",
+        ),
+        (
+            "--rotation-sigma",
+            args.rotation_sigma,
+            limits::ROTATION_SIGMA,
+            "rad",
+        ),
+    ];
+    for (flag, value, range, unit) in sigmas {
+        limits::check_range(value, range, flag, unit)?;
     }
     if !(args.condition_limit.is_finite() && args.condition_limit >= 1.0) {
         return Err(invalid(
@@ -53,16 +64,20 @@ pub fn run(args: CheckArgs) -> Result<()> {
     }
     let import = crate::robot::load(args.robot.as_deref())?;
     let tree = &import.tree;
-    let branches = crate::robot::branches(&import, args.tools.as_deref())?;
+    let branches = match &args.measurements {
+        Some(path) => crate::robot::measured_branches(&import, args.tools.as_deref(), path)?,
+        None => crate::robot::branches(&import, args.tools.as_deref())?,
+    };
     let model = McpcModel::from_tree(tree, &branches)?;
     let measured = match &args.measurements {
         Some(path) => {
             let options = MeasurementReadOptions {
                 length_unit: args.length_unit,
-                angle_unit: match args.angle_unit {
+                angle_unit: args.angle_unit.map(|unit| match unit {
                     AngleUnit::Rad => treecal::io::AngleUnit::Radian,
                     AngleUnit::Deg => treecal::io::AngleUnit::Degree,
-                },
+                }),
+                joint_length_unit: args.joint_length_unit,
                 ignore_columns: args.ignore_columns.clone(),
                 strict_limits: false,
             };
@@ -112,14 +127,11 @@ pub fn run(args: CheckArgs) -> Result<()> {
         }
         (Some(path), None) => {
             let origin = path.display().to_string();
-            let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-                path: path.clone(),
-                source,
-            })?;
+            let text = limits::read_text(path, limits::MAX_CSV_BYTES)?;
             let table = parse_csv(&text, &origin)?;
             let scale = match args.angle_unit {
-                AngleUnit::Rad => 1.0,
-                AngleUnit::Deg => std::f64::consts::PI / 180.0,
+                Some(AngleUnit::Deg) => std::f64::consts::PI / 180.0,
+                Some(AngleUnit::Rad) | None => 1.0,
             };
             let set = pose_rows(&table, tree, &model, scale, &origin)?;
             for column in &set.mapping.unmatched {
@@ -222,6 +234,11 @@ pub fn run(args: CheckArgs) -> Result<()> {
         if staged { "staged" } else { "simultaneous" }.into(),
         stages,
     );
+    for stage in &report.stages {
+        for warning in stage.analysis.iter().flat_map(|a| a.warnings()) {
+            eprintln!("treecal: warning: stage {}: {warning}", stage.name);
+        }
+    }
     let compliance = if args.identify_stiffness {
         Some(compliance_check(&args, tree, &model, &rows, observation)?)
     } else {

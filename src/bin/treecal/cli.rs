@@ -138,6 +138,10 @@ pub struct SimulateArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// A directory searched for `package://` collision meshes: a folder holding packages, or
+    /// a package folder itself; repeatable, searched in order before ROS_PACKAGE_PATH.
+    #[arg(long = "package-path", value_name = "DIR")]
+    pub package_path: Vec<PathBuf>,
     /// Stiffness YAML (gravity, payloads, joint and link stiffness) [default: the built-in
     /// Robonaut's; required with --robot].
     #[arg(long)]
@@ -163,6 +167,16 @@ pub struct SimulateArgs {
     /// Tracker noise: 0 (none), at901 (15 µm + 6 µm/m per coordinate), or CONSTANT+PER_METRE in µm.
     #[arg(long, default_value = "at901")]
     pub noise: String,
+    /// Robust estimation in both calibrations (see `calibrate --help`).
+    #[arg(long, value_enum, default_value = "huber")]
+    pub robust: RobustChoice,
+    /// Fraction of the measurements turned into blunders (one target bumped, or the position
+    /// moved, by --outlier-size in a random direction), e.g. 0.03.
+    #[arg(long, default_value_t = 0.0, value_name = "FRACTION")]
+    pub outliers: f64,
+    /// How far a blunder moves its target (mm).
+    #[arg(long, default_value_t = 50.0, value_name = "MM")]
+    pub outlier_size: f64,
     /// Targets per tool: 3 (a frame, as in the paper's section 5.3.1) or 1 (a position).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     pub targets: u8,
@@ -241,12 +255,16 @@ pub enum StageChoice {
 /// Arguments of `treecal plan`.
 #[derive(Args)]
 #[command(
-    after_help = "Candidates are drawn uniformly within the joint limits; those in self-collision (URDF collision primitives, and STL/OBJ meshes that resolve: relative to the URDF, file://, or package:// through ROS_PACKAGE_PATH) or with a tool outside --workspace are rejected. The output CSV has one row per tool per configuration: [stage,]tool,<joint columns> (metres, radians), the measurement CSV without its measured columns (docs/file-formats.md). See docs/planning.md.\n\nExamples:\n  treecal plan --poses 20 -o poses.csv\n  treecal plan --robot robots/humanoid/humanoid.urdf --poses 30 --criterion d --stage staged -o poses.csv\n  treecal plan --poses 20 --workspace 0.2,-1,-0.5,1.5,1,1 -o poses.csv"
+    after_help = "Candidates are drawn uniformly within the joint limits; those in self-collision (URDF collision primitives, and STL, OBJ and COLLADA meshes that resolve: relative to the URDF, file://, or package:// through --package-path and ROS_PACKAGE_PATH) or with a tool outside --workspace are rejected. The output CSV has one row per tool per configuration: [stage,]tool,<joint columns> (metres, radians), the measurement CSV without its measured columns (docs/file-formats.md). See docs/planning.md.\n\nExamples:\n  treecal plan --poses 20 -o poses.csv\n  treecal plan --robot robots/humanoid/humanoid.urdf --poses 30 --criterion d --stage staged -o poses.csv\n  treecal plan --poses 20 --workspace 0.2,-1,-0.5,1.5,1,1 -o poses.csv"
 )]
 pub struct PlanArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// A directory searched for `package://` collision meshes: a folder holding packages, or
+    /// a package folder itself; repeatable, searched in order before ROS_PACKAGE_PATH.
+    #[arg(long = "package-path", value_name = "DIR")]
+    pub package_path: Vec<PathBuf>,
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
@@ -306,6 +324,12 @@ pub struct ExportArgs {
     /// The URDF file to write (written atomically).
     #[arg(short, long, value_name = "OUT.urdf")]
     pub output: PathBuf,
+    /// When a tool link is the child of a revolute joint and its calibrated origin lies off
+    /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
+    /// express), add a fixed child link `<tool>_calibrated` at the exact calibrated tool frame
+    /// instead of failing (docs/export.md).
+    #[arg(long)]
+    pub add_tool_links: bool,
 }
 
 /// Arguments of `treecal check`.
@@ -326,9 +350,14 @@ pub struct CheckArgs {
     /// Measurement CSV (docs/file-formats.md): its configurations, tools and stages are analysed.
     #[arg(long, value_name = "M.csv")]
     pub measurements: Option<PathBuf>,
-    /// Unit of lengths in --measurements (positions, targets, prismatic joints).
-    #[arg(long, default_value = "m", value_parser = parse_length_unit)]
-    pub length_unit: treecal::io::LengthUnit,
+    /// Unit of lengths in --measurements (positions, targets, prismatic joints) [default: the
+    /// file's `# units:` comment, else m].
+    #[arg(long, value_parser = parse_length_unit)]
+    pub length_unit: Option<treecal::io::LengthUnit>,
+    /// Unit of prismatic joint values in --measurements [default: the file's `# units:`
+    /// comment, else --length-unit].
+    #[arg(long, value_parser = parse_length_unit)]
+    pub joint_length_unit: Option<treecal::io::LengthUnit>,
     /// Columns of --measurements to skip, comma-separated.
     #[arg(long, value_delimiter = ',', value_name = "COLUMN,COLUMN")]
     pub ignore_columns: Vec<String>,
@@ -347,9 +376,10 @@ pub struct CheckArgs {
     /// Condition number above which a set is reported as poorly conditioned.
     #[arg(long, default_value_t = 100.0)]
     pub condition_limit: f64,
-    /// Unit of revolute joint values in --poses (prismatic values are always metres).
-    #[arg(long, value_enum, default_value = "rad")]
-    pub angle_unit: AngleUnit,
+    /// Unit of revolute joint values in --poses and --measurements (prismatic values in
+    /// --poses are always metres) [default: the file's `# units:` comment, else rad].
+    #[arg(long, value_enum)]
+    pub angle_unit: Option<AngleUnit>,
     /// Seed of the default random pose set.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -376,12 +406,18 @@ pub struct CheckArgs {
 /// Arguments of `treecal calibrate`.
 #[derive(Args)]
 #[command(
-    after_help = "The measurement CSV (docs/file-formats.md) has a `tool` column, one column per joint of the measured tool's chain (named as in the URDF), optional `id` and `stage` columns, and x,y,z (a target), x,y,z,qw,qx,qy,qz (a pose) or ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C on the tool: origin A, X along AB, Z along AB × AC). The measurement frame and the targets' frame on each tool are fitted, not assumed.\n\nThe staged plan (the default when rows are labelled `stage` = torso / arms) calibrates the torso from the torso rows with the arms locked, then the arms; without labels the simultaneous plan is used. With --stiffness the deflections under gravity are compensated exactly. Without --validation a seeded fifth of the (non-torso) configurations is held out for validation.\n\nWrites to --out: calibrated.urdf, params.yaml, report.md, report.json and per-arm error plots (SVG).\n\nExample:\n  treecal calibrate --measurements robots/robonaut/example/measurements.csv --stiffness robots/robonaut/stiffness.yaml --length-unit mm --angle-unit deg"
+    after_help = "The measurement CSV (docs/file-formats.md) has a `tool` column, one column per joint of the measured tool's chain (named as in the URDF), optional `id` and `stage` columns, and x,y,z (a target), x,y,z,qw,qx,qy,qz (a pose) or ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C on the tool: origin A, X along AB, Z along AB × AC). Without --tools the measured tools are the links the `tool` column names. Units come from the flags, else the file's `# units: length=mm angle=deg` comment, else m and rad; a flag that contradicts the comment is an error, and positions 1000× off or joint values that look like degrees (or radians) are named before solving. The targets' frame on each tool is fitted; the measurement frame is fitted, or the robot's root frame when the data are already in it (--measurement-frame auto; see docs/calibration.md).\n\nThe staged plan (the default when rows are labelled `stage` = torso / arms) calibrates the torso from the torso rows with the arms locked, then the arms; without labels the simultaneous plan is used. With --stiffness the deflections under gravity are compensated exactly. Without --validation a seeded fifth of the (non-torso) configurations is held out for validation.\n\nWrites to --out: calibrated.urdf, params.yaml, report.md, report.json and per-arm error plots (SVG).\n\nExample:\n  treecal calibrate --measurements robots/robonaut/example/measurements.csv --stiffness robots/robonaut/stiffness.yaml"
 )]
 pub struct CalibrateArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// When a tool link is the child of a revolute joint and its calibrated origin lies off
+    /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
+    /// express), add a fixed child link `<tool>_calibrated` at the exact calibrated tool frame
+    /// instead of failing (docs/export.md).
+    #[arg(long)]
+    pub add_tool_links: bool,
     /// Measurement CSV (one row per tool observation).
     #[arg(long, value_name = "M.csv")]
     pub measurements: PathBuf,
@@ -402,12 +438,19 @@ pub struct CalibrateArgs {
     /// Output directory.
     #[arg(long, default_value = "out/calibrate")]
     pub out: PathBuf,
-    /// Unit of lengths in the CSV (positions, targets, prismatic joints).
-    #[arg(long, default_value = "m", value_parser = parse_length_unit)]
-    pub length_unit: treecal::io::LengthUnit,
-    /// Unit of revolute joint values in the CSV.
-    #[arg(long, default_value = "rad", value_parser = parse_angle_unit)]
-    pub angle_unit: treecal::io::AngleUnit,
+    /// Unit of lengths in the CSV (positions, targets, prismatic joints) [default: the file's
+    /// `# units: length=…` comment, else m]; contradicting the comment is an error.
+    #[arg(long, value_parser = parse_length_unit)]
+    pub length_unit: Option<treecal::io::LengthUnit>,
+    /// Unit of revolute joint values in the CSV [default: the file's `# units: angle=…`
+    /// comment, else rad]; contradicting the comment is an error.
+    #[arg(long, value_parser = parse_angle_unit)]
+    pub angle_unit: Option<treecal::io::AngleUnit>,
+    /// Unit of prismatic joint values when it differs from --length-unit (a controller logging
+    /// metres beside a tracker in mm) [default: the file's `# units: joint_length=…`, else the
+    /// length unit].
+    #[arg(long, value_parser = parse_length_unit)]
+    pub joint_length_unit: Option<treecal::io::LengthUnit>,
     /// Columns to skip (e.g. a timestamp), comma-separated.
     #[arg(long, value_delimiter = ',', value_name = "COLUMN,COLUMN")]
     pub ignore_columns: Vec<String>,
@@ -423,14 +466,23 @@ pub struct CalibrateArgs {
     /// Seed of the held-out validation fifth.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Robust estimation: measurements whose residual is far beyond the others' (a bumped
+    /// target) are down-weighted, named in the report and left out (docs/identification.md).
+    #[arg(long, value_enum, default_value = "huber")]
+    pub robust: RobustChoice,
     /// The frame the stiffness file's gravity vector is given in: the measurement frame (a
     /// levelled tracker) or the robot's root link frame (a level robot base).
     #[arg(long, value_enum, default_value = "measurement")]
     pub gravity_frame: GravityFrame,
-    /// `fit`: the measurements are in the tracker's own frame, fitted in closed form; `base`:
-    /// they are already in the robot's root link frame (as `simulate --write-measurements`
-    /// writes them).
-    #[arg(long, value_enum, default_value = "fit")]
+    /// `auto`: fitted in closed form, or the robot's root frame when that explains the data
+    /// (docs/calibration.md); `fit`: the tracker's own frame, fitted and kept; `base`: already
+    /// in the robot's root link frame (as `simulate --write-measurements` writes them); or a
+    /// registration file (YAML: the robot base in the tracker frame, docs/file-formats.md).
+    #[arg(
+        long,
+        default_value = "auto",
+        value_name = "auto|fit|base|REGISTRATION.yaml"
+    )]
     pub measurement_frame: MeasurementFrame,
     /// Identify the joint and link compliances the data determine, jointly with the geometry
     /// (docs/identification.md); the stiffness file (default: the library defaults) is the
@@ -443,13 +495,52 @@ pub struct CalibrateArgs {
     pub stiffness_prior: f64,
 }
 
-/// How the measurement frame is found.
+/// The robust loss (`--robust`).
 #[derive(Clone, Copy, ValueEnum)]
+pub enum RobustChoice {
+    /// Huber: weight 1 for residuals within 6.3–7.0 robust σ (clean data keep the
+    /// least-squares result exactly), less beyond; convex.
+    Huber,
+    /// Cauchy: every weight below 1, a blunder's pull vanishing; clean results change slightly.
+    Cauchy,
+    /// Plain least squares.
+    Off,
+}
+
+impl From<RobustChoice> for treecal::calibration::RobustLoss {
+    fn from(choice: RobustChoice) -> Self {
+        match choice {
+            RobustChoice::Huber => Self::Huber,
+            RobustChoice::Cauchy => Self::Cauchy,
+            RobustChoice::Off => Self::Off,
+        }
+    }
+}
+
+/// How the measurement frame is found (`--measurement-frame`).
+#[derive(Clone)]
 pub enum MeasurementFrame {
+    /// Fitted, or the root frame when it explains the data.
+    Auto,
     /// Fitted to the data in closed form (Kabsch), then kept.
     Fit,
     /// The robot's root link frame.
     Base,
+    /// A registration file.
+    File(PathBuf),
+}
+
+impl std::str::FromStr for MeasurementFrame {
+    type Err = std::convert::Infallible;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        Ok(match text {
+            "auto" => MeasurementFrame::Auto,
+            "fit" => MeasurementFrame::Fit,
+            "base" => MeasurementFrame::Base,
+            path => MeasurementFrame::File(PathBuf::from(path)),
+        })
+    }
 }
 
 /// Where gravity is fixed.

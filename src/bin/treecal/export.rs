@@ -2,10 +2,17 @@
 
 use crate::cli::ExportArgs;
 use treecal::io::{read_parameters, write_atomically};
-use treecal::urdf::export_urdf;
+use treecal::urdf::{export_urdf_with, ExportOptions};
 use treecal::{McpcModel, Result};
 
 pub fn run(args: ExportArgs) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = args
+        .robot
+        .iter()
+        .chain([&args.params])
+        .map(|p| p.as_path())
+        .collect();
+    crate::checks::refuse_overwrite(&args.output, &inputs)?;
     let import = crate::robot::load(args.robot.as_deref())?;
     let branches = crate::robot::branches(&import, args.tools.as_deref())?;
     let mut model = McpcModel::from_tree(&import.tree, &branches)?;
@@ -23,7 +30,16 @@ pub fn run(args: ExportArgs) -> Result<()> {
     }
     model.set_parameters(&parameters.values)?;
     let (original, origin) = crate::robot::original_text(args.robot.as_deref())?;
-    let report = export_urdf(&original, &origin, &import.tree, &model)?;
+    let options = ExportOptions::with_uncertainty(
+        &import.tree,
+        &model,
+        &parameters.std_devs,
+        args.add_tool_links,
+    );
+    let report = export_urdf_with(&original, &origin, &import.tree, &model, &options)?;
+    for line in crate::robot::export_notes(&report) {
+        eprintln!("{line}");
+    }
     write_atomically(&args.output, report.urdf.as_bytes())?;
     eprintln!(
         "treecal: wrote {} ({} joint origins changed{})",

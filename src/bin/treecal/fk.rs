@@ -2,17 +2,17 @@
 
 use crate::cli::{AngleUnit, FkArgs};
 use treecal::io::{append_poses, configurations, parse_csv, write_atomically};
-use treecal::{Error, Result};
+use treecal::Result;
 
 pub fn run(args: FkArgs) -> Result<()> {
+    if let Some(output) = &args.output {
+        crate::checks::refuse_overwrite(output, &[&args.robot, &args.joints])?;
+    }
     let import = crate::robot::load(Some(&args.robot))?;
     let tree = &import.tree;
     let tip = tree.link_id(&args.tip)?;
     let origin = args.joints.display().to_string();
-    let text = std::fs::read_to_string(&args.joints).map_err(|source| Error::Io {
-        path: args.joints.clone(),
-        source,
-    })?;
+    let text = treecal::limits::read_text(&args.joints, treecal::limits::MAX_CSV_BYTES)?;
     let table = parse_csv(&text, &origin)?;
     let scale = match args.angle_unit {
         AngleUnit::Rad => 1.0,

@@ -5,6 +5,7 @@ use treecal::io::{read_mcpc_table, write_atomically};
 use treecal::{urdf_from_mcpc_table, Result};
 
 pub fn run(args: FromMcpcArgs) -> Result<()> {
+    crate::checks::refuse_overwrite(&args.output, &[&args.table])?;
     let table = read_mcpc_table(&args.table)?;
     // Name the source by its file name only, so the output does not depend on where it ran.
     let source = args

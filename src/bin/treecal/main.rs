@@ -5,6 +5,7 @@
 
 mod calibrate;
 mod check;
+mod checks;
 mod cli;
 mod export;
 mod fk;

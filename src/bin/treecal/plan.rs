@@ -2,12 +2,66 @@
 
 use crate::cli::{CriterionChoice, PlanArgs, StageChoice};
 use std::io::IsTerminal;
+use treecal::calibration::{
+    analyse, IdentifiabilityOptions, ObservationKind, ParameterSet, PoseRow,
+};
 use treecal::io::{planned_poses_to_csv, write_atomically};
+use treecal::limits;
 use treecal::math::Vec3;
 use treecal::measurement::TARGET_SPACING;
 use treecal::sim::noise::{NoiseModel, Targets};
 use treecal::sim::planning::{plan_poses, Criterion, PlanReport, PlanningOptions, PlanningStage};
 use treecal::{Error, McpcModel, Result};
+
+/// What `treecal check` would warn about the planned set of one stage: fewer equations than
+/// identifiable parameters, or a rank deficiency the observation type does not explain.
+fn pose_set_warnings(
+    tree: &treecal::KinematicTree,
+    branches: &treecal::Branches,
+    model: &McpcModel,
+    options: &PlanningOptions,
+    label: Option<&str>,
+    report: &PlanReport,
+) -> Result<Vec<String>> {
+    let rows: Vec<PoseRow> = report
+        .poses
+        .iter()
+        .flat_map(|pose| {
+            pose.tools.iter().map(|&tool| PoseRow {
+                tool,
+                q: pose.q.clone(),
+                stage: label.map(str::to_owned),
+            })
+        })
+        .collect();
+    if rows.is_empty() {
+        return Ok(vec!["no poses were planned".into()]);
+    }
+    // The stage labels of `run`: torso, arms, or none for the simultaneous set.
+    let parameters = match label {
+        Some("torso") => ParameterSet::Coupled,
+        Some("arms") => ParameterSet::Arms,
+        _ => ParameterSet::All,
+    };
+    let observation = match options.targets {
+        Targets::One => ObservationKind::Position,
+        Targets::Three => ObservationKind::Pose,
+    };
+    let analysis = analyse(
+        tree,
+        branches,
+        model,
+        &rows,
+        observation,
+        &IdentifiabilityOptions {
+            position_sigma: options.position_sigma,
+            rotation_sigma: options.rotation_sigma,
+            parameters,
+            ..IdentifiabilityOptions::default()
+        },
+    )?;
+    Ok(analysis.warnings())
+}
 
 fn invalid(flag: &str, message: String) -> Error {
     Error::InvalidData {
@@ -17,8 +71,16 @@ fn invalid(flag: &str, message: String) -> Error {
 }
 
 pub fn run(args: PlanArgs) -> Result<()> {
-    if args.poses == 0 || args.candidates == 0 {
-        return Err(invalid("--poses/--candidates", "must be at least 1".into()));
+    crate::checks::count("--poses", args.poses, limits::MAX_POSES)?;
+    crate::checks::count("--candidates", args.candidates, limits::MAX_CANDIDATES)?;
+    if args.torso_poses as usize > limits::MAX_POSES {
+        crate::checks::count("--torso-poses", args.torso_poses, limits::MAX_POSES)?;
+    }
+    for value in args.workspace.iter().flatten() {
+        limits::check(*value, limits::Quantity::Length, || "--workspace".into())?;
+    }
+    if let Some(robot) = &args.robot {
+        crate::checks::refuse_overwrite(&args.output, &[robot])?;
     }
     if args.targets == 2 {
         return Err(invalid(
@@ -46,7 +108,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
     let tree = &import.tree;
     let branches = crate::robot::branches(&import, args.tools.as_deref())?;
     let model = McpcModel::from_tree(tree, &branches)?;
-    let checker = crate::robot::checker(args.robot.as_deref(), tree)?;
+    let checker = crate::robot::checker(args.robot.as_deref(), tree, &args.package_path)?;
     let targets = if args.targets == 1 {
         Targets::One
     } else {
@@ -117,6 +179,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
         planned_poses_to_csv(tree, &model, &sets)?.as_bytes(),
     )?;
     for (label, report) in &reports {
+        let warnings = pose_set_warnings(tree, &branches, &model, &base, *label, report)?;
         println!(
             "{}: {} poses from {} candidates ({} rejected for self-collision, {} outside the \
              workspace); {:?} over {} parameters: planned {:.6e}, random {:.6e}; {} exchanges",
@@ -131,6 +194,10 @@ pub fn run(args: PlanArgs) -> Result<()> {
             report.random_value,
             report.exchanges
         );
+        for warning in &warnings {
+            println!("  warning: {warning}");
+            eprintln!("treecal: warning: {}: {warning}", label.unwrap_or("all"));
+        }
     }
     eprintln!("treecal: wrote {}", args.output.display());
     Ok(())

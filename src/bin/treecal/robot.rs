@@ -1,7 +1,7 @@
 //! Loading the robot a command works on: a URDF path, or the built-in Robonaut.
 
-use std::path::Path;
-use treecal::io::{mesh_file_loader, package_dirs};
+use std::path::{Path, PathBuf};
+use treecal::io::{mesh_file_loader, package_dirs, read_measured_tool_names};
 use treecal::sim::collision::{CollisionChecker, CollisionOptions};
 use treecal::urdf::{load_urdf, parse_urdf, UrdfImport};
 use treecal::{detect_branches, Branches, KinematicTree, Result};
@@ -39,14 +39,35 @@ pub fn branches(import: &UrdfImport, tools: Option<&[String]>) -> Result<Branche
     detect_branches(tree, tools.as_deref())
 }
 
+/// Detects branches from the tools the user named, else from the links the measurement CSV's
+/// `tool` column names (the measured tools), so that automatic detection cannot pick others.
+pub fn measured_branches(
+    import: &UrdfImport,
+    tools: Option<&[String]>,
+    measurements: &Path,
+) -> Result<Branches> {
+    if tools.is_some() {
+        return branches(import, tools);
+    }
+    let measured = read_measured_tool_names(measurements)?;
+    let tree = &import.tree;
+    let ids = measured
+        .iter()
+        .map(|name| {
+            tree.link_id(name).map_err(|e| treecal::Error::InvalidData {
+                origin: format!("{}: tool column", measurements.display()),
+                message: format!("{e}; the tool column names the measured tool links"),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    detect_branches(tree, Some(&ids))
+}
+
 /// The URDF text of `path`, or of the built-in Robonaut, with the name to use in messages.
 pub fn original_text(path: Option<&Path>) -> Result<(String, String)> {
     match path {
         Some(path) => Ok((
-            std::fs::read_to_string(path).map_err(|source| treecal::Error::Io {
-                path: path.to_owned(),
-                source,
-            })?,
+            treecal::limits::read_text(path, treecal::limits::MAX_URDF_BYTES)?,
             path.display().to_string(),
         )),
         None => Ok((
@@ -56,29 +77,123 @@ pub fn original_text(path: Option<&Path>) -> Result<(String, String)> {
     }
 }
 
-/// The self-collision checker of the robot loaded from `path` (built-in: `None`), with its STL
-/// and OBJ meshes resolved next to the URDF or through `ROS_PACKAGE_PATH`; prints which meshes
-/// were left out.
-pub fn checker(path: Option<&Path>, tree: &KinematicTree) -> Result<CollisionChecker> {
+/// The self-collision checker of the robot loaded from `path` (built-in: `None`), with its
+/// STL, OBJ and COLLADA meshes resolved next to the URDF or, for `package://` names, in
+/// `package_paths` (`--package-path`) and then `ROS_PACKAGE_PATH`; prints one line naming the
+/// meshes that could not be found or read.
+pub fn checker(
+    path: Option<&Path>,
+    tree: &KinematicTree,
+    package_paths: &[PathBuf],
+) -> Result<CollisionChecker> {
     let directory = path
         .and_then(Path::parent)
         .map(Path::to_path_buf)
         .unwrap_or_default();
     let search = std::env::var("ROS_PACKAGE_PATH").unwrap_or_default();
-    let loader = mesh_file_loader(directory, package_dirs(&search));
-    let checker = CollisionChecker::with_meshes(tree, &CollisionOptions::default(), &loader)?;
-    let skipped = checker.skipped_mesh_files();
-    if !skipped.is_empty() {
-        let mut names: Vec<&str> = skipped.iter().map(String::as_str).collect();
-        names.dedup();
-        let shown = names.len().min(5);
-        eprintln!(
-            "treecal: warning: {} collision meshes are not checked (not found, or not STL/OBJ; \
-             package:// names are searched in ROS_PACKAGE_PATH): {}{}",
-            skipped.len(),
-            names[..shown].join(", "),
-            if names.len() > shown { ", …" } else { "" }
-        );
+    let mut directories = package_paths.to_vec();
+    directories.extend(package_dirs(&search));
+    let loader = mesh_file_loader(directory, directories);
+    let mut checker = CollisionChecker::with_meshes(tree, &CollisionOptions::default(), &loader)?;
+    if let Some(line) = skipped_meshes_line(&checker) {
+        eprintln!("{line}");
+    }
+    if checker.loaded_meshes() > 0 {
+        // Meshes of neighbouring links often overlap by design; such pairs would reject every
+        // configuration. A robot that cannot be sampled (no limits) is left as it is.
+        let mut rng = <rand::rngs::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+        let options = treecal::sim::sampling::SamplingOptions::default();
+        let samples = treecal::sim::sampling::sample_configurations(
+            tree,
+            None,
+            ALWAYS_COLLIDING_SAMPLES,
+            &mut rng,
+            &options,
+            &[],
+        )
+        .unwrap_or_default();
+        let poses: Vec<_> = samples
+            .iter()
+            .filter_map(|q| tree.link_poses(q).ok())
+            .collect();
+        let removed = checker.ignore_pairs_always_colliding(&poses);
+        if !removed.is_empty() {
+            let names: Vec<String> = removed
+                .iter()
+                .map(|(a, b)| format!("{}–{}", tree.link(*a).name, tree.link(*b).name))
+                .collect();
+            eprintln!(
+                "treecal: note: {} link pairs collide at all {} random configurations (their collision meshes overlap by design) and are not checked: {}",
+                removed.len(),
+                poses.len(),
+                names.join(", ")
+            );
+        }
     }
     Ok(checker)
+}
+
+/// How many random configurations decide that a link pair always collides.
+const ALWAYS_COLLIDING_SAMPLES: usize = 100;
+
+/// One warning line naming every mesh left out, first the ones not found, then the unreadable
+/// ones with their reasons; `None` if none.
+fn skipped_meshes_line(checker: &CollisionChecker) -> Option<String> {
+    let skipped = checker.skipped_mesh_files();
+    if skipped.is_empty() {
+        return None;
+    }
+    let unreadable = checker.unreadable_meshes();
+    let mut missing: Vec<&str> = skipped
+        .iter()
+        .map(String::as_str)
+        .filter(|name| !unreadable.iter().any(|(u, _)| u == name))
+        .collect();
+    missing.sort_unstable();
+    missing.dedup();
+    let mut unread: Vec<String> = unreadable
+        .iter()
+        .map(|(name, reason)| format!("{name} ({reason})"))
+        .collect();
+    unread.sort_unstable();
+    unread.dedup();
+    let list = |names: Vec<String>| names.join(", ");
+    let mut parts = Vec::new();
+    if !missing.is_empty() {
+        parts.push(format!(
+            "{} files not found (package:// names are searched in --package-path, then ROS_PACKAGE_PATH): {}",
+            missing.len(),
+            list(missing.iter().map(|s| s.to_string()).collect())
+        ));
+    }
+    if !unread.is_empty() {
+        parts.push(format!(
+            "{} files unreadable: {}",
+            unread.len(),
+            list(unread)
+        ));
+    }
+    Some(format!(
+        "treecal: warning: {} of {} collision meshes are not checked; {}",
+        skipped.len(),
+        skipped.len() + checker.loaded_meshes(),
+        parts.join("; ")
+    ))
+}
+
+/// The `treecal: note:` lines of what an export dropped or added (docs/export.md).
+pub fn export_notes(report: &treecal::urdf::ExportReport) -> Vec<String> {
+    let dropped = report.dropped.iter().map(|d| {
+        format!(
+            "treecal: note: tool '{}' moved onto the axis of joint '{}' in the URDF: its calibrated origin lies {:.4} mm off the axis, within the calibration's uncertainty ({:.4} mm, 3σ); its orientation is exact",
+            d.tool, d.joint, d.offset_mm, d.tolerance_mm
+        )
+    });
+    let added = report.added_links.iter().map(|a| {
+        format!(
+            "treecal: note: added link '{}' below tool '{}' at the exact calibrated tool frame ({:.4} mm off the joint axis, which the tool link itself cannot be)",
+            a.link, a.tool, a.offset_mm
+        )
+    });
+    dropped.chain(added).collect()
 }

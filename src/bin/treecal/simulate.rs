@@ -2,12 +2,14 @@
 
 use crate::cli::{MeasurementFormat, PlanChoice, PosesFrom, SimulateArgs};
 use std::io::IsTerminal;
+use std::path::Path;
 use treecal::calibration::Plan;
 use treecal::io::{
     measurements_to_csv, measurements_to_csv_with, parse_stiffness, read_stiffness, to_json,
     write_atomically, LengthUnit, MeasurementWriteOptions,
 };
 use treecal::kinematics::FlexibilityModel;
+use treecal::limits;
 use treecal::report::plot::arm_error_plots;
 use treecal::report::simulate::simulation_markdown;
 use treecal::sim::experiment::{Setup, SimulationOptions};
@@ -24,30 +26,63 @@ fn invalid(flag: &str, message: String) -> Error {
     }
 }
 
-pub fn run(args: SimulateArgs) -> Result<()> {
-    for (flag, value) in [
-        ("--angle-error", args.angle_error),
-        ("--length-error", args.length_error),
+/// The flags' ranges and counts (`treecal::limits`), and no output over an input.
+fn check_flags(args: &SimulateArgs) -> Result<()> {
+    for (flag, value, bound, unit) in [
+        (
+            "--angle-error",
+            args.angle_error,
+            std::f64::consts::PI,
+            "rad",
+        ),
+        ("--length-error", args.length_error, limits::MAX_LENGTH, "m"),
     ] {
-        if !(value.is_finite() && value >= 0.0) {
-            return Err(invalid(
-                flag,
-                format!("{value} is not a non-negative number"),
-            ));
-        }
+        limits::check_range(value, (0.0, bound), flag, unit)?;
     }
-    if !(args.model_stiffness_scale.is_finite() && args.model_stiffness_scale > 0.0) {
+    let scale = (1.0 / limits::MAX_FACTOR, limits::MAX_FACTOR);
+    limits::check_range(
+        args.model_stiffness_scale,
+        scale,
+        "--model-stiffness-scale",
+        "",
+    )?;
+    for (flag, value) in [
+        ("--poses", args.poses),
+        ("--validation-poses", args.validation_poses),
+        ("--trials", args.trials),
+    ] {
+        crate::checks::count(flag, value, limits::MAX_POSES)?;
+    }
+    if args.torso_poses as usize > limits::MAX_POSES {
+        crate::checks::count("--torso-poses", args.torso_poses, limits::MAX_POSES)?;
+    }
+    if !(args.outliers.is_finite() && (0.0..=1.0).contains(&args.outliers)) {
         return Err(invalid(
-            "--model-stiffness-scale",
-            format!("{} must be positive", args.model_stiffness_scale),
+            "--outliers",
+            format!("{} is not a fraction between 0 and 1", args.outliers),
         ));
     }
-    if args.poses == 0 || args.validation_poses == 0 || args.trials == 0 {
+    if !(args.outlier_size.is_finite() && args.outlier_size > 0.0) {
         return Err(invalid(
-            "--poses/--validation-poses/--trials",
-            "must be at least 1".into(),
+            "--outlier-size",
+            format!("{} mm must be positive", args.outlier_size),
         ));
     }
+    let inputs: Vec<&Path> = args
+        .robot
+        .iter()
+        .chain(&args.stiffness)
+        .map(|p| p.as_path())
+        .collect();
+    if let Some(path) = &args.write_measurements {
+        crate::checks::refuse_overwrite(path, &inputs)?;
+    }
+    let written = ["summary.md", "results.json"];
+    crate::checks::refuse_overwrite_in(&args.out, &written, "svg", &inputs)
+}
+
+pub fn run(args: SimulateArgs) -> Result<()> {
+    check_flags(&args)?;
     let noise = NoiseModel::parse(&args.noise)?;
     let import = crate::robot::load(args.robot.as_deref())?;
     let tree = &import.tree;
@@ -70,21 +105,19 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         }
     };
     if let Some(mass) = args.payload {
-        if !(mass.is_finite() && mass >= 0.0) {
-            return Err(invalid(
-                "--payload",
-                format!("{mass} kg is not a non-negative mass"),
-            ));
-        }
+        limits::check_range(mass, (0.0, limits::MAX_MASS), "--payload", "kg")?;
         for payload in &mut stiffness.payloads {
             payload.mass = mass;
         }
     }
     if let Some(k) = args.joint_stiffness {
-        if !(k.is_finite() && k > 0.0) {
+        if !(k.is_finite() && k >= limits::MIN_STIFFNESS) {
             return Err(invalid(
                 "--joint-stiffness",
-                format!("{k} N·m/rad must be positive"),
+                format!(
+                    "{k} N·m/rad must be a number of at least {:e} (docs/file-formats.md, \"Limits\")",
+                    limits::MIN_STIFFNESS
+                ),
             ));
         }
         stiffness.joint_default.bending = k;
@@ -93,9 +126,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     }
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
     let model_flexibility = truth_flexibility.scaled(1.0 / args.model_stiffness_scale)?;
-    let checker = crate::robot::checker(args.robot.as_deref(), tree)?;
-    if args.poses_from == PosesFrom::Planned && args.candidates == 0 {
-        return Err(invalid("--candidates", "must be at least 1".into()));
+    let checker = crate::robot::checker(args.robot.as_deref(), tree, &args.package_path)?;
+    if args.poses_from == PosesFrom::Planned {
+        crate::checks::count("--candidates", args.candidates, limits::MAX_CANDIDATES)?;
     }
     let options = SimulationOptions {
         poses: args.poses as usize,
@@ -124,6 +157,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         identify_stiffness: args
             .identify_stiffness
             .then(treecal::calibration::StiffnessOptions::default),
+        robust: args.robust.into(),
+        outliers: args.outliers,
+        outlier_size: args.outlier_size * 1e-3,
     };
     if args.targets == 2 {
         return Err(invalid(
@@ -152,9 +188,14 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         bar.finish_and_clear();
     }
     let summary = summarise(&reports);
+    if let Some(first) = reports.first() {
+        for note in &first.notes {
+            eprintln!("treecal: note: {note}");
+        }
+    }
 
     let header = format!(
-        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {} plan; model stiffness × {}.",
+        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {} plan; model stiffness × {}; robust loss {}{}.",
         tree.name(),
         trials,
         args.seed,
@@ -173,7 +214,17 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             PlanChoice::Staged => "staged",
             PlanChoice::Simultaneous => "simultaneous",
         },
-        args.model_stiffness_scale
+        args.model_stiffness_scale,
+        options.robust,
+        if args.outliers > 0.0 {
+            format!(
+                "; {} % of the measurements made blunders of {} mm",
+                args.outliers * 100.0,
+                args.outlier_size
+            )
+        } else {
+            String::new()
+        }
     );
     let header = if args.identify_stiffness {
         header + " Compliances identified jointly with the geometry (prior: the model's stiffness, ±50 %)."

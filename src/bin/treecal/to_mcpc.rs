@@ -5,6 +5,9 @@ use treecal::io::{mcpc_table_to_yaml, write_atomically};
 use treecal::{McpcModel, McpcTable, Result};
 
 pub fn run(args: ToMcpcArgs) -> Result<()> {
+    if let (Some(output), Some(robot)) = (&args.output, &args.robot) {
+        crate::checks::refuse_overwrite(output, &[robot])?;
+    }
     let import = crate::robot::load(args.robot.as_deref())?;
     let branches = crate::robot::branches(&import, args.tools.as_deref())?;
     let model = McpcModel::from_tree(&import.tree, &branches)?;

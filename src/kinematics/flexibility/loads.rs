@@ -272,7 +272,8 @@ impl FlexibilityModel {
             let segment = &mut segments[index];
             let axis = segment.base_from_beam.column(0).into_owned();
             let length = (segment.end - segment.start).norm();
-            let station = (position - segment.start).dot(&axis).clamp(0.0, length);
+            // Not `clamp`, which panics on a NaN bound (a non-finite pose, from an overflow).
+            let station = (position - segment.start).dot(&axis).max(0.0).min(length);
             let on_axis = segment.start + axis * station;
             let weight = gravity * mass.mass;
             let to_beam = segment.base_from_beam.transpose();

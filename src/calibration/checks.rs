@@ -1,0 +1,288 @@
+//! The checks of a finished calibration: each looks at one aspect of a [`CalibrationRun`] and
+//! returns a [`Finding`] when there is something to say. [`assess`] runs them all; the
+//! measurement-frame and unit checks run earlier, where the data are read and the frame is
+//! chosen. Thresholds and their reasons: `docs/calibration.md`, "What treecal checks and
+//! infers".
+
+use super::plan::StageReport;
+use super::run::CalibrationRun;
+use super::solver::Termination;
+use super::verdict::Finding;
+use crate::tree::KinematicTree;
+
+/// Fewer equations than this many per unknown parameter is a warning: the residuals then
+/// understate the noise by more than √(1 − 1/1.5) ≈ 0.58 (the fit follows the noise nearly as
+/// much as it averages it), and σ̂ rests on fewer degrees of freedom than there are unknowns.
+pub const REDUNDANCY_WARNING: f64 = 1.5;
+
+/// σ̂ (residuals over the assumed noise) above this is a warning: the noise is larger than
+/// `--position-sigma` / `--rotation-sigma` say, or the model misses something.
+pub const SIGMA_WARNING: f64 = 10.0;
+
+/// σ̂ above this is a failure: no instrument is that far off its stated noise; the residuals
+/// come from a mistake (units, swapped columns, the wrong robot or frame).
+pub const SIGMA_FAILED: f64 = 100.0;
+
+/// A condition number of the column-scaled Jacobian above this is a warning: the worst
+/// determined parameter combination is a thousand times weaker than the best.
+pub const CONDITION_WARNING: f64 = 1e3;
+
+/// The validation error over the error the identification predicts for it (noise plus the
+/// parameter uncertainty) above this is a warning.
+pub const VALIDATION_WARNING: f64 = 3.0;
+
+/// The same ratio above this is a failure.
+pub const VALIDATION_FAILED: f64 = 30.0;
+
+/// Every check of a finished calibration, in order: the position-only note; per stage
+/// redundancy, σ̂, rank, conditioning (these two not after a failed σ̂) and convergence; then
+/// the validation checks.
+pub fn assess(run: &CalibrationRun, tree: &KinematicTree) -> Vec<Finding> {
+    let mut findings: Vec<Finding> = position_only(run).into_iter().collect();
+    for stage in &run.report.stages {
+        let scale = residual_scale(stage);
+        // Residuals of a mistake (units, swapped tools) wreck the linearisation too: rank and
+        // conditioning at such a "solution" say nothing more.
+        let mistaken = scale
+            .as_ref()
+            .is_some_and(|f| f.status == super::verdict::Status::Failed);
+        findings.extend(redundancy(stage));
+        findings.extend(scale);
+        if !mistaken {
+            findings.extend(rank(run, stage, tree));
+            findings.extend(conditioning(stage));
+        }
+        findings.extend(convergence(stage));
+    }
+    findings.extend(validation_improves(run));
+    findings.extend(validation_matches_prediction(run));
+    findings
+}
+
+/// A note naming the tools whose orientation position-only data cannot see (kept at their
+/// starting values, `identifiable: no`).
+pub fn position_only(run: &CalibrationRun) -> Option<Finding> {
+    let mut tools: Vec<&str> = Vec::new();
+    for stage in run.report.stages.iter().filter(|s| s.locked_tools == 0) {
+        for &p in &stage.kept {
+            if let Some(parameter) = run.parameters.get(p) {
+                if !tools.contains(&parameter.owner.as_str()) {
+                    tools.push(&parameter.owner);
+                }
+            }
+        }
+    }
+    (!tools.is_empty()).then(|| {
+        Finding::note(
+            "position-only",
+            format!(
+                "position-only observations: the orientation of {} cannot be observed from measured points; it was kept at its starting (nominal) value and is marked identifiable: no; orientation errors are not reported",
+                tools.join(", ")
+            ),
+        )
+    })
+}
+
+/// Fewer equations than unknowns fails (no redundancy: σ̂ and the uncertainties are undefined
+/// and the fit passes through the noise); fewer than [`REDUNDANCY_WARNING`] per unknown warns.
+pub fn redundancy(stage: &StageReport) -> Option<Finding> {
+    let id = &stage.identification;
+    let unknowns = id.free.len();
+    if unknowns == 0 {
+        return None;
+    }
+    let advice = format!(
+        "measure more configurations: at least {} equations ({REDUNDANCY_WARNING}× the unknowns)",
+        (REDUNDANCY_WARNING * unknowns as f64).ceil()
+    );
+    if id.rows <= unknowns {
+        Some(Finding::failed(
+            "too-few-equations",
+            format!(
+                "stage '{}': {} equations from {} observations for {unknowns} unknown parameters: the data cannot determine them (no redundancy; σ̂ and the uncertainties are undefined); {advice}",
+                stage.name, id.rows, stage.measurements
+            ),
+        ))
+    } else if (id.rows as f64) < REDUNDANCY_WARNING * unknowns as f64 {
+        Some(Finding::warning(
+            "little-redundancy",
+            format!(
+                "stage '{}': only {} equations for {unknowns} unknown parameters: the fit follows the noise and σ̂ rests on {} degrees of freedom; {advice}",
+                stage.name,
+                id.rows,
+                id.rows - id.rank
+            ),
+        ))
+    } else {
+        None
+    }
+}
+
+/// Parameter combinations the data cannot determine, beyond what the observation type
+/// explains (position-only tool orientation is not freed at all, so it is not counted here).
+pub fn rank(run: &CalibrationRun, stage: &StageReport, tree: &KinematicTree) -> Option<Finding> {
+    let id = &stage.identification;
+    let missing = id.free.len().saturating_sub(id.rank);
+    // Without redundancy the rank deficiency is a consequence; `redundancy` says it.
+    if missing == 0 || id.rows <= id.free.len() {
+        return None;
+    }
+    let limit = stage.full_model_parameters();
+    let example = id.unidentifiable.first().map(|combination| {
+        combination
+            .terms
+            .iter()
+            .take(4)
+            .map(|(p, w)| {
+                let name = if *p < limit {
+                    run.report.model.parameter_name(tree, *p)
+                } else {
+                    format!("locked-arm tool parameter {}", p - limit)
+                };
+                format!("{name} ({w:+.2})")
+            })
+            .collect::<Vec<_>>()
+            .join(" with ")
+    });
+    Some(Finding::warning(
+        "rank-deficient",
+        format!(
+            "stage '{}': rank {} of {}: {missing} parameter combination(s) cannot be determined from these configurations and were kept at their starting values (e.g. {}); add configurations that move these joints apart (see report.md)",
+            stage.name,
+            id.rank,
+            id.free.len(),
+            example.unwrap_or_default()
+        ),
+    ))
+}
+
+/// σ̂ far above 1: residuals much larger than the assumed noise.
+pub fn residual_scale(stage: &StageReport) -> Option<Finding> {
+    let id = &stage.identification;
+    if id.rows <= id.free.len() {
+        return None;
+    }
+    let scale = id.residual_scale;
+    let residuals = format!(
+        "RMS residual {} mm, {} deg",
+        readable(id.residual_rms_position * 1e3),
+        readable(id.residual_rms_rotation.to_degrees())
+    );
+    if !scale.is_finite() || scale > SIGMA_FAILED {
+        Some(Finding::failed(
+            "sigma-ratio",
+            format!(
+                "stage '{}': σ̂ = {scale:.4e}: the residuals ({residuals}) are far larger than any measurement noise; typical causes: lengths in mm read as m (--length-unit), angles in degrees read as radians (--angle-unit), swapped or mislabelled tool columns, the wrong robot or measurement frame, large deflections left uncompensated (--stiffness)",
+                stage.name
+            ),
+        ))
+    } else if scale > SIGMA_WARNING {
+        Some(Finding::warning(
+            "sigma-ratio",
+            format!(
+                "stage '{}': σ̂ = {scale:.1}: the residuals ({residuals}) are {scale:.0}× the assumed noise; either the noise is larger than --position-sigma / --rotation-sigma say, or the model misses something (flexibility: --stiffness, a loose joint, a wrong tool); the standard deviations are scaled by σ̂",
+                stage.name
+            ),
+        ))
+    } else {
+        None
+    }
+}
+
+/// Four decimals, or scientific notation for values a mistake makes huge.
+fn readable(value: f64) -> String {
+    if value.abs() < 1e5 {
+        format!("{value:.4}")
+    } else {
+        format!("{value:.3e}")
+    }
+}
+
+/// An ill-conditioned identification: some combination is determined far worse than the rest.
+pub fn conditioning(stage: &StageReport) -> Option<Finding> {
+    let id = &stage.identification;
+    if id.rank == 0 || id.rows <= id.free.len() || id.condition_number <= CONDITION_WARNING {
+        return None;
+    }
+    Some(Finding::warning(
+        "ill-conditioned",
+        format!(
+            "stage '{}': condition number {:.3e} (above {CONDITION_WARNING:.0e}): the weakest parameter combination is determined {:.0}× worse than the best; spread the configurations over the joint ranges (`treecal check`, `treecal plan`) and look at the standard deviations",
+            stage.name, id.condition_number, id.condition_number
+        ),
+    ))
+}
+
+/// The iteration limit was reached before the solver converged.
+pub fn convergence(stage: &StageReport) -> Option<Finding> {
+    (stage.identification.termination == Termination::MaxIterations).then(|| {
+        Finding::warning(
+            "not-converged",
+            format!(
+                "stage '{}': the solver stopped at its iteration limit ({} iterations) before converging",
+                stage.name, stage.identification.iterations
+            ),
+        )
+    })
+}
+
+/// RMS over the position errors (mm) after calibration of every arm of a data set.
+fn rms_after(arms: &[super::run::ArmResiduals]) -> Option<f64> {
+    let values: Vec<f64> = arms.iter().flat_map(|a| a.position_mm[1].clone()).collect();
+    (!values.is_empty())
+        .then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())
+}
+
+/// The RMS position error the validation data should show: the measurement noise (the RMS
+/// identification residual) and the parameter uncertainty (the covariance prediction) added in
+/// quadrature (mm).
+fn expected_validation_rms(run: &CalibrationRun) -> Option<f64> {
+    let noise = rms_after(&run.identification)?;
+    let predicted = run.predicted_validation_rms_mm?;
+    Some((noise * noise + predicted * predicted).sqrt()).filter(|e| e.is_finite() && *e > 0.0)
+}
+
+/// On the validation data the calibrated model must beat the nominal one (mean position
+/// error), unless the nominal model is already within the noise.
+pub fn validation_improves(run: &CalibrationRun) -> Option<Finding> {
+    let expected = expected_validation_rms(run);
+    let worse: Vec<String> = run
+        .validation
+        .iter()
+        .filter(|arm| arm.after.mean_position_mm >= arm.before.mean_position_mm)
+        // A nominal model already at the noise floor cannot be improved measurably.
+        .filter(|arm| expected.is_none_or(|e| arm.before.mean_position_mm > 2.0 * e))
+        .map(|arm| {
+            format!(
+                "{} (mean position error {:.4} mm before, {:.4} mm after)",
+                arm.arm, arm.before.mean_position_mm, arm.after.mean_position_mm
+            )
+        })
+        .collect();
+    (!worse.is_empty()).then(|| {
+        Finding::failed(
+            "validation-worse",
+            format!(
+                "on the validation data the calibrated model is no better than the nominal one: {}; the calibration does not describe the robot (swapped tools or columns, units, or validation data from another set-up)",
+                worse.join("; ")
+            ),
+        )
+    })
+}
+
+/// The validation error against what the identification predicts for it.
+pub fn validation_matches_prediction(run: &CalibrationRun) -> Option<Finding> {
+    let expected = expected_validation_rms(run)?;
+    let actual = rms_after(&run.validation)?;
+    let ratio = actual / expected;
+    let message = format!(
+        "the RMS validation position error {actual:.4} mm is {ratio:.1}× what the identification predicts ({expected:.4} mm: its residuals and the parameter uncertainty); the model fits the identification data but does not carry over (too few or too similar configurations, or validation data taken differently)"
+    );
+    if ratio > VALIDATION_FAILED {
+        Some(Finding::failed("validation-prediction", message))
+    } else if ratio > VALIDATION_WARNING {
+        Some(Finding::warning("validation-prediction", message))
+    } else {
+        None
+    }
+}

@@ -1,0 +1,457 @@
+//! Robust estimation: blunders (a bumped target, a wrong row) found, named and kept out of the
+//! result, by iteratively reweighted least squares (IRLS) around a calibration plan.
+//!
+//! Every measurement (one row of the CSV: one tool observed at one configuration) gets one
+//! weight from its whole standardized residual norm `‖W·r_i‖` (position rows over
+//! `position_sigma`, rotation rows over `rotation_sigma`): a bumped target spoils all of a row's
+//! coordinates, and with three targets a bumped B or C target moves only the rotation. The
+//! norms are divided by a robust scale (the median of the norms about zero, made consistent
+//! for χ with 3 or 6 degrees of freedom: a median absolute deviation), and the loss turns the
+//! standardized norm `u` into a weight. After the weights settle, measurements whose weight
+//! fell below [`OUTLIER_WEIGHT`] are outliers: named, and left out of one last fit. See
+//! `docs/identification.md`, "Robust estimation".
+
+use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
+use super::solver::IdentificationOptions;
+use crate::error::Result;
+use crate::kinematics::McpcModel;
+use crate::math::{pose_error, Pose};
+use crate::measurement::{Measurement, Observation};
+use crate::tree::Branches;
+use nalgebra::Vector6;
+use serde::Serialize;
+
+/// How measurements are weighted by their residuals.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RobustLoss {
+    /// Huber: weight 1 up to the threshold [`threshold`], `k/u` beyond. Convex, so the
+    /// result does not depend on where the iteration starts; clean data keep weight 1 and
+    /// give the least-squares result bit for bit.
+    #[default]
+    Huber,
+    /// Cauchy: weight `1/(1 + (u/k)²)`. Redescending (a blunder's pull vanishes), but every
+    /// measurement is down-weighted a little, so clean data give a slightly different result.
+    Cauchy,
+    /// Plain least squares: every weight 1.
+    Off,
+}
+
+impl RobustLoss {
+    /// `huber`, `cauchy` or `off`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RobustLoss::Huber => "huber",
+            RobustLoss::Cauchy => "cauchy",
+            RobustLoss::Off => "off",
+        }
+    }
+
+    /// The weight of a measurement with `rows` rows (3 or 6) whose residual norm is `u` robust
+    /// scales.
+    pub fn weight(self, u: f64, rows: usize) -> f64 {
+        let k = threshold(rows);
+        match self {
+            RobustLoss::Off => 1.0,
+            RobustLoss::Huber if u <= k => 1.0,
+            RobustLoss::Huber => k / u,
+            RobustLoss::Cauchy => 1.0 / (1.0 + (u / k).powi(2)),
+        }
+    }
+}
+
+impl RobustLoss {
+    /// The standardized norm beyond which a measurement's weight is below
+    /// [`OUTLIER_WEIGHT`] (infinite when the loss is off).
+    pub fn outlier_norm(self, rows: usize) -> f64 {
+        let k = threshold(rows);
+        match self {
+            RobustLoss::Huber => k / OUTLIER_WEIGHT,
+            RobustLoss::Cauchy => k * (1.0 / OUTLIER_WEIGHT - 1.0).sqrt(),
+            RobustLoss::Off => f64::INFINITY,
+        }
+    }
+}
+
+impl std::fmt::Display for RobustLoss {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// The threshold `k` of the losses for a measurement with `rows` rows: the standardized norm
+/// of a clean Gaussian measurement exceeds it with probability 10⁻⁸ (`√χ²` quantile with 3 or
+/// 6 degrees of freedom), so clean data keep weight 1 even over thousands of measurements and
+/// with the scale estimated from few of them.
+pub fn threshold(rows: usize) -> f64 {
+    if rows <= 3 {
+        6.335
+    } else {
+        6.954
+    }
+}
+
+/// The median of `√χ²` with 3 or 6 degrees of freedom: the median norm of a clean measurement
+/// with unit noise per row.
+fn chi_median(rows: usize) -> f64 {
+    if rows <= 3 {
+        1.5382
+    } else {
+        2.3126
+    }
+}
+
+/// A measurement whose weight falls below this is an outlier: named, and left out of the
+/// final fit. For Huber that is a norm beyond twice the threshold (about 14 robust σ for a
+/// pose), for Cauchy beyond the threshold.
+pub const OUTLIER_WEIGHT: f64 = 0.5;
+
+/// The robust scale is never taken below this (in units of the assumed σ's): residuals
+/// smaller than 1 % of the assumed noise (noise-free data, round-off) say nothing about
+/// blunders.
+pub const SCALE_FLOOR: f64 = 0.01;
+
+/// Reweighting rounds at most (each a calibration).
+pub const MAX_ROUNDS: usize = 30;
+
+/// The weights have settled when none changes by more than this in a round.
+pub const WEIGHT_TOLERANCE: f64 = 1e-4;
+
+/// One measurement's residual at a model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Residual {
+    /// Position error `‖measured − predicted‖` (m).
+    pub position: f64,
+    /// Rotation error (rad); `None` for a position observation.
+    pub rotation: Option<f64>,
+    /// `‖W·r‖`: the position error over `position_sigma` and the rotation error over
+    /// `rotation_sigma`, combined.
+    pub norm: f64,
+}
+
+/// What the robust estimation did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RobustReport {
+    /// The loss.
+    pub loss: RobustLoss,
+    /// The robust scale of the standardized residuals (1 = the noise is as assumed).
+    pub scale: f64,
+    /// Calibrations run after the first, unweighted one (reweighting rounds, plus the final
+    /// fit without the outliers).
+    pub rounds: usize,
+    /// Whether the weights settled within [`MAX_ROUNDS`].
+    pub converged: bool,
+    /// Per measurement: the loss's weight at the solution.
+    pub weights: Vec<f64>,
+    /// Per measurement: the residual at the solution.
+    pub residuals: Vec<Residual>,
+}
+
+impl RobustReport {
+    /// Indices of the measurements whose weight is below [`OUTLIER_WEIGHT`].
+    pub fn outliers(&self) -> Vec<usize> {
+        (0..self.weights.len())
+            .filter(|&i| self.weights[i] < OUTLIER_WEIGHT)
+            .collect()
+    }
+
+    /// The weights the final fit used: the loss's, with the outliers at 0; empty (every
+    /// weight 1) when no weight was reduced.
+    pub fn fit_weights(&self) -> Vec<f64> {
+        if self.weights.iter().all(|&w| w == 1.0) {
+            return Vec::new();
+        }
+        self.weights
+            .iter()
+            .map(|&w| if w < OUTLIER_WEIGHT { 0.0 } else { w })
+            .collect()
+    }
+
+    /// The measurements of `data` (the identification data, or validation data weighted by
+    /// [`weights_of`]) whose weight is below [`OUTLIER_WEIGHT`]; `scale` is the robust scale
+    /// the weights were computed at.
+    pub fn name_outliers(
+        &self,
+        set: DataSet,
+        data: &[Measurement],
+        residuals: &[Residual],
+        weights: &[f64],
+        scale: f64,
+    ) -> Vec<Outlier> {
+        (0..data.len().min(residuals.len()).min(weights.len()))
+            .filter(|&i| weights[i] < OUTLIER_WEIGHT)
+            .map(|i| Outlier {
+                set,
+                index: i,
+                tool: data[i].tool,
+                residual: residuals[i],
+                standardized: residuals[i].norm / scale,
+                weight: weights[i],
+            })
+            .collect()
+    }
+}
+
+/// Which data a measurement belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DataSet {
+    /// The identification data (the fit).
+    Identification,
+    /// The validation data (judged, never fitted).
+    Validation,
+}
+
+/// A measurement named as an outlier.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Outlier {
+    /// Identification or validation data.
+    pub set: DataSet,
+    /// Index into that data (file order).
+    pub index: usize,
+    /// The tool observed (index into the model's tools).
+    pub tool: usize,
+    /// Its residual at the calibrated model.
+    pub residual: Residual,
+    /// Its residual norm in robust scales (`‖W·r‖ / scale`).
+    pub standardized: f64,
+    /// Its weight under the loss (the final fit left it out).
+    pub weight: f64,
+}
+
+/// Runs `plan` robustly with the loss `options.robust`: a plain least-squares calibration,
+/// then calibrations reweighted by the loss until the weights settle, then one without the
+/// outliers (if any). Clean data end after the first calibration with every weight 1: the
+/// result is the least-squares one.
+pub fn calibrate_robust(
+    branches: &Branches,
+    model: &McpcModel,
+    measurements: &[Measurement],
+    compensation: Compensation<'_>,
+    plan: &Plan,
+    options: &IdentificationOptions,
+) -> Result<(CalibrationReport, RobustReport)> {
+    let loss = options.robust;
+    let weighted = |weights: Vec<f64>| IdentificationOptions {
+        observation_weights: weights,
+        ..options.clone()
+    };
+    let run = |weights: Vec<f64>| {
+        calibrate(
+            branches,
+            model,
+            measurements,
+            compensation,
+            plan,
+            &weighted(weights),
+        )
+    };
+    let offsets = linear_offsets(model, measurements, compensation)?;
+    let residuals_at = |model: &McpcModel| {
+        residuals(
+            model,
+            measurements,
+            compensation,
+            offsets.as_deref(),
+            options,
+        )
+    };
+    let mut report = run(Vec::new())?;
+    let mut residuals = residuals_at(&report.model)?;
+    let mut weights = vec![1.0; measurements.len()];
+    let (mut rounds, mut converged, mut scale) = (0, true, robust_scale(&residuals, measurements));
+    if loss != RobustLoss::Off {
+        loop {
+            let next = weights_of(loss, &residuals, measurements, scale);
+            let change = next
+                .iter()
+                .zip(&weights)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            weights = next;
+            if change <= WEIGHT_TOLERANCE {
+                break;
+            }
+            if rounds == MAX_ROUNDS {
+                converged = false;
+                break;
+            }
+            rounds += 1;
+            report = run(weights.clone())?;
+            residuals = residuals_at(&report.model)?;
+            scale = robust_scale(&residuals, measurements);
+        }
+    }
+    let mut robust = RobustReport {
+        loss,
+        scale,
+        rounds,
+        converged,
+        weights,
+        residuals,
+    };
+    if !robust.outliers().is_empty() {
+        // The outliers' bounded pull (Huber: k robust σ each) is a bias the data do not need:
+        // the last fit leaves them out, which also keeps them out of σ̂ and the covariance.
+        report = run(robust.fit_weights())?;
+        robust.residuals = residuals_at(&report.model)?;
+        robust.rounds += 1;
+    }
+    Ok((report, robust))
+}
+
+/// The weight of every measurement under `loss` at robust scale `scale`.
+pub fn weights_of(
+    loss: RobustLoss,
+    residuals: &[Residual],
+    measurements: &[Measurement],
+    scale: f64,
+) -> Vec<f64> {
+    residuals
+        .iter()
+        .zip(measurements)
+        .map(|(r, m)| loss.weight(r.norm / scale, m.observation.rows()))
+        .collect()
+}
+
+/// The robust scale of standardized residual norms: the median of `norm / median(√χ²_d)`
+/// (a median absolute deviation about zero, the residuals' expected value, consistent for
+/// Gaussian rows), floored at [`SCALE_FLOOR`]. 1 when there are no residuals.
+pub fn robust_scale(residuals: &[Residual], measurements: &[Measurement]) -> f64 {
+    let mut normalised: Vec<f64> = residuals
+        .iter()
+        .zip(measurements)
+        .map(|(r, m)| r.norm / chi_median(m.observation.rows()))
+        .filter(|v| v.is_finite())
+        .collect();
+    if normalised.is_empty() {
+        return 1.0;
+    }
+    normalised.sort_by(f64::total_cmp);
+    let n = normalised.len();
+    let median = if n % 2 == 1 {
+        normalised[n / 2]
+    } else {
+        0.5 * (normalised[n / 2 - 1] + normalised[n / 2])
+    };
+    median.max(SCALE_FLOOR)
+}
+
+/// The residual of every measurement at `model`, predicted as `compensation` predicts
+/// (rigidly, rigidly minus the linear deflections `offsets`, or deflected).
+pub fn residuals(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    compensation: Compensation<'_>,
+    offsets: Option<&[Vector6<f64>]>,
+    options: &IdentificationOptions,
+) -> Result<Vec<Residual>> {
+    let mut cached: Option<(&[f64], Vec<Pose>)> = None;
+    let mut out = Vec::with_capacity(measurements.len());
+    for (index, m) in measurements.iter().enumerate() {
+        if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
+            let poses = match compensation {
+                Compensation::Exact(source) => {
+                    source
+                        .flexibility
+                        .deflected_tool_poses(source.tree, model, &m.q)?
+                }
+                Compensation::None | Compensation::Linear(_) => model.tool_poses(&m.q),
+            };
+            cached = Some((&m.q, poses));
+        }
+        let Some(predicted) = cached.as_ref().and_then(|(_, p)| p.get(m.tool)) else {
+            continue;
+        };
+        let mut error = match &m.observation {
+            Observation::Pose(pose) => pose_error(pose, predicted),
+            Observation::Position(p) => {
+                let d = p - predicted.translation.vector;
+                Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
+            }
+        };
+        if let Some(offset) = offsets.and_then(|o| o.get(index)) {
+            error -= offset;
+        }
+        let position = error.fixed_rows::<3>(0).norm();
+        let rotation =
+            matches!(m.observation, Observation::Pose(_)).then(|| error.fixed_rows::<3>(3).norm());
+        let norm = ((position / options.position_sigma).powi(2)
+            + (rotation.unwrap_or(0.0) / options.rotation_sigma).powi(2))
+        .sqrt();
+        out.push(Residual {
+            position,
+            rotation,
+            norm,
+        });
+    }
+    Ok(out)
+}
+
+/// The linear flexibility errors `D_f` at the starting model, as the plan computes them for
+/// [`Compensation::Linear`]; `None` otherwise.
+fn linear_offsets(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    compensation: Compensation<'_>,
+) -> Result<Option<Vec<Vector6<f64>>>> {
+    let Compensation::Linear(source) = compensation else {
+        return Ok(None);
+    };
+    measurements
+        .iter()
+        .map(|m| {
+            Ok(source
+                .flexibility
+                .tool_deflections(source.tree, model, &m.q)?[m.tool])
+        })
+        .collect::<Result<Vec<_>>>()
+        .map(Some)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn huber_keeps_clean_norms_and_caps_large_ones() {
+        let k = threshold(6);
+        assert_eq!(RobustLoss::Huber.weight(k, 6), 1.0);
+        assert_eq!(RobustLoss::Huber.weight(0.5 * k, 6), 1.0);
+        assert!((RobustLoss::Huber.weight(10.0 * k, 6) - 0.1).abs() < 1e-12);
+        assert!((RobustLoss::Cauchy.weight(k, 6) - 0.5).abs() < 1e-12);
+        assert_eq!(RobustLoss::Off.weight(1e9, 3), 1.0);
+        for loss in [RobustLoss::Huber, RobustLoss::Cauchy] {
+            for rows in [3, 6] {
+                let u = loss.outlier_norm(rows);
+                assert!((loss.weight(u, rows) - OUTLIER_WEIGHT).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn the_scale_is_the_consistent_median_and_floored() {
+        let measurement = |rows: usize| Measurement {
+            tool: 0,
+            q: Vec::new(),
+            observation: if rows == 3 {
+                Observation::Position(crate::math::Vec3::zeros())
+            } else {
+                Observation::Pose(Pose::identity())
+            },
+            stage: None,
+        };
+        let residual = |norm: f64| Residual {
+            position: 0.0,
+            rotation: None,
+            norm,
+        };
+        let data = [measurement(6), measurement(6), measurement(3)];
+        // Normalised: 1, 2, 1000 → median 2.
+        let norms = [chi_median(6), 2.0 * chi_median(6), 1000.0 * chi_median(3)];
+        let residuals: Vec<Residual> = norms.iter().map(|&n| residual(n)).collect();
+        assert!((robust_scale(&residuals, &data) - 2.0).abs() < 1e-12);
+        let tiny: Vec<Residual> = norms.iter().map(|&n| residual(n * 1e-9)).collect();
+        assert_eq!(robust_scale(&tiny, &data), SCALE_FLOOR);
+    }
+}

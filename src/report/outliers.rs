@@ -1,0 +1,141 @@
+//! The outliers of a calibration (robust estimation): the `"outliers"` list of `report.json`
+//! and its table in `report.md`.
+
+use crate::calibration::robust::{DataSet, RobustLoss};
+use crate::calibration::CalibrationRun;
+use crate::tree::KinematicTree;
+use serde::Serialize;
+use std::fmt::Write;
+
+/// One measurement named as an outlier.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutlierRow {
+    /// The row's `id` (the CSV's id column, else its 1-based data row number).
+    pub id: String,
+    /// `identification` (left out of the fit) or `validation` (left out of the statistics).
+    pub set: DataSet,
+    /// The tool link observed.
+    pub tool: String,
+    /// Position residual at the calibrated model (mm).
+    pub residual_mm: f64,
+    /// Orientation residual at the calibrated model (deg); `None` for a position.
+    pub residual_deg: Option<f64>,
+    /// Residual norm in robust standard deviations.
+    pub standardized: f64,
+    /// The loss's weight (below 0.5: the row was left out).
+    pub weight: f64,
+}
+
+/// How the robust estimation ran (`report.json` `"robust"`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RobustSummary {
+    /// `huber`, `cauchy` or `off`.
+    pub loss: RobustLoss,
+    /// Robust scale of the standardized residuals (1 = noise as assumed).
+    pub scale: f64,
+    /// Calibrations after the first one.
+    pub rounds: usize,
+    /// Whether the weights settled.
+    pub converged: bool,
+    /// Identification measurements with a weight below 1.
+    pub down_weighted: usize,
+}
+
+/// The robust summary of a run.
+pub fn robust_summary(run: &CalibrationRun) -> RobustSummary {
+    let robust = &run.robust;
+    RobustSummary {
+        loss: robust.loss,
+        scale: robust.scale,
+        rounds: robust.rounds,
+        converged: robust.converged,
+        down_weighted: robust.weights.iter().filter(|&&w| w < 1.0).count(),
+    }
+}
+
+/// The outliers of `run` with their row ids: `ids[0]` for the identification data, `ids[1]`
+/// for the validation data, in the order the run got them (a missing id shows as `#index`).
+pub fn outlier_rows(
+    run: &CalibrationRun,
+    tree: &KinematicTree,
+    ids: [&[String]; 2],
+) -> Vec<OutlierRow> {
+    run.outliers
+        .iter()
+        .map(|o| {
+            let ids = match o.set {
+                DataSet::Identification => ids[0],
+                DataSet::Validation => ids[1],
+            };
+            let tool = run.report.model.tools().get(o.tool).map_or_else(
+                || format!("tool {}", o.tool),
+                |t| tree.link(t.link).name.clone(),
+            );
+            OutlierRow {
+                id: ids
+                    .get(o.index)
+                    .cloned()
+                    .unwrap_or_else(|| format!("#{}", o.index + 1)),
+                set: o.set,
+                tool,
+                residual_mm: o.residual.position * 1e3,
+                residual_deg: o.residual.rotation.map(f64::to_degrees),
+                standardized: o.standardized,
+                weight: o.weight,
+            }
+        })
+        .collect()
+}
+
+/// The `## Outliers` section of `report.md` (empty when the loss is off and nothing to say).
+pub fn outliers_markdown(robust: &RobustSummary, rows: &[OutlierRow]) -> String {
+    let mut out = String::new();
+    if robust.loss == RobustLoss::Off {
+        let _ = writeln!(
+            out,
+            "Robust estimation is off (--robust off): every measurement has weight 1.\n"
+        );
+        return out;
+    }
+    let _ = writeln!(out, "## Outliers (robust {} loss)\n", robust.loss);
+    let _ = writeln!(
+        out,
+        "Robust scale of the residuals: {:.3} of the assumed noise; {} identification measurement(s) down-weighted, {} calibration(s) after the first{}.\n",
+        robust.scale,
+        robust.down_weighted,
+        robust.rounds,
+        if robust.converged { "" } else { " (the weights had not settled)" }
+    );
+    if rows.is_empty() {
+        let _ = writeln!(out, "No measurement is an outlier.\n");
+        return out;
+    }
+    let _ = writeln!(
+        out,
+        "Left out of the fit (identification) or of the error statistics (validation):\n"
+    );
+    let _ = writeln!(
+        out,
+        "| id | set | tool | position (mm) | orientation (deg) | robust σ | weight |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|");
+    for row in rows {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {:.4} | {} | {:.1} | {:.4} |",
+            row.id,
+            match row.set {
+                DataSet::Identification => "identification",
+                DataSet::Validation => "validation",
+            },
+            row.tool,
+            row.residual_mm,
+            row.residual_deg
+                .map_or_else(|| "—".to_owned(), |d| format!("{d:.5}")),
+            row.standardized,
+            row.weight
+        );
+    }
+    out.push('\n');
+    out
+}
