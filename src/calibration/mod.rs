@@ -9,6 +9,8 @@
 //! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
 //! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
+//! - [`stiffness`]: compliance scale factors identified jointly with the MCPC parameters
+//!   (`--identify-stiffness`), and what a set of measurements can determine of them.
 //! - [`robust`]: robust estimation (Huber or Cauchy by IRLS): blunders named and left out.
 //! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
 //!   validation) that feed the verdict.
@@ -23,6 +25,7 @@ pub mod plan;
 pub mod robust;
 pub mod run;
 pub mod solver;
+pub mod stiffness;
 pub mod verdict;
 
 pub use frame::{
@@ -44,5 +47,9 @@ pub use run::{
 pub use solver::{
     identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,
     IdentificationReport, Predictor, Rigid, Termination,
+};
+pub use stiffness::{
+    analyse_compliance, identified_stiffness, identify_stiffness, ComplianceEstimate,
+    ComplianceIdentifiability, StiffnessOptions, StiffnessReport,
 };
 pub use verdict::{Finding, Status, Verdict};

@@ -9,6 +9,7 @@ pub mod plan;
 pub mod poses_csv;
 pub mod registration;
 pub mod stiffness;
+pub mod stiffness_write;
 pub mod units;
 pub mod write;
 
@@ -25,6 +26,7 @@ pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
 pub use registration::{parse_registration, read_registration};
 pub use stiffness::{parse_stiffness, read_stiffness};
+pub use stiffness_write::stiffness_to_yaml;
 pub use units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };

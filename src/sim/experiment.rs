@@ -8,6 +8,7 @@ use super::noise::{observe, NoiseModel, Targets};
 use super::planning::{plan_poses, PlanningOptions, PlanningStage};
 use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, ErrorRanges};
+use crate::calibration::stiffness::{identify_stiffness, ComplianceEstimate, StiffnessOptions};
 use crate::calibration::{
     calibrate_robust, CalibrationReport, Compensation, Deflected, IdentificationOptions,
     ParameterSet, Plan, RobustLoss,
@@ -48,6 +49,9 @@ pub struct SimulationOptions {
     /// with the nominal model (its `candidates`, `criterion` and `workspace` are used; poses,
     /// stage, targets, locks, seed and σ follow this simulation).
     pub planning: Option<PlanningOptions>,
+    /// `Some`: identify the compliances jointly with the geometry in the compensated
+    /// calibration, from the model's flexibility as the prior.
+    pub identify_stiffness: Option<StiffnessOptions>,
     /// The robust loss of both calibrations.
     pub robust: RobustLoss,
     /// Fraction of the measurements turned into blunders ([`inject_blunders`]).
@@ -69,6 +73,7 @@ impl Default for SimulationOptions {
             plan: Plan::staged(),
             seed: 0,
             planning: None,
+            identify_stiffness: None,
             robust: RobustLoss::default(),
             outliers: 0.0,
             outlier_size: 0.05,
@@ -184,6 +189,10 @@ pub struct TrialReport {
     pub rigid_run: RunSummary,
     /// How the compensated calibration went.
     pub compensated_run: RunSummary,
+    /// With stiffness identification: every compliance parameter, its `scale` relative to the
+    /// model's prior (the truth's scale is the model's stiffness over the truth's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<Vec<ComplianceEstimate>>,
     /// The blunders injected and the outliers each calibration named.
     pub blunders: BlunderReport,
     /// The simulated measurements (torso stage, then arms stage).
@@ -413,17 +422,37 @@ fn finish_trial(
         named: [rigid_robust.outliers(), compensated_robust.outliers()],
     };
 
+    let identified = match &options.identify_stiffness {
+        Some(stiffness) => {
+            let free: Vec<usize> = (0..compensated.model.parameter_count()).collect();
+            Some(identify_stiffness(
+                tree,
+                &compensated.model,
+                setup.model_flexibility,
+                &measurements,
+                None,
+                &free,
+                &identification_options,
+                stiffness,
+            )?)
+        }
+        None => None,
+    };
+    let (compensated_model, compensated_flexibility) = match &identified {
+        Some(report) => (&report.model, &report.flexibility),
+        None => (&compensated.model, setup.model_flexibility),
+    };
     let errors = |configurations: &[Vec<f64>]| -> Result<Vec<ArmErrors>> {
         arm_errors(
             setup,
             truth,
             &rigid.model,
-            &compensated.model,
+            (compensated_model, compensated_flexibility),
             configurations,
         )
     };
     let noise_floor_position_mm = noise_floor(
-        &compensated.model,
+        compensated_model,
         &measurements,
         &identification_options,
         &options.noise,
@@ -436,6 +465,7 @@ fn finish_trial(
         noise_floor_position_mm,
         rigid_run: summary(&rigid),
         compensated_run: summary(&compensated),
+        stiffness: identified.map(|r| r.estimates),
         blunders,
         measurements,
         notes: compensated
@@ -485,7 +515,7 @@ fn arm_errors(
     setup: &Setup<'_>,
     truth: &McpcModel,
     rigid: &McpcModel,
-    compensated: &McpcModel,
+    (compensated, flexibility): (&McpcModel, &FlexibilityModel),
     configurations: &[Vec<f64>],
 ) -> Result<Vec<ArmErrors>> {
     let tools = setup.nominal.tools().len();
@@ -498,9 +528,7 @@ fn arm_errors(
         let predictions: [Vec<Pose>; 3] = [
             setup.nominal.tool_poses(q),
             rigid.tool_poses(q),
-            setup
-                .model_flexibility
-                .deflected_tool_poses(setup.tree, compensated, q)?,
+            flexibility.deflected_tool_poses(setup.tree, compensated, q)?,
         ];
         for tool in 0..tools {
             for (k, predicted) in predictions.iter().enumerate() {

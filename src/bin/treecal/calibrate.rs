@@ -4,18 +4,18 @@ use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame};
 use treecal::calibration::identifiability::NamedCombination;
 use treecal::calibration::robust::DataSet;
 use treecal::calibration::{
-    hold_out_indices, run_calibration, CalibrationInput, Finding, IdentificationOptions, Plan,
-    Status,
+    hold_out_indices, identified_stiffness, identify_stiffness, run_calibration, CalibrationInput,
+    Finding, IdentificationOptions, Plan, Status, StiffnessOptions,
 };
 use treecal::io::{
     check_output_folder, read_measurements, read_plan, read_registration, read_stiffness,
-    replace_folder, to_json, to_yaml, MeasurementReadOptions,
+    replace_folder, stiffness_to_yaml, to_json, to_yaml, MeasurementReadOptions,
 };
-use treecal::kinematics::FlexibilityModel;
+use treecal::kinematics::{FlexibilityModel, Stiffness};
 use treecal::limits;
 use treecal::report::{
     calibration_markdown, calibration_plots, calibration_summary, outlier_rows, parameter_file,
-    CalibrationContext,
+    stiffness_markdown, CalibrationContext, StiffnessSummary,
 };
 use treecal::urdf::{export_urdf_with, ExportOptions};
 use treecal::{Error, McpcModel, Result};
@@ -153,10 +153,21 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             (Plan::simultaneous(), "simultaneous".to_owned())
         }
     };
-    let flexibility = match &args.stiffness {
-        Some(path) => {
-            let model =
-                FlexibilityModel::new(tree, &nominal, &read_stiffness(path, tree, &nominal)?)?;
+    if args.identify_stiffness && !(args.stiffness_prior.is_finite() && args.stiffness_prior > 0.0)
+    {
+        return Err(invalid(
+            "--stiffness-prior",
+            format!("{} must be a positive number", args.stiffness_prior),
+        ));
+    }
+    // With --identify-stiffness and no file, the library defaults are the prior.
+    let stiffness = match &args.stiffness {
+        Some(path) => Some(read_stiffness(path, tree, &nominal)?),
+        None => args.identify_stiffness.then(Stiffness::default),
+    };
+    let flexibility = match &stiffness {
+        Some(stiffness) => {
+            let model = FlexibilityModel::new(tree, &nominal, stiffness)?;
             Some(match args.gravity_frame {
                 GravityFrame::Measurement => model.with_gravity_in_measurement_frame(),
                 GravityFrame::Base => model,
@@ -180,6 +191,35 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         measurement_frame,
     };
     let mut run = run_calibration(&input, &measurements, &validation)?;
+    // Stiffness identification: the joint fit from the calibrated geometry, then the plan
+    // again with the identified stiffness, so that every table below describes it.
+    let identified = match (&flexibility, &stiffness, args.identify_stiffness) {
+        (Some(prior), Some(stiffness), true) => {
+            let stiffness_options = StiffnessOptions {
+                prior_sigma: args.stiffness_prior,
+                ..StiffnessOptions::default()
+            };
+            let free: Vec<usize> = (0..run.report.model.parameter_count()).collect();
+            let report = identify_stiffness(
+                tree,
+                &run.report.model,
+                prior,
+                &measurements,
+                None,
+                &free,
+                &options,
+                &stiffness_options,
+            )?;
+            let again = CalibrationInput {
+                flexibility: Some(&report.flexibility),
+                ..input
+            };
+            run = run_calibration(&again, &measurements, &validation)?;
+            let file = identified_stiffness(stiffness, tree, &nominal, &report.estimates);
+            Some((StiffnessSummary::new(&report, args.stiffness_prior), file))
+        }
+        _ => None,
+    };
 
     // Everything is computed before anything is written.
     let std_devs: Vec<Option<f64>> = run.parameters.iter().map(|p| p.std_dev).collect();
@@ -232,9 +272,16 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         ),
         validation: validation_source,
         plan: plan_name,
-        compensation: match &args.stiffness {
-            Some(path) => format!("compensated exactly ({})", path.display()),
-            None => "not compensated (no --stiffness)".into(),
+        compensation: match (&args.stiffness, args.identify_stiffness) {
+            (Some(path), false) => format!("compensated exactly ({})", path.display()),
+            (Some(path), true) => format!(
+                "compensated exactly, stiffness identified (prior {})",
+                path.display()
+            ),
+            (None, true) => {
+                "compensated exactly, stiffness identified (prior: the defaults)".into()
+            }
+            (None, false) => "not compensated (no --stiffness)".into(),
         },
         sigma: [args.position_sigma, args.rotation_sigma],
         measurement_frame: run.frame.reason.clone(),
@@ -257,9 +304,29 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     }
     let mut summary = calibration_summary(context, &run, unidentifiable, changed);
     summary.outliers = outliers;
-    let markdown = calibration_markdown(&summary, &options);
-    let params = to_yaml(&parameter_file(tree.name(), &run))?;
-    let json = to_json(&summary)?;
+    let mut markdown = calibration_markdown(&summary, &options);
+    let mut params = to_yaml(&parameter_file(tree.name(), &run))?;
+    let mut json = to_json(&summary)?;
+    let mut stiffness_file = None;
+    if let Some((stiffness_summary, file)) = &identified {
+        markdown.push_str(&stiffness_markdown(stiffness_summary));
+        params.push_str(&to_yaml(
+            &serde_json::json!({ "stiffness": stiffness_summary }),
+        )?);
+        let mut value =
+            serde_json::to_value(&summary).map_err(|e| invalid("report.json", e.to_string()))?;
+        value["stiffness"] = serde_json::to_value(stiffness_summary)
+            .map_err(|e| invalid("report.json", e.to_string()))?;
+        json = to_json(&value)?;
+        stiffness_file = Some(stiffness_to_yaml(
+            file,
+            &format!(
+                "Identified by `treecal calibrate --identify-stiffness` from {} (robot '{}'):\nevery calibrated joint and body with its identified stiffness; see report.md.",
+                args.measurements.display(),
+                tree.name()
+            ),
+        ));
+    }
     let mut plots = calibration_plots(&run.identification, "measurement")?;
     plots.extend(calibration_plots(&run.validation, "validation")?);
 
@@ -273,6 +340,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     files.push(("report.json".into(), json.into_bytes()));
     for (stem, svg) in plots {
         files.push((format!("{stem}.svg"), svg.into_bytes()));
+    }
+    if let Some(text) = stiffness_file {
+        files.push(("stiffness.yaml".into(), text.into_bytes()));
     }
 
     for note in &notes {

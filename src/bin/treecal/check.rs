@@ -2,12 +2,17 @@
 
 use crate::cli::{AngleUnit, CheckArgs, Format, PlanChoice};
 use treecal::calibration::{
-    analyse, IdentifiabilityOptions, ObservationKind, ParameterSet, PoseRow,
+    analyse, analyse_compliance, ComplianceIdentifiability, IdentifiabilityOptions,
+    IdentificationOptions, ObservationKind, ParameterSet, PoseRow,
 };
 use treecal::io::{
-    parse_csv, pose_rows, read_measurements, to_json, to_yaml, MeasurementReadOptions,
+    parse_csv, parse_stiffness, pose_rows, read_measurements, read_stiffness, to_json, to_yaml,
+    MeasurementReadOptions,
 };
+use treecal::kinematics::{FlexibilityModel, Stiffness};
 use treecal::limits;
+use treecal::measurement::{Measurement, Observation};
+use treecal::report::compliance_identifiability_markdown;
 use treecal::report::{CheckReport, StageCheck};
 use treecal::sim::collision::CollisionChecker;
 use treecal::sim::pose_set::staged_pose_set;
@@ -234,11 +239,97 @@ pub fn run(args: CheckArgs) -> Result<()> {
             eprintln!("treecal: warning: stage {}: {warning}", stage.name);
         }
     }
-    let text = match args.format {
-        Format::Text => report.to_text(),
-        Format::Yaml => to_yaml(&report)?,
-        Format::Json => to_json(&report)?,
+    let compliance = if args.identify_stiffness {
+        Some(compliance_check(&args, tree, &model, &rows, observation)?)
+    } else {
+        None
+    };
+    let text = match (args.format, &compliance) {
+        (Format::Text, None) => report.to_text(),
+        (Format::Text, Some(c)) => {
+            report.to_text() + &compliance_identifiability_markdown(c, args.stiffness_prior)
+        }
+        (Format::Yaml, None) => to_yaml(&report)?,
+        (Format::Json, None) => to_json(&report)?,
+        (format, Some(c)) => {
+            let mut value =
+                serde_json::to_value(&report).map_err(|e| invalid("output", e.to_string()))?;
+            value["compliance"] =
+                serde_json::to_value(c).map_err(|e| invalid("output", e.to_string()))?;
+            match format {
+                Format::Yaml => to_yaml(&value)?,
+                _ => to_json(&value)?,
+            }
+        }
     };
     print!("{text}");
     Ok(())
+}
+
+/// What the rows determine of the compliances: every row at each of `--payloads` (or at the
+/// file's payloads), the geometry free.
+fn compliance_check(
+    args: &CheckArgs,
+    tree: &treecal::KinematicTree,
+    model: &McpcModel,
+    rows: &[PoseRow],
+    observation: ObservationKind,
+) -> Result<ComplianceIdentifiability> {
+    if !(args.stiffness_prior.is_finite() && args.stiffness_prior > 0.0) {
+        return Err(invalid(
+            "--stiffness-prior",
+            format!("{} must be a positive number", args.stiffness_prior),
+        ));
+    }
+    let stiffness = match (&args.stiffness, &args.robot) {
+        (Some(path), _) => read_stiffness(path, tree, model)?,
+        (None, None) => parse_stiffness(
+            crate::robot::BUILT_IN_STIFFNESS,
+            "built-in stiffness.yaml",
+            tree,
+            model,
+        )?,
+        (None, Some(_)) => Stiffness::default(),
+    };
+    let flexibility = FlexibilityModel::new(tree, model, &stiffness)?;
+    let mut measurements = Vec::new();
+    let mut payloads = Vec::new();
+    let loads: Vec<Option<f64>> = match &args.payloads {
+        Some(list) => list.iter().map(|&p| Some(p)).collect(),
+        None => vec![None],
+    };
+    for row in rows {
+        // The observed values do not enter the analysis; the nominal pose stands in.
+        let pose = model.tool_poses(&row.q)[row.tool];
+        let observation = match observation {
+            ObservationKind::Pose => Observation::Pose(pose),
+            ObservationKind::Position => Observation::Position(pose.translation.vector),
+        };
+        for load in &loads {
+            measurements.push(Measurement {
+                tool: row.tool,
+                q: row.q.clone(),
+                observation: observation.clone(),
+                stage: row.stage.clone(),
+            });
+            payloads.push(*load);
+        }
+    }
+    let payloads: Option<Vec<f64>> = payloads.iter().copied().collect();
+    let options = IdentificationOptions {
+        position_sigma: args.position_sigma,
+        rotation_sigma: args.rotation_sigma,
+        ..IdentificationOptions::default()
+    };
+    let free: Vec<usize> = (0..model.parameter_count()).collect();
+    analyse_compliance(
+        tree,
+        model,
+        &flexibility,
+        &measurements,
+        payloads.as_deref(),
+        &free,
+        &options,
+        args.stiffness_prior,
+    )
 }

@@ -198,6 +198,10 @@ pub struct SimulateArgs {
     /// Stiffness the compensating model assumes, relative to the truth's (1.1 = 10 % too stiff).
     #[arg(long, default_value_t = 1.0)]
     pub model_stiffness_scale: f64,
+    /// Identify the compliances jointly with the geometry in the compensated calibration,
+    /// starting from the model's stiffness (see --model-stiffness-scale) as a ±50 % prior.
+    #[arg(long)]
+    pub identify_stiffness: bool,
     /// Output folder.
     #[arg(long, default_value = "out/simulate")]
     pub out: PathBuf,
@@ -382,6 +386,21 @@ pub struct CheckArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "text")]
     pub format: Format,
+    /// Also analyse which joint and link compliances the poses determine with the geometry
+    /// free (docs/flexibility.md, section 12), with the stiffness of --stiffness.
+    #[arg(long)]
+    pub identify_stiffness: bool,
+    /// Stiffness YAML for --identify-stiffness [default: the built-in Robonaut's, or the
+    /// library defaults with --robot].
+    #[arg(long)]
+    pub stiffness: Option<PathBuf>,
+    /// Payloads (kg at every tool) at which every pose is measured, for --identify-stiffness
+    /// [default: the stiffness file's payloads].
+    #[arg(long, value_delimiter = ',', value_name = "KG,KG")]
+    pub payloads: Option<Vec<f64>>,
+    /// Relative uncertainty of the prior stiffness (0.5: ±50 %).
+    #[arg(long, default_value_t = 0.5)]
+    pub stiffness_prior: f64,
 }
 
 /// Arguments of `treecal calibrate`.
@@ -465,6 +484,15 @@ pub struct CalibrateArgs {
         value_name = "auto|fit|base|REGISTRATION.yaml"
     )]
     pub measurement_frame: MeasurementFrame,
+    /// Identify the joint and link compliances the data determine, jointly with the geometry
+    /// (docs/identification.md); the stiffness file (default: the library defaults) is the
+    /// prior. Writes the identified stiffness to --out as stiffness.yaml.
+    #[arg(long)]
+    pub identify_stiffness: bool,
+    /// Relative uncertainty of the prior stiffness for --identify-stiffness (0.5: ±50 %): a
+    /// compliance is identified when the data determine it better than this.
+    #[arg(long, default_value_t = 0.5)]
+    pub stiffness_prior: f64,
 }
 
 /// The robust loss (`--robust`).

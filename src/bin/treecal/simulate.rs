@@ -154,6 +154,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             candidates: args.candidates as usize,
             ..PlanningOptions::default()
         }),
+        identify_stiffness: args
+            .identify_stiffness
+            .then(treecal::calibration::StiffnessOptions::default),
         robust: args.robust.into(),
         outliers: args.outliers,
         outlier_size: args.outlier_size * 1e-3,
@@ -223,6 +226,11 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             String::new()
         }
     );
+    let header = if args.identify_stiffness {
+        header + " Compliances identified jointly with the geometry (prior: the model's stiffness, ±50 %)."
+    } else {
+        header
+    };
     let markdown = simulation_markdown(&header, &reports, &summary);
     let results = serde_json::json!({
         "robot": tree.name(),

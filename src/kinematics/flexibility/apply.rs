@@ -84,6 +84,17 @@ impl FlexibilityModel {
         model: &McpcModel,
         q: &[f64],
     ) -> Result<ChainFrames> {
+        Ok(self.deflect(tree, model, q)?.chain)
+    }
+
+    /// The deflected chain with the deflected moved frames `Σᵢ'·Q(θᵢ)·Exp(d_joint,i)` and the
+    /// evaluation it was built from (for the compliance derivatives).
+    pub(super) fn deflect(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        q: &[f64],
+    ) -> Result<Deflection> {
         let evaluation = self.evaluate(tree, model, q)?;
         let Evaluation {
             deformations,
@@ -142,20 +153,34 @@ impl FlexibilityModel {
             .enumerate()
             .map(|(t, before)| before.then(model.tool_constant(t)))
             .collect();
-        Ok(ChainFrames {
-            previous,
-            frames,
-            tool_previous,
-            tools,
+        Ok(Deflection {
+            chain: ChainFrames {
+                previous,
+                frames,
+                tool_previous,
+                tools,
+            },
+            deflected,
+            evaluation,
         })
     }
+}
+
+/// The deflected chain and what it was built from.
+pub(super) struct Deflection {
+    /// The deflected chain.
+    pub(super) chain: ChainFrames,
+    /// Per MCPC frame, the deflected moved frame `Σᵢ'·Q(θᵢ)·Exp(d_joint,i)`.
+    pub(super) deflected: Vec<Transform>,
+    /// The loads and deformations, at the nominal (undeflected) frames.
+    pub(super) evaluation: Evaluation,
 }
 
 /// The rotation matrix of rotation vector `v` (axis · angle), by Rodrigues' formula
 /// `cos θ·I + a·[v]× + b·v·vᵀ` with `a = sin θ/θ`, `b = (1 − cos θ)/θ²`. Deflections are small:
 /// below 0.05 rad the series of `a`, `b` and `cos θ` to θ⁸ are exact to rounding and skip the
 /// trigonometric calls.
-fn exp(v: &Vec3) -> Mat3 {
+pub(super) fn exp(v: &Vec3) -> Mat3 {
     let t = v.norm_squared();
     let (a, b, cos) = if t < 2.5e-3 {
         let a = 1.0 - t / 6.0 * (1.0 - t / 20.0 * (1.0 - t / 42.0 * (1.0 - t / 72.0)));

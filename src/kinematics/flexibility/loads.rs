@@ -145,7 +145,20 @@ impl FlexibilityModel {
                 Place::Body(frame, point) => {
                     moved[frame].rotation * point + moved[frame].translation
                 }
-                Place::Tool(tool, point) => tools[tool].rotation * point + tools[tool].translation,
+                Place::Tool(tool, point) | Place::ToolBody(tool, point) => {
+                    tools[tool].rotation * point + tools[tool].translation
+                }
+                Place::ToolTree {
+                    tool,
+                    tool_link,
+                    link,
+                    point,
+                } => {
+                    let in_tool = tree_poses[tool_link.0].inverse()
+                        * tree_poses[link.0]
+                        * nalgebra::Point3::from(point);
+                    tools[tool].rotation * in_tool.coords + tools[tool].translation
+                }
                 Place::Tree {
                     frame,
                     body_link,
@@ -247,7 +260,13 @@ impl FlexibilityModel {
         // Self-weight: each link's weight at its centre of mass projected on its segment, with
         // the moment of the offset (see docs/flexibility.md).
         for (mass, position) in self.masses.iter().zip(&positions) {
-            let Some(index) = mass.segment else {
+            if mass.segment.is_none() {
+                continue;
+            }
+            // The body's segment nearest to the mass at the current geometry, so that the
+            // model follows the geometry being calibrated (and an exported URDF's).
+            let Some(index) = nearest_segment(&self.segments, &segments, mass.frame, position)
+            else {
                 continue;
             };
             let segment = &mut segments[index];
@@ -276,6 +295,32 @@ impl FlexibilityModel {
             tools,
         })
     }
+}
+
+/// The segment of frame `frame`'s body nearest to `point` (base frame), the first on ties.
+fn nearest_segment(
+    model: &[super::model::Segment],
+    placed: &[SegmentDeformation],
+    frame: usize,
+    point: &Vec3,
+) -> Option<usize> {
+    let distance = |placed: &SegmentDeformation| {
+        let along = placed.end - placed.start;
+        let length_squared = along.norm_squared();
+        let t = if length_squared > 0.0 {
+            ((point - placed.start).dot(&along) / length_squared).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (point - placed.start - along * t).norm()
+    };
+    model
+        .iter()
+        .zip(placed)
+        .enumerate()
+        .filter(|(_, (s, _))| s.frame == frame)
+        .min_by(|(_, (_, a)), (_, (_, b))| distance(a).total_cmp(&distance(b)))
+        .map(|(index, _)| index)
 }
 
 /// The beam frame of a segment along `along` (base frame): x along the segment, z the moved

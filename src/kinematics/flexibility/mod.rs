@@ -7,6 +7,8 @@
 //! - `loads`: the static force balance from the tips inward and the deformations `d_f`
 //!   (eq. (18)–(19), (21)) at one configuration: [`FlexibilityModel::deformations`].
 //! - [`beam`]: the Euler–Bernoulli cantilever formulas (eq. (21), corrected).
+//! - [`compliance`]: compliance scale factors as parameters, and the exact derivatives of the
+//!   deflected tool poses with respect to them (stiffness identification).
 //! - `apply`: the linear map `D_f = J_f·d_f` (eq. (20)–(24)),
 //!   [`FlexibilityModel::tool_deflections`], and the deflected forward kinematics,
 //!   [`FlexibilityModel::deflected_tool_poses`].
@@ -15,12 +17,14 @@
 
 mod apply;
 pub mod beam;
+pub mod compliance;
 mod loads;
 mod model;
 pub(crate) mod names;
 pub mod stiffness;
 
 pub use beam::{point_load_deflection, uniform_load_deflection, BeamCompliance};
+pub use compliance::{ComplianceBasis, ComplianceJacobian, ComplianceKind, ComplianceParameter};
 pub use loads::{Deformations, JointDeformation, SegmentDeformation};
 pub use model::{FlexibilityModel, Segment, SegmentEnd};
 pub use stiffness::{JointStiffness, LinkStiffness, Payload, Stiffness, STANDARD_GRAVITY};

@@ -6,7 +6,7 @@ use super::stiffness::{LinkStiffness, Stiffness};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::math::{Pose, Vec3};
-use crate::tree::{KinematicTree, LinkId};
+use crate::tree::{JointKind, KinematicTree, LinkId};
 
 /// Where a link segment ends.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -38,13 +38,25 @@ pub struct Segment {
 pub(crate) enum Place {
     /// Fixed to MCPC frame `frame`'s body: the point in that frame's moved frame Σ·Q(θ).
     Body(usize, Vec3),
-    /// At a tool: the point in the tool frame.
+    /// At a tool: the point in the tool frame (a payload).
     Tool(usize, Vec3),
+    /// A link fixed to a tool link (or the tool link itself): the point in the tool frame. It
+    /// moves with the tool frame, as the exported URDF moves it, but loads its body's segment
+    /// like any link's weight.
+    ToolBody(usize, Vec3),
     /// Behind joints outside the model: the point in URDF link `link`, placed relative to the
     /// body link `body_link` of MCPC frame `frame` with the tree's forward kinematics.
     Tree {
         frame: usize,
         body_link: LinkId,
+        link: LinkId,
+        point: Vec3,
+    },
+    /// Behind joints outside the model below tool link `tool_link`: the point in URDF link
+    /// `link`, placed relative to tool `tool`'s frame with the tree's forward kinematics.
+    ToolTree {
+        tool: usize,
+        tool_link: LinkId,
         link: LinkId,
         point: Vec3,
     },
@@ -58,8 +70,10 @@ pub(crate) struct Mass {
     pub(crate) place: Place,
     /// The MCPC frame whose subtree carries it.
     pub(crate) frame: usize,
-    /// The segment it loads along its length (self-weight); `None` for payloads, which load
-    /// their tool's segment at its tip.
+    /// The segment it loads along its length (self-weight), as built; `None` for payloads,
+    /// which load their tool's segment at its tip. Evaluation loads the body's segment nearest
+    /// to it at the current geometry (the same one unless the geometry moved it closer to
+    /// another).
     pub(crate) segment: Option<usize>,
 }
 
@@ -82,6 +96,8 @@ pub struct FlexibilityModel {
     /// Whether some mass needs the tree's forward kinematics.
     pub(crate) uses_tree: bool,
     pub(crate) link_count: usize,
+    /// Per tool: the MCPC frame that carries it (`None` on the base).
+    pub(crate) tool_parent: Vec<Option<usize>>,
 }
 
 impl FlexibilityModel {
@@ -159,7 +175,9 @@ impl FlexibilityModel {
         }
 
         let masses = collect_masses(tree, model, stiffness, &names, &segments)?;
-        let uses_tree = masses.iter().any(|m| matches!(m.place, Place::Tree { .. }));
+        let uses_tree = masses
+            .iter()
+            .any(|m| matches!(m.place, Place::Tree { .. } | Place::ToolTree { .. }));
         Ok(Self {
             gravity: stiffness.gravity,
             gravity_in_measurement_frame: false,
@@ -170,6 +188,7 @@ impl FlexibilityModel {
             segment_to_tool,
             uses_tree,
             link_count: tree.links().len(),
+            tool_parent: model.tools().iter().map(|t| t.parent).collect(),
         })
     }
 
@@ -215,6 +234,41 @@ impl FlexibilityModel {
         copy
     }
 
+    /// A copy in which every tool (not fixed to the base) carries a payload of `mass` kg: the
+    /// file's payload at that tool gets this mass (several there: the first, the others none),
+    /// and a tool without one gets it at its origin. For measurements taken at several
+    /// payloads (docs/flexibility.md, section 12).
+    pub fn with_payload_at_every_tool(&self, mass: f64) -> Result<Self> {
+        if let Some(message) = super::stiffness::mass_problem(mass) {
+            return Err(Error::InvalidData {
+                origin: "payload".into(),
+                message: format!("mass {message}"),
+            });
+        }
+        let mut copy = self.clone();
+        let mut given = vec![false; self.segment_to_tool.len()];
+        for m in &mut copy.masses {
+            if let Place::Tool(tool, _) = m.place {
+                m.mass = if given[tool] { 0.0 } else { mass };
+                given[tool] = true;
+            }
+        }
+        for (tool, done) in given.iter().enumerate() {
+            let Some(frame) = self.tool_parent[tool] else {
+                continue;
+            };
+            if !done {
+                copy.masses.push(Mass {
+                    mass,
+                    place: Place::Tool(tool, Vec3::zeros()),
+                    frame,
+                    segment: None,
+                });
+            }
+        }
+        Ok(copy)
+    }
+
     /// Total mass that loads the structure (links when self-weight is on, and payloads), kg.
     pub fn total_mass(&self) -> f64 {
         self.masses.iter().map(|m| m.mass).sum()
@@ -240,6 +294,7 @@ fn collect_masses(
     segments: &[Segment],
 ) -> Result<Vec<Mass>> {
     let zero = tree.link_poses(&tree.zero_configuration())?;
+    let under_tool = links_under_tools(tree, model);
     let mut masses = Vec::new();
     if stiffness.self_weight {
         for (index, link) in tree.links().iter().enumerate() {
@@ -256,7 +311,24 @@ fn collect_masses(
                 * zero[body_link.0].inverse()
                 * zero[index]
                 * nalgebra::Point3::from(inertial.center_of_mass());
-            let place = if rigid {
+            let place = if let Some((tool, tool_rigid)) = under_tool[index] {
+                // At or below a tool link: it follows the tool frame (the exported URDF moves
+                // the tool link to the calibrated tool pose, and what hangs from it along).
+                let tool_link = model.tools()[tool].link;
+                if tool_rigid {
+                    let in_tool = zero[tool_link.0].inverse()
+                        * zero[index]
+                        * nalgebra::Point3::from(inertial.center_of_mass());
+                    Place::ToolBody(tool, in_tool.coords)
+                } else {
+                    Place::ToolTree {
+                        tool,
+                        tool_link,
+                        link: LinkId(index),
+                        point: inertial.center_of_mass(),
+                    }
+                }
+            } else if rigid {
                 Place::Body(frame, in_frame.coords)
             } else {
                 Place::Tree {
@@ -292,6 +364,32 @@ fn collect_masses(
         });
     }
     Ok(masses)
+}
+
+/// Per link: the tool whose tool link is the link itself or an ancestor reached without a
+/// calibrated joint, and whether only fixed joints lie in between.
+fn links_under_tools(tree: &KinematicTree, model: &McpcModel) -> Vec<Option<(usize, bool)>> {
+    let mut under: Vec<Option<(usize, bool)>> = vec![None; tree.links().len()];
+    // Links are in topological order, so a link's parent is assigned before the link.
+    for (index, link) in tree.links().iter().enumerate() {
+        let id = LinkId(index);
+        if let Some(tool) = model.tool_of_link(id) {
+            if model.tools()[tool].parent.is_some() {
+                under[index] = Some((tool, true));
+            }
+            continue;
+        }
+        let Some(joint_id) = link.parent_joint else {
+            continue;
+        };
+        if model.frame_of_joint(joint_id).is_some() {
+            continue;
+        }
+        let joint = tree.joint(joint_id);
+        under[index] = under[joint.parent.0]
+            .map(|(tool, rigid)| (tool, rigid && joint.kind == JointKind::Fixed));
+    }
+    under
 }
 
 /// The segment of frame `frame`'s body closest to `point` (in the moved frame), first on ties.
