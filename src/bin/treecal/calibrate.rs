@@ -12,7 +12,6 @@ use treecal::io::{
     replace_folder, stiffness_to_yaml, to_json, to_yaml, MeasurementReadOptions,
 };
 use treecal::kinematics::{FlexibilityModel, Stiffness};
-use treecal::limits;
 use treecal::report::{
     calibration_markdown, calibration_plots, calibration_summary, outlier_rows, parameter_file,
     stiffness_markdown, CalibrationContext, StiffnessSummary,
@@ -41,24 +40,7 @@ fn invalid(flag: &str, message: String) -> Error {
 }
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
-    // A tiny sigma overflows the weighted cost, a huge one hides every residual.
-    let sigmas = [
-        (
-            "--position-sigma",
-            args.position_sigma,
-            limits::POSITION_SIGMA,
-            "m",
-        ),
-        (
-            "--rotation-sigma",
-            args.rotation_sigma,
-            limits::ROTATION_SIGMA,
-            "rad",
-        ),
-    ];
-    for (flag, value, range, unit) in sigmas {
-        limits::check_range(value, range, flag, unit)?;
-    }
+    crate::checks::sigmas(args.position_sigma, args.rotation_sigma)?;
     let measurement_frame = match &args.measurement_frame {
         MeasurementFrame::Auto => treecal::calibration::MeasurementFrame::Auto,
         MeasurementFrame::Fit => treecal::calibration::MeasurementFrame::Fit,

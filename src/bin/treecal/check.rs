@@ -32,24 +32,7 @@ fn invalid(flag: &str, message: String) -> Error {
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
-    // A tiny sigma overflows the weighted cost, a huge one hides every residual.
-    let sigmas = [
-        (
-            "--position-sigma",
-            args.position_sigma,
-            limits::POSITION_SIGMA,
-            "m",
-        ),
-        (
-            "--rotation-sigma",
-            args.rotation_sigma,
-            limits::ROTATION_SIGMA,
-            "rad",
-        ),
-    ];
-    for (flag, value, range, unit) in sigmas {
-        limits::check_range(value, range, flag, unit)?;
-    }
+    crate::checks::sigmas(args.position_sigma, args.rotation_sigma)?;
     if !(args.condition_limit.is_finite() && args.condition_limit >= 1.0) {
         return Err(invalid(
             "--condition-limit",

@@ -16,6 +16,15 @@ pub fn count(flag: &str, value: u32, max: usize) -> Result<usize> {
     treecal::limits::check_count(value, max, flag, "(the value)")
 }
 
+/// `--position-sigma` (m) and `--rotation-sigma` (rad) within their bounds: a tiny sigma
+/// overflows the weighted cost, a huge one hides every residual.
+pub fn sigmas(position: f64, rotation: f64) -> Result<()> {
+    use treecal::limits::{check_range, POSITION_SIGMA, ROTATION_SIGMA};
+    check_range(position, POSITION_SIGMA, "--position-sigma", "m")?;
+    check_range(rotation, ROTATION_SIGMA, "--rotation-sigma", "rad")?;
+    Ok(())
+}
+
 /// Refuses to write `output` when it is one of `inputs` (the same file, also through symbolic links): the
 /// write would replace the input, which the user most likely did not mean.
 pub fn refuse_overwrite(output: &Path, inputs: &[&Path]) -> Result<()> {
