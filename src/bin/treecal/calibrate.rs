@@ -5,7 +5,7 @@ use treecal::calibration::identifiability::NamedCombination;
 use treecal::calibration::robust::DataSet;
 use treecal::calibration::{
     hold_out_indices, identified_stiffness, identify_stiffness, run_calibration, CalibrationInput,
-    Finding, IdentificationOptions, Plan, Status, StiffnessOptions,
+    ChosenFrame, Finding, IdentificationOptions, Plan, Status, StiffnessOptions,
 };
 use treecal::io::{
     check_output_folder, read_measurements, read_plan, read_registration, read_stiffness,
@@ -266,7 +266,13 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             (None, false) => "not compensated (no --stiffness)".into(),
         },
         sigma: [args.position_sigma, args.rotation_sigma],
-        measurement_frame: run.frame.reason.clone(),
+        // Why it was chosen is the verdict's measurement-frame reason, printed once above.
+        measurement_frame: match run.frame.chosen {
+            ChosenFrame::Root => "the robot's root link frame",
+            ChosenFrame::Fitted => "fitted in closed form to the data",
+            ChosenFrame::Known => "the registration file's frame",
+        }
+        .to_owned(),
     };
     let changed: Vec<String> = export
         .iter()
