@@ -6,47 +6,12 @@ use crate::common::*;
 use serde_json::Value;
 use std::path::Path;
 use treecal::calibration::RobustLoss;
-use treecal::kinematics::{FlexibilityModel, McpcModel};
-use treecal::sim::collision::CollisionChecker;
 use treecal::sim::experiment::{run_trial, Setup, SimulationOptions};
-use treecal::tree::{detect_branches, Branches, KinematicTree};
 
-struct Robot {
-    tree: KinematicTree,
-    branches: Branches,
-    nominal: McpcModel,
-    flexibility: FlexibilityModel,
-    checker: CollisionChecker,
-}
-
-fn robonaut() -> Robot {
-    let tree = treecal::load_urdf(&robot("robonaut/robonaut.urdf"))
-        .unwrap()
-        .tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let nominal = McpcModel::from_tree(&tree, &branches).unwrap();
-    let stiffness =
-        treecal::io::read_stiffness(&robot("robonaut/stiffness.yaml"), &tree, &nominal).unwrap();
-    let flexibility = FlexibilityModel::new(&tree, &nominal, &stiffness).unwrap();
-    let checker = CollisionChecker::new(&tree).unwrap();
-    Robot {
-        tree,
-        branches,
-        nominal,
-        flexibility,
-        checker,
-    }
-}
+use crate::common::{simulated_robonaut as robonaut, SimulatedRobot as Robot};
 
 fn setup(robot: &Robot) -> Setup<'_> {
-    Setup {
-        tree: &robot.tree,
-        branches: &robot.branches,
-        nominal: &robot.nominal,
-        truth_flexibility: &robot.flexibility,
-        model_flexibility: &robot.flexibility,
-        checker: Some(&robot.checker),
-    }
+    robot.setup()
 }
 
 /// Mean compensated validation position error over the arms (mm).

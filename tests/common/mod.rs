@@ -188,3 +188,48 @@ pub fn humanoid_with_palms_on_wrists() -> String {
     }
     text
 }
+
+/// The built-in Robonaut with its stiffness file and collision checker: what the simulation
+/// tests (tests/simulate.rs, tests/robust.rs) run trials on.
+pub struct SimulatedRobot {
+    pub tree: KinematicTree,
+    pub branches: treecal::Branches,
+    pub nominal: treecal::McpcModel,
+    pub flexibility: treecal::kinematics::FlexibilityModel,
+    pub checker: treecal::sim::collision::CollisionChecker,
+}
+
+impl SimulatedRobot {
+    /// A trial set-up whose model flexibility equals the truth's.
+    pub fn setup(&self) -> treecal::sim::experiment::Setup<'_> {
+        treecal::sim::experiment::Setup {
+            tree: &self.tree,
+            branches: &self.branches,
+            nominal: &self.nominal,
+            truth_flexibility: &self.flexibility,
+            model_flexibility: &self.flexibility,
+            checker: Some(&self.checker),
+        }
+    }
+}
+
+/// [`SimulatedRobot`] for `robots/robonaut/`.
+pub fn simulated_robonaut() -> SimulatedRobot {
+    let tree = treecal::load_urdf(&robot("robonaut/robonaut.urdf"))
+        .unwrap()
+        .tree;
+    let branches = treecal::detect_branches(&tree, None).unwrap();
+    let nominal = treecal::McpcModel::from_tree(&tree, &branches).unwrap();
+    let stiffness =
+        treecal::io::read_stiffness(&robot("robonaut/stiffness.yaml"), &tree, &nominal).unwrap();
+    let flexibility =
+        treecal::kinematics::FlexibilityModel::new(&tree, &nominal, &stiffness).unwrap();
+    let checker = treecal::sim::collision::CollisionChecker::new(&tree).unwrap();
+    SimulatedRobot {
+        tree,
+        branches,
+        nominal,
+        flexibility,
+        checker,
+    }
+}
