@@ -10,9 +10,7 @@ use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde_json::Value;
 use std::path::Path;
-use treecal::calibration::{
-    fit_rigid_transform, hold_out, run_calibration, CalibrationInput, IdentificationOptions, Plan,
-};
+use treecal::calibration::{fit_rigid_transform, hold_out};
 use treecal::io::{
     measurements_to_csv, measurements_to_csv_with, read_stiffness, AngleUnit, LengthUnit,
     MeasurementWriteOptions,
@@ -491,22 +489,16 @@ fn rigid_simultaneous(
     robot: &Robot,
     measurements: &[Measurement],
 ) -> treecal::calibration::CalibrationRun {
-    let options = IdentificationOptions {
-        position_sigma: POSITION_SIGMA,
-        rotation_sigma: ROTATION_SIGMA,
-        ..IdentificationOptions::default()
-    };
-    let plan = Plan::simultaneous();
-    let input = CalibrationInput {
-        tree: &robot.tree,
-        branches: &robot.branches,
-        nominal: &robot.nominal,
-        flexibility: None,
-        plan: &plan,
-        options: &options,
-        measurement_frame: treecal::calibration::MeasurementFrame::Base,
-    };
-    run_calibration(&input, measurements, &[]).unwrap()
+    let sigmas = [POSITION_SIGMA, ROTATION_SIGMA];
+    rigid_simultaneous_run(
+        &robot.tree,
+        &robot.branches,
+        &robot.nominal,
+        sigmas,
+        measurements,
+        &[],
+    )
+    .unwrap()
 }
 
 /// The covariance the identification reports is `σ̂²·(JᵀWJ)⁻¹` at the solution, computed here

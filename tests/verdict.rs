@@ -9,9 +9,7 @@ use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde_json::Value;
 use std::path::Path;
-use treecal::calibration::{
-    run_calibration, CalibrationInput, CalibrationRun, IdentificationOptions, Plan, Status, Verdict,
-};
+use treecal::calibration::{CalibrationRun, Status, Verdict};
 use treecal::math::Vec3;
 use treecal::measurement::{Measurement, Observation};
 use treecal::sim::truth::{true_model, ErrorRanges};
@@ -82,22 +80,16 @@ fn measure(
 
 /// A rigid simultaneous calibration in the root frame, assuming the test noise.
 fn calibrate(robot: &Robot, data: &[Measurement], validation: &[Measurement]) -> CalibrationRun {
-    let options = IdentificationOptions {
-        position_sigma: SIGMA,
-        rotation_sigma: ROTATION_SIGMA,
-        ..IdentificationOptions::default()
-    };
-    let plan = Plan::simultaneous();
-    let input = CalibrationInput {
-        tree: &robot.tree,
-        branches: &robot.branches,
-        nominal: &robot.nominal,
-        flexibility: None,
-        plan: &plan,
-        options: &options,
-        measurement_frame: treecal::calibration::MeasurementFrame::Base,
-    };
-    run_calibration(&input, data, validation).unwrap_or_else(|e| panic!("{e}"))
+    let sigmas = [SIGMA, ROTATION_SIGMA];
+    rigid_simultaneous_run(
+        &robot.tree,
+        &robot.branches,
+        &robot.nominal,
+        sigmas,
+        data,
+        validation,
+    )
+    .unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The findings above a note, as `(status, code)`.

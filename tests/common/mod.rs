@@ -233,3 +233,30 @@ pub fn simulated_robonaut() -> SimulatedRobot {
         checker,
     }
 }
+
+/// A rigid simultaneous calibration in the root frame with the given noise (m, rad).
+pub fn rigid_simultaneous_run(
+    tree: &KinematicTree,
+    branches: &treecal::Branches,
+    nominal: &treecal::McpcModel,
+    sigmas: [f64; 2],
+    data: &[treecal::measurement::Measurement],
+    validation: &[treecal::measurement::Measurement],
+) -> treecal::Result<treecal::calibration::CalibrationRun> {
+    let options = treecal::calibration::IdentificationOptions {
+        position_sigma: sigmas[0],
+        rotation_sigma: sigmas[1],
+        ..Default::default()
+    };
+    let plan = treecal::calibration::Plan::simultaneous();
+    let input = treecal::calibration::CalibrationInput {
+        tree,
+        branches,
+        nominal,
+        flexibility: None,
+        plan: &plan,
+        options: &options,
+        measurement_frame: treecal::calibration::MeasurementFrame::Base,
+    };
+    treecal::calibration::run_calibration(&input, data, validation)
+}
