@@ -4,12 +4,12 @@
 //! and infers").
 
 use super::initial_guess::{
-    fit_similarity_scale, initial_guess, initial_tool_frames, measured_position, InitialGuess,
+    base_frame_positions, fit_similarity_scale, initial_guess, initial_tool_frames, InitialGuess,
 };
 use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
-use crate::math::{Pose, Vec3};
+use crate::math::Pose;
 use crate::measurement::Measurement;
 use serde::Serialize;
 
@@ -236,13 +236,7 @@ pub const LENGTH_SCALE_LIMIT: f64 = 30.0;
 /// kinematics predict (a closed-form similarity fit with scale, Umeyama): a length unit
 /// mistake, named before anything is solved.
 pub fn check_length_scale(nominal: &McpcModel, measurements: &[Measurement]) -> Result<()> {
-    let mut in_base = nominal.clone();
-    in_base.set_world_from_base(&Pose::identity());
-    let predicted: Vec<Vec3> = measurements
-        .iter()
-        .map(|m| in_base.tool_pose(m.tool, &m.q).translation.vector)
-        .collect();
-    let measured: Vec<Vec3> = measurements.iter().map(measured_position).collect();
+    let (predicted, measured) = base_frame_positions(nominal, measurements);
     let Some(scale) = fit_similarity_scale(&predicted, &measured) else {
         return Ok(());
     };

@@ -28,6 +28,23 @@ pub struct InitialGuess {
     pub rms_after: f64,
 }
 
+/// The tool positions `model` predicts in its base frame (the measurement frame set to
+/// identity) and the measured positions, in measurement order: the point sets that the
+/// closed-form frame fits compare.
+pub(crate) fn base_frame_positions(
+    model: &McpcModel,
+    measurements: &[Measurement],
+) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut in_base = model.clone();
+    in_base.set_world_from_base(&Pose::identity());
+    let predicted = measurements
+        .iter()
+        .map(|m| in_base.tool_pose(m.tool, &m.q).translation.vector)
+        .collect();
+    let measured = measurements.iter().map(measured_position).collect();
+    (predicted, measured)
+}
+
 /// The measured position of an observation (the pose's origin, or the point).
 pub(crate) fn measured_position(m: &Measurement) -> Vec3 {
     match &m.observation {
@@ -128,13 +145,7 @@ pub fn initial_guess(
     let mut current = model.clone();
     for _ in 0..rounds.max(1) {
         // (1) The measurement frame, from positions predicted in the base frame.
-        let mut in_base = current.clone();
-        in_base.set_world_from_base(&Pose::identity());
-        let predicted: Vec<Vec3> = measurements
-            .iter()
-            .map(|m| in_base.tool_pose(m.tool, &m.q).translation.vector)
-            .collect();
-        let measured: Vec<Vec3> = measurements.iter().map(measured_position).collect();
+        let (predicted, measured) = base_frame_positions(&current, measurements);
         if let Some(world_from_base) = fit_rigid_transform(&predicted, &measured) {
             current.set_world_from_base(&world_from_base);
         }
