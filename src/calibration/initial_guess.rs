@@ -80,9 +80,19 @@ fn nearest_rotation(m: &Mat3) -> Option<Rotation> {
     ))
 }
 
-/// Kabsch/Horn: the rigid transform `T` minimising `Σ ‖T·from_i − to_i‖²`; `None` when the
-/// points do not fix a rotation (fewer than three, or all on a line).
-pub fn fit_rigid_transform(from: &[Vec3], to: &[Vec3]) -> Option<Pose> {
+/// Two paired point sets about their centroids.
+struct Centred {
+    from_mean: Vec3,
+    to_mean: Vec3,
+    /// `Σ (to_i − to_mean)(from_i − from_mean)ᵀ`.
+    covariance: Mat3,
+    /// `Σ ‖from_i − from_mean‖²`.
+    spread: f64,
+}
+
+/// [`Centred`] of `from` and `to`; `None` for fewer than three pairs, sets of unequal length,
+/// or non-finite sums (the SVD of a non-finite matrix never ends).
+fn centred(from: &[Vec3], to: &[Vec3]) -> Option<Centred> {
     if from.len() < 3 || from.len() != to.len() {
         return None;
     }
@@ -90,9 +100,29 @@ pub fn fit_rigid_transform(from: &[Vec3], to: &[Vec3]) -> Option<Pose> {
     let from_mean = from.iter().sum::<Vec3>() / n;
     let to_mean = to.iter().sum::<Vec3>() / n;
     let mut covariance = Mat3::zeros();
+    let mut spread = 0.0;
     for (a, b) in from.iter().zip(to) {
         covariance += (b - to_mean) * (a - from_mean).transpose();
+        spread += (a - from_mean).norm_squared();
     }
+    let finite = covariance.iter().all(|v| v.is_finite()) && spread.is_finite();
+    finite.then_some(Centred {
+        from_mean,
+        to_mean,
+        covariance,
+        spread,
+    })
+}
+
+/// Kabsch/Horn: the rigid transform `T` minimising `Σ ‖T·from_i − to_i‖²`; `None` when the
+/// points do not fix a rotation (fewer than three, or all on a line).
+pub fn fit_rigid_transform(from: &[Vec3], to: &[Vec3]) -> Option<Pose> {
+    let Centred {
+        from_mean,
+        to_mean,
+        covariance,
+        ..
+    } = centred(from, to)?;
     let singular = covariance.singular_values();
     if singular[1] <= 1e-12 * singular[0].max(f64::MIN_POSITIVE) {
         return None;
@@ -106,18 +136,10 @@ pub fn fit_rigid_transform(from: &[Vec3], to: &[Vec3]) -> Option<Pose> {
 /// `D` the reflection fix; `None` when `from` does not spread (fewer than three points, or all
 /// at one place).
 pub fn fit_similarity_scale(from: &[Vec3], to: &[Vec3]) -> Option<f64> {
-    if from.len() < 3 || from.len() != to.len() {
-        return None;
-    }
+    let centred = centred(from, to)?;
     let n = from.len() as f64;
-    let from_mean = from.iter().sum::<Vec3>() / n;
-    let to_mean = to.iter().sum::<Vec3>() / n;
-    let mut covariance = Mat3::zeros();
-    let mut spread = 0.0;
-    for (a, b) in from.iter().zip(to) {
-        covariance += (b - to_mean) * (a - from_mean).transpose() / n;
-        spread += (a - from_mean).norm_squared() / n;
-    }
+    let covariance = centred.covariance / n;
+    let spread = centred.spread / n;
     if spread <= 1e-18 {
         return None;
     }
