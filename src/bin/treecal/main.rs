@@ -12,6 +12,7 @@ mod fk;
 mod from_mcpc;
 mod inspect;
 mod plan;
+mod progress;
 mod robot;
 mod simulate;
 mod to_mcpc;
