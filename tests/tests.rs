@@ -28,3 +28,4 @@ mod stiffness;
 mod urdf_import;
 mod urdf_tolerant;
 mod verdict;
+mod workflow_sim;
