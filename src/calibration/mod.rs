@@ -54,10 +54,10 @@ pub use stiffness::{
 };
 pub use verdict::{Finding, Status, Verdict};
 
-/// The expected position noise of a measurement (m) every command and workflow defaults to:
-/// position rows are divided by it.
+/// The expected position noise of a measurement (m) every command and the Python package
+/// assume unless told otherwise: position rows are divided by it.
 pub const DEFAULT_POSITION_SIGMA: f64 = 1e-4;
 
-/// The expected rotation noise of a measured frame (rad) every command and workflow defaults
-/// to: rotation rows are divided by it (three targets 0.1 m apart, each to about 0.1 mm).
+/// The expected rotation noise of a measured frame (rad) every command and the Python package
+/// assume unless told otherwise: rotation rows are divided by it.
 pub const DEFAULT_ROTATION_SIGMA: f64 = 1e-3;

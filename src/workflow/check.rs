@@ -2,7 +2,9 @@
 //! values, rank, condition number, O1–O5 and the combinations the poses cannot determine.
 
 use super::checks::sigmas;
-use super::source::{branches, measured_branches, PlanSource, RobotSource, StiffnessSource};
+use super::source::{
+    branches, measured_branches, MeasurementSource, PlanSource, RobotSource, StiffnessSource,
+};
 use super::Note;
 use crate::calibration::{
     analyse, analyse_compliance, ComplianceIdentifiability, IdentifiabilityOptions,
@@ -10,7 +12,7 @@ use crate::calibration::{
     DEFAULT_POSITION_SIGMA, DEFAULT_ROTATION_SIGMA,
 };
 use crate::io::{
-    parse_csv, pose_rows, read_measurements, read_plan, to_json, to_yaml, AngleUnit, LengthUnit,
+    parse_csv, pose_rows, read_plan, to_json, to_yaml, AngleUnit, LengthUnit,
     MeasurementReadOptions,
 };
 use crate::kinematics::{FlexibilityModel, Stiffness};
@@ -39,8 +41,8 @@ pub struct CheckConfig {
     pub tools: Option<Vec<String>>,
     /// A pose CSV (joint columns, optional `tool` and `stage`), e.g. `plan`'s output.
     pub pose_file: Option<PathBuf>,
-    /// A measurement CSV whose configurations, tools and stages are analysed.
-    pub measurements: Option<PathBuf>,
+    /// Measurements (a CSV or arrays) whose configurations, tools and stages are analysed.
+    pub measurements: Option<MeasurementSource>,
     /// Unit of lengths in `measurements` [default: its `# units:` comment, else m].
     pub length_unit: Option<LengthUnit>,
     /// Unit of prismatic joint values in `measurements` [default: the length unit].
@@ -159,10 +161,12 @@ fn invalid(flag: &str, message: String) -> Error {
 pub fn check(config: &CheckConfig) -> Result<Check> {
     validate(config)?;
     let mut notes = Vec::new();
-    let import = config.robot.load(&mut notes)?;
+    let robot = config.robot.load()?;
+    notes.extend(robot.notes());
+    let import = robot.import;
     let tree = &import.tree;
     let branches = match &config.measurements {
-        Some(path) => measured_branches(&import, config.tools.as_deref(), path)?,
+        Some(source) => measured_branches(&import, config.tools.as_deref(), source)?,
         None => branches(&import, config.tools.as_deref())?,
     };
     let model = McpcModel::from_tree(tree, &branches)?;
@@ -340,8 +344,8 @@ fn rows(
         1 => ObservationKind::Position,
         _ => ObservationKind::Pose,
     };
-    if let Some(path) = &config.measurements {
-        return measurement_rows(config, tree, model, path, notes);
+    if let Some(source) = &config.measurements {
+        return measurement_rows(config, tree, model, source, notes);
     }
     if let Some(path) = &config.pose_file {
         let (rows, has_stage, source) = pose_file_rows(config, tree, model, path, notes)?;
@@ -374,7 +378,7 @@ fn measurement_rows(
     config: &CheckConfig,
     tree: &KinematicTree,
     model: &McpcModel,
-    path: &Path,
+    source: &MeasurementSource,
     notes: &mut Vec<Note>,
 ) -> Result<Rows> {
     let options = MeasurementReadOptions {
@@ -384,7 +388,7 @@ fn measurement_rows(
         ignore_columns: config.ignore_columns.clone(),
         strict_limits: false,
     };
-    let set = read_measurements(path, tree, model, &options)?;
+    let set = source.read(tree, model, &options)?;
     notes.extend(set.warnings.iter().map(Note::warning));
     let rows: Vec<PoseRow> = set
         .measurements
@@ -401,7 +405,7 @@ fn measurement_rows(
     };
     Ok(Rows {
         has_stage: rows.iter().any(|r| r.stage.is_some()),
-        source: format!("{} ({} observations)", path.display(), rows.len()),
+        source: format!("{} ({} observations)", source.origin(), rows.len()),
         rows,
         observation,
     })

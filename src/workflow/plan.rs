@@ -144,7 +144,9 @@ pub fn plan(config: &PlanConfig) -> Result<PosePlan> {
 pub fn plan_with_progress(config: &PlanConfig, progress: ProgressFn<'_>) -> Result<PosePlan> {
     let workspace = validate(config)?;
     let mut notes = Vec::new();
-    let import = config.robot.load(&mut notes)?;
+    let robot = config.robot.load()?;
+    notes.extend(robot.notes());
+    let import = robot.import;
     let tree = &import.tree;
     let branches = branches(&import, config.tools.as_deref())?;
     let model = McpcModel::from_tree(tree, &branches)?;

@@ -160,7 +160,9 @@ pub fn simulate_with_progress(
     validate(config)?;
     let noise = NoiseModel::parse(&config.noise)?;
     let mut notes = Vec::new();
-    let import = config.robot.load(&mut notes)?;
+    let robot = config.robot.load()?;
+    notes.extend(robot.notes());
+    let import = robot.import;
     let tree = &import.tree;
     let branches = branches(&import, config.tools.as_deref())?;
     let nominal = McpcModel::from_tree(tree, &branches)?;

@@ -2,7 +2,7 @@
 
 use crate::cli::{AngleUnit, CheckArgs, Format, PlanChoice};
 use treecal::workflow::check::{check, CheckConfig};
-use treecal::workflow::source::{PlanSource, RobotSource, StiffnessSource};
+use treecal::workflow::source::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
 use treecal::Result;
 
 fn config(args: CheckArgs) -> CheckConfig {
@@ -10,7 +10,7 @@ fn config(args: CheckArgs) -> CheckConfig {
         robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
         tools: args.tools,
         pose_file: args.pose_file.or(args.poses),
-        measurements: args.measurements,
+        measurements: args.measurements.map(MeasurementSource::Csv),
         length_unit: args.length_unit,
         joint_length_unit: args.joint_length_unit,
         angle_unit: args.angle_unit.map(|unit| match unit {

@@ -13,7 +13,6 @@ mod from_mcpc;
 mod inspect;
 mod plan;
 mod progress;
-mod robot;
 mod simulate;
 mod to_mcpc;
 
