@@ -38,6 +38,7 @@ pub struct Note {
 
 impl Note {
     /// A note.
+    #[allow(clippy::self_named_constructors)] // `Note::note`, `Note::warning`, `Note::error`
     pub fn note(text: impl Into<String>) -> Self {
         Self {
             level: NoteLevel::Note,

@@ -133,7 +133,10 @@ pub fn measured_branches(
         .iter()
         .map(|name| {
             tree.link_id(name).map_err(|e| Error::InvalidData {
-                origin: format!("{}: tool column", measurements.origin()),
+                origin: match measurements {
+                    MeasurementSource::Csv(path) => format!("{}: tool column", path.display()),
+                    MeasurementSource::Table(table) => table.place_of_tool(name),
+                },
                 message: format!("{e}; the tool column names the measured tool links"),
             })
         })

@@ -107,7 +107,7 @@ pub enum AngleUnit {
 /// Arguments of `treecal inspect`.
 #[derive(Args)]
 #[command(
-    after_help = "Without ROBOT, the built-in Robonaut (robots/robonaut/robonaut.urdf, generated from the paper's Table 1) is inspected.\n\nExamples:\n  treecal inspect\n  treecal inspect robots/humanoid/humanoid.urdf --format yaml\n  treecal inspect ../shared/robots/robonaut2/robonaut2.urdf --tools r2/left_palm,r2/right_palm"
+    after_help = "Without --robot, the built-in Robonaut (robots/robonaut/robonaut.urdf, generated from the paper's Table 1) is inspected.\n\nExamples:\n  treecal inspect\n  treecal inspect --robot robots/humanoid/humanoid.urdf --format yaml\n  treecal inspect --robot ../shared/robots/robonaut2/robonaut2.urdf --tools r2/left_palm,r2/right_palm"
 )]
 pub struct InspectArgs {
     /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
@@ -129,7 +129,7 @@ pub struct InspectArgs {
 /// Arguments of `treecal fk`.
 #[derive(Args)]
 #[command(
-    after_help = "The input CSV has a header row naming joints as in the URDF; joints without a column are 0; lines starting with # are comments. Columns that match no joint are passed through unchanged and listed on stderr, so a typo is visible. The output repeats every input row and appends x,y,z (metres) and r11..r33 (rotation matrix, row-major) of the tip link's pose in the root link frame.\n\nExample:\n  treecal fk robots/robonaut/robonaut.urdf --tip left_tool --joints joints.csv -o poses.csv"
+    after_help = "The input CSV has a header row naming joints as in the URDF; joints without a column are 0; lines starting with # are comments. Columns that match no joint are passed through unchanged and listed on stderr, so a typo is visible. The output repeats every input row and appends x,y,z (metres) and r11..r33 (rotation matrix, row-major) of the tip link's pose in the root link frame.\n\nExample:\n  treecal fk --robot robots/robonaut/robonaut.urdf --tip left_tool --joints joints.csv -o poses.csv"
 )]
 pub struct FkArgs {
     /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
@@ -168,7 +168,7 @@ pub struct FromMcpcArgs {
 /// Arguments of `treecal to-mcpc`.
 #[derive(Args)]
 #[command(
-    after_help = "The table lists the detected (or named) branches only, with the constant phi of every row; `treecal from-mcpc` turns it back into a URDF whose tool poses and joint axes equal the original's. Mimic relations and joints off the branches are not part of a table; continuous joints get limits of +-180 deg.\n\nExample:\n  treecal to-mcpc robots/humanoid/humanoid.urdf -o humanoid_mcpc.yaml"
+    after_help = "The table lists the detected (or named) branches only, with the constant phi of every row; `treecal from-mcpc` turns it back into a URDF whose tool poses and joint axes equal the original's. Mimic relations and joints off the branches are not part of a table; continuous joints get limits of +-180 deg.\n\nExample:\n  treecal to-mcpc --robot robots/humanoid/humanoid.urdf -o humanoid_mcpc.yaml"
 )]
 pub struct ToMcpcArgs {
     /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
