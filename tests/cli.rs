@@ -737,7 +737,9 @@ fn simulate_without_noise_removes_the_error() {
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("results.json")).unwrap())
             .unwrap();
     for arm in results["trials"][0]["validation"].as_array().unwrap() {
-        let removed = arm["position_removed_percent"][1].as_f64().unwrap();
+        let removed = arm["position_removed_percent"]["compensated"]
+            .as_f64()
+            .unwrap();
         assert!(removed > 99.99, "{removed}");
     }
 }

@@ -292,20 +292,17 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     }
     let mut summary = calibration_summary(context, &run, unidentifiable, changed);
     summary.outliers = outliers;
+    summary.name_rows([&ids[0], &ids[1]]);
+    summary.stiffness = identified.as_ref().map(|(s, _)| s.clone());
     let mut markdown = calibration_markdown(&summary, &options);
     let mut params = to_yaml(&parameter_file(tree.name(), &run))?;
-    let mut json = to_json(&summary)?;
+    let json = to_json(&summary)?;
     let mut stiffness_file = None;
     if let Some((stiffness_summary, file)) = &identified {
         markdown.push_str(&stiffness_markdown(stiffness_summary));
         params.push_str(&to_yaml(
             &serde_json::json!({ "stiffness": stiffness_summary }),
         )?);
-        let mut value =
-            serde_json::to_value(&summary).map_err(|e| invalid("report.json", e.to_string()))?;
-        value["stiffness"] = serde_json::to_value(stiffness_summary)
-            .map_err(|e| invalid("report.json", e.to_string()))?;
-        json = to_json(&value)?;
         stiffness_file = Some(stiffness_to_yaml(
             file,
             &format!(
@@ -315,8 +312,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             ),
         ));
     }
-    let mut plots = calibration_plots(&run.identification, "measurement")?;
-    plots.extend(calibration_plots(&run.validation, "validation")?);
+    let mut plots = calibration_plots(&summary.identification, "measurement")?;
+    plots.extend(calibration_plots(&summary.validation, "validation")?);
 
     let verdict = &summary.verdict;
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();

@@ -210,7 +210,7 @@ pub fn run(args: CheckArgs) -> Result<()> {
     } else {
         vec![run_stage("all", ParameterSet::All, &rows)?]
     };
-    let report = CheckReport::new(
+    let mut report = CheckReport::new(
         tree.name().to_owned(),
         source,
         observation,
@@ -222,28 +222,16 @@ pub fn run(args: CheckArgs) -> Result<()> {
             eprintln!("treecal: warning: stage {}: {warning}", stage.name);
         }
     }
-    let compliance = if args.identify_stiffness {
-        Some(compliance_check(&args, tree, &model, &rows, observation)?)
-    } else {
-        None
-    };
-    let text = match (args.format, &compliance) {
+    if args.identify_stiffness {
+        report.compliance = Some(compliance_check(&args, tree, &model, &rows, observation)?);
+    }
+    let text = match (args.format, &report.compliance) {
         (Format::Text, None) => report.to_text(),
         (Format::Text, Some(c)) => {
             report.to_text() + &compliance_identifiability_markdown(c, args.stiffness_prior)
         }
-        (Format::Yaml, None) => to_yaml(&report)?,
-        (Format::Json, None) => to_json(&report)?,
-        (format, Some(c)) => {
-            let mut value =
-                serde_json::to_value(&report).map_err(|e| invalid("output", e.to_string()))?;
-            value["compliance"] =
-                serde_json::to_value(c).map_err(|e| invalid("output", e.to_string()))?;
-            match format {
-                Format::Yaml => to_yaml(&value)?,
-                _ => to_json(&value)?,
-            }
-        }
+        (Format::Yaml, _) => to_yaml(&report)?,
+        (Format::Json, _) => to_json(&report)?,
     };
     print!("{text}");
     Ok(())

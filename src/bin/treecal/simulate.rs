@@ -232,12 +232,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         header
     };
     let markdown = simulation_markdown(&header, &reports, &summary);
-    let results = serde_json::json!({
-        "robot": tree.name(),
-        "seed": args.seed,
-        "trials": reports,
-        "summary": summary,
-    });
+    let results = treecal::report::simulation_results(tree.name(), args.seed, &reports, &summary);
     std::fs::create_dir_all(&args.out).map_err(|source| Error::Io {
         path: args.out.clone(),
         source,
