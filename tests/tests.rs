@@ -22,6 +22,7 @@ mod planning;
 mod plot;
 mod real_robots;
 mod recalibration;
+mod report_json;
 mod robust;
 mod simulate;
 mod stiffness;
