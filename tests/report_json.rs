@@ -303,3 +303,34 @@ fn check_and_inspect_json_carry_a_schema_version_and_labels() {
         treecal::report::inspect::INSPECT_SCHEMA
     );
 }
+
+/// With `--identify-stiffness` the stiffness block comes last and the order stays (it was
+/// merged through a sorted map before, which put the verdict last).
+#[test]
+fn report_json_with_stiffness_keeps_its_key_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let csv = robot("robonaut/example/measurements.csv");
+    let stiffness = robot("robonaut/stiffness.yaml");
+    let run = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&csv),
+        "--stiffness",
+        path_str(&stiffness),
+        "--identify-stiffness",
+        "--out",
+        path_str(&out),
+    ]);
+    assert_success(&run, "calibrate --identify-stiffness");
+    let text = std::fs::read_to_string(out.join("report.json")).unwrap();
+    let keys = top_level_keys(&text);
+    assert_eq!(keys[..2], ["verdict", "schema_version"], "{keys:?}");
+    assert_eq!(keys.last().map(String::as_str), Some("stiffness"), "{keys:?}");
+    let report: Value = serde_json::from_str(&text).unwrap();
+    assert_labelled(&report, "report.json with stiffness");
+    let block = &report["stiffness"];
+    assert!(f64_of(&block["cost"]["after"]) <= f64_of(&block["cost"]["before"]));
+    assert!(block["identified"]["identified"].as_u64() <= block["identified"]["total"].as_u64());
+    assert!(f64_of(&block["group_scales"]["joint"]["scale"]) > 0.0);
+}
