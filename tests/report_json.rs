@@ -326,7 +326,11 @@ fn report_json_with_stiffness_keeps_its_key_order() {
     let text = std::fs::read_to_string(out.join("report.json")).unwrap();
     let keys = top_level_keys(&text);
     assert_eq!(keys[..2], ["verdict", "schema_version"], "{keys:?}");
-    assert_eq!(keys.last().map(String::as_str), Some("stiffness"), "{keys:?}");
+    assert_eq!(
+        keys.last().map(String::as_str),
+        Some("stiffness"),
+        "{keys:?}"
+    );
     let report: Value = serde_json::from_str(&text).unwrap();
     assert_labelled(&report, "report.json with stiffness");
     let block = &report["stiffness"];

@@ -20,6 +20,7 @@ mod measurements_csv;
 mod oracle;
 mod planning;
 mod plot;
+mod readme;
 mod real_robots;
 mod recalibration;
 mod report_json;
