@@ -123,7 +123,11 @@ fn inspect_yaml_and_json() {
 
     let yaml = treecal(&["inspect", "--format", "yaml"]);
     assert_success(&yaml, "inspect --format yaml");
-    assert!(yaml.stdout.starts_with("robot:"), "{yaml}");
+    assert!(
+        yaml.stdout
+            .starts_with("schema_version: treecal.inspect/1\nrobot:"),
+        "{yaml}"
+    );
     assert!(yaml.stdout.contains("parameter_count: 64"), "{yaml}");
     assert!(yaml.stdout.contains("robonaut"), "{yaml}");
 
