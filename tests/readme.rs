@@ -1,9 +1,10 @@
 //! README's commands, as written: every command line of its ```` ```sh ```` blocks is either run
 //! (`treecal …`, and `cargo run --release --locked -- …` as the `treecal …` it builds) against
-//! the built binary in a scratch folder holding a copy of `robots/`, or checked (the `cargo`
-//! build, install and test lines, against `.ci/run`), or is an install step of an outside tool
-//! (`python3 …`, `pip …`, `apt-get …`, `sudo …`), shown but not run. Any other command fails
-//! the test, so that nothing in README goes unchecked by accident.
+//! the built binary in a scratch folder holding a copy of `robots/`, or checked (the other
+//! `cargo` lines: build, install and test, which must keep Cargo.lock's versions and agree with
+//! `.ci/run`), or is a step of an outside tool ([`OUTSIDE_TOOLS`]: `python3 …`, `pip …`,
+//! `apt-get …`, …), shown but not run. Any other command fails the test, so that nothing in
+//! README goes unchecked by accident.
 
 use crate::common::cli::{assert_success, treecal_in};
 use crate::common::repo;
@@ -13,6 +14,10 @@ use std::path::Path;
 const INSTALL: &str = "cargo install --locked --path .";
 /// README's test command: CI's (`.ci/run`).
 const TEST: &str = "cargo test --locked";
+/// Outside tools whose install or test steps README shows but this test does not run.
+const OUTSIDE_TOOLS: [&str; 8] = [
+    "python3", "python", "pip", "pip3", "pytest", "maturin", "apt-get", "sudo",
+];
 /// `cargo run --release --locked -- ARGS` builds and runs `treecal ARGS`.
 const RUN_PREFIX: &str = "cargo run --release --locked -- ";
 
@@ -79,16 +84,23 @@ fn classify(command: &str) -> Result<Action, String> {
     if let Some(arguments) = command.strip_prefix(RUN_PREFIX) {
         return Ok(Action::Run(words(arguments)));
     }
-    if command == INSTALL || command == TEST {
-        return Ok(Action::Checked);
-    }
     let first = command.split_whitespace().next().unwrap_or("");
-    if ["python3", "pip", "apt-get", "sudo"].contains(&first) {
+    if first == "cargo" {
+        // Builds, installs and tests are too slow to run here; they keep Cargo.lock's versions.
+        return if command.split_whitespace().any(|w| w == "--locked") {
+            Ok(Action::Checked)
+        } else {
+            Err(format!(
+                "`{command}`: without --locked cargo resolves newer crates than Cargo.lock"
+            ))
+        };
+    }
+    if OUTSIDE_TOOLS.contains(&first) {
         return Ok(Action::Shown);
     }
     Err(format!(
-        "`{command}` is neither a treecal command, `{RUN_PREFIX}…`, `{INSTALL}`, `{TEST}` nor an \
-         outside install step"
+        "`{command}` is neither a treecal command, a cargo command with --locked, nor an outside \
+         tool's step ({OUTSIDE_TOOLS:?})"
     ))
 }
 
@@ -209,6 +221,11 @@ fn readme_command_parsing() {
         Ok(Action::Shown)
     );
     assert!(classify("cargo run --release -- simulate").is_err());
+    assert!(classify("cargo install --path .").is_err());
+    assert_eq!(
+        classify("cargo build --release --locked"),
+        Ok(Action::Checked)
+    );
     assert!(classify("rm -rf out").is_err());
     assert!(classify("treecal simulate > log.txt").is_err());
 }
