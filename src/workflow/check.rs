@@ -187,7 +187,7 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
     let sigmas = (config.position_sigma, config.rotation_sigma);
     let mut stages = Vec::new();
     if !rows.has_stage && plan.stages.iter().any(|s| s.measurements.is_some()) {
-        notes.push(Note::note("the poses have no `stage` column; every row is analysed in the arms stage, and the torso stage needs rows labelled torso (arms locked)"));
+        notes.push(Note::info("the poses have no `stage` column; every row is analysed in the arms stage, and the torso stage needs rows labelled torso (arms locked)"));
     }
     for stage in &plan.stages {
         let selected = stage_rows(&rows, stage.measurements.as_deref());
@@ -363,7 +363,7 @@ fn rows(
             .any(|s| s.parameters == ParameterSet::Coupled)
     });
     let (rows, source) = default_rows(config.seed, tree, branches, model, torso)?;
-    notes.push(Note::note(format!(
+    notes.push(Note::info(format!(
         "no --pose-file given; analysing the {source}"
     )));
     Ok(Rows {
@@ -427,14 +427,14 @@ fn pose_file_rows(
     };
     let set = pose_rows(&table, tree, model, scale, &origin)?;
     for column in &set.mapping.unmatched {
-        notes.push(Note::note(format!(
+        notes.push(Note::info(format!(
             "column '{}' of {origin} matches no joint of '{}' and is not used",
             table.headers[*column],
             tree.name()
         )));
     }
     for (_, reason) in &set.mapping.implied {
-        notes.push(Note::note(format!(
+        notes.push(Note::info(format!(
             "{origin}: {reason}; the column is not used"
         )));
     }

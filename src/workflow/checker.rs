@@ -68,7 +68,7 @@ fn ignore_always_colliding(
             .iter()
             .map(|(a, b)| format!("{}–{}", tree.link(*a).name, tree.link(*b).name))
             .collect();
-        notes.push(Note::note(format!(
+        notes.push(Note::info(format!(
             "{} link pairs collide at all {} random configurations (their collision meshes overlap by design) and are not checked: {}",
             removed.len(),
             poses.len(),

@@ -37,9 +37,8 @@ pub struct Note {
 }
 
 impl Note {
-    /// A note.
-    #[allow(clippy::self_named_constructors)] // `Note::note`, `Note::warning`, `Note::error`
-    pub fn note(text: impl Into<String>) -> Self {
+    /// A note (level [`NoteLevel::Note`]).
+    pub fn info(text: impl Into<String>) -> Self {
         Self {
             level: NoteLevel::Note,
             text: text.into(),

@@ -360,7 +360,7 @@ fn with_noise(
         let sigma = noise.sigma(&Vec3::zeros());
         options.position_sigma = sigma;
         options.rotation_sigma = std::f64::consts::SQRT_2 * sigma / TARGET_SPACING;
-        notes.push(Note::note(format!(
+        notes.push(Note::info(format!(
             "rows weighted by the {text} noise: --position-sigma {:e} --rotation-sigma {:e} (give check the same to see the same O1)",
             options.position_sigma, options.rotation_sigma
         )));

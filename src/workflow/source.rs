@@ -283,7 +283,7 @@ impl PlanSource {
             PlanSource::Auto => (
                 Plan::simultaneous(),
                 "simultaneous".into(),
-                Some(Note::note(
+                Some(Note::info(
                     "no rows are labelled stage=torso, so the simultaneous plan is used (label torso rows, taken with the arms locked, for the staged plan)",
                 )),
             ),
