@@ -12,7 +12,7 @@ use rand::{RngExt, SeedableRng};
 use std::hint::black_box;
 use std::time::Instant;
 use treecal::calibration::{identify, IdentificationOptions, Rigid};
-use treecal::kinematics::ChainFrames;
+use treecal::kinematics::{ChainFrames, ForwardFrames};
 use treecal::measurement::{Measurement, Observation};
 use treecal::{detect_branches, load_urdf, McpcModel};
 
@@ -123,10 +123,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let tools = model.tools().len();
     let mut chain = ChainFrames::default();
+    let mut forward = ForwardFrames::default();
     let mut jacobian = DMatrix::zeros(6, model.parameter_count());
     let timings = [
         (
             "fk_both_tools",
+            timing_ns(rounds, &configurations, |q| {
+                model.tool_transforms_into(q, &mut forward);
+                black_box(&forward.tools);
+            }),
+        ),
+        (
+            "fk_both_tools_as_poses",
             timing_ns(rounds, &configurations, |q| {
                 black_box(model.tool_poses(q));
             }),
