@@ -111,31 +111,48 @@ pub(crate) fn add_grouped_gram(
     jacobian: &DMatrix<f64>,
     measurements: &[Measurement],
 ) {
-    // Row indices of each tool, in order of first appearance.
-    let mut groups: Vec<(usize, Vec<usize>)> = Vec::new();
+    // The row ranges of each tool, in order of first appearance.
+    let mut groups: Vec<(usize, Vec<Range<usize>>, usize)> = Vec::new();
     let mut row = 0;
     for m in measurements {
         let rows = row..row + m.observation.rows();
         row = rows.end;
-        match groups.iter_mut().find(|(tool, _)| *tool == m.tool) {
-            Some((_, group)) => group.extend(rows),
-            None => groups.push((m.tool, rows.collect())),
+        match groups.iter_mut().find(|(tool, _, _)| *tool == m.tool) {
+            Some((_, ranges, count)) => {
+                *count += rows.len();
+                ranges.push(rows);
+            }
+            None => groups.push((m.tool, vec![rows.clone()], rows.len())),
         }
     }
-    for (_, rows) in &groups {
+    let height = jacobian.nrows();
+    let data = jacobian.as_slice();
+    let column = |c: usize| &data[c * height..(c + 1) * height];
+    for (_, ranges, count) in &groups {
         let columns: Vec<usize> = (0..jacobian.ncols())
             .filter(|&c| {
-                let column = jacobian.column(c);
-                rows.iter().any(|&r| column[r] != 0.0)
+                let values = column(c);
+                ranges
+                    .iter()
+                    .any(|r| values[r.clone()].iter().any(|v| *v != 0.0))
             })
             .collect();
-        if rows.len() == jacobian.nrows() && columns.len() == jacobian.ncols() {
+        if *count == height && columns.len() == jacobian.ncols() {
             add_gram(target, jacobian);
             continue;
         }
-        let packed = DMatrix::from_fn(rows.len(), columns.len(), |i, j| {
-            jacobian[(rows[i], columns[j])]
-        });
+        let mut packed = DMatrix::zeros(*count, columns.len());
+        for (to, &from) in packed
+            .as_mut_slice()
+            .chunks_exact_mut((*count).max(1))
+            .zip(&columns)
+        {
+            let mut start = 0;
+            for r in ranges {
+                to[start..start + r.len()].copy_from_slice(&column(from)[r.clone()]);
+                start += r.len();
+            }
+        }
         let mut gram = DMatrix::zeros(columns.len(), columns.len());
         add_gram(&mut gram, &packed);
         for (j, &to_j) in columns.iter().enumerate() {
