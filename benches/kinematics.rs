@@ -26,6 +26,13 @@ fn forward_kinematics(c: &mut Criterion) {
             model.tool_poses(q)
         })
     });
+    let mut forward = treecal::kinematics::ForwardFrames::default();
+    c.bench_function("mcpc_fk_both_tools_transforms_robonaut", |b| {
+        b.iter(|| {
+            model.tool_transforms_into(black_box(&q), &mut forward);
+            forward.tools[0].translation
+        })
+    });
     c.bench_function("mcpc_fk_one_tool_robonaut", |b| {
         b.iter(|| model.tool_pose(0, black_box(&q)))
     });

@@ -4,7 +4,8 @@
 //! values per configuration (so that Pinocchio can be set to the same state), the tool poses
 //! (a cross-check) and the median and minimum nanoseconds per call.
 //!
-//! `cargo run --release --example peer -- [ROBOT.urdf] [--rounds N]`
+//! `cargo run --release --example peer -- [ROBOT.urdf] [--rounds N] [--gauss-newton]`
+//! (`--gauss-newton`: only the Gauss–Newton iteration, e.g. for a profiler).
 
 use nalgebra::DMatrix;
 use rand::rngs::ChaCha8Rng;
@@ -12,7 +13,7 @@ use rand::{RngExt, SeedableRng};
 use std::hint::black_box;
 use std::time::Instant;
 use treecal::calibration::{identify, IdentificationOptions, Rigid};
-use treecal::kinematics::ChainFrames;
+use treecal::kinematics::{ChainFrames, ForwardFrames};
 use treecal::measurement::{Measurement, Observation};
 use treecal::{detect_branches, load_urdf, McpcModel};
 
@@ -74,28 +75,51 @@ fn measurements(nominal: &McpcModel, configurations: &[Vec<f64>]) -> Vec<Measure
     measurements
 }
 
-/// Median and minimum ns of one Gauss–Newton iteration (linearisation, rank analysis, step, trial cost)
-/// with every parameter free on 200 configurations × every tool: `identify` with one
-/// iteration allowed minus `identify` with none (both end with an analysis and the RMS).
-fn gauss_newton_iteration(model: &McpcModel, dofs: usize, rounds: usize) -> (f64, f64) {
+/// CPU time of this process so far (ns, all threads), from Linux's `/proc/self/task/*/schedstat`.
+fn cpu_ns() -> Option<f64> {
+    let mut total = 0.0;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let stat = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        total += stat.split_whitespace().next()?.parse::<f64>().ok()?;
+    }
+    Some(total)
+}
+
+/// One Gauss–Newton iteration (linearisation, rank analysis, step, trial cost) with every
+/// parameter free on 200 configurations × every tool: `identify` with one iteration allowed
+/// minus `identify` with none (both end with an analysis and the RMS). Returns the median and
+/// minimum wall ns, and the mean CPU ns (all threads; Linux only, else NaN), which a loaded
+/// machine disturbs much less than the wall time.
+fn gauss_newton_iteration(model: &McpcModel, dofs: usize, rounds: usize) -> (f64, f64, f64) {
     let mut rng = ChaCha8Rng::seed_from_u64(200);
     let configurations: Vec<Vec<f64>> = (0..200)
         .map(|_| (0..dofs).map(|_| rng.random_range(-2.9..2.9)).collect())
         .collect();
     let data = measurements(model, &configurations);
     let free: Vec<usize> = (0..model.parameter_count()).collect();
-    let time = |iterations: usize| {
-        let options = IdentificationOptions {
-            max_iterations: iterations,
-            ..IdentificationOptions::default()
-        };
-        let once = [Vec::new()];
-        timing_ns(rounds, &once, |_| {
-            black_box(identify(model, &data, None, &Rigid, &free, &options).ok());
-        })
+    let options = |iterations: usize| IdentificationOptions {
+        max_iterations: iterations,
+        ..IdentificationOptions::default()
     };
-    let (one, none) = (time(1), time(0));
-    (one.0 - none.0, one.1 - none.1)
+    let (one, none) = (options(1), options(0));
+    let run = |options: &IdentificationOptions| {
+        black_box(identify(model, &data, None, &Rigid, &free, options).ok());
+    };
+    let time = |options: &IdentificationOptions| timing_ns(rounds, &[Vec::new()], |_| run(options));
+    let (wall_one, wall_none) = (time(&one), time(&none));
+    let mut cpu = [0.0; 2];
+    for _ in 0..rounds {
+        for (total, options) in cpu.iter_mut().zip([&one, &none]) {
+            let start = cpu_ns().unwrap_or(f64::NAN);
+            run(options);
+            *total += cpu_ns().unwrap_or(f64::NAN) - start;
+        }
+    }
+    (
+        wall_one.0 - wall_none.0,
+        wall_one.1 - wall_none.1,
+        (cpu[0] - cpu[1]) / rounds as f64,
+    )
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -103,9 +127,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut robot =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/robonaut/robonaut.urdf");
     let mut rounds = 101;
+    let mut iteration_only = false;
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--rounds" => rounds = args.next().ok_or("--rounds needs a value")?.parse()?,
+            "--gauss-newton" => iteration_only = true,
             path => robot = path.into(),
         }
     }
@@ -121,12 +147,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
 
+    if iteration_only {
+        let (median, min, cpu) = gauss_newton_iteration(&model, tree.dof_count(), rounds);
+        println!("{{\"gn_iteration_200x2\":[{median:.1},{min:.1}],\"gn_iteration_cpu\":{cpu:.1}}}");
+        return Ok(());
+    }
     let tools = model.tools().len();
+    let iteration = gauss_newton_iteration(&model, tree.dof_count(), rounds);
     let mut chain = ChainFrames::default();
+    let mut forward = ForwardFrames::default();
     let mut jacobian = DMatrix::zeros(6, model.parameter_count());
     let timings = [
         (
             "fk_both_tools",
+            timing_ns(rounds, &configurations, |q| {
+                model.tool_transforms_into(q, &mut forward);
+                black_box(&forward.tools);
+            }),
+        ),
+        (
+            "fk_both_tools_as_poses",
             timing_ns(rounds, &configurations, |q| {
                 black_box(model.tool_poses(q));
             }),
@@ -149,10 +189,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 black_box(model.tool_jacobian_into(0, q, &mut chain, &mut jacobian));
             }),
         ),
-        (
-            "gn_iteration_200x2",
-            gauss_newton_iteration(&model, tree.dof_count(), rounds),
-        ),
+        ("gn_iteration_200x2", (iteration.0, iteration.1)),
     ];
 
     let joints: Vec<String> = model
@@ -193,7 +230,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|(name, (median, min))| format!("{name:?}:[{median:.1},{min:.1}]"))
         .collect();
     println!(
-        "{{\"robot\":{:?},\"tools\":[{}],\"parameters\":{},\"joints\":[{}],\"values\":[{}],\"tool_positions\":[{}],\"ns\":{{{}}},\"tool_count\":{tools}}}",
+        "{{\"robot\":{:?},\"tools\":[{}],\"parameters\":{},\"joints\":[{}],\"values\":[{}],\"tool_positions\":[{}],\"ns\":{{{}}},\"gn_iteration_cpu\":{:.1},\"tool_count\":{tools}}}",
         robot.display().to_string(),
         tool_links.join(","),
         model.parameter_count(),
@@ -201,6 +238,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         values.join(","),
         poses.join(","),
         timing_json.join(","),
+        iteration.2,
     );
     Ok(())
 }

@@ -6,6 +6,10 @@
 //! Frames are named `a_from_b`: the pose of frame `b` expressed in frame `a`, so that
 //! `world_from_base * base_from_tool` reads right and yields `world_from_tool`.
 
+mod trig;
+
+pub use trig::{sin_cos, sin_cos_all};
+
 use nalgebra::{Isometry3, Matrix3, Translation3, Unit, UnitQuaternion, Vector3};
 
 /// A rigid transform (rotation + translation), metres.
@@ -206,19 +210,43 @@ impl Transform {
         )
     }
 
-    /// `self · other`.
-    #[inline]
+    /// `self · other`. Written out element by element (the same sums in the same order as
+    /// nalgebra's product, which is not unrolled as well for 3 × 3): this and
+    /// [`Self::rotated_z`] are all the arithmetic of forward kinematics.
+    #[inline(always)]
     pub fn then(&self, other: &Transform) -> Transform {
+        // Column-major: a[column][row].
+        let a = &self.rotation.data.0;
+        let b = &other.rotation.data.0;
+        let t = &other.translation;
+        let row = |i: usize, x: [f64; 3]| a[0][i] * x[0] + a[1][i] * x[1] + a[2][i] * x[2];
+        let column = |x: &[f64; 3]| [row(0, *x), row(1, *x), row(2, *x)];
+        let translation = [t.x, t.y, t.z];
+        let moved = column(&translation);
         Transform {
-            rotation: self.rotation * other.rotation,
-            translation: self.rotation * other.translation + self.translation,
+            rotation: Mat3::from_data(nalgebra::ArrayStorage([
+                column(&b[0]),
+                column(&b[1]),
+                column(&b[2]),
+            ])),
+            translation: Vec3::new(
+                moved[0] + self.translation.x,
+                moved[1] + self.translation.y,
+                moved[2] + self.translation.z,
+            ),
         }
     }
 
     /// `self · Rz(angle)`.
     #[inline]
     pub fn rotated_z(&self, angle: f64) -> Transform {
-        let (s, c) = angle.sin_cos();
+        let (s, c) = sin_cos(angle);
+        self.rotated_z_by(s, c)
+    }
+
+    /// `self · Rz(θ)` given `sin θ` and `cos θ`.
+    #[inline(always)]
+    pub fn rotated_z_by(&self, s: f64, c: f64) -> Transform {
         let x = self.rotation.column(0).into_owned();
         let y = self.rotation.column(1).into_owned();
         let mut rotation = self.rotation;

@@ -1,7 +1,7 @@
 //! MCPC conversion and forward kinematics against the URDF's own forward kinematics.
 
 use crate::common::*;
-use treecal::kinematics::{McpcModel, SINGULARITY_THRESHOLD};
+use treecal::kinematics::{ForwardFrames, McpcModel, SINGULARITY_THRESHOLD};
 use treecal::tree::detect_branches;
 use treecal::urdf::load_urdf;
 
@@ -175,6 +175,8 @@ fn random_robot(seed: u64) -> String {
 /// on and near the MCPC singularity.
 #[test]
 fn mcpc_forward_kinematics_matches_urdf_on_random_robots() {
+    // Reused across robots of different sizes.
+    let mut forward = ForwardFrames::default();
     for seed in 0..200 {
         let text = random_robot(seed);
         let tree = treecal::parse_urdf(&text, "random").unwrap().tree;
@@ -222,6 +224,15 @@ fn mcpc_forward_kinematics_matches_urdf_on_random_robots() {
                     1e-12,
                     "tool_pose vs tool_poses",
                 );
+            }
+            // The buffered form, all tools at once and one tool: the same products in the
+            // same order, so the same bits.
+            model.tool_transforms_into(&q, &mut forward);
+            let poses = model.tool_poses(&q);
+            assert_eq!(forward.tools.len(), poses.len());
+            for (index, transform) in forward.tools.iter().enumerate() {
+                assert_eq!(transform.to_pose(), poses[index], "seed {seed}");
+                assert_eq!(model.tool_pose(index, &q), poses[index], "seed {seed}");
             }
         }
     }

@@ -12,7 +12,10 @@ one tool, median ns per call), then times Pinocchio on the same URDF reduced to 
 the MCPC chains (every other joint locked at zero, `pin.buildReducedModel`), set to the same
 joint values:
 
-* fk:        pin.forwardKinematics + pin.updateFramePlacement of each tool link
+* fk:        pin.forwardKinematics + pin.updateFramePlacement of each tool link (treecal:
+             `tool_transforms_into`, rotation matrices + translations into reused buffers as
+             Pinocchio's frame placements are; `tool_poses`, which converts to quaternions and
+             allocates its result, is printed too)
 * regressor: the above + pin.computeFrameKinematicRegressor of each tool link (6 x 6*njoints,
              every joint placement's six parameters; treecal's Jacobian has 4 or 2 per frame
              and 6 per tool)
@@ -173,9 +176,13 @@ def main():
             overhead = statistics.median(r[1][2][name][which] for r in runs)
             print("%-22s %12.1f %14.1f %14.1f %10.2f %10.2f" % (
                 name, ours, theirs, overhead, theirs / ours, (theirs - overhead) / ours))
+        as_poses = statistics.median(r[0]["ns"]["fk_both_tools_as_poses"][which] for r in runs)
+        print("treecal fk_both_tools as Isometry3 poses (quaternions, allocated Vec): %.1f ns" % as_poses)
         iteration = statistics.median(r[0]["ns"]["gn_iteration_200x2"][which] for r in runs)
-        print("one Gauss-Newton iteration (%d parameters, 200 configurations x %d tools): %.0f us"
+        print("one Gauss-Newton iteration (%d parameters, 200 configurations x %d tools): %.0f us wall"
               % (side["parameters"], side["tool_count"], iteration / 1e3))
+    cpu = statistics.median(r[0]["gn_iteration_cpu"] for r in runs)
+    print("one Gauss-Newton iteration, mean CPU time (all threads): %.0f us" % (cpu / 1e3))
 
 
 if __name__ == "__main__":

@@ -414,9 +414,15 @@ pub(super) fn linearise(
                     message: "no Jacobian".into(),
                 })?;
             let tool = &tools[m.tool];
+            // Column-major: each column's `count` rows are contiguous in both matrices.
+            let height = jacobian.nrows();
+            let stride = tool.jacobian.nrows();
+            let (to, from) = (jacobian.as_mut_slice(), tool.jacobian.as_slice());
             for (column, &parameter) in free.iter().enumerate() {
-                for k in 0..count {
-                    jacobian[(row + k, column)] = tool.jacobian[(k, parameter)] * weights[k / 3];
+                let to = &mut to[column * height + row..][..count];
+                let from = &from[parameter * stride..][..count];
+                for (k, (to, from)) in to.iter_mut().zip(from).enumerate() {
+                    *to = from * weights[k / 3];
                 }
             }
             tool.pose
@@ -557,7 +563,9 @@ pub fn identify(
             .map(|(&p, s)| (parameters[p] * s).powi(2))
             .sum::<f64>()
             .sqrt();
-        if step_for(0.0).norm() <= options.step_tolerance * (1.0 + scaled_parameters) {
+        // The undamped step, also the first trial below (one Cholesky factorisation, not two).
+        let full_step = step_for(0.0);
+        if full_step.norm() <= options.step_tolerance * (1.0 + scaled_parameters) {
             termination = Termination::StepConverged;
             final_analysis = Some(analysis);
             break;
@@ -565,7 +573,11 @@ pub fn identify(
 
         let mut accepted = false;
         for _attempt in 0..40 {
-            let step_scaled = step_for(damping);
+            let step_scaled = if damping == 0.0 {
+                full_step.clone()
+            } else {
+                step_for(damping)
+            };
             let step: DVector<f64> = step_scaled.component_div(&analysis.scales);
             let mut trial = parameters.clone();
             for (k, &p) in free.iter().enumerate() {

@@ -5,8 +5,57 @@
 
 use super::mcpc::{FrameKind, McpcModel};
 use crate::error::Result;
-use crate::math::{Pose, Transform};
+use crate::math::{sin_cos_all, Pose, Transform};
 use crate::tree::KinematicTree;
+
+/// Reusable buffers of [`McpcModel::tool_transforms_into`].
+#[derive(Debug, Clone, Default)]
+pub struct ForwardFrames {
+    /// Each MCPC frame moved by its own joint, Σᵢ·Q(θᵢ), in the measurement frame.
+    pub moved: Vec<Transform>,
+    /// Each tool frame in the measurement frame, in [`McpcModel::tools`] order.
+    pub tools: Vec<Transform>,
+    motions: JointMotions,
+}
+
+thread_local! {
+    /// The buffers of [`McpcModel::tool_poses`] (not reentrant: nothing it calls uses them).
+    static SCRATCH: std::cell::RefCell<ForwardFrames> = std::cell::RefCell::default();
+}
+
+/// The joint value of every MCPC frame at one configuration, with its sine and cosine, all
+/// computed in one vectorised pass ([`sin_cos_all`]; reusable buffers).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct JointMotions {
+    values: Vec<f64>,
+    sines: Vec<f64>,
+    cosines: Vec<f64>,
+}
+
+impl JointMotions {
+    /// The joint values of `model`'s frames at `q`.
+    pub(crate) fn fill(&mut self, model: &McpcModel, q: &[f64]) {
+        self.values.clear();
+        self.values
+            .extend((0..model.frames().len()).map(|frame| model.joint_value(frame, q)));
+        sin_cos_all(&self.values, &mut self.sines, &mut self.cosines);
+    }
+
+    /// `transform · Q(θ)` for the joint of frame `frame` (the same bits as
+    /// [`McpcModel::moved`]).
+    #[inline(always)]
+    pub(crate) fn apply(
+        &self,
+        model: &McpcModel,
+        frame: usize,
+        transform: &Transform,
+    ) -> Transform {
+        match model.frames()[frame].kind {
+            FrameKind::Revolute => transform.rotated_z_by(self.sines[frame], self.cosines[frame]),
+            FrameKind::Prismatic => transform.translated_z(self.values[frame]),
+        }
+    }
+}
 
 impl McpcModel {
     /// `transform · Q(θ)` for the joint of frame `frame` at configuration `q`.
@@ -46,19 +95,6 @@ impl McpcModel {
             .collect()
     }
 
-    /// The tool frame given the base_from_frame transforms of all frames.
-    #[inline]
-    fn tool_from_frames(&self, tool: usize, q: &[f64], frames: &[Transform]) -> Transform {
-        match self.tools()[tool].parent {
-            Some(last) => self
-                .moved(last, q, &frames[last])
-                .then(self.tool_constant(tool)),
-            None => self
-                .world_from_base_transform()
-                .then(self.tool_constant(tool)),
-        }
-    }
-
     /// Pose of tool `tool` in the base frame at configuration `q` (eq. (3)), walking only its
     /// own chain.
     pub fn tool_pose(&self, tool: usize, q: &[f64]) -> Pose {
@@ -78,12 +114,53 @@ impl McpcModel {
     }
 
     /// Poses of all tools, in [`McpcModel::tools`] order (eq. (4)); shared frames (the coupled
-    /// branch) are computed once.
+    /// branch) are computed once, each joint's motion is applied once.
     pub fn tool_poses(&self, q: &[f64]) -> Vec<Pose> {
-        let frames = self.frame_transforms(q);
-        (0..self.tools().len())
-            .map(|t| self.tool_from_frames(t, q, &frames).to_pose())
-            .collect()
+        SCRATCH.with(|scratch| {
+            let mut frames = scratch.borrow_mut();
+            self.tool_transforms_into(q, &mut frames);
+            frames.tools.iter().map(Transform::to_pose).collect()
+        })
+    }
+
+    /// Forward kinematics of every tool into reusable buffers, in the fast form (rotation
+    /// matrix + translation, the form Pinocchio's frame placements have): no allocation once
+    /// `frames` has its size. `frames.tools` ends up holding the same poses as
+    /// [`Self::tool_poses`] (bit for bit: the same products in the same order).
+    pub fn tool_transforms_into(&self, q: &[f64], frames: &mut ForwardFrames) {
+        self.moved_frames_into(q, &mut frames.moved, &mut frames.motions);
+        frames
+            .tools
+            .resize(self.tools().len(), Transform::identity());
+        for (tool, target) in frames.tools.iter_mut().enumerate() {
+            *target = self.tool_from_moved(tool, &frames.moved);
+        }
+    }
+
+    /// Every frame moved by its own joint, Σᵢ·Q(θᵢ), in the measurement frame.
+    fn moved_frames_into(&self, q: &[f64], moved: &mut Vec<Transform>, motions: &mut JointMotions) {
+        motions.fill(self, q);
+        moved.resize(self.frames().len(), Transform::identity());
+        for (index, frame) in self.frames().iter().enumerate() {
+            let placed = match frame.parent {
+                Some(p) => moved[p].then(self.frame_constant(index)),
+                None => self
+                    .world_from_base_transform()
+                    .then(self.frame_constant(index)),
+            };
+            moved[index] = motions.apply(self, index, &placed);
+        }
+    }
+
+    /// Tool `tool` from the moved frames of [`Self::moved_frames_into`].
+    #[inline]
+    fn tool_from_moved(&self, tool: usize, moved: &[Transform]) -> Transform {
+        match self.tools()[tool].parent {
+            Some(last) => moved[last].then(self.tool_constant(tool)),
+            None => self
+                .world_from_base_transform()
+                .then(self.tool_constant(tool)),
+        }
     }
 
     /// Pose of the URDF child link of every frame's joint, from the MCPC model:

@@ -12,6 +12,7 @@
 //! flexibility model), which keeps the Jacobian accurate when the robot bends.
 //! See `docs/identification.md`.
 
+use super::forward::JointMotions;
 use super::mcpc::{FrameKind, McpcModel};
 use crate::math::{Pose, Transform, Vec3};
 use nalgebra::DMatrix;
@@ -40,6 +41,13 @@ pub struct ChainFrames {
     pub tool_previous: Vec<Transform>,
     /// Each tool frame.
     pub tools: Vec<Transform>,
+    /// The joint values with their sines and cosines.
+    pub(crate) motions: JointMotions,
+}
+
+thread_local! {
+    /// The chain of [`McpcModel::tool_jacobians`] (not reentrant: nothing it calls uses it).
+    static SCRATCH: std::cell::RefCell<ChainFrames> = std::cell::RefCell::default();
 }
 
 impl McpcModel {
@@ -54,11 +62,12 @@ impl McpcModel {
     /// once they have grown). Each frame's joint motion is applied once per child.
     pub fn chain_frames_into(&self, q: &[f64], chain: &mut ChainFrames) {
         self.size_chain(chain);
+        chain.motions.fill(self, q);
         for frame in 0..self.frames().len() {
-            self.set_chain_frame(frame, q, chain);
+            self.set_chain_frame(frame, chain);
         }
         for tool in 0..self.tools().len() {
-            self.set_chain_tool(tool, q, chain);
+            self.set_chain_tool(tool, chain);
         }
     }
 
@@ -76,11 +85,12 @@ impl McpcModel {
         }
     }
 
-    /// `previous` and `frames` of `frame`, from its parent's (already set) frame.
+    /// `previous` and `frames` of `frame`, from its parent's (already set) frame and
+    /// `chain.motions` (filled at the configuration).
     #[inline]
-    fn set_chain_frame(&self, frame: usize, q: &[f64], chain: &mut ChainFrames) {
+    fn set_chain_frame(&self, frame: usize, chain: &mut ChainFrames) {
         let previous = match self.frames()[frame].parent {
-            Some(p) => self.moved(p, q, &chain.frames[p]),
+            Some(p) => chain.motions.apply(self, p, &chain.frames[p]),
             None => *self.world_from_base_transform(),
         };
         chain.frames[frame] = previous.then(self.frame_constant(frame));
@@ -89,9 +99,9 @@ impl McpcModel {
 
     /// `tool_previous` and `tools` of `tool`, from its last frame (already set).
     #[inline]
-    fn set_chain_tool(&self, tool: usize, q: &[f64], chain: &mut ChainFrames) {
+    fn set_chain_tool(&self, tool: usize, chain: &mut ChainFrames) {
         let previous = match self.tools()[tool].parent {
-            Some(p) => self.moved(p, q, &chain.frames[p]),
+            Some(p) => chain.motions.apply(self, p, &chain.frames[p]),
             None => *self.world_from_base_transform(),
         };
         chain.tools[tool] = previous.then(self.tool_constant(tool));
@@ -182,10 +192,11 @@ impl McpcModel {
         jacobian: &mut DMatrix<f64>,
     ) -> Pose {
         self.size_chain(chain);
+        chain.motions.fill(self, q);
         for &frame in self.tool_chain(tool) {
-            self.set_chain_frame(frame, q, chain);
+            self.set_chain_frame(frame, chain);
         }
-        self.set_chain_tool(tool, q, chain);
+        self.set_chain_tool(tool, chain);
         if jacobian.shape() != (6, self.parameter_count()) {
             *jacobian = DMatrix::zeros(6, self.parameter_count());
         } else {
@@ -198,6 +209,10 @@ impl McpcModel {
     /// Poses and Jacobians of every tool at configuration `q`; shared frames computed once
     /// (eq. (16): the coupled branch's columns are shared by the arms).
     pub fn tool_jacobians(&self, q: &[f64]) -> Vec<ToolJacobian> {
-        self.jacobians_on(&self.chain_frames(q))
+        SCRATCH.with(|scratch| {
+            let mut chain = scratch.borrow_mut();
+            self.chain_frames_into(q, &mut chain);
+            self.jacobians_on(&chain)
+        })
     }
 }

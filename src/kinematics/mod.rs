@@ -7,6 +7,7 @@ pub mod mcpc;
 pub mod table;
 
 pub use flexibility::{FlexibilityModel, Stiffness};
+pub use forward::ForwardFrames;
 pub use jacobian::{ChainFrames, ToolJacobian};
 pub use mcpc::{
     FrameKind, McpcFrame, McpcModel, McpcTool, ParameterKind, ParameterOwner, SINGULARITY_THRESHOLD,

@@ -159,6 +159,7 @@ impl FlexibilityModel {
                 frames,
                 tool_previous,
                 tools,
+                ..ChainFrames::default()
             },
             deflected,
             evaluation,
