@@ -29,3 +29,4 @@ mod urdf_import;
 mod urdf_tolerant;
 mod verdict;
 mod workflow;
+mod workflow_sim;
