@@ -4,9 +4,8 @@
 //! [`calibrate`] computes everything and writes nothing; [`Calibration::write`] writes the
 //! files. A failed verdict is an outcome, not an error: the CLI exits 1 after writing.
 
-use super::calibrate_steps::{
-    check_config, export_calibrated, identify, outputs, read_data, Loaded,
-};
+use super::calibrate_outputs::outputs;
+use super::calibrate_steps::{check_config, export_calibrated, identify, read_data, Loaded};
 use super::note::Note;
 use super::source::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
 use crate::calibration::{
