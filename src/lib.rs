@@ -12,6 +12,7 @@ mod serde_labels;
 pub mod sim;
 pub mod tree;
 pub mod urdf;
+pub mod workflow;
 
 pub use error::{Error, Result};
 pub use kinematics::{McpcModel, McpcTable};
