@@ -201,7 +201,9 @@ pub fn simulate_with_progress(
     })?;
     let mut files = vec![
         ("summary.md".to_owned(), markdown.clone().into_bytes()),
-        ("results.json".to_owned(), to_json(&labelled)?.into_bytes()),
+        // From the value the outcome holds, so that the file is `to_json(&outcome.results)`
+        // to the byte (keys sorted).
+        ("results.json".to_owned(), to_json(&results)?.into_bytes()),
     ];
     files.extend(plots(reports.first())?);
     let measurements_csv = match (config.measurement_format, reports.first()) {
