@@ -95,17 +95,18 @@ pub fn calibrate(
     seed: u64,
     robust: &str,
     identify_stiffness: bool,
-    stiffness_prior: f64,
+    stiffness_prior: Option<f64>,
     measurement_frame: String,
     gravity_frame: &str,
-    position_sigma: f64,
-    rotation_sigma: f64,
+    position_sigma: Option<f64>,
+    rotation_sigma: Option<f64>,
     ignore_columns: Vec<String>,
     strict: bool,
     add_tool_links: bool,
 ) -> PyResult<PyCalibration> {
+    let defaults = CalibrateConfig::default();
     let config = CalibrateConfig {
-        robot: robot.map_or(RobotSource::BuiltIn, RobotSource::File),
+        robot: RobotSource::from_path(robot),
         measurements: measurement_source(measurements)?,
         validation: validation.map(measurement_source).transpose()?,
         stiffness: stiffness.map(StiffnessSource::File),
@@ -117,15 +118,14 @@ pub fn calibrate(
         ignore_columns,
         strict,
         measurement_frame: frame_choice(&measurement_frame),
-        position_sigma,
-        rotation_sigma,
+        position_sigma: position_sigma.unwrap_or(defaults.position_sigma),
+        rotation_sigma: rotation_sigma.unwrap_or(defaults.rotation_sigma),
         seed,
         robust: robust_loss(robust)?,
         identify_stiffness,
-        stiffness_prior,
+        stiffness_prior: stiffness_prior.unwrap_or(defaults.stiffness_prior),
         gravity_frame: gravity(gravity_frame)?,
         add_tool_links,
-        ..CalibrateConfig::default()
     };
     let inner = py
         .detach(|| treecal::workflow::calibrate(&config))

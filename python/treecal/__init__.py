@@ -257,11 +257,11 @@ def calibrate(
     seed: int = 0,
     robust: str = "huber",
     identify_stiffness: bool = False,
-    stiffness_prior: float = 0.5,
+    stiffness_prior: Optional[float] = None,
     measurement_frame: PathLike = "auto",
     gravity_frame: str = "measurement",
-    position_sigma: float = 1e-4,
-    rotation_sigma: float = 1e-3,
+    position_sigma: Optional[float] = None,
+    rotation_sigma: Optional[float] = None,
     ignore_columns: Sequence[str] = (),
     strict: bool = False,
     add_tool_links: bool = False,
@@ -274,6 +274,8 @@ def calibrate(
     "staged", "simultaneous", a plan YAML path, or None (staged when rows are labelled
     torso/arms). `measurement_frame` is "auto", "fit", "base" or a registration YAML path;
     `robust` "huber", "cauchy" or "off"; `gravity_frame` "measurement" or "base".
+    `position_sigma` (m), `rotation_sigma` (rad) and `stiffness_prior` default to the CLI's
+    defaults (None).
     Bad input raises :class:`TreecalError`; a failed verdict does not (see
     :attr:`Calibration.verdict`).
     """
@@ -292,11 +294,11 @@ def calibrate(
         seed=int(seed),
         robust=str(robust),
         identify_stiffness=bool(identify_stiffness),
-        stiffness_prior=float(stiffness_prior),
+        stiffness_prior=None if stiffness_prior is None else float(stiffness_prior),
         measurement_frame=os.fspath(measurement_frame),
         gravity_frame=str(gravity_frame),
-        position_sigma=float(position_sigma),
-        rotation_sigma=float(rotation_sigma),
+        position_sigma=None if position_sigma is None else float(position_sigma),
+        rotation_sigma=None if rotation_sigma is None else float(rotation_sigma),
         ignore_columns=_strings(ignore_columns, "ignore_columns"),
         strict=bool(strict),
         add_tool_links=bool(add_tool_links),
