@@ -11,6 +11,7 @@ pub mod report;
 pub mod sim;
 pub mod tree;
 pub mod urdf;
+pub mod workflow;
 
 pub use error::{Error, Result};
 pub use kinematics::{McpcModel, McpcTable};

@@ -53,3 +53,11 @@ pub use stiffness::{
     ComplianceIdentifiability, StiffnessOptions, StiffnessReport,
 };
 pub use verdict::{Finding, Status, Verdict};
+
+/// The expected position noise of a measurement (m) every command and the Python package
+/// assume unless told otherwise: position rows are divided by it.
+pub const DEFAULT_POSITION_SIGMA: f64 = 1e-4;
+
+/// The expected rotation noise of a measured frame (rad) every command and the Python package
+/// assume unless told otherwise: rotation rows are divided by it.
+pub const DEFAULT_ROTATION_SIGMA: f64 = 1e-3;

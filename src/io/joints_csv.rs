@@ -229,16 +229,28 @@ pub fn configurations(
                     message: format!("'{text}' is not a finite number"),
                 });
             }
-            let joint = tree.joint(tree.dofs()[dof]);
-            q[dof] = if joint.kind == JointKind::Prismatic {
-                limits::check(value, Quantity::Length, place)?
-            } else {
-                limits::check(value * angle_scale, Quantity::Angle, place)?
-            };
+            q[dof] = joint_value(tree, dof, value, angle_scale, place)?;
         }
         configurations.push(q);
     }
     Ok((configurations, mapping))
+}
+
+/// The value of independent joint `dof` in SI: a revolute or continuous value times
+/// `angle_scale`, a prismatic value as given (metres), checked against the magnitude limits
+/// (an error at `place`). The one conversion of `fk` from a CSV and from arrays.
+pub fn joint_value(
+    tree: &KinematicTree,
+    dof: usize,
+    value: f64,
+    angle_scale: f64,
+    place: impl FnOnce() -> String,
+) -> Result<f64> {
+    if tree.joint(tree.dofs()[dof]).kind == JointKind::Prismatic {
+        limits::check(value, Quantity::Length, place)
+    } else {
+        limits::check(value * angle_scale, Quantity::Angle, place)
+    }
 }
 
 /// The table with `x,y,z,r11,…,r33` of each row's pose appended (metres, full precision).

@@ -2,7 +2,7 @@
 //! values of the joints that move the tool and the observation (a position, a pose, or three
 //! targets A, B, C), in metres and radians or the units the options name.
 
-use super::joints_csv::parse_csv;
+use super::joints_csv::{parse_csv, CsvTable};
 use super::units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
@@ -131,17 +131,73 @@ pub fn parse_measurements(
         }
         other => other,
     })?;
+    let header = parse_units_header(text, origin)?;
+    measurements_from_table(&table, &header, Places::Lines, origin, tree, model, options)
+}
+
+/// How messages name a row and a column: `origin:line:column` in a file, `origin, row ID,
+/// column NAME` for in-memory arrays ([`super::MeasurementTable`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Places {
+    /// Rows are file lines.
+    Lines,
+    /// Rows are named by their id (`records`' numbers are 1-based row numbers).
+    RowIds,
+}
+
+impl Places {
+    /// The header row, or one of its columns.
+    fn header(self, origin: &str, header_line: usize, column: Option<&str>) -> String {
+        match (self, column) {
+            (Places::Lines, None) => format!("{origin}:{header_line}"),
+            (Places::Lines, Some(name)) => format!("{origin}:{header_line}:{name}"),
+            (Places::RowIds, None) => origin.to_owned(),
+            (Places::RowIds, Some(name)) => format!("{origin}, column '{name}'"),
+        }
+    }
+
+    /// Row `line` (whose id is `id`), or one of its columns.
+    fn row(self, origin: &str, line: usize, id: &str, column: Option<&str>) -> String {
+        match (self, column) {
+            (Places::Lines, None) => format!("{origin}:{line}"),
+            (Places::Lines, Some(name)) => format!("{origin}:{line}:{name}"),
+            (Places::RowIds, None) => format!("{origin}, row {id}"),
+            (Places::RowIds, Some(name)) => format!("{origin}, row {id}, column '{name}'"),
+        }
+    }
+
+    /// What an earlier row is called: `line 4` or `row 4`.
+    fn earlier(self, line: usize) -> String {
+        match self {
+            Places::Lines => format!("line {line}"),
+            Places::RowIds => format!("row {line}"),
+        }
+    }
+}
+
+/// The measurements of `table` (a CSV as read, or arrays laid out as one) whose stated units
+/// are `header`: the one validation shared by files and arrays.
+pub(super) fn measurements_from_table(
+    table: &CsvTable,
+    header: &StatedUnits,
+    places: Places,
+    origin: &str,
+    tree: &KinematicTree,
+    model: &McpcModel,
+    options: &MeasurementReadOptions,
+) -> Result<MeasurementSet> {
     let stated = StatedUnits {
         length: options.length_unit,
         angle: options.angle_unit,
         joint_length: options.joint_length_unit,
         line: None,
     };
-    let units = resolve_units(&stated, &parse_units_header(text, origin)?, origin)?;
+    let units = resolve_units(&stated, header, origin)?;
     let mut warnings = Vec::new();
     let columns = classify(
         &table.headers,
         table.header_line,
+        places,
         tree,
         model,
         options,
@@ -200,7 +256,12 @@ pub fn parse_measurements(
     let mut repeats = Repeats::new(columns.id);
     for (row, (line, fields)) in table.records.iter().enumerate() {
         let line = *line;
-        let place = |column: usize| format!("{origin}:{line}:{}", table.headers[column]);
+        let row_id = match columns.id.map(|column| fields[column].as_str()) {
+            Some(id) if !id.is_empty() => id.to_owned(),
+            _ => line.to_string(),
+        };
+        let at = |name: &str| places.row(origin, line, &row_id, Some(name));
+        let place = |column: usize| at(&table.headers[column]);
         let invalid = |column: usize, message: String| Error::InvalidData {
             origin: place(column),
             message,
@@ -218,7 +279,10 @@ pub fn parse_measurements(
         if let Some(first) = first_line_of_id.insert(id.clone(), line) {
             return Err(invalid(
                 columns.id.unwrap_or(0),
-                format!("id '{id}' was already used on line {first}; ids must be unique"),
+                format!(
+                    "id '{id}' was already used on {}; ids must be unique",
+                    places.earlier(first)
+                ),
             ));
         }
         let stage = columns
@@ -292,7 +356,7 @@ pub fn parse_measurements(
             let name = &tree.joint(tree.dofs()[dof]).name;
             let column = columns.joints.iter().find(|(_, d)| *d == dof);
             return Err(Error::InvalidData {
-                origin: format!("{origin}:{line}:{name}"),
+                origin: at(name),
                 message: match column {
                     Some(_) => format!(
                         "the value is empty, but tool '{tool_name}' moves with joint '{name}'; give its value"
@@ -325,7 +389,7 @@ pub fn parse_measurements(
                 let norm = raw.norm();
                 if (norm - 1.0).abs() > 1e-3 {
                     return Err(Error::InvalidData {
-                        origin: format!("{origin}:{line}:qw"),
+                        origin: at("qw"),
                         message: format!(
                             "the quaternion (qw,qx,qy,qz) = ({}, {}, {}, {}) has norm {norm:.6}, not 1; \
                              check the column order (w first) and that it is a unit quaternion",
@@ -348,7 +412,7 @@ pub fn parse_measurements(
                     Some(why) => Err(why),
                 };
                 Observation::Pose(frame.map_err(|why| Error::InvalidData {
-                    origin: format!("{origin}:{line}:ax..cz"),
+                    origin: at("ax..cz"),
                     message: format!(
                         "collinear or coincident targets: {why}; A, B and C must be three \
                          distinct reflectors on the tool, not on one line"
@@ -373,7 +437,7 @@ pub fn parse_measurements(
         origin,
     )?);
     angles_look_like_radians(&set, tree, units.angle, origin)?;
-    set.warnings.extend(repeats.warning(origin));
+    set.warnings.extend(repeats.warning(origin, places));
     Ok(set)
 }
 
@@ -552,15 +616,17 @@ impl Repeats {
         }
     }
 
-    fn warning(&self, origin: &str) -> Option<String> {
+    fn warning(&self, origin: &str, places: Places) -> Option<String> {
         let &(line, first) = self.found.first()?;
         let more = match self.found.len() {
             1 => String::new(),
             n => format!(" ({} repeated rows in all)", n),
         };
         Some(format!(
-            "{origin}:{line}: the row repeats line {first} in every column but the id{more}; \
-             a repeated row weighs double in the fit: remove it if it was copied by mistake"
+            "{}: the row repeats {} in every column but the id{more}; \
+             a repeated row weighs double in the fit: remove it if it was copied by mistake",
+            places.row(origin, line, &line.to_string(), None),
+            places.earlier(first)
         ))
     }
 }
@@ -596,12 +662,13 @@ fn quoted_list(names: &[&str]) -> String {
 fn classify(
     headers: &[String],
     header_line: usize,
+    places: Places,
     tree: &KinematicTree,
     model: &McpcModel,
     options: &MeasurementReadOptions,
     origin: &str,
 ) -> Result<Columns> {
-    let at = |name: &str| format!("{origin}:{header_line}:{name}");
+    let at = |name: &str| places.header(origin, header_line, Some(name));
     let mut id = None;
     let mut stage = None;
     let mut tool = None;
@@ -667,7 +734,7 @@ fn classify(
             .map(|t| tree.link(t.link).name.as_str())
             .collect();
         Error::InvalidData {
-            origin: format!("{origin}:{header_line}"),
+            origin: places.header(origin, header_line, None),
             message: format!(
                 "the header has no 'tool' column; add one naming the measured tool link of each \
                  row (one of {})",
@@ -690,7 +757,7 @@ fn classify(
         present.sort_by_key(|(_, c)| *c);
         let present: Vec<&str> = present.into_iter().map(|(n, _)| n).collect();
         Error::InvalidData {
-            origin: format!("{origin}:{header_line}"),
+            origin: places.header(origin, header_line, None),
             message: if present.is_empty() {
                 format!("the header has no observation columns; give {LAYOUTS}")
             } else {

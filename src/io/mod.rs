@@ -2,6 +2,7 @@
 
 pub mod joints_csv;
 pub mod mcpc_table;
+pub mod measurement_table;
 pub mod measurements_csv;
 pub mod mesh_files;
 pub mod params;
@@ -13,8 +14,11 @@ pub mod stiffness_write;
 pub mod units;
 pub mod write;
 
-pub use joints_csv::{append_poses, configurations, parse_csv, ColumnMapping, CsvTable};
+pub use joints_csv::{
+    append_poses, configurations, joint_value, parse_csv, ColumnMapping, CsvTable,
+};
 pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
+pub use measurement_table::{MeasurementTable, ObservationRows};
 pub use measurements_csv::{
     measured_tool_names, measurements_to_csv, measurements_to_csv_with, parse_measurements,
     read_measured_tool_names, read_measurements, MeasurementReadOptions, MeasurementSet,

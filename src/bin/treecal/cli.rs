@@ -1,7 +1,59 @@
 //! Command-line arguments (clap derive). Nothing here does any work.
 
+use clap::builder::{EnumValueParser, PossibleValue, TypedValueParser};
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// A `--plan` value: a plan by name, or (kept for compatibility) a plan file.
+#[derive(Clone)]
+pub enum PlanArg {
+    /// `staged` or `simultaneous`.
+    Choice(PlanChoice),
+    /// A value ending in `.yaml`/`.yml` or naming an existing file.
+    File(PathBuf),
+}
+
+/// The parser of `--plan` shared by the commands: `staged` or `simultaneous`, a typo answered
+/// by clap with the possible values and a suggestion; a value that ends in `.yaml`/`.yml` or
+/// names an existing file is taken as a plan file, as before `--plan-file` existed.
+#[derive(Clone, Copy, Default)]
+pub struct PlanArgParser;
+
+impl TypedValueParser for PlanArgParser {
+    type Value = PlanArg;
+
+    fn parse_ref(
+        &self,
+        command: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<PlanArg, clap::Error> {
+        let choices = EnumValueParser::<PlanChoice>::new();
+        if let Ok(choice) = choices.parse_ref(command, arg, value) {
+            return Ok(PlanArg::Choice(choice));
+        }
+        let text = value.to_string_lossy();
+        let path = Path::new(value);
+        if text.ends_with(".yaml") || text.ends_with(".yml") || path.is_file() {
+            return Ok(PlanArg::File(path.to_path_buf()));
+        }
+        choices.parse_ref(command, arg, value).map(PlanArg::Choice)
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
+        Some(Box::new(
+            PlanChoice::value_variants()
+                .iter()
+                .filter_map(ValueEnum::to_possible_value),
+        ))
+    }
+}
+
+/// The robot of a command that accepts it as `--robot` and, for compatibility, positionally.
+pub fn robot_path(flag: &Option<PathBuf>, positional: &Option<PathBuf>) -> Option<PathBuf> {
+    // clap's `conflicts_with` refuses both.
+    flag.clone().or_else(|| positional.clone())
+}
 
 /// Kinematic calibration of branched robots (a torso carrying two or more arms) described by
 /// URDF, after the MCPC method of Chen et al. (Robot, 2017).
@@ -58,7 +110,11 @@ pub enum AngleUnit {
     after_help = "Without ROBOT, the built-in Robonaut (robots/robonaut/robonaut.urdf, generated from the paper's Table 1) is inspected.\n\nExamples:\n  treecal inspect\n  treecal inspect robots/humanoid/humanoid.urdf --format yaml\n  treecal inspect ../shared/robots/robonaut2/robonaut2.urdf --tools r2/left_palm,r2/right_palm"
 )]
 pub struct InspectArgs {
+    /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
+    #[arg(value_name = "ROBOT", conflicts_with = "robot")]
+    pub robot_file: Option<PathBuf>,
     /// The robot's URDF file [default: the built-in Robonaut].
+    #[arg(long, value_name = "ROBOT.urdf")]
     pub robot: Option<PathBuf>,
     /// Tool links ending the arms, comma-separated. Left and right are told apart by names, else by
     /// the tips' y (+y is left); the order given only decides when neither does. Without this, the
@@ -76,16 +132,20 @@ pub struct InspectArgs {
     after_help = "The input CSV has a header row naming joints as in the URDF; joints without a column are 0; lines starting with # are comments. Columns that match no joint are passed through unchanged and listed on stderr, so a typo is visible. The output repeats every input row and appends x,y,z (metres) and r11..r33 (rotation matrix, row-major) of the tip link's pose in the root link frame.\n\nExample:\n  treecal fk robots/robonaut/robonaut.urdf --tip left_tool --joints joints.csv -o poses.csv"
 )]
 pub struct FkArgs {
-    /// The robot's URDF file.
-    pub robot: PathBuf,
+    /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
+    #[arg(value_name = "ROBOT", conflicts_with = "robot")]
+    pub robot_file: Option<PathBuf>,
+    /// The robot's URDF file [default: the built-in Robonaut].
+    #[arg(long, value_name = "ROBOT.urdf")]
+    pub robot: Option<PathBuf>,
     /// The link whose pose is computed.
     #[arg(long)]
     pub tip: String,
     /// CSV of joint values, one configuration per row.
     #[arg(long, value_name = "IN.csv")]
     pub joints: PathBuf,
-    /// Output CSV [default: standard output].
-    #[arg(short, long, value_name = "OUT.csv")]
+    /// Output CSV [default: standard output] (`--output` is accepted too).
+    #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.csv")]
     pub output: Option<PathBuf>,
     /// Unit of revolute joint values in the CSV (prismatic values are always metres).
     #[arg(long, value_enum, default_value = "rad")]
@@ -100,8 +160,8 @@ pub struct FkArgs {
 pub struct FromMcpcArgs {
     /// The MCPC table (YAML).
     pub table: PathBuf,
-    /// The URDF file to write (written atomically).
-    #[arg(short, long, value_name = "OUT.urdf")]
+    /// The URDF file to write (written atomically; `--output` is accepted too).
+    #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.urdf")]
     pub output: PathBuf,
 }
 
@@ -111,13 +171,17 @@ pub struct FromMcpcArgs {
     after_help = "The table lists the detected (or named) branches only, with the constant phi of every row; `treecal from-mcpc` turns it back into a URDF whose tool poses and joint axes equal the original's. Mimic relations and joints off the branches are not part of a table; continuous joints get limits of +-180 deg.\n\nExample:\n  treecal to-mcpc robots/humanoid/humanoid.urdf -o humanoid_mcpc.yaml"
 )]
 pub struct ToMcpcArgs {
+    /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
+    #[arg(value_name = "ROBOT", conflicts_with = "robot")]
+    pub robot_file: Option<PathBuf>,
     /// The robot's URDF file [default: the built-in Robonaut].
+    #[arg(long, value_name = "ROBOT.urdf")]
     pub robot: Option<PathBuf>,
     /// Tool links ending the arms, comma-separated (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
-    /// The YAML file to write [default: standard output].
-    #[arg(short, long, value_name = "OUT.yaml")]
+    /// The YAML file to write [default: standard output] (`--output` is accepted too).
+    #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.yaml")]
     pub output: Option<PathBuf>,
 }
 
@@ -321,8 +385,8 @@ pub struct ExportArgs {
     /// the parameters were calibrated with.
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
-    /// The URDF file to write (written atomically).
-    #[arg(short, long, value_name = "OUT.urdf")]
+    /// The URDF file to write (written atomically; `--output` is accepted too).
+    #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.urdf")]
     pub output: PathBuf,
     /// When a tool link is the child of a revolute joint and its calibrated origin lies off
     /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
@@ -431,12 +495,15 @@ pub struct CalibrateArgs {
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
-    /// `staged`, `simultaneous` or a plan file (YAML) [default: staged when rows are labelled
-    /// torso/arms, else simultaneous].
-    #[arg(long, value_name = "staged|simultaneous|PLAN.yaml")]
-    pub plan: Option<String>,
-    /// Output directory.
-    #[arg(long, default_value = "out/calibrate")]
+    /// Calibration plan [default: staged when rows are labelled torso/arms, else
+    /// simultaneous]; a value ending in .yaml is taken as --plan-file.
+    #[arg(long, value_parser = PlanArgParser)]
+    pub plan: Option<PlanArg>,
+    /// A plan file (YAML, docs/file-formats.md) instead of --plan.
+    #[arg(long, value_name = "PLAN.yaml", conflicts_with = "plan")]
+    pub plan_file: Option<PathBuf>,
+    /// Output folder.
+    #[arg(short = 'o', long, default_value = "out/calibrate")]
     pub out: PathBuf,
     /// Unit of lengths in the CSV (positions, targets, prismatic joints) [default: the file's
     /// `# units: length=…` comment, else m]; contradicting the comment is an error.
@@ -458,10 +525,10 @@ pub struct CalibrateArgs {
     #[arg(long)]
     pub strict: bool,
     /// Expected position noise of a measurement (m): position rows are divided by it.
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, default_value_t = treecal::calibration::DEFAULT_POSITION_SIGMA)]
     pub position_sigma: f64,
     /// Expected rotation noise of a measured frame (rad): rotation rows are divided by it.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = treecal::calibration::DEFAULT_ROTATION_SIGMA)]
     pub rotation_sigma: f64,
     /// Seed of the held-out validation fifth.
     #[arg(long, default_value_t = 0)]

@@ -1,43 +1,36 @@
-//! `treecal fk`.
+//! `treecal fk`: flags → [`FkCsvConfig`] → [`treecal::workflow::fk_csv`] → the pose CSV.
 
 use crate::cli::{AngleUnit, FkArgs};
-use treecal::io::{append_poses, configurations, parse_csv, write_atomically};
+use treecal::io::write_atomically;
+use treecal::workflow::{fk_csv, FkCsvConfig, RobotSource};
 use treecal::Result;
 
 pub fn run(args: FkArgs) -> Result<()> {
+    let robot = crate::cli::robot_path(&args.robot, &args.robot_file);
     if let Some(output) = &args.output {
-        crate::checks::refuse_overwrite(output, &[&args.robot, &args.joints])?;
+        let inputs: Vec<&std::path::Path> = robot
+            .iter()
+            .chain([&args.joints])
+            .map(|p| p.as_path())
+            .collect();
+        crate::checks::refuse_overwrite(output, &inputs)?;
     }
-    let import = crate::robot::load(Some(&args.robot))?;
-    let tree = &import.tree;
-    let tip = tree.link_id(&args.tip)?;
-    let origin = args.joints.display().to_string();
-    let text = treecal::limits::read_text(&args.joints, treecal::limits::MAX_CSV_BYTES)?;
-    let table = parse_csv(&text, &origin)?;
-    let scale = match args.angle_unit {
-        AngleUnit::Rad => 1.0,
-        AngleUnit::Deg => std::f64::consts::PI / 180.0,
-    };
-    let (configurations, mapping) = configurations(&table, tree, scale, &origin)?;
-    for column in &mapping.unmatched {
-        eprintln!(
-            "treecal: note: column '{}' of {origin} matches no joint of '{}'; passed through unchanged",
-            table.headers[*column],
-            tree.name()
-        );
+    let table = fk_csv(&FkCsvConfig {
+        robot: RobotSource::from_path(robot),
+        tip: args.tip.clone(),
+        joints: args.joints.clone(),
+        angle_unit: match args.angle_unit {
+            AngleUnit::Rad => treecal::io::AngleUnit::Radian,
+            AngleUnit::Deg => treecal::io::AngleUnit::Degree,
+        },
+    })?;
+    for note in &table.notes {
+        eprintln!("treecal: {note}");
     }
-    for (_, reason) in &mapping.implied {
-        eprintln!("treecal: note: {origin}: {reason}; the column is not used");
-    }
-    let poses = configurations
-        .iter()
-        .map(|q| tree.link_pose(tip, q))
-        .collect::<Result<Vec<_>>>()?;
-    let output = append_poses(&table, &poses)?;
     match &args.output {
-        Some(path) => write_atomically(path, output.as_bytes()),
+        Some(path) => write_atomically(path, table.csv.as_bytes()),
         None => {
-            print!("{output}");
+            print!("{}", table.csv);
             Ok(())
         }
     }

@@ -1,19 +1,23 @@
-//! `treecal inspect`.
+//! `treecal inspect`: flags → [`ModelConfig`] → [`treecal::workflow::inspect`] → the report.
 
 use crate::cli::{Format, InspectArgs};
 use treecal::io::{to_json, to_yaml};
-use treecal::report::inspect;
-use treecal::{McpcModel, Result};
+use treecal::workflow::{inspect, ModelConfig, RobotSource};
+use treecal::Result;
 
 pub fn run(args: InspectArgs) -> Result<()> {
-    let import = crate::robot::load(args.robot.as_deref())?;
-    let branches = crate::robot::branches(&import, args.tools.as_deref())?;
-    let model = McpcModel::from_tree(&import.tree, &branches)?;
-    let report = inspect(&import.tree, &import.warnings, &branches, &model);
+    let inspection = inspect(&ModelConfig {
+        robot: RobotSource::from_path(crate::cli::robot_path(&args.robot, &args.robot_file)),
+        tools: args.tools.clone(),
+    })?;
+    for note in &inspection.notes {
+        eprintln!("treecal: {note}");
+    }
+    let report = &inspection.report;
     let text = match args.format {
         Format::Text => report.to_text(),
-        Format::Yaml => to_yaml(&report)?,
-        Format::Json => to_json(&report)?,
+        Format::Yaml => to_yaml(report)?,
+        Format::Json => to_json(report)?,
     };
     print!("{text}");
     Ok(())

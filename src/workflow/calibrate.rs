@@ -1,0 +1,188 @@
+//! `calibrate`: identified parameters with uncertainties, errors before and after per arm, the
+//! verdict and a corrected URDF, from measurements (a CSV or arrays).
+//!
+//! [`calibrate`] computes everything and writes nothing; [`Calibration::write`] writes the
+//! files. A failed verdict is an outcome, not an error: the CLI exits 1 after writing.
+
+use super::calibrate_steps::{
+    check_config, export_calibrated, identify, outputs, read_data, Loaded,
+};
+use super::note::Note;
+use super::source::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
+use crate::calibration::{
+    ParameterEstimate, RobustLoss, Verdict, DEFAULT_POSITION_SIGMA, DEFAULT_ROTATION_SIGMA,
+};
+use crate::error::Result;
+use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit};
+use std::path::{Path, PathBuf};
+
+/// The files [`Calibration::write`] writes besides the SVG plots.
+pub const OUTPUT_FILES: [&str; 5] = [
+    "calibrated.urdf",
+    "params.yaml",
+    "report.md",
+    "report.json",
+    "stiffness.yaml",
+];
+
+/// Whether a file name is one `calibrate` writes (a previous output may be replaced).
+pub fn is_output_file(name: &str) -> bool {
+    OUTPUT_FILES.contains(&name) || name.ends_with(".svg")
+}
+
+/// How the measurement frame is found.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub enum MeasurementFrameChoice {
+    /// Fitted in closed form, or the robot's root frame when that explains the data.
+    #[default]
+    Auto,
+    /// The tracker's own frame, fitted and kept.
+    Fit,
+    /// The data are already in the robot's root link frame.
+    Base,
+    /// A registration file (YAML: the robot base in the tracker frame).
+    File(PathBuf),
+}
+
+/// The frame the stiffness file's gravity vector is given in.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum GravityFrame {
+    /// The measurement (tracker) frame: a levelled tracker.
+    #[default]
+    Measurement,
+    /// The robot's root link frame: a level robot base.
+    Base,
+}
+
+/// Everything a calibration needs; `Default` holds the CLI's defaults (the measurements must
+/// be set).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateConfig {
+    /// The robot [default: the built-in Robonaut].
+    pub robot: RobotSource,
+    /// The identification measurements.
+    pub measurements: MeasurementSource,
+    /// Validation measurements [default: a seeded fifth of the configurations held out].
+    pub validation: Option<MeasurementSource>,
+    /// Stiffness and payloads: compensate the deflections under gravity [default: rigid].
+    pub stiffness: Option<StiffnessSource>,
+    /// Tool links ending the arms [default: the measured tools].
+    pub tools: Option<Vec<String>>,
+    /// The calibration plan.
+    pub plan: PlanSource,
+    /// Unit of lengths in the measurements [default: as stated, else m].
+    pub length_unit: Option<LengthUnit>,
+    /// Unit of revolute joint values [default: as stated, else rad].
+    pub angle_unit: Option<AngleUnit>,
+    /// Unit of prismatic joint values [default: the length unit].
+    pub joint_length_unit: Option<LengthUnit>,
+    /// Columns to skip (CSV only).
+    pub ignore_columns: Vec<String>,
+    /// A joint value outside its URDF limits is an error (else a warning).
+    pub strict: bool,
+    /// How the measurement frame is found.
+    pub measurement_frame: MeasurementFrameChoice,
+    /// Expected position noise of a measurement (m).
+    pub position_sigma: f64,
+    /// Expected rotation noise of a measured frame (rad).
+    pub rotation_sigma: f64,
+    /// Seed of the held-out validation fifth.
+    pub seed: u64,
+    /// Robust estimation.
+    pub robust: RobustLoss,
+    /// Identify the compliances jointly with the geometry (the stiffness is the prior).
+    pub identify_stiffness: bool,
+    /// Relative uncertainty of the prior stiffness (0.5: ±50 %).
+    pub stiffness_prior: f64,
+    /// The frame of the stiffness file's gravity vector.
+    pub gravity_frame: GravityFrame,
+    /// Add `<tool>_calibrated` links where a tool origin cannot be exported (docs/export.md).
+    pub add_tool_links: bool,
+}
+
+impl Default for CalibrateConfig {
+    fn default() -> Self {
+        Self {
+            robot: RobotSource::BuiltIn,
+            measurements: MeasurementSource::default(),
+            validation: None,
+            stiffness: None,
+            tools: None,
+            plan: PlanSource::Auto,
+            length_unit: None,
+            angle_unit: None,
+            joint_length_unit: None,
+            ignore_columns: Vec::new(),
+            strict: false,
+            measurement_frame: MeasurementFrameChoice::Auto,
+            position_sigma: DEFAULT_POSITION_SIGMA,
+            rotation_sigma: DEFAULT_ROTATION_SIGMA,
+            seed: 0,
+            robust: RobustLoss::Huber,
+            identify_stiffness: false,
+            stiffness_prior: 0.5,
+            gravity_frame: GravityFrame::Measurement,
+            add_tool_links: false,
+        }
+    }
+}
+
+/// One parameter of the calibrated model (name, owner, kind, unit, nominal, calibrated,
+/// change, std_dev, identifiable).
+pub type ParameterRow = ParameterEstimate;
+
+/// The outcome of a calibration.
+#[derive(Debug, Clone)]
+pub struct Calibration {
+    /// `ok`, `warning` or `failed`, with its reasons.
+    pub verdict: Verdict,
+    /// What the CLI prints on stderr, in order: loader and reading warnings, notes on the
+    /// hold-out and the plan, then the verdict's reasons.
+    pub notes: Vec<Note>,
+    /// Every MCPC parameter.
+    pub parameters: Vec<ParameterRow>,
+    /// The content of report.json.
+    pub report: serde_json::Value,
+    /// report.md.
+    pub report_markdown: String,
+    /// The calibrated URDF; `None` when the verdict failed or the model cannot be exported.
+    pub urdf: Option<String>,
+    /// Every output file: `(name, bytes)`.
+    pub files: Vec<(String, Vec<u8>)>,
+}
+
+/// Calibrates: reads the inputs, identifies the parameters (and the stiffness if asked),
+/// checks the result, exports the URDF and renders the reports. Writes nothing.
+pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
+    check_config(config)?;
+    let loaded = Loaded::new(config)?;
+    let mut notes = loaded.robot.notes();
+    let data = read_data(config, &loaded, &mut notes)?;
+    let (mut result, identified) = identify(config, &loaded, &data, &mut notes)?;
+    let export = export_calibrated(config, &loaded, &mut result.run);
+    let outputs = outputs(config, &loaded, &data, &mut result, export, identified)?;
+    notes.extend(outputs.verdict.reasons.iter().map(Note::from));
+    Ok(Calibration {
+        verdict: outputs.verdict,
+        notes,
+        parameters: result.run.parameters,
+        report: outputs.report,
+        report_markdown: outputs.markdown,
+        urdf: outputs.urdf,
+        files: outputs.files,
+    })
+}
+
+impl Calibration {
+    /// Whether the result may be used (verdict `ok` or `warning`).
+    pub fn usable(&self) -> bool {
+        self.verdict.usable()
+    }
+
+    /// Replaces the folder `out` with the output files; refuses a folder holding files that
+    /// are not a previous calibration output.
+    pub fn write(&self, out: &Path) -> Result<()> {
+        check_output_folder(out, &is_output_file)?;
+        replace_folder(out, &self.files)
+    }
+}

@@ -1,0 +1,21 @@
+//! One library call per workflow (the CLI's commands, the Python package): a plain-data
+//! `XxxConfig` (its `Default` holds the CLI's defaults) → `xxx(&config)` computes everything
+//! and writes nothing → an outcome with its notes, reports and files, and `write(out)`.
+//! See docs/workflows.md.
+
+pub mod calibrate;
+mod calibrate_steps;
+pub mod export;
+pub mod fk;
+pub mod model;
+pub mod note;
+pub mod source;
+
+pub use calibrate::{
+    calibrate, CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, ParameterRow,
+};
+pub use export::{export, Export, ExportConfig};
+pub use fk::{fk, fk_csv, FkConfig, FkCsvConfig, FkTable};
+pub use model::{from_mcpc, inspect, to_mcpc, Inspection, McpcTableText, ModelConfig};
+pub use note::{Note, NoteLevel};
+pub use source::{LoadedRobot, MeasurementSource, PlanSource, RobotSource, StiffnessSource};

@@ -1,0 +1,289 @@
+//! Where a workflow's inputs come from: files, text in memory, arrays, or the built-in
+//! Robonaut; and loading them into the library's types.
+
+use super::note::Note;
+use crate::calibration::Plan;
+use crate::error::{Error, Result};
+use crate::io::{
+    parse_stiffness, read_measured_tool_names, read_measurements, read_plan, read_stiffness,
+    MeasurementReadOptions, MeasurementSet, MeasurementTable,
+};
+use crate::kinematics::{McpcModel, Stiffness};
+use crate::tree::{detect_branches, Branches, KinematicTree};
+use crate::urdf::{parse_urdf, UrdfImport};
+use std::path::{Path, PathBuf};
+
+/// The Robonaut generated from the paper's Table 1, built in so that the main workflows run
+/// without any file.
+pub const BUILT_IN_ROBONAUT: &str = include_str!("../../robots/robonaut/robonaut.urdf");
+
+/// How messages name the built-in Robonaut.
+pub const BUILT_IN_ROBONAUT_ORIGIN: &str = "built-in robonaut.urdf";
+
+/// The built-in Robonaut's stiffness file (the paper's section 5.2 set-up).
+pub const BUILT_IN_STIFFNESS: &str = include_str!("../../robots/robonaut/stiffness.yaml");
+
+/// How messages name the built-in stiffness file.
+pub const BUILT_IN_STIFFNESS_ORIGIN: &str = "built-in robonaut stiffness.yaml";
+
+/// A robot (URDF).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub enum RobotSource {
+    /// The built-in Robonaut ([`BUILT_IN_ROBONAUT`]).
+    #[default]
+    BuiltIn,
+    /// A URDF file.
+    File(PathBuf),
+    /// URDF text; `origin` names it in messages.
+    Text {
+        /// The URDF.
+        text: String,
+        /// E.g. `robot (string)`.
+        origin: String,
+    },
+}
+
+/// A robot as loaded: the tree with its loader warnings, and the URDF text it came from
+/// (export rewrites that text).
+#[derive(Debug, Clone)]
+pub struct LoadedRobot {
+    /// The kinematic tree and the loader's warnings.
+    pub import: UrdfImport,
+    /// The URDF text.
+    pub text: String,
+    /// How messages name the URDF.
+    pub origin: String,
+}
+
+impl RobotSource {
+    /// A file, or the built-in Robonaut when `None` (the CLI's `--robot`).
+    pub fn from_path(path: Option<PathBuf>) -> Self {
+        path.map_or(RobotSource::BuiltIn, RobotSource::File)
+    }
+
+    /// The file, if the robot is one.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            RobotSource::File(path) => Some(path),
+            _ => None,
+        }
+    }
+
+    /// Reads and converts the URDF.
+    pub fn load(&self) -> Result<LoadedRobot> {
+        let (text, origin) = match self {
+            RobotSource::BuiltIn => (
+                BUILT_IN_ROBONAUT.to_owned(),
+                BUILT_IN_ROBONAUT_ORIGIN.to_owned(),
+            ),
+            RobotSource::File(path) => (
+                crate::limits::read_text(path, crate::limits::MAX_URDF_BYTES)?,
+                path.display().to_string(),
+            ),
+            RobotSource::Text { text, origin } => (text.clone(), origin.clone()),
+        };
+        let import = parse_urdf(&text, &origin)?;
+        Ok(LoadedRobot {
+            import,
+            text,
+            origin,
+        })
+    }
+}
+
+impl LoadedRobot {
+    /// The kinematic tree.
+    pub fn tree(&self) -> &KinematicTree {
+        &self.import.tree
+    }
+
+    /// The loader's warnings as notes.
+    pub fn notes(&self) -> Vec<Note> {
+        self.import.warnings.iter().map(Note::warning).collect()
+    }
+}
+
+/// Detects branches, with the tool links named by the user if any.
+pub fn branches(import: &UrdfImport, tools: Option<&[String]>) -> Result<Branches> {
+    let tree = &import.tree;
+    let tools = tools
+        .map(|names| {
+            names
+                .iter()
+                .map(|n| tree.link_id(n.trim()))
+                .collect::<Result<Vec<_>>>()
+        })
+        .transpose()?;
+    detect_branches(tree, tools.as_deref())
+}
+
+/// Detects branches from the tools the user named, else from the links the measurements'
+/// `tool` column names (the measured tools), so that automatic detection cannot pick others.
+pub fn measured_branches(
+    import: &UrdfImport,
+    tools: Option<&[String]>,
+    measurements: &MeasurementSource,
+) -> Result<Branches> {
+    if tools.is_some() {
+        return branches(import, tools);
+    }
+    let measured = measurements.tool_names()?;
+    let tree = &import.tree;
+    let ids = measured
+        .iter()
+        .map(|name| {
+            tree.link_id(name).map_err(|e| Error::InvalidData {
+                origin: format!("{}: tool column", measurements.origin()),
+                message: format!("{e}; the tool column names the measured tool links"),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    detect_branches(tree, Some(&ids))
+}
+
+/// Measurements: a CSV file (docs/file-formats.md) or arrays.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MeasurementSource {
+    /// A measurement CSV.
+    Csv(PathBuf),
+    /// Arrays in memory.
+    Table(MeasurementTable),
+}
+
+impl Default for MeasurementSource {
+    /// An empty path: reading it fails with a message naming the missing file.
+    fn default() -> Self {
+        MeasurementSource::Csv(PathBuf::new())
+    }
+}
+
+impl MeasurementSource {
+    /// How messages and reports name the measurements: the path, or the table's origin.
+    pub fn origin(&self) -> String {
+        match self {
+            MeasurementSource::Csv(path) => path.display().to_string(),
+            MeasurementSource::Table(table) => table.origin.clone(),
+        }
+    }
+
+    /// The file, if the measurements are one.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            MeasurementSource::Csv(path) => Some(path),
+            MeasurementSource::Table(_) => None,
+        }
+    }
+
+    /// The distinct measured tool links, in order of first appearance.
+    pub fn tool_names(&self) -> Result<Vec<String>> {
+        match self {
+            MeasurementSource::Csv(path) => read_measured_tool_names(path),
+            MeasurementSource::Table(table) => table.tool_names(),
+        }
+    }
+
+    /// The measurements for the robot `tree` with model `model`.
+    pub fn read(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        options: &MeasurementReadOptions,
+    ) -> Result<MeasurementSet> {
+        match self {
+            MeasurementSource::Csv(path) => read_measurements(path, tree, model, options),
+            MeasurementSource::Table(table) => table.to_measurements(tree, model, options),
+        }
+    }
+}
+
+/// A stiffness file (docs/flexibility.md): link stiffness, joint compliance, payloads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StiffnessSource {
+    /// The built-in Robonaut's ([`BUILT_IN_STIFFNESS`]).
+    BuiltIn,
+    /// A YAML file.
+    File(PathBuf),
+    /// YAML text; `origin` names it in messages.
+    Text {
+        /// The YAML.
+        text: String,
+        /// E.g. `stiffness (string)`.
+        origin: String,
+    },
+}
+
+impl StiffnessSource {
+    /// How messages and reports name the stiffness.
+    pub fn origin(&self) -> String {
+        match self {
+            StiffnessSource::BuiltIn => BUILT_IN_STIFFNESS_ORIGIN.to_owned(),
+            StiffnessSource::File(path) => path.display().to_string(),
+            StiffnessSource::Text { origin, .. } => origin.clone(),
+        }
+    }
+
+    /// The file, if the stiffness is one.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            StiffnessSource::File(path) => Some(path),
+            _ => None,
+        }
+    }
+
+    /// Reads the stiffness for the robot `tree` with model `model` (names are checked).
+    pub fn read(&self, tree: &KinematicTree, model: &McpcModel) -> Result<Stiffness> {
+        match self {
+            StiffnessSource::BuiltIn => {
+                parse_stiffness(BUILT_IN_STIFFNESS, BUILT_IN_STIFFNESS_ORIGIN, tree, model)
+            }
+            StiffnessSource::File(path) => read_stiffness(path, tree, model),
+            StiffnessSource::Text { text, origin } => parse_stiffness(text, origin, tree, model),
+        }
+    }
+}
+
+/// A calibration plan.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub enum PlanSource {
+    /// Staged when rows are labelled `stage` = torso, else simultaneous (with a note).
+    #[default]
+    Auto,
+    /// The paper's staging: the torso with the arms locked, then the arms.
+    Staged,
+    /// Every parameter from every measurement at once.
+    Simultaneous,
+    /// A plan file (YAML, docs/file-formats.md).
+    File(PathBuf),
+}
+
+impl PlanSource {
+    /// The file, if the plan is one.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            PlanSource::File(path) => Some(path),
+            _ => None,
+        }
+    }
+
+    /// The plan, its name for the report, and for [`PlanSource::Auto`] without torso rows
+    /// (`labelled` false) the note saying why the simultaneous plan is used.
+    pub fn resolve(&self, labelled: bool) -> Result<(Plan, String, Option<Note>)> {
+        Ok(match self {
+            PlanSource::Staged => (Plan::staged(), "staged".into(), None),
+            PlanSource::Simultaneous => (Plan::simultaneous(), "simultaneous".into(), None),
+            PlanSource::File(path) => (
+                read_plan(path)?,
+                format!("plan file {}", path.display()),
+                None,
+            ),
+            PlanSource::Auto if labelled => (Plan::staged(), "staged".into(), None),
+            PlanSource::Auto => (
+                Plan::simultaneous(),
+                "simultaneous".into(),
+                Some(Note::note(
+                    "no rows are labelled stage=torso, so the simultaneous plan is used (label torso rows, taken with the arms locked, for the staged plan)",
+                )),
+            ),
+        })
+    }
+}
