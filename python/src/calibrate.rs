@@ -55,7 +55,7 @@ impl PyCalibration {
         self.inner
             .notes
             .iter()
-            .map(|n| (n.level.to_string(), n.text.clone()))
+            .map(|n| (n.level.as_str().to_owned(), n.text.clone()))
             .collect()
     }
 

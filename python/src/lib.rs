@@ -7,13 +7,15 @@
 
 #![forbid(unsafe_code)]
 
+mod calibrate;
 mod fk;
+mod measurements;
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 pyo3::create_exception!(
-    _treecal,
+    treecal,
     TreecalError,
     PyValueError,
     "An error of treecal: bad input (a file, row, joint or link named in the message) or a \
@@ -35,5 +37,7 @@ fn _treecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("TreecalError", m.py().get_type::<TreecalError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(fk::fk, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate::calibrate, m)?)?;
+    m.add_class::<calibrate::PyCalibration>()?;
     Ok(())
 }

@@ -20,7 +20,7 @@ def cli_fk(cli: str, robot, tip: str, names, rows, tmp_path, angle_unit="rad") -
         writer.writerow(names)
         writer.writerows([[repr(float(v)) for v in row] for row in rows])
     result = subprocess.run(
-        [cli, "fk", str(robot), "--tip", tip, "--joints", str(joints), "--angle-unit", angle_unit],
+        [cli, "fk", "--robot", str(robot), "--tip", tip, "--joints", str(joints), "--angle-unit", angle_unit],
         check=True, capture_output=True, text=True,
     )
     table = list(csv.DictReader(result.stdout.splitlines()))
@@ -78,8 +78,12 @@ def test_fk_errors_name_the_link_or_joint():
         treecal.fk(None, "left_tool", np.zeros((3, 2)))
     with pytest.raises(treecal.TreecalError, match="3 columns but joint_names names 2"):
         treecal.fk(None, "left_tool", np.zeros((3, 3)), joint_names=["left_joint1", "left_joint2"])
-    with pytest.raises(treecal.TreecalError, match="angle_unit 'grad'"):
+    with pytest.raises(treecal.TreecalError, match="'grad' is not an angle unit"):
         treecal.fk(None, "left_tool", {"left_joint1": 0.0}, angle_unit="grad")
+    with pytest.raises(treecal.TreecalError, match="joint 'left_joint1': NaN is not a finite number"):
+        treecal.fk(None, "left_tool", {"left_joint1": float("nan")})
+    with pytest.raises(treecal.TreecalError, match="row 2, joint 'left_joint1': 1e9 is beyond the limit"):
+        treecal.fk(None, "left_tool", [[0.0], [1e9]], joint_names=["left_joint1"])
     # TreecalError is a ValueError, so generic handlers catch it.
     assert issubclass(treecal.TreecalError, ValueError)
 

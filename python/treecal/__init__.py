@@ -7,6 +7,7 @@ out, and one exception type, :class:`TreecalError`, whose message is the CLI's
 
 from __future__ import annotations
 
+import collections.abc
 import json
 import os
 from pathlib import Path
@@ -77,11 +78,11 @@ def fk(
 
     `robot` is a URDF path, or None for the built-in Robonaut. `joints` is either an (N, k)
     array whose columns `joint_names` names (result (N, 4, 4)), or a dict {joint: value} for
-    one configuration (result (4, 4)). Joints not given are 0; revolute values are in
+    one configuration (result (4, 4); so is a 1-D array of k values). Joints not given are 0; revolute values are in
     `angle_unit` ("rad" or "deg"), prismatic ones in metres. Rows are the same as
     ``treecal fk`` prints for a joints CSV with these columns.
     """
-    single = isinstance(joints, Mapping)
+    single = isinstance(joints, collections.abc.Mapping)
     if single:
         if joint_names is not None:
             raise TreecalError("fk: joint_names is for an array of joints; a dict names its joints itself")
