@@ -24,6 +24,8 @@ pub struct TablePayload {
 }
 
 /// What `measurements=` / `validation=` hold once the Python layer has looked at them.
+// Short-lived (one per call, converted at once), so the size difference does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(FromPyObject)]
 pub enum SourceArg {
     /// A measurement CSV.
