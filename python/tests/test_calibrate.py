@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import re
+import subprocess
 
 import numpy as np
 import pytest
@@ -191,6 +192,24 @@ def test_bad_csv_names_the_file_and_line(tmp_path):
     bad.write_text("\n".join(lines) + "\n")
     with pytest.raises(treecal.TreecalError, match=r"bad\.csv:4.*twelve"):
         treecal.calibrate(measurements=bad)
+
+
+def test_the_error_message_is_the_cli_s(cli, tmp_path):
+    lines = EXAMPLE_CSV.read_text().splitlines()
+    lines[6] = lines[6].replace("left_tool", "left_tol", 1)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines) + "\n")
+    result = subprocess.run(
+        [cli, "calibrate", "--measurements", str(bad), "--out", str(tmp_path / "out")],
+        capture_output=True, text=True,
+    )
+    assert result.returncode != 0
+    cli_error = [line for line in result.stderr.splitlines() if line.startswith("treecal: error: ")]
+    assert len(cli_error) == 1, result.stderr
+    with pytest.raises(treecal.TreecalError) as raised:
+        treecal.calibrate(measurements=bad)
+    assert str(raised.value) == cli_error[0][len("treecal: error: "):]
+    assert "left_tol" in str(raised.value)
 
 
 def test_bad_arguments_raise_treecal_errors():
