@@ -11,7 +11,7 @@ import collections.abc
 import json
 import os
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -156,7 +156,7 @@ class Measurements:
         self.origin = origin
 
     def __len__(self) -> int:
-        return self.observations.shape[0]
+        return int(self.observations.shape[0])
 
     def __repr__(self) -> str:
         return f"Measurements({len(self)} rows of {self.kind}, {len(self.joint_names)} joints, origin={self.origin!r})"
@@ -206,7 +206,7 @@ class Calibration:
         #: Every finding in the order the checks ran: dicts with status, code, message.
         self.reasons: List[Dict[str, str]] = verdict["reasons"]
         #: What the CLI prints on stderr: (level, text) with level note, warning or error.
-        self.notes: List[tuple] = [tuple(n) for n in inner.notes]
+        self.notes: List[Tuple[str, str]] = [(str(level), str(text)) for level, text in inner.notes]
         #: One dict per parameter: name, owner, kind, unit, nominal, calibrated, change,
         #: std_dev, identifiable.
         self.parameters: List[Dict[str, Any]] = json.loads(inner.parameters_json)
