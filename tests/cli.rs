@@ -23,21 +23,24 @@ fn help_lists_commands_and_options() {
     let cases: &[(&str, &[&str])] = &[
         (
             "inspect",
-            &["--tools", "--format", "[ROBOT]", "text", "yaml", "json"],
+            &[
+                "--tools", "--format", "[ROBOT]", "--robot", "text", "yaml", "json",
+            ],
         ),
         (
             "fk",
             &[
                 "--tip",
                 "--joints",
-                "-o, --output",
+                "-o, --out",
                 "--angle-unit",
                 "rad",
                 "deg",
-                "<ROBOT>",
+                "[ROBOT]",
+                "--robot",
             ],
         ),
-        ("from-mcpc", &["-o, --output", "<TABLE>"]),
+        ("from-mcpc", &["-o, --out", "<TABLE>"]),
     ];
     for (command, options) in cases {
         let run = treecal(&[command, "--help"]);

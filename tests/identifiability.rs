@@ -494,8 +494,11 @@ fn check_reports_zero_poses_as_poorly_conditioned() {
     );
     assert!(run.stdout.contains("O1 0.000e0"), "{run}");
 
-    // Staged without a stage column: the torso stage is skipped, and says why.
-    let staged = treecal(&["check", "--poses", &poses, "--format", "json"]);
+    // Staged without a stage column: the torso stage is skipped, and says why. (`--plan
+    // staged` is now asked for: without it, unlabelled rows are analysed simultaneously.)
+    let staged = treecal(&[
+        "check", "--poses", &poses, "--plan", "staged", "--format", "json",
+    ]);
     assert_success(&staged, "check zero poses, staged");
     let json: serde_json::Value = serde_json::from_str(&staged.stdout).unwrap();
     assert_eq!(json["well_conditioned"], false);
@@ -518,7 +521,7 @@ fn check_reports_zero_poses_as_poorly_conditioned() {
 fn check_default_set_is_well_conditioned() {
     let run = treecal(&["check"]);
     assert_success(&run, "check");
-    assert!(run.stderr.contains("no --poses given"), "{run}");
+    assert!(run.stderr.contains("no --pose-file given"), "{run}");
     assert!(run.stdout.contains("stage torso:"), "{run}");
     assert!(run.stdout.contains("stage arms:"), "{run}");
     assert!(run.stdout.ends_with("verdict: well conditioned\n"), "{run}");

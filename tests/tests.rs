@@ -28,3 +28,5 @@ mod stiffness;
 mod urdf_import;
 mod urdf_tolerant;
 mod verdict;
+mod workflow;
+mod workflow_sim;

@@ -361,6 +361,19 @@ pub struct IdentifiabilityReport {
 }
 
 impl IdentifiabilityReport {
+    /// The value of `criterion` for the analysed set, from the same singular values as
+    /// [`Self::indices`] (those below the rank threshold counted as zero): the one number
+    /// `treecal check` and `treecal plan` both report.
+    pub fn criterion(&self, criterion: Criterion) -> f64 {
+        let thresholded: Vec<f64> = self
+            .singular_values
+            .iter()
+            .enumerate()
+            .map(|(i, &s)| if i < self.rank { s } else { 0.0 })
+            .collect();
+        criterion_value(criterion, &thresholded, self.observations)
+    }
+
     /// Number of parameters analysed (L).
     pub fn parameter_count(&self) -> usize {
         self.parameter_names.len()

@@ -130,6 +130,14 @@ impl MeasurementTable {
         )
     }
 
+    /// Where messages place tool `name`: the first row naming it, in the `tool` column.
+    pub fn place_of_tool(&self, name: &str) -> String {
+        match self.tools.iter().position(|t| t.trim() == name) {
+            Some(row) => format!("{}, row {}, column 'tool'", self.origin, self.id(row)),
+            None => self.origin.clone(),
+        }
+    }
+
     /// The id of row `row` as messages name it.
     fn id(&self, row: usize) -> String {
         match &self.ids {
@@ -205,7 +213,10 @@ impl MeasurementTable {
                     format!("joint name '{name}' is the name of a measurement column, not a joint"),
                 ));
             }
-            if self.joint_names[..index].contains(name) {
+            if self.joint_names[..index]
+                .iter()
+                .any(|n| n.trim() == name.trim())
+            {
                 return Err(self.invalid(
                     None,
                     format!("joint name '{name}' is given twice; give each joint once"),

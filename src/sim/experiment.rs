@@ -351,7 +351,7 @@ fn planned_configurations(
         }
         let planning = PlanningOptions {
             poses,
-            candidates: planning.candidates.max(poses),
+            candidates: planning.candidates,
             stage,
             targets: options.targets,
             locks: options.locks.max(1),

@@ -137,7 +137,7 @@ pub(super) fn read_data(
         all.len(),
         config.seed
     );
-    notes.push(Note::note(validation_source.clone()));
+    notes.push(Note::info(validation_source.clone()));
     let pick = |rows: &[usize]| rows.iter().map(|&i| all[i].clone()).collect();
     let ids = [&kept, &held].map(|rows| rows.iter().map(|&i| all_ids[i].clone()).collect());
     Ok(Data {

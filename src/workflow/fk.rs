@@ -124,14 +124,14 @@ pub fn fk_csv(config: &FkCsvConfig) -> Result<FkTable> {
     let table = parse_csv(&text, &origin)?;
     let (rows, mapping) = configurations(&table, tree, config.angle_unit.in_radians(), &origin)?;
     for column in &mapping.unmatched {
-        notes.push(Note::note(format!(
+        notes.push(Note::info(format!(
             "column '{}' of {origin} matches no joint of '{}'; passed through unchanged",
             table.headers[*column],
             tree.name()
         )));
     }
     for (_, reason) in &mapping.implied {
-        notes.push(Note::note(format!(
+        notes.push(Note::info(format!(
             "{origin}: {reason}; the column is not used"
         )));
     }

@@ -5,10 +5,16 @@
 
 pub mod calibrate;
 mod calibrate_steps;
+pub mod check;
+pub mod checker;
+pub mod checks;
 pub mod export;
 pub mod fk;
 pub mod model;
 pub mod note;
+pub mod plan;
+pub mod progress;
+pub mod simulate;
 pub mod source;
 
 pub use calibrate::{
@@ -18,4 +24,5 @@ pub use export::{export, Export, ExportConfig};
 pub use fk::{fk, fk_csv, FkConfig, FkCsvConfig, FkTable};
 pub use model::{from_mcpc, inspect, to_mcpc, Inspection, McpcTableText, ModelConfig};
 pub use note::{Note, NoteLevel};
+pub use progress::{no_progress, Progress, ProgressFn};
 pub use source::{LoadedRobot, MeasurementSource, PlanSource, RobotSource, StiffnessSource};

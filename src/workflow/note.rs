@@ -37,8 +37,8 @@ pub struct Note {
 }
 
 impl Note {
-    /// A note.
-    pub fn note(text: impl Into<String>) -> Self {
+    /// A note (level [`NoteLevel::Note`]).
+    pub fn info(text: impl Into<String>) -> Self {
         Self {
             level: NoteLevel::Note,
             text: text.into(),

@@ -133,7 +133,10 @@ pub fn measured_branches(
         .iter()
         .map(|name| {
             tree.link_id(name).map_err(|e| Error::InvalidData {
-                origin: format!("{}: tool column", measurements.origin()),
+                origin: match measurements {
+                    MeasurementSource::Csv(path) => format!("{}: tool column", path.display()),
+                    MeasurementSource::Table(table) => table.place_of_tool(name),
+                },
                 message: format!("{e}; the tool column names the measured tool links"),
             })
         })
@@ -280,7 +283,7 @@ impl PlanSource {
             PlanSource::Auto => (
                 Plan::simultaneous(),
                 "simultaneous".into(),
-                Some(Note::note(
+                Some(Note::info(
                     "no rows are labelled stage=torso, so the simultaneous plan is used (label torso rows, taken with the arms locked, for the staged plan)",
                 )),
             ),

@@ -107,7 +107,7 @@ pub enum AngleUnit {
 /// Arguments of `treecal inspect`.
 #[derive(Args)]
 #[command(
-    after_help = "Without ROBOT, the built-in Robonaut (robots/robonaut/robonaut.urdf, generated from the paper's Table 1) is inspected.\n\nExamples:\n  treecal inspect\n  treecal inspect robots/humanoid/humanoid.urdf --format yaml\n  treecal inspect ../shared/robots/robonaut2/robonaut2.urdf --tools r2/left_palm,r2/right_palm"
+    after_help = "Without --robot, the built-in Robonaut (robots/robonaut/robonaut.urdf, generated from the paper's Table 1) is inspected.\n\nExamples:\n  treecal inspect\n  treecal inspect --robot robots/humanoid/humanoid.urdf --format yaml\n  treecal inspect --robot ../shared/robots/robonaut2/robonaut2.urdf --tools r2/left_palm,r2/right_palm"
 )]
 pub struct InspectArgs {
     /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
@@ -129,7 +129,7 @@ pub struct InspectArgs {
 /// Arguments of `treecal fk`.
 #[derive(Args)]
 #[command(
-    after_help = "The input CSV has a header row naming joints as in the URDF; joints without a column are 0; lines starting with # are comments. Columns that match no joint are passed through unchanged and listed on stderr, so a typo is visible. The output repeats every input row and appends x,y,z (metres) and r11..r33 (rotation matrix, row-major) of the tip link's pose in the root link frame.\n\nExample:\n  treecal fk robots/robonaut/robonaut.urdf --tip left_tool --joints joints.csv -o poses.csv"
+    after_help = "The input CSV has a header row naming joints as in the URDF; joints without a column are 0; lines starting with # are comments. Columns that match no joint are passed through unchanged and listed on stderr, so a typo is visible. The output repeats every input row and appends x,y,z (metres) and r11..r33 (rotation matrix, row-major) of the tip link's pose in the root link frame.\n\nExample:\n  treecal fk --robot robots/robonaut/robonaut.urdf --tip left_tool --joints joints.csv -o poses.csv"
 )]
 pub struct FkArgs {
     /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
@@ -168,7 +168,7 @@ pub struct FromMcpcArgs {
 /// Arguments of `treecal to-mcpc`.
 #[derive(Args)]
 #[command(
-    after_help = "The table lists the detected (or named) branches only, with the constant phi of every row; `treecal from-mcpc` turns it back into a URDF whose tool poses and joint axes equal the original's. Mimic relations and joints off the branches are not part of a table; continuous joints get limits of +-180 deg.\n\nExample:\n  treecal to-mcpc robots/humanoid/humanoid.urdf -o humanoid_mcpc.yaml"
+    after_help = "The table lists the detected (or named) branches only, with the constant phi of every row; `treecal from-mcpc` turns it back into a URDF whose tool poses and joint axes equal the original's. Mimic relations and joints off the branches are not part of a table; continuous joints get limits of +-180 deg.\n\nExample:\n  treecal to-mcpc --robot robots/humanoid/humanoid.urdf -o humanoid_mcpc.yaml"
 )]
 pub struct ToMcpcArgs {
     /// The robot's URDF file [default: the built-in Robonaut]; the same as --robot.
@@ -267,7 +267,7 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub identify_stiffness: bool,
     /// Output folder.
-    #[arg(long, default_value = "out/simulate")]
+    #[arg(short = 'o', long, default_value = "out/simulate", value_name = "DIR")]
     pub out: PathBuf,
     /// Also write trial 1's simulated measurements as CSV (docs/file-formats.md).
     #[arg(long, value_name = "FILE")]
@@ -358,15 +358,24 @@ pub struct PlanArgs {
         value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX"
     )]
     pub workspace: Option<Vec<f64>>,
-    /// Tracker noise the rows are weighted by (as simulate --noise).
-    #[arg(long, default_value = "at901")]
-    pub noise: String,
+    /// Expected position noise of a measurement (m): position rows are divided by it (as in
+    /// check and calibrate).
+    #[arg(long, default_value_t = treecal::calibration::DEFAULT_POSITION_SIGMA)]
+    pub position_sigma: f64,
+    /// Expected rotation noise of a measured frame (rad): rotation rows are divided by it (as
+    /// in check and calibrate).
+    #[arg(long, default_value_t = treecal::calibration::DEFAULT_ROTATION_SIGMA)]
+    pub rotation_sigma: f64,
+    /// Weight the rows by a tracker noise model instead of the σ's (as simulate --noise: 0,
+    /// at901, or CONSTANT+PER_METRE in µm; the σ's used are printed).
+    #[arg(long, conflicts_with_all = ["position_sigma", "rotation_sigma"])]
+    pub noise: Option<String>,
     /// Seed of the candidate draws; the same seed gives the same file.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// The CSV to write (atomically).
-    #[arg(short, long, value_name = "OUT.csv")]
-    pub output: PathBuf,
+    #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.csv")]
+    pub out: PathBuf,
 }
 
 /// Arguments of `treecal export`.
@@ -399,7 +408,7 @@ pub struct ExportArgs {
 /// Arguments of `treecal check`.
 #[derive(Args)]
 #[command(
-    after_help = "--poses is a CSV with a header naming joints (as for `treecal fk`; joints without a column are 0), an optional `tool` column (the tool link measured in that row; without it every tool is measured at every row) and an optional `stage` column (torso: arms locked, or arms) for the staged plan. Without --poses or --measurements, a seeded random collision-free set is analysed (20 configurations; the staged plan adds 10 torso configurations at 2 locked arm configurations).\n\nThe exit code is 0 whenever the report is written, also for a rank-deficient set. See docs/identifiability.md.\n\nExamples:\n  treecal check\n  treecal check --poses poses.csv --plan simultaneous --targets 1\n  treecal check --robot robots/humanoid/humanoid.urdf --format yaml"
+    after_help = "--pose-file is a CSV with a header naming joints (as for `treecal fk`; joints without a column are 0), an optional `tool` column (the tool link measured in that row; without it every tool is measured at every row) and an optional `stage` column (torso: arms locked, or arms) for the staged plan. Without --pose-file or --measurements, a seeded random collision-free set is analysed (20 configurations; the staged plan adds 10 torso configurations at 2 locked arm configurations).\n\nThe exit code is 0 whenever the report is written, also for a rank-deficient set. See docs/identifiability.md.\n\nExamples:\n  treecal check\n  treecal check --pose-file poses.csv --plan simultaneous --targets 1\n  treecal check --robot robots/humanoid/humanoid.urdf --format yaml"
 )]
 pub struct CheckArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
@@ -408,8 +417,12 @@ pub struct CheckArgs {
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
-    /// CSV of the configurations to be measured (joint columns, optional `tool` and `stage`).
-    #[arg(long, value_name = "P.csv", conflicts_with = "measurements")]
+    /// CSV of the configurations to be measured (joint columns, optional `tool` and `stage`),
+    /// e.g. what `treecal plan` writes.
+    #[arg(long, value_name = "P.csv", conflicts_with_all = ["measurements", "poses"])]
+    pub pose_file: Option<PathBuf>,
+    /// The old spelling of --pose-file (a file, not a count as in simulate and plan).
+    #[arg(long, value_name = "P.csv", conflicts_with = "measurements", hide = true, value_parser = parse_pose_file)]
     pub poses: Option<PathBuf>,
     /// Measurement CSV (docs/file-formats.md): its configurations, tools and stages are analysed.
     #[arg(long, value_name = "M.csv")]
@@ -428,20 +441,24 @@ pub struct CheckArgs {
     /// Targets per tool: 3 (a full pose) or 1 (a position).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     pub targets: u8,
-    /// Calibration plan whose stages are analysed.
-    #[arg(long, value_enum, default_value = "staged")]
-    pub plan: PlanChoice,
+    /// Calibration plan whose stages are analysed [default: staged when the rows are labelled
+    /// torso/arms (and for the default random set), else simultaneous].
+    #[arg(long, value_enum)]
+    pub plan: Option<PlanChoice>,
+    /// A calibration plan file (YAML, docs/file-formats.md) whose stages are analysed.
+    #[arg(long, value_name = "PLAN.yaml", conflicts_with = "plan")]
+    pub plan_file: Option<PathBuf>,
     /// Expected position error of a measurement (m): position rows are divided by it.
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, default_value_t = treecal::calibration::DEFAULT_POSITION_SIGMA)]
     pub position_sigma: f64,
     /// Expected rotation error of a measurement (rad): rotation rows are divided by it.
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, default_value_t = treecal::calibration::DEFAULT_ROTATION_SIGMA)]
     pub rotation_sigma: f64,
     /// Condition number above which a set is reported as poorly conditioned.
     #[arg(long, default_value_t = 100.0)]
     pub condition_limit: f64,
-    /// Unit of revolute joint values in --poses and --measurements (prismatic values in
-    /// --poses are always metres) [default: the file's `# units:` comment, else rad].
+    /// Unit of revolute joint values in --pose-file and --measurements (prismatic values in
+    /// --pose-file are always metres) [default: the file's `# units:` comment, else rad].
     #[arg(long, value_enum)]
     pub angle_unit: Option<AngleUnit>,
     /// Seed of the default random pose set.
@@ -617,6 +634,19 @@ pub enum GravityFrame {
     Measurement,
     /// The robot's root link frame.
     Base,
+}
+
+/// `check --poses FILE` (the old spelling of --pose-file); a count is refused with directions,
+/// since `--poses` is a count in simulate and plan.
+fn parse_pose_file(text: &str) -> Result<PathBuf, String> {
+    if text.trim().parse::<i64>().is_ok() && !std::path::Path::new(text).exists() {
+        return Err(format!(
+            "check takes a pose file, not a count: give it with --pose-file FILE (--poses is a \
+             count in simulate and plan; to plan {text} poses and check them: treecal plan \
+             --poses {text} -o poses.csv, then treecal check --pose-file poses.csv)"
+        ));
+    }
+    Ok(PathBuf::from(text))
 }
 
 fn parse_length_unit(text: &str) -> Result<treecal::io::LengthUnit, String> {

@@ -12,7 +12,7 @@ mod fk;
 mod from_mcpc;
 mod inspect;
 mod plan;
-mod robot;
+mod progress;
 mod simulate;
 mod to_mcpc;
 

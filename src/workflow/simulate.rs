@@ -1,0 +1,501 @@
+//! `simulate`: the paper's section 5.2 experiment — a randomly wrong, gravity-loaded robot
+//! measured by a noisy tracker, calibrated without and with flexibility compensation, judged on
+//! the identification and on separate validation configurations, over seeded trials.
+
+use super::checker::collision_checker;
+use super::checks::{count, refuse_overwrite, refuse_overwrite_in};
+use super::source::{branches, PlanSource, RobotSource, StiffnessSource};
+use super::{no_progress, Note, Progress, ProgressFn};
+use crate::calibration::{Plan, RobustLoss, StiffnessOptions};
+use crate::io::{
+    measurements_to_csv_with, read_plan, to_json, write_atomically, AngleUnit, LengthUnit,
+    MeasurementWriteOptions,
+};
+use crate::kinematics::{FlexibilityModel, Stiffness};
+use crate::limits;
+use crate::report::plot::arm_error_plots;
+use crate::report::simulate::simulation_markdown;
+use crate::sim::experiment::{SimulationOptions, TrialReport};
+use crate::sim::monte_carlo::{run_trials, summarise, SimulationSummary};
+use crate::sim::noise::{NoiseModel, Targets};
+use crate::sim::planning::PlanningOptions;
+use crate::sim::truth::ErrorRanges;
+use crate::{Error, KinematicTree, McpcModel, Result};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Where the identification configurations come from.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum PosesFrom {
+    /// Uniform random collision-free configurations.
+    #[default]
+    Random,
+    /// Planned (O1, greedy + DETMAX) from `candidates` random ones, with the nominal model.
+    Planned,
+}
+
+/// The layout of the simulated measurements CSV ([`Simulation::measurements_csv`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum MeasurementFormat {
+    /// Poses (or positions), metres and radians.
+    #[default]
+    Si,
+    /// Three targets A, B, C per tool in mm, joints in deg (needs three targets).
+    Tracker,
+}
+
+/// Settings of [`simulate`]; `Default` is `treecal simulate` without flags.
+#[derive(Debug, Clone)]
+pub struct SimulateConfig {
+    /// The robot.
+    pub robot: RobotSource,
+    /// Folders searched for `package://` collision meshes, before `ROS_PACKAGE_PATH`.
+    pub package_paths: Vec<PathBuf>,
+    /// The stiffness [default: the built-in Robonaut's; required with another robot].
+    pub stiffness: Option<StiffnessSource>,
+    /// Tool links ending the arms [default: detected].
+    pub tools: Option<Vec<String>>,
+    /// Configurations measured for the arms.
+    pub poses: usize,
+    /// Configurations measured for the torso with the arms locked.
+    pub torso_poses: usize,
+    /// Separate configurations the results are validated on.
+    pub validation_poses: usize,
+    /// Simulated calibrations, each with a new true robot.
+    pub trials: usize,
+    /// Master seed.
+    pub seed: u64,
+    /// Tracker noise: `0`, `at901` or `CONSTANT+PER_METRE` in µm.
+    pub noise: String,
+    /// The robust loss of both calibrations.
+    pub robust: RobustLoss,
+    /// Fraction of the measurements turned into blunders.
+    pub outliers: f64,
+    /// How far a blunder moves its target (mm).
+    pub outlier_size_mm: f64,
+    /// Targets per tool: 3 (a frame) or 1 (a position).
+    pub targets: u8,
+    /// The calibration plan (`Auto` is staged: the simulated rows are labelled).
+    pub plan: PlanSource,
+    /// Half-width of the true robot's angle errors (rad).
+    pub angle_error: f64,
+    /// Half-width of the true robot's length errors (m).
+    pub length_error: f64,
+    /// Payload at every tool (kg), overriding the stiffness file.
+    pub payload: Option<f64>,
+    /// Bending and torsion stiffness of every joint (N·m/rad), overriding the stiffness file.
+    pub joint_stiffness: Option<f64>,
+    /// Stiffness the compensating model assumes, relative to the truth's.
+    pub model_stiffness_scale: f64,
+    /// Identify the compliances jointly with the geometry in the compensated calibration.
+    pub identify_stiffness: bool,
+    /// Where the identification configurations come from.
+    pub poses_from: PosesFrom,
+    /// Candidates each planned pose set is chosen from (`PosesFrom::Planned`).
+    pub candidates: usize,
+    /// The layout of trial 1's measurements CSV, if wanted.
+    pub measurement_format: Option<MeasurementFormat>,
+}
+
+impl Default for SimulateConfig {
+    fn default() -> Self {
+        Self {
+            robot: RobotSource::BuiltIn,
+            package_paths: Vec::new(),
+            stiffness: None,
+            tools: None,
+            poses: 20,
+            torso_poses: 10,
+            validation_poses: 20,
+            trials: 1,
+            seed: 0,
+            noise: "at901".into(),
+            robust: RobustLoss::Huber,
+            outliers: 0.0,
+            outlier_size_mm: 50.0,
+            targets: 3,
+            plan: PlanSource::Auto,
+            angle_error: 0.05,
+            length_error: 0.05,
+            payload: None,
+            joint_stiffness: None,
+            model_stiffness_scale: 1.0,
+            identify_stiffness: false,
+            poses_from: PosesFrom::Random,
+            candidates: 2000,
+            measurement_format: None,
+        }
+    }
+}
+
+/// What [`simulate`] found.
+#[derive(Debug, Clone)]
+pub struct Simulation {
+    /// What the CLI prints on stderr, in order.
+    pub notes: Vec<Note>,
+    /// Every trial.
+    pub reports: Vec<TrialReport>,
+    /// Mean ± standard deviation over the trials.
+    pub summary: SimulationSummary,
+    /// results.json's content.
+    pub results: serde_json::Value,
+    /// summary.md (also what the CLI prints on stdout).
+    pub markdown: String,
+    /// Every file written into the output folder (name, bytes).
+    pub files: Vec<(String, Vec<u8>)>,
+    /// Trial 1's simulated measurements as CSV, when asked for.
+    pub measurements_csv: Option<String>,
+}
+
+/// Runs the simulation; writes nothing.
+pub fn simulate(config: &SimulateConfig) -> Result<Simulation> {
+    simulate_with_progress(config, &no_progress)
+}
+
+/// [`simulate`], calling `progress` after every finished trial.
+pub fn simulate_with_progress(
+    config: &SimulateConfig,
+    progress: ProgressFn<'_>,
+) -> Result<Simulation> {
+    validate(config)?;
+    let noise = NoiseModel::parse(&config.noise)?;
+    let mut notes = Vec::new();
+    let robot = config.robot.load()?;
+    notes.extend(robot.notes());
+    let import = robot.import;
+    let tree = &import.tree;
+    let branches = branches(&import, config.tools.as_deref())?;
+    let nominal = McpcModel::from_tree(tree, &branches)?;
+    let stiffness = stiffness(config, tree, &nominal)?;
+    let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
+    let model_flexibility = truth_flexibility.scaled(1.0 / config.model_stiffness_scale)?;
+    let checker = collision_checker(&config.robot, tree, &config.package_paths, &mut notes)?;
+    let options = options(config, noise)?;
+    let setup = crate::sim::experiment::Setup {
+        tree,
+        branches: &branches,
+        nominal: &nominal,
+        truth_flexibility: &truth_flexibility,
+        model_flexibility: &model_flexibility,
+        checker: Some(&checker),
+    };
+    let done = AtomicUsize::new(0);
+    let tick = || {
+        progress(Progress {
+            stage: None,
+            done: done.fetch_add(1, Ordering::SeqCst) + 1,
+            total: config.trials,
+            unit: "trials",
+        })
+    };
+    let reports = run_trials(&setup, &options, config.trials, &tick)?;
+    let summary = summarise(&reports);
+    if let Some(first) = reports.first() {
+        notes.extend(first.notes.iter().map(Note::note));
+    }
+    let markdown = simulation_markdown(&header(config, tree, &options), &reports, &summary);
+    let results = serde_json::json!({
+        "robot": tree.name(),
+        "seed": config.seed,
+        "trials": reports,
+        "summary": summary,
+    });
+    let mut files = vec![
+        ("summary.md".to_owned(), markdown.clone().into_bytes()),
+        ("results.json".to_owned(), to_json(&results)?.into_bytes()),
+    ];
+    files.extend(plots(reports.first())?);
+    let measurements_csv = match (config.measurement_format, reports.first()) {
+        (Some(format), Some(first)) => Some(measurements_csv(format, tree, &nominal, first)?),
+        _ => None,
+    };
+    Ok(Simulation {
+        notes,
+        reports,
+        summary,
+        results,
+        markdown,
+        files,
+        measurements_csv,
+    })
+}
+
+impl Simulation {
+    /// Writes every file into the folder `out` (created if need be), each atomically.
+    pub fn write(&self, out: &Path) -> Result<()> {
+        std::fs::create_dir_all(out).map_err(|source| Error::Io {
+            path: out.to_path_buf(),
+            source,
+        })?;
+        for (name, bytes) in &self.files {
+            write_atomically(&out.join(name), bytes)?;
+        }
+        Ok(())
+    }
+}
+
+/// Refuses outputs that would replace an input (`out` the folder, `measurements` the CSV of
+/// trial 1): call before [`simulate`], which can take minutes.
+pub fn check_outputs(
+    config: &SimulateConfig,
+    out: &Path,
+    measurements: Option<&Path>,
+) -> Result<()> {
+    let inputs: Vec<&Path> = config
+        .robot
+        .path()
+        .into_iter()
+        .chain(config.stiffness.as_ref().and_then(StiffnessSource::path))
+        .collect();
+    if let Some(path) = measurements {
+        refuse_overwrite(path, &inputs)?;
+    }
+    refuse_overwrite_in(out, &["summary.md", "results.json"], "svg", &inputs)
+}
+
+fn invalid(flag: &str, message: String) -> Error {
+    Error::InvalidData {
+        origin: flag.into(),
+        message,
+    }
+}
+
+/// The settings' ranges and counts ([`crate::limits`]), named by their flags.
+fn validate(config: &SimulateConfig) -> Result<()> {
+    limits::check_range(
+        config.angle_error,
+        (0.0, std::f64::consts::PI),
+        "--angle-error",
+        "rad",
+    )?;
+    limits::check_range(
+        config.length_error,
+        (0.0, limits::MAX_LENGTH),
+        "--length-error",
+        "m",
+    )?;
+    let scale = (1.0 / limits::MAX_FACTOR, limits::MAX_FACTOR);
+    limits::check_range(
+        config.model_stiffness_scale,
+        scale,
+        "--model-stiffness-scale",
+        "",
+    )?;
+    for (flag, value) in [
+        ("--poses", config.poses),
+        ("--validation-poses", config.validation_poses),
+        ("--trials", config.trials),
+    ] {
+        count(flag, value, limits::MAX_POSES)?;
+    }
+    if config.torso_poses > limits::MAX_POSES {
+        count("--torso-poses", config.torso_poses, limits::MAX_POSES)?;
+    }
+    if !(config.outliers.is_finite() && (0.0..=1.0).contains(&config.outliers)) {
+        let message = format!("{} is not a fraction between 0 and 1", config.outliers);
+        return Err(invalid("--outliers", message));
+    }
+    if !(config.outlier_size_mm.is_finite() && config.outlier_size_mm > 0.0) {
+        let message = format!("{} mm must be positive", config.outlier_size_mm);
+        return Err(invalid("--outlier-size", message));
+    }
+    if !matches!(config.targets, 1 | 3) {
+        return Err(invalid(
+            "--targets",
+            "use 1 (a position) or 3 (a frame)".into(),
+        ));
+    }
+    if config.measurement_format == Some(MeasurementFormat::Tracker) && config.targets != 3 {
+        let message = "tracker writes three targets per tool; use it with --targets 3".into();
+        return Err(invalid("--measurement-format", message));
+    }
+    if config.poses_from == PosesFrom::Planned {
+        validate_candidates(config)?;
+    }
+    Ok(())
+}
+
+/// Each planned set is chosen from `candidates` configurations: no fewer than it has poses
+/// (the count used is the count said).
+fn validate_candidates(config: &SimulateConfig) -> Result<()> {
+    count("--candidates", config.candidates, limits::MAX_CANDIDATES)?;
+    let largest = config.poses.max(config.torso_poses);
+    if config.candidates < largest {
+        let flag = if config.poses >= config.torso_poses {
+            "--poses"
+        } else {
+            "--torso-poses"
+        };
+        return Err(invalid(
+            "--candidates",
+            format!(
+                "{} candidates cannot give {flag} {largest}; ask for at least as many candidates as poses",
+                config.candidates
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The truth's stiffness: the file's (the built-in one for the built-in robot), with the
+/// payload and joint stiffness overrides.
+fn stiffness(
+    config: &SimulateConfig,
+    tree: &KinematicTree,
+    nominal: &McpcModel,
+) -> Result<Stiffness> {
+    let mut stiffness = match (&config.stiffness, &config.robot) {
+        (Some(source), _) => source.read(tree, nominal)?,
+        (None, RobotSource::BuiltIn) => StiffnessSource::BuiltIn.read(tree, nominal)?,
+        (None, _) => {
+            let message =
+                "a robot given with --robot needs its stiffness file (see docs/flexibility.md)";
+            return Err(invalid("--stiffness", message.into()));
+        }
+    };
+    if let Some(mass) = config.payload {
+        limits::check_range(mass, (0.0, limits::MAX_MASS), "--payload", "kg")?;
+        for payload in &mut stiffness.payloads {
+            payload.mass = mass;
+        }
+    }
+    if let Some(k) = config.joint_stiffness {
+        if !(k.is_finite() && k >= limits::MIN_STIFFNESS) {
+            return Err(invalid(
+                "--joint-stiffness",
+                format!(
+                    "{k} N·m/rad must be a number of at least {:e} (docs/file-formats.md, \"Limits\")",
+                    limits::MIN_STIFFNESS
+                ),
+            ));
+        }
+        stiffness.joint_default.bending = k;
+        stiffness.joint_default.torsion = k;
+        stiffness.joint_overrides.clear();
+    }
+    Ok(stiffness)
+}
+
+/// The calibration plan of the simulated calibrations.
+fn plan(source: &PlanSource) -> Result<Plan> {
+    match source {
+        PlanSource::Auto | PlanSource::Staged => Ok(Plan::staged()),
+        PlanSource::Simultaneous => Ok(Plan::simultaneous()),
+        PlanSource::File(path) => read_plan(path),
+    }
+}
+
+/// The library's options of one trial.
+fn options(config: &SimulateConfig, noise: NoiseModel) -> Result<SimulationOptions> {
+    Ok(SimulationOptions {
+        poses: config.poses,
+        torso_poses: config.torso_poses,
+        locks: 2,
+        validation_poses: config.validation_poses,
+        errors: ErrorRanges {
+            angle: config.angle_error,
+            length: config.length_error,
+        },
+        noise,
+        targets: if config.targets == 1 {
+            Targets::One
+        } else {
+            Targets::Three
+        },
+        plan: plan(&config.plan)?,
+        seed: config.seed,
+        planning: (config.poses_from == PosesFrom::Planned).then(|| PlanningOptions {
+            candidates: config.candidates,
+            ..PlanningOptions::default()
+        }),
+        identify_stiffness: config.identify_stiffness.then(StiffnessOptions::default),
+        robust: config.robust,
+        outliers: config.outliers,
+        outlier_size: config.outlier_size_mm * 1e-3,
+    })
+}
+
+/// The paragraph under summary.md's title: every setting that shaped the numbers.
+fn header(config: &SimulateConfig, tree: &KinematicTree, options: &SimulationOptions) -> String {
+    let poses_from = match config.poses_from {
+        PosesFrom::Random => "random".to_owned(),
+        PosesFrom::Planned => format!("planned from {} candidates", config.candidates),
+    };
+    let plan = match &config.plan {
+        PlanSource::Auto | PlanSource::Staged => "staged".to_owned(),
+        PlanSource::Simultaneous => "simultaneous".to_owned(),
+        PlanSource::File(path) => format!("'{}'", path.display()),
+    };
+    let blunders = if config.outliers > 0.0 {
+        format!(
+            "; {} % of the measurements made blunders of {} mm",
+            config.outliers * 100.0,
+            config.outlier_size_mm
+        )
+    } else {
+        String::new()
+    };
+    let header = format!(
+        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({poses_from}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {plan} plan; model stiffness × {}; robust loss {}{blunders}.",
+        tree.name(),
+        config.trials,
+        config.seed,
+        options.poses,
+        options.torso_poses,
+        options.validation_poses,
+        config.angle_error,
+        config.length_error,
+        config.noise,
+        config.targets,
+        config.model_stiffness_scale,
+        options.robust,
+    );
+    if config.identify_stiffness {
+        header + " Compliances identified jointly with the geometry (prior: the model's stiffness, ±50 %)."
+    } else {
+        header
+    }
+}
+
+/// Trial 1's per-configuration error plots (SVG), per arm.
+fn plots(first: Option<&TrialReport>) -> Result<Vec<(String, Vec<u8>)>> {
+    let mut files = Vec::new();
+    for arm in first.iter().flat_map(|f| &f.identification) {
+        let plots = arm_error_plots(
+            &arm.arm,
+            &arm.arm,
+            "before and after calibration",
+            &[
+                "before calibration",
+                "after, without flexibility compensation",
+                "after, with flexibility compensation",
+            ],
+            &arm.position_mm,
+            &arm.orientation_deg,
+        )?;
+        files.extend(
+            plots
+                .into_iter()
+                .map(|(stem, svg)| (format!("{stem}.svg"), svg.into_bytes())),
+        );
+    }
+    Ok(files)
+}
+
+/// Trial 1's measurements as CSV in `format`.
+fn measurements_csv(
+    format: MeasurementFormat,
+    tree: &KinematicTree,
+    nominal: &McpcModel,
+    first: &TrialReport,
+) -> Result<String> {
+    let options = match format {
+        MeasurementFormat::Si => MeasurementWriteOptions::default(),
+        MeasurementFormat::Tracker => MeasurementWriteOptions {
+            length_unit: LengthUnit::Millimetre,
+            angle_unit: AngleUnit::Degree,
+            three_targets: true,
+        },
+    };
+    measurements_to_csv_with(tree, nominal, &first.measurements, &options)
+}
