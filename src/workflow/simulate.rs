@@ -191,7 +191,7 @@ pub fn simulate_with_progress(
     let reports = run_trials(&setup, &options, config.trials, &tick)?;
     let summary = summarise(&reports);
     if let Some(first) = reports.first() {
-        notes.extend(first.notes.iter().map(Note::note));
+        notes.extend(first.notes.iter().map(Note::info));
     }
     let markdown = simulation_markdown(&header(config, tree, &options), &reports, &summary);
     let results = serde_json::json!({
