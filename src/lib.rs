@@ -8,6 +8,7 @@ pub mod limits;
 pub mod math;
 pub mod measurement;
 pub mod report;
+mod serde_labels;
 pub mod sim;
 pub mod tree;
 pub mod urdf;

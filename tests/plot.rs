@@ -32,6 +32,7 @@ fn fig7() -> ErrorPlot {
                 without,
             ),
         ],
+        x_labels: Vec::new(),
     }
 }
 
@@ -44,6 +45,7 @@ fn plot_of(values: &[&[f64]]) -> ErrorPlot {
             .enumerate()
             .map(|(i, v)| series(&format!("series {i}"), v.to_vec()))
             .collect(),
+        x_labels: Vec::new(),
     }
 }
 
@@ -213,7 +215,9 @@ fn fig7_look_alike_is_well_formed_and_complete() {
         std::fs::write(path, &svg).unwrap();
     }
     assert_well_formed(&svg);
-    assert!(svg.contains("width=\"800\"") && svg.contains("height=\"450\""));
+    // Before (up to 20 mm), without compensation (up to 2.3 mm) and with it (up to 0.26 mm)
+    // differ by more than 5× each: three panels, 450 + 2 · 280 pixels high.
+    assert!(svg.contains("width=\"800\"") && svg.contains("height=\"1010\""));
     let contents: Vec<String> = texts(&svg).into_iter().map(|(_, c)| c).collect();
     for expected in [
         plot.title.as_str(),
@@ -228,7 +232,8 @@ fn fig7_look_alike_is_well_formed_and_complete() {
             "no text '{expected}' in {contents:?}"
         );
     }
-    assert_eq!(x_tick_labels(&svg), (1..=20).collect::<Vec<_>>());
+    let per_panel: Vec<usize> = (1..=20).collect();
+    assert_eq!(x_tick_labels(&svg), per_panel.repeat(3));
 }
 
 #[test]
@@ -258,14 +263,174 @@ fn output_is_byte_identical_for_the_same_input() {
 #[test]
 fn y_axis_starts_at_zero_and_covers_the_data() {
     let svg = error_plot_svg(&fig7()).unwrap();
-    let labels: Vec<f64> = y_tick_labels(&svg)
-        .iter()
-        .map(|l| l.parse().unwrap())
+    let panels = y_axes(&svg);
+    assert_eq!(panels.len(), 3, "{panels:?}");
+    let plot = fig7();
+    for (panel, series) in panels.iter().zip(&plot.series) {
+        let labels: Vec<f64> = panel.iter().map(|(value, _)| *value).collect();
+        assert_eq!(labels[0], 0.0);
+        assert!(labels.windows(2).all(|w| w[0] < w[1]), "{labels:?}");
+        let max = series.values.iter().copied().fold(0.0, f64::max);
+        assert!(labels[labels.len() - 1] >= max, "{labels:?} for {max}");
+        assert!((3..=8).contains(&labels.len()), "{labels:?}");
+    }
+}
+
+/// The y tick labels of each panel, top panel first: `(value, pixel y)` from 0 upwards (a
+/// panel's labels start at 0).
+fn y_axes(svg: &str) -> Vec<Vec<(f64, f64)>> {
+    let mut panels: Vec<Vec<(f64, f64)>> = Vec::new();
+    for element in svg.split("<text").skip(1) {
+        let (attributes, rest) = element.split_once('>').unwrap();
+        if !attributes.contains("text-anchor=\"end\"") {
+            continue;
+        }
+        let y: f64 = attributes
+            .split(" y=\"")
+            .nth(1)
+            .and_then(|a| a.split('"').next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        let value: f64 = rest
+            .split("</text>")
+            .next()
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap();
+        if value == 0.0 || panels.is_empty() {
+            panels.push(Vec::new());
+        }
+        panels.last_mut().unwrap().push((value, y));
+    }
+    panels
+}
+
+/// The pixel points of the longest `<polyline>` drawn in `stroke` (a series' curve).
+fn curve_points(svg: &str, stroke: &str) -> Vec<(f64, f64)> {
+    svg.split("<polyline")
+        .skip(1)
+        .filter(|element| element.contains(&format!("stroke=\"{stroke}\"")))
+        .map(|element| {
+            let points = element.split(" points=\"").nth(1).unwrap();
+            points
+                .split('"')
+                .next()
+                .unwrap()
+                .split_whitespace()
+                .map(|p| {
+                    let (x, y) = p.split_once(',').unwrap();
+                    (x.parse().unwrap(), y.parse().unwrap())
+                })
+                .collect::<Vec<(f64, f64)>>()
+        })
+        .max_by_key(Vec::len)
+        .unwrap()
+}
+
+/// Shaped like a real calibration: 40 configurations named by CSV ids, about 100 mm before
+/// and 0.1 mm after.
+fn calibration_like() -> ErrorPlot {
+    let before: Vec<f64> = (0..40)
+        .map(|i| 100.0 + 50.0 * (f64::from(i) * 0.7).sin().abs())
         .collect();
-    assert_eq!(labels[0], 0.0);
-    assert!(labels.windows(2).all(|w| w[0] < w[1]), "{labels:?}");
-    assert!(labels[labels.len() - 1] >= 20.0, "{labels:?}");
-    assert!((3..=8).contains(&labels.len()), "{labels:?}");
+    let after: Vec<f64> = (0..40)
+        .map(|i| 0.05 + 0.15 * (f64::from(i) * 1.3).cos().abs())
+        .collect();
+    ErrorPlot {
+        title: "left_arm: position error on the validation configurations".into(),
+        y_label: "position error (mm)".into(),
+        series: vec![
+            series("before calibration", before),
+            series("after calibration", after),
+        ],
+        x_labels: (0..40).map(|i| format!("m{}", 101 + 3 * i)).collect(),
+    }
+}
+
+#[test]
+fn the_after_calibration_curve_fills_a_panel_of_its_own() {
+    let plot = calibration_like();
+    let svg = error_plot_svg(&plot).unwrap();
+    assert_well_formed(&svg);
+    let panels = y_axes(&svg);
+    assert_eq!(panels.len(), 2, "{panels:?}");
+    // The after curve (second colour) lies within the lower panel and its highest point is
+    // well up it: on one 0–150 mm axis it would be 0.1 % of the height.
+    let after = curve_points(&svg, "#D55E00");
+    assert_eq!(after.len(), 40);
+    let lower = &panels[1];
+    let (zero, top) = (lower[0].1, lower[lower.len() - 1].1);
+    let highest = after.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let lowest = after.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        highest >= top - 1.0 && lowest <= zero + 1.0,
+        "{after:?} outside {zero}..{top}"
+    );
+    let fraction = (zero - highest) / (zero - top);
+    assert!(
+        fraction > 0.5,
+        "the after curve reaches {fraction:.3} of its panel"
+    );
+    let spread = (lowest - highest) / (zero - top);
+    assert!(
+        spread > 0.3,
+        "the after curve spans {spread:.3} of its panel"
+    );
+    // The before curve stays in the upper panel.
+    let upper = &panels[0];
+    let before = curve_points(&svg, "#0072B2");
+    let upper_zero = upper[0].1;
+    assert!(before.iter().all(|p| p.1 <= upper_zero + 1.0));
+}
+
+#[test]
+fn the_x_axis_is_labelled_by_the_ids_thinned_to_fit() {
+    let plot = calibration_like();
+    let svg = error_plot_svg(&plot).unwrap();
+    let centred: Vec<String> = texts(&svg)
+        .into_iter()
+        .filter(|(anchor, content)| {
+            anchor == "middle" && content.starts_with('m') && content != "measurement id"
+        })
+        .map(|(_, content)| content)
+        .collect();
+    let panels = 2;
+    assert!(centred.len() % panels == 0, "{centred:?}");
+    let shown = &centred[..centred.len() / panels];
+    assert!(
+        shown.iter().all(|id| plot.x_labels.contains(id)),
+        "{shown:?}"
+    );
+    assert!(shown.contains(&"m101".to_string()), "{shown:?}");
+    // 40 ids of 4 characters do not fit 700 pixels: every 2nd or 5th is shown, in order.
+    assert!(shown.len() < 40 && shown.len() >= 8, "{shown:?}");
+    let positions: Vec<usize> = shown
+        .iter()
+        .map(|id| plot.x_labels.iter().position(|l| l == id).unwrap())
+        .collect();
+    assert!(positions.windows(2).all(|w| w[0] < w[1]), "{positions:?}");
+    assert!(texts(&svg).iter().any(|(_, c)| c == "measurement id"));
+    assert!(!x_tick_labels(&svg).contains(&40), "numbers instead of ids");
+}
+
+#[test]
+fn series_of_similar_size_share_one_panel() {
+    let svg = error_plot_svg(&plot_of(&[&[10.0, 12.0, 9.0], &[3.0, 2.5, 2.4]])).unwrap();
+    assert!(svg.contains("height=\"450\""));
+    assert_eq!(y_axes(&svg).len(), 1);
+}
+
+#[test]
+fn x_labels_of_the_wrong_count_are_refused() {
+    let mut plot = plot_of(&[&[1.0, 2.0, 3.0]]);
+    plot.x_labels = vec!["a".into(), "b".into()];
+    let message = error_message(&plot);
+    assert!(
+        message.contains("2 x labels for 3 configurations"),
+        "{message}"
+    );
 }
 
 #[test]
@@ -282,7 +447,8 @@ fn markup_in_text_is_escaped() {
 fn a_single_configuration_is_plotted() {
     let svg = error_plot_svg(&plot_of(&[&[3.0], &[0.5]])).unwrap();
     assert_well_formed(&svg);
-    assert_eq!(x_tick_labels(&svg), vec![1]);
+    // Two panels (3 against 0.5), each with the one configuration labelled.
+    assert_eq!(x_tick_labels(&svg), vec![1, 1]);
 }
 
 #[test]

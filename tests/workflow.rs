@@ -233,7 +233,10 @@ fn array_errors_name_the_row_id() {
     })
     .unwrap_err()
     .to_string();
-    assert!(message.contains("contradicts"), "{message}");
+    assert!(
+        message.contains("length unit m given contradicts the table's length unit mm"),
+        "{message}"
+    );
 }
 
 /// Forward kinematics from arrays equals the CLI's `fk` to the last bit, in rad and deg.

@@ -264,11 +264,28 @@ pub fn scaled_singular_values(weighted: &DMatrix<f64>) -> Vec<f64> {
 /// A parameter combination the configurations cannot determine, in words.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NamedCombination {
-    /// `(parameter name, weight)`, largest weights first, unit length in rad and m.
+    /// `(parameter name, weight)`, largest weights first, unit length in rad and m (JSON: an
+    /// object per term with `parameter` and `weight`).
+    #[serde(serialize_with = "terms_json")]
     pub terms: Vec<(String, f64)>,
     /// A sentence, e.g. `left_joint1 alpha and right_joint1 alpha move together (+0.71, -0.71)`:
     /// the terms of at least half the largest weight (at most six), then how many are left out.
     pub description: String,
+}
+
+fn terms_json<S: serde::Serializer>(
+    terms: &[(String, f64)],
+    serializer: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct Term<'a> {
+        parameter: &'a str,
+        weight: f64,
+    }
+    serializer.collect_seq(terms.iter().map(|(parameter, weight)| Term {
+        parameter,
+        weight: *weight,
+    }))
 }
 
 impl NamedCombination {

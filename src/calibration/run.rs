@@ -96,6 +96,11 @@ impl ErrorSummary {
 pub struct ArmResiduals {
     /// The arm (branch name).
     pub arm: String,
+    /// The arm's tool link.
+    pub tool: String,
+    /// Per observation, its index in the data set the run was given (outliers included), so
+    /// that reports can name the row by its id.
+    pub rows: Vec<usize>,
     /// Observations of this arm's tool in the set.
     pub observations: usize,
     /// Before: the nominal model in the fitted measurement frame, tools fitted.
@@ -106,9 +111,12 @@ pub struct ArmResiduals {
     pub position_removed_percent: f64,
     /// % of the mean orientation error removed (pose observations only).
     pub orientation_removed_percent: Option<f64>,
-    /// Position error per observation (mm): before, after.
+    /// Position error per observation (mm): before, after (JSON: `before`, `after`).
+    #[serde(serialize_with = "crate::serde_labels::before_after")]
     pub position_mm: [Vec<f64>; 2],
-    /// Orientation error per observation (deg): before, after (empty for positions).
+    /// Orientation error per observation (deg): before, after (empty for positions; JSON:
+    /// `before`, `after`).
+    #[serde(serialize_with = "crate::serde_labels::before_after")]
     pub orientation_deg: [Vec<f64>; 2],
 }
 
@@ -271,15 +279,17 @@ pub fn run_calibration(
         measurements,
         validation,
     )?;
-    let kept = |data: &[Measurement], set: DataSet| -> Vec<Measurement> {
+    // The rows kept, with their indices in the data given (for the reports' row ids).
+    let kept = |data: &[Measurement], set: DataSet| -> (Vec<usize>, Vec<Measurement>) {
         data.iter()
             .enumerate()
             .filter(|(i, _)| !outliers.iter().any(|o| o.set == set && o.index == *i))
-            .map(|(_, m)| m.clone())
-            .collect()
+            .map(|(i, m)| (i, m.clone()))
+            .unzip()
     };
-    let measurements = &kept(measurements, DataSet::Identification)[..];
-    let validation = &kept(validation, DataSet::Validation)[..];
+    let (measurement_rows, measurements) = kept(measurements, DataSet::Identification);
+    let (validation_rows, validation) = kept(validation, DataSet::Validation);
+    let (measurements, validation) = (&measurements[..], &validation[..]);
     let parameters = estimates(input, &guess.model, &report);
     let predict = |model: &McpcModel, q: &[f64]| -> Result<Vec<Pose>> {
         match input.flexibility {
@@ -287,16 +297,20 @@ pub fn run_calibration(
             None => Ok(model.tool_poses(q)),
         }
     };
-    let residuals = |data: &[Measurement]| -> Result<Vec<ArmResiduals>> {
-        arm_residuals(input, data, &|q| Ok(guess.model.tool_poses(q)), &|q| {
-            predict(&report.model, q)
-        })
+    let residuals = |data: &[Measurement], rows: &[usize]| -> Result<Vec<ArmResiduals>> {
+        arm_residuals(
+            input,
+            data,
+            rows,
+            &|q| Ok(guess.model.tool_poses(q)),
+            &|q| predict(&report.model, q),
+        )
     };
-    let identification = residuals(measurements)?;
+    let identification = residuals(measurements, &measurement_rows)?;
     let validation_residuals = if validation.is_empty() {
         Vec::new()
     } else {
-        residuals(validation)?
+        residuals(validation, &validation_rows)?
     };
     let predicted_validation_sd_mm = predicted_spread(&report, validation);
     let predicted_validation_rms_mm = (!predicted_validation_sd_mm.is_empty())
@@ -486,17 +500,23 @@ fn estimates(
         .collect()
 }
 
+/// `rows[i]`: the index of `data[i]` in the data set the run was given.
 fn arm_residuals(
     input: &CalibrationInput<'_>,
     data: &[Measurement],
+    rows: &[usize],
     before: &dyn Fn(&[f64]) -> Result<Vec<Pose>>,
     after: &dyn Fn(&[f64]) -> Result<Vec<Pose>>,
 ) -> Result<Vec<ArmResiduals>> {
     let tools = input.nominal.tools().len();
     let mut position = vec![[Vec::new(), Vec::new()]; tools];
     let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
+    let mut indices = vec![Vec::new(); tools];
     let mut cache: Option<(&[f64], [Vec<Pose>; 2])> = None;
-    for m in data {
+    for (i, m) in data.iter().enumerate() {
+        if let Some(list) = indices.get_mut(m.tool) {
+            list.push(rows.get(i).copied().unwrap_or(i));
+        }
         if cache.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
             cache = Some((&m.q, [before(&m.q)?, after(&m.q)?]));
         }
@@ -526,9 +546,11 @@ fn arm_residuals(
         .map(|tool| {
             let before = ErrorSummary::of(&position[tool][0], &orientation[tool][0]);
             let after = ErrorSummary::of(&position[tool][1], &orientation[tool][1]);
-            let arm = input.branches.arm_name(input.nominal.tools()[tool].link);
+            let link = input.nominal.tools()[tool].link;
             ArmResiduals {
-                arm,
+                arm: input.branches.arm_name(link),
+                tool: input.tree.link(link).name.clone(),
+                rows: indices[tool].clone(),
                 observations: position[tool][0].len(),
                 before,
                 after,
@@ -580,13 +602,24 @@ fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> V
 pub struct FrameRefinement {
     /// Gauss–Newton iterations over the six frame parameters.
     pub iterations: usize,
-    /// Weighted cost ½‖r‖² with the closed-form frame, and after refinement.
+    /// Weighted cost ½‖r‖² with the closed-form frame, and after refinement (JSON:
+    /// `before`, `after`).
+    #[serde(serialize_with = "crate::serde_labels::before_after")]
     pub cost: [f64; 2],
-    /// Rotation (rad) and translation (m) of the frame correction.
+    /// Rotation (rad) and translation (m) of the frame correction (JSON: `rotation_rad`,
+    /// `translation_m`).
+    #[serde(serialize_with = "correction_json")]
     pub correction: [f64; 2],
     /// How many of the six frame directions the data determine (the rest are only fixed
     /// by the rigid kinematics, which cannot tell them from the parameters).
     pub determined: usize,
+}
+
+fn correction_json<S: serde::Serializer>(
+    correction: &[f64; 2],
+    serializer: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    crate::serde_labels::labelled(correction, ["rotation_rad", "translation_m"], serializer)
 }
 
 struct Refined {

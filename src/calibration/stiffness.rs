@@ -768,10 +768,29 @@ fn select(
 #[derive(Debug, Clone, Serialize)]
 pub struct ComplianceIdentifiability {
     /// Per compliance parameter: its name, how well the data determine its scale (relative,
-    /// infinite: not at all), and whether it would be identified.
+    /// infinite: not at all), and whether it would be identified (JSON: an object per
+    /// parameter with `name`, `relative_std_dev` (`null`: infinite) and `identified`).
+    #[serde(serialize_with = "compliance_parameters_json")]
     pub parameters: Vec<(String, f64, bool)>,
     /// Combinations the data cannot tell apart from the geometry or each other, in words.
     pub unidentifiable: Vec<String>,
+}
+
+fn compliance_parameters_json<S: serde::Serializer>(
+    parameters: &[(String, f64, bool)],
+    serializer: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct Parameter<'a> {
+        name: &'a str,
+        relative_std_dev: Option<f64>,
+        identified: bool,
+    }
+    serializer.collect_seq(parameters.iter().map(|(name, sd, identified)| Parameter {
+        name,
+        relative_std_dev: sd.is_finite().then_some(*sd),
+        identified: *identified,
+    }))
 }
 
 /// The compliance part of the identifiability analysis at `model` (see

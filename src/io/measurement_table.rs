@@ -112,6 +112,7 @@ impl MeasurementTable {
         options: &MeasurementReadOptions,
     ) -> Result<MeasurementSet> {
         self.check_shape()?;
+        self.check_units(options)?;
         let stated = StatedUnits {
             length: self.length_unit,
             angle: self.angle_unit,
@@ -136,6 +137,35 @@ impl MeasurementTable {
             Some(row) => format!("{}, row {}, column 'tool'", self.origin, self.id(row)),
             None => self.origin.clone(),
         }
+    }
+
+    /// The units the table states agree with the ones the options give (the CSV's check
+    /// names a units comment, which a table does not have).
+    fn check_units(&self, options: &MeasurementReadOptions) -> Result<()> {
+        let units = [
+            (
+                "length",
+                options.length_unit.map(LengthUnit::symbol),
+                self.length_unit.map(LengthUnit::symbol),
+            ),
+            (
+                "angle",
+                options.angle_unit.map(AngleUnit::symbol),
+                self.angle_unit.map(AngleUnit::symbol),
+            ),
+        ];
+        for (what, given, stated) in units {
+            if let Some((given, stated)) = given.zip(stated).filter(|(g, s)| g != s) {
+                return Err(self.invalid(
+                    None,
+                    format!(
+                        "the {what} unit {given} given contradicts the table's {what} unit \
+                         {stated}; give one of them"
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The id of row `row` as messages name it.

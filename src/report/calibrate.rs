@@ -3,9 +3,11 @@
 //! parameter file (`params.yaml`) and the per-configuration error plots (Fig. 9–12 style).
 
 use super::outliers::{outliers_markdown, robust_summary, OutlierRow, RobustSummary};
-use super::plot::arm_error_plots;
+use super::plot::arm_error_plots_by_id;
+use super::stiffness::StiffnessSummary;
 use crate::calibration::{
-    ArmResiduals, CalibrationRun, IdentificationOptions, ParameterEstimate, Status, Verdict,
+    ArmResiduals, CalibrationRun, ErrorSummary, IdentificationOptions, ParameterEstimate, Status,
+    Verdict,
 };
 use crate::error::Result;
 use crate::math::{rpy_from_rotation, Pose};
@@ -25,11 +27,23 @@ pub struct CalibrationContext {
     pub plan: String,
     /// Whether flexibility was compensated (a stiffness file was given).
     pub compensation: String,
-    /// Assumed noise: position σ (m) and rotation σ (rad).
+    /// Assumed noise: position σ (m) and rotation σ (rad) (JSON: `position_m`,
+    /// `rotation_rad`).
+    #[serde(serialize_with = "sigma_json")]
     pub sigma: [f64; 2],
     /// How the measurement frame was found (fitted, or the root frame).
     pub measurement_frame: String,
 }
+
+fn sigma_json<S: serde::Serializer>(
+    sigma: &[f64; 2],
+    serializer: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    crate::serde_labels::labelled(sigma, ["position_m", "rotation_rad"], serializer)
+}
+
+/// The `schema_version` of `report.json` (its layout is documented in docs/file-formats.md).
+pub const REPORT_SCHEMA: &str = "treecal.report/2";
 
 /// One stage's solver outcome.
 #[derive(Debug, Clone, Serialize)]
@@ -67,11 +81,15 @@ pub struct StageOutcome {
 pub struct CalibrationSummary {
     /// `ok`, `warning` or `failed`, and every finding of the checks (notes included).
     pub verdict: Verdict,
+    /// [`REPORT_SCHEMA`].
+    pub schema_version: &'static str,
     /// Inputs.
     pub context: CalibrationContext,
     /// The fitted measurement frame: `xyz` (m) and `rpy` (rad) of the robot base in it.
     pub measurement_frame: FrameValues,
-    /// RMS position distance before / after the closed-form initial guess (m).
+    /// RMS position distance before / after the closed-form initial guess (m; JSON:
+    /// `before`, `after`).
+    #[serde(serialize_with = "crate::serde_labels::before_after")]
     pub initial_guess_rms_m: [f64; 2],
     /// How the measurement frame was refined jointly with the parameters, if it was.
     pub frame_refinement: Option<crate::calibration::run::FrameRefinement>,
@@ -81,13 +99,16 @@ pub struct CalibrationSummary {
     pub stages: Vec<StageOutcome>,
     /// Every parameter.
     pub parameters: Vec<ParameterEstimate>,
-    /// Errors on the identification data, per arm.
-    pub identification: Vec<ArmResiduals>,
-    /// Errors on the validation data, per arm.
-    pub validation: Vec<ArmResiduals>,
+    /// Errors on the identification data, per arm, with every row's errors.
+    pub identification: Vec<ArmReport>,
+    /// Errors on the validation data, per arm, with every row's errors.
+    pub validation: Vec<ArmReport>,
     /// RMS validation position error the parameter covariance predicts (mm).
     pub predicted_validation_rms_mm: Option<f64>,
-    /// The predicted position error standard deviation per validation observation (mm).
+    /// The predicted position error standard deviation per validation observation (mm), in
+    /// the order of the validation rows kept; in JSON each validation row carries its own
+    /// (`predicted_sd_mm`).
+    #[serde(skip)]
     pub predicted_validation_sd_mm: Vec<f64>,
     /// Joints whose URDF origin (or axis) the export changed.
     pub changed_joints: Vec<String>,
@@ -96,6 +117,129 @@ pub struct CalibrationSummary {
     /// The measurements named as outliers (left out of the fit or the statistics); filled by
     /// the caller with [`super::outliers::outlier_rows`], which needs the rows' ids.
     pub outliers: Vec<OutlierRow>,
+    /// The stiffness identification (`--identify-stiffness`), if it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<StiffnessSummary>,
+}
+
+/// The errors of one arm's tool on one data set (identification or validation).
+#[derive(Debug, Clone, Serialize)]
+pub struct ArmReport {
+    /// The arm (branch name).
+    pub arm: String,
+    /// The arm's tool link (the CSV's `tool`).
+    pub tool: String,
+    /// Observations of this tool in the set (outliers left out).
+    pub observations: usize,
+    /// Before calibration: the nominal model in the fitted measurement frame, tools fitted.
+    pub before: ErrorSummary,
+    /// After calibration.
+    pub after: ErrorSummary,
+    /// % of the mean position error removed.
+    pub position_removed_percent: f64,
+    /// % of the mean orientation error removed (`null` for position-only data).
+    pub orientation_removed_percent: Option<f64>,
+    /// Every observation, in file order.
+    pub rows: Vec<RowErrors>,
+}
+
+/// The errors at one measurement row, named by its id.
+#[derive(Debug, Clone, Serialize)]
+pub struct RowErrors {
+    /// The row's `id` (the CSV's id column, else its 1-based data row number); `#n` (the
+    /// n-th row of the set) until [`CalibrationSummary::name_rows`] names it.
+    pub id: String,
+    /// The row's index in its data set (identification or validation, outliers included).
+    #[serde(skip)]
+    pub index: usize,
+    /// Position error (mm) before and after calibration.
+    pub position_mm: BeforeAfter,
+    /// Orientation error (deg) before and after calibration; absent for positions.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub orientation_deg: Option<BeforeAfter>,
+    /// Validation rows: the position error standard deviation the parameter covariance
+    /// predicts here (mm); absent elsewhere or when no covariance was available.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predicted_sd_mm: Option<f64>,
+}
+
+/// A quantity before and after calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BeforeAfter {
+    /// Before calibration.
+    pub before: f64,
+    /// After calibration.
+    pub after: f64,
+}
+
+impl ArmReport {
+    /// The report of `arm`; `predicted[i]`: the predicted spread at the set's `i`-th kept row
+    /// (empty for none).
+    fn of(arm: &ArmResiduals, kept: &[usize], predicted: &[f64]) -> Self {
+        let rows = arm
+            .rows
+            .iter()
+            .enumerate()
+            .map(|(k, &index)| {
+                let pair = |values: &[Vec<f64>; 2]| {
+                    Some(BeforeAfter {
+                        before: *values[0].get(k)?,
+                        after: *values[1].get(k)?,
+                    })
+                };
+                RowErrors {
+                    id: format!("#{}", index + 1),
+                    index,
+                    position_mm: pair(&arm.position_mm).unwrap_or(BeforeAfter {
+                        before: f64::NAN,
+                        after: f64::NAN,
+                    }),
+                    orientation_deg: pair(&arm.orientation_deg),
+                    predicted_sd_mm: kept
+                        .binary_search(&index)
+                        .ok()
+                        .and_then(|j| predicted.get(j).copied()),
+                }
+            })
+            .collect();
+        Self {
+            arm: arm.arm.clone(),
+            tool: arm.tool.clone(),
+            observations: arm.observations,
+            before: arm.before,
+            after: arm.after,
+            position_removed_percent: arm.position_removed_percent,
+            orientation_removed_percent: arm.orientation_removed_percent,
+            rows,
+        }
+    }
+
+    /// The reports of `arms`, one data set; `predicted`: the spread per kept row of the set,
+    /// in file order (empty for none).
+    fn of_set(arms: &[ArmResiduals], predicted: &[f64]) -> Vec<Self> {
+        let mut kept: Vec<usize> = arms.iter().flat_map(|a| a.rows.iter().copied()).collect();
+        kept.sort_unstable();
+        arms.iter()
+            .map(|arm| Self::of(arm, &kept, predicted))
+            .collect()
+    }
+}
+
+impl CalibrationSummary {
+    /// Names every row by its id: `ids[0]` for the identification data, `ids[1]` for the
+    /// validation data, in the order the run got them (a missing id stays `#n`).
+    pub fn name_rows(&mut self, ids: [&[String]; 2]) {
+        for (arms, ids) in [
+            (&mut self.identification, ids[0]),
+            (&mut self.validation, ids[1]),
+        ] {
+            for row in arms.iter_mut().flat_map(|a| a.rows.iter_mut()) {
+                if let Some(id) = ids.get(row.index) {
+                    row.id.clone_from(id);
+                }
+            }
+        }
+    }
 }
 
 /// A frame as URDF writes it.
@@ -155,6 +299,7 @@ pub fn calibration_summary(
         .collect();
     CalibrationSummary {
         verdict: Verdict::from_findings(run.findings.clone()),
+        schema_version: REPORT_SCHEMA,
         context,
         measurement_frame: FrameValues::of(&run.guess.world_from_base),
         initial_guess_rms_m: [run.guess.rms_before, run.guess.rms_after],
@@ -162,14 +307,15 @@ pub fn calibration_summary(
         cycles: run.report.cycles,
         stages,
         parameters: run.parameters.clone(),
-        identification: run.identification.clone(),
-        validation: run.validation.clone(),
+        identification: ArmReport::of_set(&run.identification, &[]),
+        validation: ArmReport::of_set(&run.validation, &run.predicted_validation_sd_mm),
         predicted_validation_rms_mm: run.predicted_validation_rms_mm,
         predicted_validation_sd_mm: run.predicted_validation_sd_mm.clone(),
         changed_joints,
         robust: robust_summary(run),
         // The caller knows the rows' ids and the tool names: see `outlier_rows`.
         outliers: Vec::new(),
+        stiffness: None,
     }
 }
 
@@ -420,17 +566,30 @@ fn verdict_markdown(out: &mut String, verdict: &Verdict) {
 }
 
 /// The per-configuration error plots of one data set: `(file stem, SVG)` per arm and quantity,
-/// stems `<arm>_<set>_<quantity>`.
-pub fn calibration_plots(arms: &[ArmResiduals], set: &str) -> Result<Vec<(String, String)>> {
+/// stems `<arm>_<set>_<quantity>`, the x axis labelled by the rows' ids.
+pub fn calibration_plots(arms: &[ArmReport], set: &str) -> Result<Vec<(String, String)>> {
     let mut plots = Vec::new();
     for arm in arms {
-        plots.extend(arm_error_plots(
+        let ids: Vec<String> = arm.rows.iter().map(|r| r.id.clone()).collect();
+        let column = |f: &dyn Fn(&RowErrors) -> Option<f64>| -> Vec<f64> {
+            arm.rows.iter().filter_map(f).collect()
+        };
+        let position = [
+            column(&|r| Some(r.position_mm.before)),
+            column(&|r| Some(r.position_mm.after)),
+        ];
+        let orientation = [
+            column(&|r| r.orientation_deg.map(|o| o.before)),
+            column(&|r| r.orientation_deg.map(|o| o.after)),
+        ];
+        plots.extend(arm_error_plots_by_id(
             &arm.arm,
             &format!("{}_{set}", arm.arm),
             &format!("on the {set} configurations"),
             &["before calibration", "after calibration"],
-            &arm.position_mm,
-            &arm.orientation_deg,
+            &ids,
+            &position,
+            &orientation,
         )?);
     }
     Ok(plots)

@@ -1,12 +1,19 @@
 //! `treecal check`: the identifiability of a pose set, per calibration stage.
 
-use crate::calibration::{IdentifiabilityReport, NamedCombination, ObservationKind};
+use crate::calibration::{
+    ComplianceIdentifiability, IdentifiabilityReport, NamedCombination, ObservationKind,
+};
 use serde::Serialize;
 use std::fmt::Write;
+
+/// The `schema_version` of `check --format json` / `yaml` (docs/file-formats.md).
+pub const CHECK_SCHEMA: &str = "treecal.check/2";
 
 /// Everything `check` shows; serialises to YAML/JSON, renders to text.
 #[derive(Debug, Clone, Serialize)]
 pub struct CheckReport {
+    /// [`CHECK_SCHEMA`].
+    pub schema_version: &'static str,
     /// Robot name.
     pub robot: String,
     /// Where the configurations came from (a file, or the default random set).
@@ -19,6 +26,9 @@ pub struct CheckReport {
     pub stages: Vec<StageCheck>,
     /// Whether every analysed stage is well conditioned.
     pub well_conditioned: bool,
+    /// What the poses determine of the compliances (`--identify-stiffness`), if asked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compliance: Option<ComplianceIdentifiability>,
 }
 
 /// The analysis of one stage.
@@ -71,12 +81,14 @@ impl CheckReport {
             .all(IdentifiabilityReport::is_well_conditioned)
             && stages.iter().any(|s| s.analysis.is_some());
         Self {
+            schema_version: CHECK_SCHEMA,
             robot,
             poses,
             observation,
             plan,
             stages,
             well_conditioned,
+            compliance: None,
         }
     }
 

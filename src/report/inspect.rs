@@ -5,9 +5,14 @@ use crate::tree::{Actuation, BranchRole, Branches, JointKind, KinematicTree};
 use serde::Serialize;
 use std::fmt::Write;
 
+/// The `schema_version` of `inspect --format json` / `yaml` (docs/file-formats.md).
+pub const INSPECT_SCHEMA: &str = "treecal.inspect/1";
+
 /// Everything `inspect` shows; serialises to YAML/JSON, renders to text.
 #[derive(Debug, Clone, Serialize)]
 pub struct InspectReport {
+    /// [`INSPECT_SCHEMA`].
+    pub schema_version: &'static str,
     /// Robot name.
     pub robot: String,
     /// Root link.
@@ -244,6 +249,7 @@ pub fn inspect(
     let prismatic = model.frames().len() - revolute;
     let count = model.parameter_count();
     InspectReport {
+        schema_version: INSPECT_SCHEMA,
         robot: tree.name().to_owned(),
         root: tree.link(tree.root()).name.clone(),
         links: tree.links().len(),

@@ -9,10 +9,11 @@ pub mod simulate;
 pub mod stiffness;
 
 pub use calibrate::{
-    calibration_markdown, calibration_plots, calibration_summary, parameter_file,
-    CalibrationContext, CalibrationSummary,
+    calibration_markdown, calibration_plots, calibration_summary, parameter_file, ArmReport,
+    BeforeAfter, CalibrationContext, CalibrationSummary, RowErrors, REPORT_SCHEMA,
 };
-pub use check::{CheckReport, StageCheck};
+pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use inspect::{inspect, InspectReport};
 pub use outliers::{outlier_rows, OutlierRow, RobustSummary};
+pub use simulate::{simulation_results, SimulationResults, RESULTS_SCHEMA};
 pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};

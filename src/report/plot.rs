@@ -1,8 +1,16 @@
 //! SVG plots of per-configuration errors, in the style of the paper's Fig. 7–12.
 //!
-//! One plot has the configurations 1..n on the x axis and an error magnitude on the y axis from
-//! 0, one line with point markers per series (before calibration, after calibration, ...), a
-//! legend and a title. The SVG comes back as a string; writing it is the caller's job.
+//! One plot has the configurations on the x axis (labelled by the measurement rows' ids, or
+//! 1..n) and an error magnitude on the y axis from 0, one line with point markers per series
+//! (before calibration, after calibration, ...), a legend and a title. The SVG comes back as a
+//! string; writing it is the caller's job.
+//!
+//! Errors after calibration are often a thousandth of those before (0.05 mm against 50 mm): on
+//! one linear axis they would lie flat on the zero line. So a series much smaller than the
+//! ones before it gets a panel of its own below, with its own linear axis from 0 (see
+//! [`error_plot_svg`]). Panels rather than a log axis: values read directly in mm on every
+//! panel, a zero (a noise-free simulation) stays drawable, and the before curve keeps the
+//! paper's linear look.
 //!
 //! Text is emitted as SVG `<text>` elements in a generic `sans-serif` family, so no font is read
 //! here or needed to view the file; layout uses plotters' built-in width estimate (its `ttf`
@@ -27,7 +35,7 @@ pub struct Series {
     pub values: Vec<f64>,
 }
 
-/// A per-configuration error plot such as the paper's Fig. 7 (x axis: configuration 1..n).
+/// A per-configuration error plot such as the paper's Fig. 7.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ErrorPlot {
     /// Title above the plot.
@@ -36,10 +44,17 @@ pub struct ErrorPlot {
     pub y_label: String,
     /// The curves; all of the same length.
     pub series: Vec<Series>,
+    /// One x label per configuration, e.g. the measurement rows' ids; empty: 1..n.
+    pub x_labels: Vec<String>,
 }
 
 const WIDTH: u32 = 800;
 const HEIGHT: u32 = 450;
+/// Height added per panel after the first.
+const PANEL_HEIGHT: u32 = 280;
+/// A series opens a new panel when its largest value and the panel's differ more than this
+/// many times (it would use less than a fifth of the panel's height).
+const PANEL_RATIO: f64 = 5.0;
 const FONT: FontFamily = FontFamily::SansSerif;
 // plotters font sizes; the SVG backend writes `font-size` as these divided by 1.24.
 const TITLE_SIZE: f64 = 22.0;
@@ -96,6 +111,19 @@ pub fn arm_error_plots(
     position_mm: &[Vec<f64>],
     orientation_deg: &[Vec<f64>],
 ) -> Result<Vec<(String, String)>> {
+    arm_error_plots_by_id(arm, stem, title, labels, &[], position_mm, orientation_deg)
+}
+
+/// [`arm_error_plots`] with the x axis labelled by `ids` (one per configuration; empty: 1..n).
+pub fn arm_error_plots_by_id(
+    arm: &str,
+    stem: &str,
+    title: &str,
+    labels: &[&str],
+    ids: &[String],
+    position_mm: &[Vec<f64>],
+    orientation_deg: &[Vec<f64>],
+) -> Result<Vec<(String, String)>> {
     let mut plots = Vec::new();
     for (what, unit, values) in [
         ("position", "position error (mm)", position_mm),
@@ -115,6 +143,7 @@ pub fn arm_error_plots(
                     values: values.clone(),
                 })
                 .collect(),
+            x_labels: ids.to_vec(),
         };
         plots.push((
             format!("{}_{what}", stem.replace('/', "_")),
@@ -124,24 +153,54 @@ pub fn arm_error_plots(
     Ok(plots)
 }
 
-/// Renders `plot` as an 800×450 SVG document.
+/// Renders `plot` as an SVG document 800 pixels wide: 450 high for one panel, 280 more per
+/// further panel.
 ///
-/// Fails, naming the series and index, on an empty plot, series of different lengths, and
-/// non-finite or negative values (errors are magnitudes and the y axis starts at 0).
+/// The first series opens the first panel; each later series joins the current panel unless
+/// its largest value and the panel's differ by more than 5×, in which case it opens a new
+/// panel below with its own y axis from 0. Every panel has the same x axis, labelled by
+/// `x_labels` (thinned so that they do not overlap).
+///
+/// Fails, naming the series and index, on an empty plot, series of different lengths, `x_labels`
+/// of another length, and non-finite or negative values (errors are magnitudes and the y axis
+/// starts at 0).
 pub fn error_plot_svg(plot: &ErrorPlot) -> Result<String> {
     let configurations = validate(plot)?;
-    let max = plot
-        .series
-        .iter()
-        .flat_map(|series| series.values.iter().copied())
-        .fold(0.0, f64::max);
-    let y_axis = YAxis::covering(max).ok_or_else(|| {
-        invalid(
-            plot,
-            format!("the largest value {max:e} is outside the range a plot can label"),
-        )
-    })?;
-    render(plot, configurations, &y_axis).map_err(|e| invalid(plot, format!("drawing failed: {e}")))
+    let mut panels = Vec::new();
+    for (series, max) in panel_groups(plot) {
+        let y_axis = YAxis::covering(max).ok_or_else(|| {
+            invalid(
+                plot,
+                format!("the largest value {max:e} is outside the range a plot can label"),
+            )
+        })?;
+        panels.push(Panel { series, y_axis });
+    }
+    render(plot, configurations, &panels).map_err(|e| invalid(plot, format!("drawing failed: {e}")))
+}
+
+/// The series of one panel (indices into the plot's) and its y axis.
+struct Panel {
+    series: Vec<usize>,
+    y_axis: YAxis,
+}
+
+/// The series grouped into panels, with each panel's largest value.
+fn panel_groups(plot: &ErrorPlot) -> Vec<(Vec<usize>, f64)> {
+    let mut groups: Vec<(Vec<usize>, f64)> = Vec::new();
+    for (index, series) in plot.series.iter().enumerate() {
+        let max = series.values.iter().copied().fold(0.0, f64::max);
+        match groups.last_mut() {
+            Some((members, panel_max))
+                if max * PANEL_RATIO >= *panel_max && *panel_max * PANEL_RATIO >= max =>
+            {
+                members.push(index);
+                *panel_max = panel_max.max(max);
+            }
+            _ => groups.push((vec![index], max)),
+        }
+    }
+    groups
 }
 
 fn invalid(plot: &ErrorPlot, message: String) -> Error {
@@ -165,6 +224,16 @@ fn validate(plot: &ErrorPlot) -> Result<usize> {
         return Err(invalid(
             plot,
             format!("nothing to plot: series '{}' has no values", first.label),
+        ));
+    }
+    if !plot.x_labels.is_empty() && plot.x_labels.len() != configurations {
+        return Err(invalid(
+            plot,
+            format!(
+                "{} x labels for {configurations} configurations; give one per configuration, \
+                 or none",
+                plot.x_labels.len()
+            ),
         ));
     }
     for series in &plot.series {
@@ -340,10 +409,10 @@ fn scientific_labels(integers: &[u64], exponent: i32) -> Vec<String> {
         .collect()
 }
 
-/// X ticks: every configuration while the labels fit, else every 2nd, 5th, 10th, ... (and 1).
-fn x_ticks(configurations: usize, plot_width: u32) -> Vec<f64> {
-    let digits = configurations.to_string().len() as f64;
-    let room_per_label = digits * 8.0 + 14.0;
+/// X ticks: every configuration while the labels (of up to `characters` characters) fit, else
+/// every 2nd, 5th, 10th, ... (and 1).
+fn x_ticks(configurations: usize, characters: usize, plot_width: u32) -> Vec<f64> {
+    let room_per_label = characters as f64 * 8.0 + 14.0;
     let per_configuration = f64::from(plot_width) / configurations as f64;
     let step = [1_u64, 2, 5]
         .iter()
@@ -443,12 +512,13 @@ fn style_of(index: usize) -> (RGBColor, Marker) {
 type DrawResult<T, DB = SVGBackend<'static>> =
     std::result::Result<T, DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
 
-fn render(plot: &ErrorPlot, configurations: usize, y_axis: &YAxis) -> DrawResult<String> {
+fn render(plot: &ErrorPlot, configurations: usize, panels: &[Panel]) -> DrawResult<String> {
     let mut svg = String::new();
     {
+        let height = HEIGHT + PANEL_HEIGHT * (panels.len().max(1) as u32 - 1);
         // The backend borrows `svg` until it is dropped.
-        let root = SVGBackend::with_string(&mut svg, (WIDTH, HEIGHT)).into_drawing_area();
-        draw_on(&root, plot, configurations, y_axis)?;
+        let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
+        draw_on(&root, plot, configurations, panels)?;
         root.present()?;
     }
     Ok(svg)
@@ -580,25 +650,76 @@ fn draw_on(
     root: &DrawingArea<SVGBackend<'_>, Shift>,
     plot: &ErrorPlot,
     configurations: usize,
-    y_axis: &YAxis,
+    panels: &[Panel],
 ) -> DrawResult<()> {
     let labels: Vec<&str> = plot.series.iter().map(|s| s.label.as_str()).collect();
     let chart_area = draw_title_and_legend(root, &plot.title, &labels)?;
-    let y_label_area = y_label_area(root, y_axis)?;
+    // One y-label width for all panels, so that their x axes line up.
+    let mut y_label_width = 0;
+    for panel in panels {
+        y_label_width = y_label_width.max(y_label_area(root, &panel.y_axis)?);
+    }
+    for (panel, area) in panels
+        .iter()
+        .zip(chart_area.split_evenly((panels.len(), 1)))
+    {
+        draw_panel(root, &area, plot, configurations, panel, y_label_width)?;
+    }
+    Ok(())
+}
+
+/// The x tick label of configuration `x` (1-based): its label, or its number.
+fn configuration_label(plot: &ErrorPlot, x: f64) -> String {
+    let number = x.round() as i64;
+    usize::try_from(number - 1)
+        .ok()
+        .and_then(|i| plot.x_labels.get(i).cloned())
+        .unwrap_or_else(|| number.to_string())
+}
+
+/// One panel: its series over the shared x axis, with the panel's own y axis.
+fn draw_panel(
+    root: &DrawingArea<SVGBackend<'_>, Shift>,
+    area: &DrawingArea<SVGBackend<'_>, Shift>,
+    plot: &ErrorPlot,
+    configurations: usize,
+    panel: &Panel,
+    y_label_area: u32,
+) -> DrawResult<()> {
     let plot_width = WIDTH - y_label_area - MARGIN_RIGHT - 8;
     let last = configurations as f64;
+    let characters = if plot.x_labels.is_empty() {
+        configurations.to_string().len()
+    } else {
+        plot.x_labels
+            .iter()
+            .map(|l| l.chars().count())
+            .max()
+            .unwrap_or(1)
+    };
     let mut chart = axes(
-        &chart_area,
+        area,
         y_label_area,
-        TickedAxis::new(0.5..last + 0.5, x_ticks(configurations, plot_width)),
-        y_axis,
-        ["configuration", &plot.y_label],
-        &|x| format!("{}", x.round() as i64),
+        TickedAxis::new(
+            0.5..last + 0.5,
+            x_ticks(configurations, characters, plot_width),
+        ),
+        &panel.y_axis,
+        [
+            if plot.x_labels.is_empty() {
+                "configuration"
+            } else {
+                "measurement id"
+            },
+            &plot.y_label,
+        ],
+        &|x| configuration_label(plot, *x),
     )?;
 
     let spacing = f64::from(plot_width) / configurations as f64;
     let marker_every = (MARKER_SPACING / spacing).ceil().max(1.0) as usize;
-    for (index, series) in plot.series.iter().enumerate() {
+    for &index in &panel.series {
+        let series = &plot.series[index];
         let (colour, kind) = style_of(index);
         let points: Vec<(f64, f64)> = series
             .values

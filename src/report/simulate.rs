@@ -3,7 +3,42 @@
 use crate::measurement::Observation;
 use crate::sim::experiment::{ArmErrors, TrialReport};
 use crate::sim::monte_carlo::{ArmSummary, SimulationSummary};
+use serde::Serialize;
 use std::fmt::Write;
+
+/// The `schema_version` of `results.json` (its layout is documented in docs/file-formats.md).
+pub const RESULTS_SCHEMA: &str = "treecal.results/2";
+
+/// `results.json`: every number of a simulation.
+#[derive(Debug, Clone, Serialize)]
+pub struct SimulationResults<'a> {
+    /// [`RESULTS_SCHEMA`].
+    pub schema_version: &'static str,
+    /// Robot name.
+    pub robot: &'a str,
+    /// The master seed.
+    pub seed: u64,
+    /// Mean ± standard deviation over the trials.
+    pub summary: &'a SimulationSummary,
+    /// Every trial, in trial order.
+    pub trials: &'a [TrialReport],
+}
+
+/// The `results.json` contents of a simulation of `robot` with master seed `seed`.
+pub fn simulation_results<'a>(
+    robot: &'a str,
+    seed: u64,
+    trials: &'a [TrialReport],
+    summary: &'a SimulationSummary,
+) -> SimulationResults<'a> {
+    SimulationResults {
+        schema_version: RESULTS_SCHEMA,
+        robot,
+        seed,
+        summary,
+        trials,
+    }
+}
 
 fn trial_table(out: &mut String, title: &str, arms: &[ArmErrors], orientation: bool) {
     let _ = writeln!(out, "### {title}\n");

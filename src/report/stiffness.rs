@@ -11,13 +11,15 @@ use std::fmt::Write;
 pub struct StiffnessSummary {
     /// Relative standard deviation of the prior (the stiffness file).
     pub prior_sigma: f64,
-    /// Weighted cost ½‖r‖² before and after the joint fit.
+    /// Weighted cost ½‖r‖² before and after the joint fit (JSON: `before`, `after`).
+    #[serde(serialize_with = "crate::serde_labels::before_after")]
     pub cost: [f64; 2],
     /// Iterations of the joint fit.
     pub iterations: usize,
     /// Why the joint fit stopped.
     pub termination: crate::calibration::Termination,
-    /// Identified compliance parameters / all.
+    /// Identified compliance parameters / all (JSON: `identified`, `total`).
+    #[serde(serialize_with = "identified_json")]
     pub identified: [usize; 2],
     /// `σ̂` of the joint fit.
     pub residual_scale: f64,
@@ -26,8 +28,30 @@ pub struct StiffnessSummary {
     /// Combinations the data cannot determine (kept at the prior), in words.
     pub unidentifiable: Vec<String>,
     /// Common scale of all joint compliances and of all link compliances, with its standard
-    /// deviation (`None`: not identified, 1).
+    /// deviation (`None`: not identified, 1) (JSON: `joint` and `link`, each with `scale` and
+    /// `std_dev`).
+    #[serde(serialize_with = "group_scales_json")]
     pub group_scales: [(f64, Option<f64>); 2],
+}
+
+fn identified_json<S: serde::Serializer>(
+    identified: &[usize; 2],
+    serializer: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    crate::serde_labels::labelled(identified, ["identified", "total"], serializer)
+}
+
+fn group_scales_json<S: serde::Serializer>(
+    scales: &[(f64, Option<f64>); 2],
+    serializer: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct Scale {
+        scale: f64,
+        std_dev: Option<f64>,
+    }
+    let groups = scales.map(|(scale, std_dev)| Scale { scale, std_dev });
+    crate::serde_labels::labelled(&groups, ["joint", "link"], serializer)
 }
 
 impl StiffnessSummary {

@@ -134,13 +134,21 @@ pub struct ArmErrors {
     pub rigid: ErrorStats,
     /// Calibrated with compensation (deflected prediction).
     pub compensated: ErrorStats,
-    /// % of the mean position error removed, rigid / compensated.
+    /// % of the mean position error removed, rigid / compensated (JSON: `rigid`,
+    /// `compensated`).
+    #[serde(serialize_with = "crate::serde_labels::rigid_compensated")]
     pub position_removed_percent: [f64; 2],
-    /// % of the mean orientation error removed, rigid / compensated.
+    /// % of the mean orientation error removed, rigid / compensated (JSON: `rigid`,
+    /// `compensated`).
+    #[serde(serialize_with = "crate::serde_labels::rigid_compensated")]
     pub orientation_removed_percent: [f64; 2],
-    /// Position errors per configuration (mm): before, rigid, compensated.
+    /// Position errors per configuration (mm): before, rigid, compensated (JSON: keyed by
+    /// those names).
+    #[serde(serialize_with = "crate::serde_labels::before_rigid_compensated")]
     pub position_mm: [Vec<f64>; 3],
-    /// Orientation errors per configuration (deg): before, rigid, compensated.
+    /// Orientation errors per configuration (deg): before, rigid, compensated (JSON: keyed by
+    /// those names).
+    #[serde(serialize_with = "crate::serde_labels::before_rigid_compensated")]
     pub orientation_deg: [Vec<f64>; 3],
 }
 
@@ -150,7 +158,9 @@ pub struct ArmErrors {
 pub struct BlunderReport {
     /// The measurements turned into blunders.
     pub injected: Vec<usize>,
-    /// The outliers named by the calibration without / with compensation.
+    /// The outliers named by the calibration without / with compensation (JSON: `rigid`,
+    /// `compensated`).
+    #[serde(serialize_with = "crate::serde_labels::rigid_compensated")]
     pub named: [Vec<usize>; 2],
 }
 
@@ -169,8 +179,33 @@ impl BlunderReport {
 pub struct RunSummary {
     /// Plan repetitions.
     pub cycles: usize,
-    /// Per stage: name, iterations, termination, rank, parameter count.
+    /// Per stage: name, iterations, termination, rank, parameter count (JSON: an object per
+    /// stage with those keys, `parameters` for the count).
+    #[serde(serialize_with = "stages_json")]
     pub stages: Vec<(String, usize, String, usize, usize)>,
+}
+
+fn stages_json<S: serde::Serializer>(
+    stages: &[(String, usize, String, usize, usize)],
+    serializer: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct Stage<'a> {
+        name: &'a str,
+        iterations: usize,
+        termination: &'a str,
+        rank: usize,
+        parameters: usize,
+    }
+    serializer.collect_seq(stages.iter().map(
+        |(name, iterations, termination, rank, parameters)| Stage {
+            name,
+            iterations: *iterations,
+            termination,
+            rank: *rank,
+            parameters: *parameters,
+        },
+    ))
 }
 
 /// One simulated calibration.

@@ -38,13 +38,21 @@ pub struct ArmSummary {
     pub before_position_mm: Spread,
     /// Mean orientation error before calibration (deg).
     pub before_orientation_deg: Spread,
-    /// Mean position error after calibration without / with compensation (mm).
+    /// Mean position error after calibration without / with compensation (mm; JSON: `rigid`,
+    /// `compensated`).
+    #[serde(serialize_with = "crate::serde_labels::rigid_compensated")]
     pub after_position_mm: [Spread; 2],
-    /// Mean orientation error after calibration without / with compensation (deg).
+    /// Mean orientation error after calibration without / with compensation (deg; JSON:
+    /// `rigid`, `compensated`).
+    #[serde(serialize_with = "crate::serde_labels::rigid_compensated")]
     pub after_orientation_deg: [Spread; 2],
-    /// % of the mean position error removed without / with compensation.
+    /// % of the mean position error removed without / with compensation (JSON: `rigid`,
+    /// `compensated`).
+    #[serde(serialize_with = "crate::serde_labels::rigid_compensated")]
     pub position_removed_percent: [Spread; 2],
-    /// % of the mean orientation error removed without / with compensation.
+    /// % of the mean orientation error removed without / with compensation (JSON: `rigid`,
+    /// `compensated`).
+    #[serde(serialize_with = "crate::serde_labels::rigid_compensated")]
     pub orientation_removed_percent: [Spread; 2],
 }
 
@@ -60,8 +68,28 @@ pub struct SimulationSummary {
     /// RMS validation position error the noise alone predicts (mm), over trials.
     pub noise_floor_position_mm: Spread,
     /// Over all trials, without / with compensation: blunders named, blunders missed, clean
-    /// measurements named as outliers.
+    /// measurements named as outliers (JSON: `rigid` and `compensated`, each with `named`,
+    /// `missed` and `clean_named`).
+    #[serde(serialize_with = "blunders_json")]
     pub blunders: [[usize; 3]; 2],
+}
+
+fn blunders_json<S: serde::Serializer>(
+    blunders: &[[usize; 3]; 2],
+    serializer: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct Counts {
+        named: usize,
+        missed: usize,
+        clean_named: usize,
+    }
+    let [rigid, compensated] = blunders.map(|[named, missed, clean_named]| Counts {
+        named,
+        missed,
+        clean_named,
+    });
+    crate::serde_labels::rigid_compensated(&[rigid, compensated], serializer)
 }
 
 /// Runs `trials` trials on all cores; `progress` is called once per finished trial.

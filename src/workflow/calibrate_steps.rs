@@ -23,7 +23,6 @@ use crate::report::{
 };
 use crate::tree::Branches;
 use crate::urdf::{export_urdf_with, ExportOptions, ExportReport};
-use serde::Serialize;
 
 /// Fraction of the configurations held out for validation without validation data.
 const HOLD_OUT: f64 = 0.2;
@@ -367,15 +366,8 @@ fn summary(
     let unidentifiable = unidentifiable(&result.run, loaded);
     let mut summary = calibration_summary(context, &result.run, unidentifiable, changed);
     summary.outliers = outliers;
+    summary.name_rows([&data.ids[0], &data.ids[1]]);
     summary
-}
-
-/// report.json with the stiffness identification after the calibration's keys.
-#[derive(Serialize)]
-struct ReportWithStiffness<'a> {
-    #[serde(flatten)]
-    summary: &'a CalibrationSummary,
-    stiffness: &'a StiffnessSummary,
 }
 
 /// Everything the outcome holds besides the parameters and notes.
@@ -397,28 +389,15 @@ pub(super) fn outputs(
     export: Option<ExportReport>,
     identified: IdentifiedStiffness,
 ) -> Result<Outputs> {
-    let summary = summary(config, loaded, data, result, export.as_ref());
+    let mut summary = summary(config, loaded, data, result, export.as_ref());
+    summary.stiffness = identified.as_ref().map(|(s, _)| s.clone());
     let run = &result.run;
     let tree = loaded.robot.tree();
     let mut markdown = calibration_markdown(&summary, &result.options);
     let mut params = to_yaml(&parameter_file(tree.name(), run))?;
     let json_error = |e: serde_json::Error| invalid("report.json", e.to_string());
-    let (json, report) = match &identified {
-        Some((stiffness, _)) => {
-            let with = ReportWithStiffness {
-                summary: &summary,
-                stiffness,
-            };
-            (
-                to_json(&with)?,
-                serde_json::to_value(&with).map_err(json_error)?,
-            )
-        }
-        None => (
-            to_json(&summary)?,
-            serde_json::to_value(&summary).map_err(json_error)?,
-        ),
-    };
+    let json = to_json(&summary)?;
+    let report = serde_json::to_value(&summary).map_err(json_error)?;
     let mut stiffness_file = None;
     if let Some((stiffness_summary, file)) = &identified {
         markdown.push_str(&stiffness_markdown(stiffness_summary));
@@ -434,8 +413,8 @@ pub(super) fn outputs(
             ),
         ));
     }
-    let mut plots = calibration_plots(&run.identification, "measurement")?;
-    plots.extend(calibration_plots(&run.validation, "validation")?);
+    let mut plots = calibration_plots(&summary.identification, "measurement")?;
+    plots.extend(calibration_plots(&summary.validation, "validation")?);
     let verdict = summary.verdict;
     let urdf = export.filter(|_| verdict.usable()).map(|e| e.urdf);
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();

@@ -23,7 +23,6 @@ use crate::sim::collision::CollisionChecker;
 use crate::sim::pose_set::staged_pose_set;
 use crate::tree::{Branches, KinematicTree};
 use crate::{Error, McpcModel, Result};
-use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// Size of the default pose set: arm configurations, torso configurations, locked arm
@@ -114,21 +113,10 @@ pub struct Check {
     pub json: serde_json::Value,
 }
 
-/// The JSON / YAML layout: the report, and the compliance analysis when there is one.
-#[derive(Serialize)]
-struct Output<'a> {
-    #[serde(flatten)]
-    report: &'a CheckReport,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    compliance: Option<&'a ComplianceIdentifiability>,
-}
-
 impl Check {
-    fn output(&self) -> Output<'_> {
-        Output {
-            report: &self.report,
-            compliance: self.compliance.as_ref(),
-        }
+    /// The JSON / YAML layout: the report, which holds the compliance analysis when there is one.
+    fn output(&self) -> &CheckReport {
+        &self.report
     }
 
     /// The report as pretty JSON (keys in report order).
@@ -235,10 +223,11 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
 /// The outcome, with its text and JSON.
 fn finish(
     notes: Vec<Note>,
-    report: CheckReport,
+    mut report: CheckReport,
     compliance: Option<ComplianceIdentifiability>,
     prior: f64,
 ) -> Result<Check> {
+    report.compliance = compliance.clone();
     let mut text = report.to_text();
     if let Some(c) = &compliance {
         text += &compliance_identifiability_markdown(c, prior);

@@ -194,15 +194,14 @@ pub fn simulate_with_progress(
         notes.extend(first.notes.iter().map(Note::info));
     }
     let markdown = simulation_markdown(&header(config, tree, &options), &reports, &summary);
-    let results = serde_json::json!({
-        "robot": tree.name(),
-        "seed": config.seed,
-        "trials": reports,
-        "summary": summary,
-    });
+    let labelled = crate::report::simulation_results(tree.name(), config.seed, &reports, &summary);
+    let results = serde_json::to_value(&labelled).map_err(|e| crate::Error::InvalidData {
+        origin: "results.json".into(),
+        message: e.to_string(),
+    })?;
     let mut files = vec![
         ("summary.md".to_owned(), markdown.clone().into_bytes()),
-        ("results.json".to_owned(), to_json(&results)?.into_bytes()),
+        ("results.json".to_owned(), to_json(&labelled)?.into_bytes()),
     ];
     files.extend(plots(reports.first())?);
     let measurements_csv = match (config.measurement_format, reports.first()) {
