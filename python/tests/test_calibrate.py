@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import re
 import subprocess
 
@@ -75,6 +76,11 @@ def test_write_and_write_urdf(from_csv, tmp_path):
     assert "report.json" in files and "calibrated.urdf" in files
     for name, data in files.items():
         assert (tmp_path / "out" / name).read_bytes() == data, name
+    # .report is report.json's content, .markdown report.md, .urdf calibrated.urdf.
+    assert json.loads(files["report.json"]) == from_csv.report
+    assert from_csv.report["schema_version"].startswith("treecal.report/")
+    assert files["report.md"].decode() == from_csv.markdown
+    assert files["calibrated.urdf"].decode() == from_csv.urdf
     from_csv.write_urdf(tmp_path / "cal.urdf")
     assert (tmp_path / "cal.urdf").read_text() == from_csv.urdf
     # The calibrated URDF loads and moves like a robot.
