@@ -1,0 +1,307 @@
+"""treecal: kinematic calibration of branched robots (torso + arms) described by URDF.
+
+The Python face of the Rust library (``treecal::workflow``): one call per job, numpy in and
+out, and one exception type, :class:`TreecalError`, whose message is the CLI's
+``treecal: error:`` text. See docs/python.md.
+"""
+
+from __future__ import annotations
+
+import collections.abc
+import json
+import os
+from pathlib import Path
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _treecal
+from ._treecal import TreecalError
+
+__all__ = [
+    "Calibration",
+    "Measurements",
+    "TreecalError",
+    "calibrate",
+    "fk",
+    "__version__",
+]
+
+__version__: str = _treecal.__version__
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+_OBSERVATION_WIDTH = {"positions": 3, "poses": 7, "targets": 9}
+
+
+def _robot_path(robot: Optional[PathLike]) -> Optional[str]:
+    """The URDF path as a string, or None for the built-in Robonaut."""
+    if robot is None:
+        return None
+    return os.fspath(robot)
+
+
+def _matrix(values: Any, name: str, width: Optional[int] = None) -> np.ndarray:
+    """`values` as a finite-or-NaN float matrix (rows, columns), checked on the Python side
+    only for its shape; the Rust side checks every value and names the row."""
+    try:
+        array = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise TreecalError(f"{name}: not an array of numbers ({error})") from None
+    if array.ndim == 1 and width is not None and array.shape[0] == width:
+        array = array[None, :]
+    if array.ndim != 2:
+        raise TreecalError(f"{name}: expected a 2-D array (rows, columns), got shape {array.shape}")
+    if width is not None and array.shape[1] != width:
+        raise TreecalError(f"{name}: expected {width} columns per row, got {array.shape[1]}")
+    return array
+
+
+def _strings(values: Any, name: str, rows: Optional[int] = None) -> List[str]:
+    """A list of str (one per row when `rows` is given)."""
+    if isinstance(values, str):
+        raise TreecalError(f"{name}: expected a sequence of strings, got one string")
+    result = [str(v) for v in values]
+    if rows is not None and len(result) != rows:
+        raise TreecalError(f"{name}: {len(result)} entries for {rows} rows")
+    return result
+
+
+def fk(
+    robot: Optional[PathLike],
+    tip: str,
+    joints: Union[Mapping[str, float], Any],
+    joint_names: Optional[Sequence[str]] = None,
+    angle_unit: str = "rad",
+) -> np.ndarray:
+    """The pose ``root_from_tip`` of link `tip` (4x4 homogeneous matrices, metres).
+
+    `robot` is a URDF path, or None for the built-in Robonaut. `joints` is either an (N, k)
+    array whose columns `joint_names` names (result (N, 4, 4)), or a dict {joint: value} for
+    one configuration (result (4, 4); so is a 1-D array of k values). Joints not given are 0; revolute values are in
+    `angle_unit` ("rad" or "deg"), prismatic ones in metres. Rows are the same as
+    ``treecal fk`` prints for a joints CSV with these columns.
+    """
+    single = isinstance(joints, collections.abc.Mapping)
+    if single:
+        if joint_names is not None:
+            raise TreecalError("fk: joint_names is for an array of joints; a dict names its joints itself")
+        names = [str(k) for k in joints.keys()]
+        rows = _matrix([[float(v) for v in joints.values()]], "joints")
+    else:
+        if joint_names is None:
+            raise TreecalError("fk: joint_names is required when joints is an array")
+        names = _strings(joint_names, "joint_names")
+        array = np.asarray(joints, dtype=np.float64)
+        single = array.ndim == 1
+        rows = _matrix(array[None, :] if single else array, "joints")
+        if rows.shape[1] != len(names):
+            raise TreecalError(
+                f"fk: joints has {rows.shape[1]} columns but joint_names names {len(names)}"
+            )
+    flat = _treecal.fk(_robot_path(robot), str(tip), names, rows.tolist(), angle_unit)
+    poses = np.asarray(flat, dtype=np.float64).reshape(-1, 4, 4)
+    return poses[0] if single else poses
+
+
+class Measurements:
+    """A measurement table from arrays: the same rows a measurement CSV holds.
+
+    One row per tool observation: `tools[i]` is the measured tool link, `joints[i]` the joint
+    values (columns named by `joint_names`; NaN = not given), and exactly one of
+
+    - `positions` (N, 3): x, y, z of the tool;
+    - `poses` (N, 7): x, y, z, qw, qx, qy, qz of the tool frame;
+    - `targets` (N, 9): three targets A, B, C (ax, ay, az, bx, …, cz) on the tool.
+
+    `ids` name the rows in messages and reports (default "1".."N"); `stages` label rows
+    "torso" or "arms" for the staged plan. `length_unit` ("m"/"mm") and `angle_unit`
+    ("rad"/"deg") are the units of the values, like a CSV's ``# units:`` comment (default:
+    m and rad, with the same diagnoses of a wrong unit as for a CSV). Values are checked by
+    the same code that reads a CSV, when the table is used; errors name the row id.
+    """
+
+    def __init__(
+        self,
+        tools: Sequence[str],
+        joints: Any,
+        joint_names: Sequence[str],
+        *,
+        positions: Any = None,
+        poses: Any = None,
+        targets: Any = None,
+        ids: Optional[Sequence[Any]] = None,
+        stages: Optional[Sequence[str]] = None,
+        length_unit: Optional[str] = None,
+        angle_unit: Optional[str] = None,
+        origin: str = "measurements (arrays)",
+    ) -> None:
+        given = [(k, v) for k, v in (("positions", positions), ("poses", poses), ("targets", targets)) if v is not None]
+        if len(given) != 1:
+            raise TreecalError(
+                f"{origin}: give exactly one of positions= (N,3), poses= (N,7) or targets= (N,9)"
+            )
+        self.kind, observed = given[0]
+        self.observations = _matrix(observed, f"{origin}: {self.kind}", _OBSERVATION_WIDTH[self.kind])
+        rows = self.observations.shape[0]
+        self.joint_names = _strings(joint_names, f"{origin}: joint_names")
+        self.joints = _matrix(joints, f"{origin}: joints", len(self.joint_names))
+        if self.joints.shape[0] != rows:
+            raise TreecalError(f"{origin}: joints has {self.joints.shape[0]} rows but {self.kind} has {rows}")
+        self.tools = _strings(tools, f"{origin}: tools", rows)
+        self.ids = None if ids is None else _strings(ids, f"{origin}: ids", rows)
+        self.stages = None if stages is None else _strings(stages, f"{origin}: stages", rows)
+        self.length_unit = length_unit
+        self.angle_unit = angle_unit
+        self.origin = origin
+
+    def __len__(self) -> int:
+        return int(self.observations.shape[0])
+
+    def __repr__(self) -> str:
+        return f"Measurements({len(self)} rows of {self.kind}, {len(self.joint_names)} joints, origin={self.origin!r})"
+
+    def _payload(self) -> Dict[str, Any]:
+        """Plain lists for the Rust side (treecal::io::MeasurementTable)."""
+        return {
+            "origin": self.origin,
+            "ids": self.ids,
+            "tools": self.tools,
+            "joint_names": self.joint_names,
+            "joints": self.joints.tolist(),
+            "kind": self.kind,
+            "observations": self.observations.tolist(),
+            "stages": self.stages,
+            "length_unit": self.length_unit,
+            "angle_unit": self.angle_unit,
+        }
+
+
+MeasurementsLike = Union[PathLike, Measurements]
+
+
+def _measurement_source(value: Optional[MeasurementsLike], name: str) -> Any:
+    """A CSV path (str) or a Measurements payload (dict) for the Rust side."""
+    if value is None:
+        return None
+    if isinstance(value, Measurements):
+        return value._payload()
+    if isinstance(value, (str, os.PathLike)):
+        return os.fspath(value)
+    raise TreecalError(f"{name}: expected a CSV path or treecal.Measurements, got {type(value).__name__}")
+
+
+class Calibration:
+    """The outcome of :func:`calibrate` (the CLI's ``out/calibrate`` directory, in memory).
+
+    A failed verdict is not an exception: check :attr:`verdict` (``"ok"``, ``"warning"`` or
+    ``"failed"``) and :attr:`reasons`.
+    """
+
+    def __init__(self, inner: Any) -> None:
+        self._inner = inner
+        verdict = json.loads(inner.verdict_json)
+        #: "ok", "warning" or "failed" (failed: do not use the result).
+        self.verdict: str = verdict["status"]
+        #: Every finding in the order the checks ran: dicts with status, code, message.
+        self.reasons: List[Dict[str, str]] = verdict["reasons"]
+        #: What the CLI prints on stderr: (level, text) with level note, warning or error.
+        self.notes: List[Tuple[str, str]] = [(str(level), str(text)) for level, text in inner.notes]
+        #: One dict per parameter: name, owner, kind, unit, nominal, calibrated, change,
+        #: std_dev, identifiable.
+        self.parameters: List[Dict[str, Any]] = json.loads(inner.parameters_json)
+        #: The content of report.json.
+        self.report: Dict[str, Any] = json.loads(inner.report_json)
+        #: report.md.
+        self.markdown: str = inner.markdown
+        #: calibrated.urdf, or None when the verdict failed or the export was impossible.
+        self.urdf: Optional[str] = inner.urdf
+
+    @property
+    def usable(self) -> bool:
+        """Whether the result may be used (verdict ok or warning)."""
+        return self.verdict != "failed"
+
+    @property
+    def files(self) -> Dict[str, bytes]:
+        """Every output file the CLI writes, by name."""
+        return dict(self._inner.files())
+
+    def write_urdf(self, path: PathLike) -> None:
+        """Writes the calibrated URDF; raises TreecalError when there is none (failed verdict)."""
+        if self.urdf is None:
+            why = "; ".join(r["message"] for r in self.reasons if r["status"] == "failed")
+            raise TreecalError(
+                f"no calibrated URDF: the verdict is {self.verdict}" + (f" ({why})" if why else "")
+            )
+        Path(path).write_text(self.urdf, encoding="utf-8")
+
+    def write(self, out_dir: PathLike) -> None:
+        """Writes every output file into `out_dir` (created), like ``treecal calibrate --out``."""
+        self._inner.write(os.fspath(out_dir))
+
+    def __repr__(self) -> str:
+        return f"Calibration(verdict={self.verdict!r}, {len(self.parameters)} parameters)"
+
+
+def calibrate(
+    robot: Optional[PathLike] = None,
+    measurements: Optional[MeasurementsLike] = None,
+    validation: Optional[MeasurementsLike] = None,
+    *,
+    length_unit: Optional[str] = None,
+    angle_unit: Optional[str] = None,
+    joint_length_unit: Optional[str] = None,
+    stiffness: Optional[PathLike] = None,
+    tools: Optional[Sequence[str]] = None,
+    plan: Optional[PathLike] = None,
+    seed: int = 0,
+    robust: str = "huber",
+    identify_stiffness: bool = False,
+    stiffness_prior: Optional[float] = None,
+    measurement_frame: PathLike = "auto",
+    gravity_frame: str = "measurement",
+    position_sigma: Optional[float] = None,
+    rotation_sigma: Optional[float] = None,
+    ignore_columns: Sequence[str] = (),
+    strict: bool = False,
+    add_tool_links: bool = False,
+) -> Calibration:
+    """Calibrates `robot` (URDF path; None: the built-in Robonaut) from `measurements`.
+
+    The same job as ``treecal calibrate`` with the same defaults; keyword names are the CLI's
+    flags. `measurements` and `validation` are a measurement CSV path or a
+    :class:`Measurements`; without `validation` a seeded fifth is held out. `plan` is
+    "staged", "simultaneous", a plan YAML path, or None (staged when rows are labelled
+    torso/arms). `measurement_frame` is "auto", "fit", "base" or a registration YAML path;
+    `robust` "huber", "cauchy" or "off"; `gravity_frame` "measurement" or "base".
+    `position_sigma` (m), `rotation_sigma` (rad) and `stiffness_prior` default to the CLI's
+    defaults (None).
+    Bad input raises :class:`TreecalError`; a failed verdict does not (see
+    :attr:`Calibration.verdict`).
+    """
+    if measurements is None:
+        raise TreecalError("calibrate: measurements= is required (a CSV path or treecal.Measurements)")
+    inner = _treecal.calibrate(
+        robot=_robot_path(robot),
+        measurements=_measurement_source(measurements, "measurements"),
+        validation=_measurement_source(validation, "validation"),
+        length_unit=length_unit,
+        angle_unit=angle_unit,
+        joint_length_unit=joint_length_unit,
+        stiffness=None if stiffness is None else os.fspath(stiffness),
+        tools=None if tools is None else _strings(tools, "tools"),
+        plan=None if plan is None else os.fspath(plan),
+        seed=int(seed),
+        robust=str(robust),
+        identify_stiffness=bool(identify_stiffness),
+        stiffness_prior=None if stiffness_prior is None else float(stiffness_prior),
+        measurement_frame=os.fspath(measurement_frame),
+        gravity_frame=str(gravity_frame),
+        position_sigma=None if position_sigma is None else float(position_sigma),
+        rotation_sigma=None if rotation_sigma is None else float(rotation_sigma),
+        ignore_columns=_strings(ignore_columns, "ignore_columns"),
+        strict=bool(strict),
+        add_tool_links=bool(add_tool_links),
+    )
+    return Calibration(inner)

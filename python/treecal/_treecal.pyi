@@ -1,0 +1,56 @@
+"""Type stubs of the Rust extension module (python/src); use the `treecal` package instead."""
+
+from typing import Any, Dict, List, Optional, Tuple, Union
+
+__version__: str
+
+class TreecalError(ValueError):
+    """Bad input or a calibration that cannot run; the message is the CLI's error text."""
+
+class Calibration:
+    @property
+    def verdict_json(self) -> str: ...
+    @property
+    def parameters_json(self) -> str: ...
+    @property
+    def report_json(self) -> str: ...
+    @property
+    def markdown(self) -> str: ...
+    @property
+    def urdf(self) -> Optional[str]: ...
+    @property
+    def notes(self) -> List[Tuple[str, str]]: ...
+    def files(self) -> List[Tuple[str, bytes]]: ...
+    def write(self, out: str) -> None: ...
+
+def fk(
+    robot: Optional[str],
+    tip: str,
+    joint_names: List[str],
+    joints: List[List[float]],
+    angle_unit: str = "rad",
+) -> List[List[float]]: ...
+
+def calibrate(
+    *,
+    robot: Optional[str],
+    measurements: Union[str, Dict[str, Any]],
+    validation: Union[None, str, Dict[str, Any]],
+    length_unit: Optional[str],
+    angle_unit: Optional[str],
+    joint_length_unit: Optional[str],
+    stiffness: Optional[str],
+    tools: Optional[List[str]],
+    plan: Optional[str],
+    seed: int,
+    robust: str,
+    identify_stiffness: bool,
+    stiffness_prior: Optional[float],
+    measurement_frame: str,
+    gravity_frame: str,
+    position_sigma: Optional[float],
+    rotation_sigma: Optional[float],
+    ignore_columns: List[str],
+    strict: bool,
+    add_tool_links: bool,
+) -> Calibration: ...
