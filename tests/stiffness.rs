@@ -110,6 +110,7 @@ fn measure(
             .enumerate()
         {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(pose),

@@ -281,16 +281,21 @@ pub fn run_calibration(
     let measurements = &kept(measurements, DataSet::Identification)[..];
     let validation = &kept(validation, DataSet::Validation)[..];
     let parameters = estimates(input, &guess.model, &report);
-    let predict = |model: &McpcModel, q: &[f64]| -> Result<Vec<Pose>> {
+    let predict = |model: &McpcModel, q: &[f64], payload: Option<f64>| -> Result<Vec<Pose>> {
         match input.flexibility {
-            Some(flexibility) => flexibility.deflected_tool_poses(input.tree, model, q),
+            Some(flexibility) => flexibility
+                .for_payload(payload)?
+                .deflected_tool_poses(input.tree, model, q),
             None => Ok(model.tool_poses(q)),
         }
     };
     let residuals = |data: &[Measurement]| -> Result<Vec<ArmResiduals>> {
-        arm_residuals(input, data, &|q| Ok(guess.model.tool_poses(q)), &|q| {
-            predict(&report.model, q)
-        })
+        arm_residuals(
+            input,
+            data,
+            &|q, _| Ok(guess.model.tool_poses(q)),
+            &|q, payload| predict(&report.model, q, payload),
+        )
     };
     let identification = residuals(measurements)?;
     let validation_residuals = if validation.is_empty() {
@@ -489,16 +494,17 @@ fn estimates(
 fn arm_residuals(
     input: &CalibrationInput<'_>,
     data: &[Measurement],
-    before: &dyn Fn(&[f64]) -> Result<Vec<Pose>>,
-    after: &dyn Fn(&[f64]) -> Result<Vec<Pose>>,
+    before: &dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>>,
+    after: &dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>>,
 ) -> Result<Vec<ArmResiduals>> {
     let tools = input.nominal.tools().len();
     let mut position = vec![[Vec::new(), Vec::new()]; tools];
     let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
-    let mut cache: Option<(&[f64], [Vec<Pose>; 2])> = None;
+    let mut cache: Option<((&[f64], Option<f64>), [Vec<Pose>; 2])> = None;
     for m in data {
-        if cache.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
-            cache = Some((&m.q, [before(&m.q)?, after(&m.q)?]));
+        let key = (m.q.as_slice(), m.payload);
+        if cache.as_ref().is_none_or(|(k, _)| *k != key) {
+            cache = Some((key, [before(&m.q, m.payload)?, after(&m.q, m.payload)?]));
         }
         let Some((_, predictions)) = &cache else {
             continue;

@@ -104,6 +104,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             ))
         }
     };
+    for &mass in args.payloads.iter().flatten() {
+        limits::check_range(mass, (0.0, limits::MAX_MASS), "--payloads", "kg")?;
+    }
     if let Some(mass) = args.payload {
         limits::check_range(mass, (0.0, limits::MAX_MASS), "--payload", "kg")?;
         for payload in &mut stiffness.payloads {
@@ -160,6 +163,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         robust: args.robust.into(),
         outliers: args.outliers,
         outlier_size: args.outlier_size * 1e-3,
+        payloads: args.payloads.clone().unwrap_or_default(),
     };
     if args.targets == 2 {
         return Err(invalid(

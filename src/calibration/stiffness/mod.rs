@@ -114,8 +114,9 @@ pub struct StiffnessReport {
 }
 
 /// Identifies the compliance scales of `prior` jointly with the `free` MCPC parameters of
-/// `start` from `measurements`. `payloads`, if given, is the payload at every tool for each
-/// measurement (kg; replaces the prior's payloads for that row).
+/// `start` from `measurements`. Each row is predicted at its own payload
+/// ([`Measurement::payload`], kg at every tool; `None`: the prior's payloads); `payloads`, if
+/// given, overrides them, one per measurement.
 #[allow(clippy::too_many_arguments)]
 pub fn identify_stiffness(
     tree: &KinematicTree,

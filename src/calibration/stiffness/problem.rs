@@ -45,33 +45,29 @@ impl<'a> Problem<'a> {
         if measurements.is_empty() {
             return Err(bad("no measurements".into()));
         }
+        if let Some(payloads) = payloads {
+            if payloads.len() != measurements.len() {
+                return Err(bad(format!(
+                    "{} payloads for {} measurements",
+                    payloads.len(),
+                    measurements.len()
+                )));
+            }
+        }
         let mut bases: Vec<(Option<f64>, ComplianceBasis)> = Vec::new();
         let mut basis_of = Vec::with_capacity(measurements.len());
-        match payloads {
-            None => {
-                bases.push((None, ComplianceBasis::new(prior)));
-                basis_of.resize(measurements.len(), 0);
-            }
-            Some(payloads) => {
-                if payloads.len() != measurements.len() {
-                    return Err(bad(format!(
-                        "{} payloads for {} measurements",
-                        payloads.len(),
-                        measurements.len()
-                    )));
+        for (index, m) in measurements.iter().enumerate() {
+            // A given list overrides the rows' own payloads (`payload_kg`).
+            let payload = payloads.map_or(m.payload, |p| Some(p[index]));
+            let basis = match bases.iter().position(|(p, _)| *p == payload) {
+                Some(basis) => basis,
+                None => {
+                    let model = prior.for_payload(payload)?;
+                    bases.push((payload, ComplianceBasis::new(&model)));
+                    bases.len() - 1
                 }
-                for &mass in payloads {
-                    let index = match bases.iter().position(|(m, _)| *m == Some(mass)) {
-                        Some(index) => index,
-                        None => {
-                            let model = prior.with_payload_at_every_tool(mass)?;
-                            bases.push((Some(mass), ComplianceBasis::new(&model)));
-                            bases.len() - 1
-                        }
-                    };
-                    basis_of.push(index);
-                }
-            }
+            };
+            basis_of.push(basis);
         }
         Ok(Self {
             tree,
