@@ -437,11 +437,19 @@ fn finish_trial(
     let identified = match &options.identify_stiffness {
         Some(stiffness) => {
             let free: Vec<usize> = (0..compensated.model.parameter_count()).collect();
+            // The rows the robust calibration named as blunders are left out, as in its fit.
+            let outliers = compensated_robust.outliers();
+            let kept: Vec<Measurement> = measurements
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| !outliers.contains(k))
+                .map(|(_, m)| m.clone())
+                .collect();
             Some(identify_stiffness(
                 tree,
                 &compensated.model,
                 setup.model_flexibility,
-                &measurements,
+                &kept,
                 None,
                 &free,
                 &identification_options,

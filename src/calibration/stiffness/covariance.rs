@@ -32,11 +32,11 @@ impl Problem<'_> {
                 let chosen = position(k);
                 let group =
                     position(self.parameters().len() + usize::from(!parameter.kind.is_joint()));
-                // var(ln s·g) = var(ln s) + var(ln g) + 2·cov.
-                let c = &fit.log_covariance;
+                // var(ln s·g) = ‖F_s + F_g‖², the rows of the covariance factor.
+                let f = &fit.log_factor;
                 let variance = match (chosen, group) {
-                    (Some(a), Some(b)) => Some(c[(a, a)] + c[(b, b)] + 2.0 * c[(a, b)]),
-                    (Some(a), None) | (None, Some(a)) => Some(c[(a, a)]),
+                    (Some(a), Some(b)) => Some((f.row(a) + f.row(b)).norm_squared()),
+                    (Some(a), None) | (None, Some(a)) => Some(f.row(a).norm_squared()),
                     (None, None) => None,
                 };
                 ComplianceEstimate {
@@ -61,7 +61,10 @@ impl Problem<'_> {
     }
 }
 
-/// Rank, `σ̂` and the covariance `σ̂²·(JᵀJ)⁺` of the columns.
+/// Rank, `σ̂` and a factor `F` of the covariance `σ̂²·(JᵀJ)⁺` of the columns (`F·Fᵀ`, one row
+/// per column), so that every variance is a sum of squares: the variance of a product of
+/// scales (an individual scale times its group's) taken as a sum of covariances would lose its
+/// digits to rounding.
 pub(super) fn covariance(
     lin: &Linearisation,
     cost: f64,
@@ -79,11 +82,9 @@ pub(super) fn covariance(
     } else {
         f64::NAN
     };
-    // W = S⁻¹·V_k·Σ_k⁻¹; covariance σ̂²·W·Wᵀ.
-    let n = columns.len();
-    let w = DMatrix::from_fn(n, kept.len(), |k, j| {
-        v_t[(kept[j], k)] / singular[kept[j]] / columns[k]
+    // F = σ̂·S⁻¹·V_k·Σ_k⁻¹.
+    let factor = DMatrix::from_fn(columns.len(), kept.len(), |k, j| {
+        residual_scale * v_t[(kept[j], k)] / singular[kept[j]] / columns[k]
     });
-    let covariance = (&w * w.transpose()) * residual_scale.powi(2);
-    (kept.len(), residual_scale, covariance)
+    (kept.len(), residual_scale, factor)
 }

@@ -18,8 +18,9 @@ pub(super) struct Fit {
     pub(super) termination: Termination,
     pub(super) rank: usize,
     pub(super) residual_scale: f64,
-    /// Covariance of the logarithms of the chosen scales, in `chosen` order.
-    pub(super) log_covariance: DMatrix<f64>,
+    /// A factor `F` of the covariance of the logarithms of the chosen scales (`F·Fᵀ`), one
+    /// row per chosen scale in `chosen` order.
+    pub(super) log_factor: DMatrix<f64>,
 }
 
 impl Problem<'_> {
@@ -101,11 +102,8 @@ impl Problem<'_> {
                 break;
             }
         }
-        let (rank, residual_scale, full) = covariance(&lin, cost, tolerance);
-        let offset = self.free.len();
-        let log_covariance = full
-            .view((offset, offset), (chosen.len(), chosen.len()))
-            .into_owned();
+        let (rank, residual_scale, factor) = covariance(&lin, cost, tolerance);
+        let log_factor = factor.rows(self.free.len(), chosen.len()).into_owned();
         Ok(Fit {
             model,
             scales,
@@ -114,7 +112,7 @@ impl Problem<'_> {
             termination,
             rank,
             residual_scale,
-            log_covariance,
+            log_factor,
         })
     }
 

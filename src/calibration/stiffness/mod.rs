@@ -162,7 +162,7 @@ pub fn identify_stiffness(
             chosen
                 .iter()
                 .position(|&c| c == index)
-                .map(|c| fit.scales[index] * fit.log_covariance[(c, c)].max(0.0).sqrt()),
+                .map(|c| fit.scales[index] * fit.log_factor.row(c).norm()),
         )
     });
     Ok(StiffnessReport {
