@@ -12,7 +12,7 @@
 //! `docs/identification.md`, "Robust estimation".
 
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
-use super::solver::{IdentificationOptions, Predictor};
+use super::solver::{Cached, IdentificationOptions, Predictor};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::math::{pose_error, Pose};
@@ -346,7 +346,7 @@ pub fn residuals(
     offsets: Option<&[Vector6<f64>]>,
     options: &IdentificationOptions,
 ) -> Result<Vec<Residual>> {
-    let mut cached: Option<((&[f64], Option<f64>), Vec<Pose>)> = None;
+    let mut cached: Cached<'_, Vec<Pose>> = None;
     let mut out = Vec::with_capacity(measurements.len());
     for (index, m) in measurements.iter().enumerate() {
         let key = (m.q.as_slice(), m.payload);

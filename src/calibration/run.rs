@@ -491,16 +491,19 @@ fn estimates(
         .collect()
 }
 
+/// Tool poses at a configuration with a row's payload (kg at every tool, `None`: the model's).
+type PredictAt<'a> = dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>> + 'a;
+
 fn arm_residuals(
     input: &CalibrationInput<'_>,
     data: &[Measurement],
-    before: &dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>>,
-    after: &dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>>,
+    before: &PredictAt<'_>,
+    after: &PredictAt<'_>,
 ) -> Result<Vec<ArmResiduals>> {
     let tools = input.nominal.tools().len();
     let mut position = vec![[Vec::new(), Vec::new()]; tools];
     let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
-    let mut cache: Option<((&[f64], Option<f64>), [Vec<Pose>; 2])> = None;
+    let mut cache: super::solver::Cached<'_, [Vec<Pose>; 2]> = None;
     for m in data {
         let key = (m.q.as_slice(), m.payload);
         if cache.as_ref().is_none_or(|(k, _)| *k != key) {

@@ -130,8 +130,18 @@ pub struct DeflectedWithDerivative<'a> {
     source: Deflected<'a>,
     /// Per configuration (keyed by the bits of `q`: O(1) lookup): where the correction was
     /// computed and the correction.
-    cache: std::sync::Mutex<std::collections::HashMap<(Vec<u64>, Option<u64>), Correction>>,
+    cache: std::sync::Mutex<std::collections::HashMap<CorrectionKey, Correction>>,
 }
+
+/// Where a row is evaluated: its configuration and payload (rows of several tools measured
+/// there share one evaluation).
+pub(crate) type RowKey<'a> = (&'a [f64], Option<f64>);
+
+/// The latest evaluation and where it was made.
+pub(crate) type Cached<'a, T> = Option<(RowKey<'a>, T)>;
+
+/// The cache key of a correction: the bits of the configuration and of the payload.
+type CorrectionKey = (Vec<u64>, Option<u64>);
 
 /// A cached Jacobian correction: parameters where it was computed, parameters of the latest
 /// request, and `J_exact − J_chain` per tool.
@@ -452,8 +462,8 @@ pub(super) fn linearise(
     let mut row = 0;
     // Measurements of several tools at one configuration share one evaluation.
     // Keyed by configuration and payload.
-    let mut cached: Option<((&[f64], Option<f64>), Vec<ToolJacobian>)> = None;
-    let mut cached_poses: Option<((&[f64], Option<f64>), Vec<Pose>)> = None;
+    let mut cached: Cached<'_, Vec<ToolJacobian>> = None;
+    let mut cached_poses: Cached<'_, Vec<Pose>> = None;
     for (index, m) in measurements.iter().enumerate() {
         let count = m.observation.rows();
         // Multiplying by exactly 1.0 keeps unweighted problems bit for bit as before.

@@ -24,9 +24,10 @@ pub(super) struct Fit {
 }
 
 impl Problem<'_> {
-    /// Levenberg–Marquardt over the free geometry and the logarithms of the compliance scales
-    /// `chosen`, with SVD-truncated steps (directions the data cannot determine stay where they
-    /// start).
+    /// The joint fit in two steps: the common scales (all joints, all links) with the geometry
+    /// first, then every chosen scale from that geometry. Started from a geometry calibrated with a
+    /// stiffness that is off everywhere, the individual scales alone can run into a wrong
+    /// minimum (some to 0, some ×10) while the geometry still carries the common error.
     pub(super) fn fit(
         &self,
         start: &McpcModel,
@@ -34,8 +35,36 @@ impl Problem<'_> {
         max_iterations: usize,
     ) -> Result<Fit> {
         let count = self.parameters().len() + GROUPS;
+        let ones = vec![1.0; count];
+        let groups: Vec<usize> = chosen
+            .iter()
+            .copied()
+            .filter(|&c| c >= self.parameters().len())
+            .collect();
+        if groups.is_empty() || groups.len() == chosen.len() {
+            return self.fit_from(start, ones, chosen, max_iterations);
+        }
+        // The second step keeps only the geometry: the scales restart at the prior, so that
+        // what the data leave undetermined stays there.
+        let common = self.fit_from(start, ones.clone(), &groups, max_iterations)?;
+        let mut fit = self.fit_from(&common.model, ones, chosen, max_iterations)?;
+        fit.cost[0] = common.cost[0];
+        fit.iterations += common.iterations;
+        Ok(fit)
+    }
+
+    /// Levenberg–Marquardt over the free geometry and the logarithms of the compliance scales
+    /// `chosen`, from `start` and `scales`, with SVD-truncated steps (directions the data
+    /// cannot determine stay where they start).
+    fn fit_from(
+        &self,
+        start: &McpcModel,
+        scales: Vec<f64>,
+        chosen: &[usize],
+        max_iterations: usize,
+    ) -> Result<Fit> {
         let mut model = start.clone();
-        let mut scales = vec![1.0; count];
+        let mut scales = scales;
         let mut lin = self.linearise(&model, &scales, chosen, true)?;
         let mut cost = 0.5 * lin.residual.norm_squared();
         let initial_cost = cost;
