@@ -45,6 +45,7 @@ fn problem(tree: &KinematicTree, nominal: &McpcModel, configurations: usize) -> 
             .collect();
         for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(pose),
@@ -85,6 +86,7 @@ fn stiffness_problem(
             .expect("poses");
         for (tool, pose) in poses.into_iter().enumerate() {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(pose),

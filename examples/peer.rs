@@ -65,6 +65,7 @@ fn measurements(nominal: &McpcModel, configurations: &[Vec<f64>]) -> Vec<Measure
     for q in configurations {
         for (tool, pose) in truth.tool_poses(q).into_iter().enumerate() {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(pose),

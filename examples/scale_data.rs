@@ -42,6 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for q in configurations {
         for (tool, pose) in truth.tool_poses(&q).iter().enumerate() {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: observe(pose, Targets::Three, &noise, &mut rng),

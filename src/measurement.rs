@@ -36,6 +36,9 @@ pub struct Measurement {
     /// The calibration stage the measurement was taken for (e.g. `torso` for configurations
     /// with the arms locked), if labelled.
     pub stage: Option<String>,
+    /// The payload (kg) the robot carried at every tool when this row was measured (the
+    /// measurement CSV's `payload_kg` column); `None`: the stiffness file's payloads.
+    pub payload: Option<f64>,
 }
 
 /// Spacing of the targets A→B and A→C that [`targets_on`] places on a tool (m).

@@ -138,6 +138,7 @@ impl Tracker<'_> {
         for q in configurations {
             for (tool, pose) in self.true_targets(robot, truth, q).iter().enumerate() {
                 measurements.push(Measurement {
+                    payload: None,
                     tool,
                     q: q.clone(),
                     observation: observe(pose, Targets::Three, &self.noise, rng),
@@ -475,6 +476,7 @@ fn noisy_poses(
             measured.translation.vector += dp;
             measured.rotation = nalgebra::UnitQuaternion::from_scaled_axis(dr) * pose.rotation;
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(measured),

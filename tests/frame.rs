@@ -35,6 +35,7 @@ fn measured(tree_path: &str, seed: u64, world_from_base: &Pose) -> (McpcModel, V
         let q = random_configuration(&tree, &mut rng);
         for (tool, pose) in truth.tool_poses(&q).iter().enumerate() {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: observe(

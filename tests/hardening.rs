@@ -103,6 +103,7 @@ fn overflow_in_the_fit_is_an_error_not_a_hang() {
     let q = tree.zero_configuration();
     let measurements: Vec<Measurement> = (0..2)
         .map(|tool| Measurement {
+            payload: None,
             tool,
             q: q.clone(),
             observation: Observation::Position(Vec3::repeat(1e200)),
@@ -128,6 +129,7 @@ fn overflow_in_the_fit_is_an_error_not_a_hang() {
         .translation
         .vector;
     let near = vec![Measurement {
+        payload: None,
         tool: 0,
         q,
         observation: Observation::Position(pose + Vec3::repeat(1e-3)),

@@ -63,6 +63,7 @@ pub fn measure(
                 Observation::Pose(pose)
             };
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation,
@@ -281,6 +282,7 @@ fn torso_measurements(
     for q in torso_configurations(tree, count, locks, &mut rng(seed)) {
         for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(pose),
@@ -533,6 +535,7 @@ fn measure_deflected(
             .enumerate()
         {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(pose),

@@ -34,6 +34,7 @@ fn simulated(tree: &KinematicTree, model: &McpcModel, seed: u64, poses: bool) ->
             let tool = i % model.tools().len();
             let pose = tree.link_pose(model.tools()[tool].link, &q).unwrap();
             Measurement {
+                payload: None,
                 tool,
                 q,
                 observation: if poses {

@@ -145,6 +145,7 @@ fn measure(
     for (q, tools) in configurations.iter().zip(poses) {
         for (tool, pose) in tools.iter().enumerate() {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(observe(&(world_from_base * pose), rng)),

@@ -110,6 +110,7 @@ fn measure(
             .enumerate()
         {
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation: Observation::Pose(pose),
@@ -272,4 +273,69 @@ fn a_second_payload_separates_compliance_from_geometry() {
     }
     assert!(count(&double) >= count(&single));
     assert!(count(&double) > 0);
+}
+
+/// Monte Carlo of the compliances' standard deviations: Robonaut trials with the model 50 %
+/// too stiff everywhere (the truth's scales all 1.5), AT901 noise, the staged plan; over the
+/// identified compliances of every trial, the deviations from the truth over their predicted
+/// standard deviations should be about N(0, 1): a median |z| near 0.67 and about 95 % within
+/// 2σ. Fails if fewer than 85 % are within 2σ or the median |z| leaves 0.45–0.95.
+///
+/// Ignored: it fails today (50 trials: median |z| 0.865, 84.3 % within 2σ, the torso and
+/// shoulder bending biased by +2.5 to +5 σ; see
+/// docs/identification.md, "Are the identified compliances within their standard
+/// deviations"). Run it with `cargo test --test tests -- --ignored identified_compliances`
+/// (`TREECAL_COVERAGE_TRIALS` sets the trial count, default 50).
+#[test]
+#[ignore = "open: the joint fit's standard deviations are too small (issue 13)"]
+fn identified_compliances_are_within_their_standard_deviations() {
+    let robot = crate::common::simulated_robonaut();
+    let model_flexibility = robot.flexibility.scaled(1.0 / 1.5).unwrap();
+    let setup = treecal::sim::experiment::Setup {
+        model_flexibility: &model_flexibility,
+        ..robot.setup()
+    };
+    let trials: usize = std::env::var("TREECAL_COVERAGE_TRIALS")
+        .ok()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or(50);
+    let options = treecal::sim::experiment::SimulationOptions {
+        validation_poses: 2,
+        seed: 2026,
+        identify_stiffness: Some(StiffnessOptions::default()),
+        ..Default::default()
+    };
+    let reports = treecal::sim::monte_carlo::run_trials(&setup, &options, trials, &|| {}).unwrap();
+    let mut z: Vec<f64> = Vec::new();
+    let mut per_parameter: std::collections::BTreeMap<String, Vec<f64>> = Default::default();
+    for report in &reports {
+        for e in report.stiffness.as_ref().unwrap() {
+            if let (true, Some(sd)) = (e.identified, e.scale_std_dev) {
+                let value = (e.scale - 1.5) / sd;
+                z.push(value);
+                per_parameter.entry(e.name.clone()).or_default().push(value);
+            }
+        }
+    }
+    for (name, values) in &per_parameter {
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let rms = (values.iter().map(|v| v * v).sum::<f64>() / n).sqrt();
+        eprintln!("{name}: n {n}, mean z {mean:+.2}, rms z {rms:.2}");
+    }
+    let mut magnitudes: Vec<f64> = z.iter().map(|v| v.abs()).collect();
+    magnitudes.sort_by(f64::total_cmp);
+    let median = magnitudes[magnitudes.len() / 2];
+    let within = |k: f64| magnitudes.iter().filter(|&&m| m <= k).count() as f64 / z.len() as f64;
+    let mean = z.iter().sum::<f64>() / z.len() as f64;
+    eprintln!(
+        "{} trials, {} estimates: median |z| {median:.3}, within 1σ {:.3}, within 2σ {:.3}, mean z {mean:+.3}",
+        reports.len(),
+        z.len(),
+        within(1.0),
+        within(2.0)
+    );
+    assert!(z.len() >= 10 * trials, "only {} estimates", z.len());
+    assert!(within(2.0) >= 0.85, "only {:.3} within 2σ", within(2.0));
+    assert!((0.45..=0.95).contains(&median), "median |z| {median:.3}");
 }

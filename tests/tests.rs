@@ -18,6 +18,7 @@ mod jacobian;
 mod mcpc;
 mod measurements_csv;
 mod oracle;
+mod payloads;
 mod planning;
 mod plot;
 mod readme;

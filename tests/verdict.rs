@@ -68,6 +68,7 @@ fn measure(
                 Observation::Pose(measured)
             };
             measurements.push(Measurement {
+                payload: None,
                 tool,
                 q: q.clone(),
                 observation,

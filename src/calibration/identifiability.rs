@@ -483,6 +483,7 @@ pub fn analyse(
             let as_measurements: Vec<Measurement> = rows
                 .iter()
                 .map(|r| Measurement {
+                    payload: None,
                     tool: r.tool,
                     q: r.q.clone(),
                     observation: Observation::Position(Vector3::zeros()),

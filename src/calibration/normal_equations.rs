@@ -331,6 +331,7 @@ mod tests {
                     Observation::Position(pose.translation.vector)
                 };
                 measurements.push(Measurement {
+                    payload: None,
                     tool,
                     q: q.clone(),
                     observation,

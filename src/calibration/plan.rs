@@ -179,6 +179,7 @@ pub fn calibrate(
                 .map(|m| {
                     Ok(source
                         .flexibility
+                        .for_payload(m.payload)?
                         .tool_deflections(source.tree, model, &m.q)?[m.tool])
                 })
                 .collect::<Result<_>>()?,
@@ -263,7 +264,7 @@ pub fn calibrate(
                                 .map(|o| selected.iter().map(|&i| o[i]).collect()),
                             Compensation::Exact(source) => Some(
                                 data.iter()
-                                    .map(|m| Ok(source.offsets(&current, &m.q)?[m.tool]))
+                                    .map(|m| Ok(source.offsets(&current, &m.q, m.payload)?[m.tool]))
                                     .collect::<Result<_>>()?,
                             ),
                         };

@@ -12,7 +12,7 @@
 //! `docs/identification.md`, "Robust estimation".
 
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
-use super::solver::IdentificationOptions;
+use super::solver::{Cached, IdentificationOptions, Predictor};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::math::{pose_error, Pose};
@@ -346,19 +346,16 @@ pub fn residuals(
     offsets: Option<&[Vector6<f64>]>,
     options: &IdentificationOptions,
 ) -> Result<Vec<Residual>> {
-    let mut cached: Option<(&[f64], Vec<Pose>)> = None;
+    let mut cached: Cached<'_, Vec<Pose>> = None;
     let mut out = Vec::with_capacity(measurements.len());
     for (index, m) in measurements.iter().enumerate() {
-        if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
+        let key = (m.q.as_slice(), m.payload);
+        if cached.as_ref().is_none_or(|(k, _)| *k != key) {
             let poses = match compensation {
-                Compensation::Exact(source) => {
-                    source
-                        .flexibility
-                        .deflected_tool_poses(source.tree, model, &m.q)?
-                }
+                Compensation::Exact(source) => source.predict_at(model, &m.q, m.payload)?,
                 Compensation::None | Compensation::Linear(_) => model.tool_poses(&m.q),
             };
-            cached = Some((&m.q, poses));
+            cached = Some((key, poses));
         }
         let Some(predicted) = cached.as_ref().and_then(|(_, p)| p.get(m.tool)) else {
             continue;
@@ -403,6 +400,7 @@ fn linear_offsets(
         .map(|m| {
             Ok(source
                 .flexibility
+                .for_payload(m.payload)?
                 .tool_deflections(source.tree, model, &m.q)?[m.tool])
         })
         .collect::<Result<Vec<_>>>()
@@ -432,6 +430,7 @@ mod tests {
     #[test]
     fn the_scale_is_the_consistent_median_and_floored() {
         let measurement = |rows: usize| Measurement {
+            payload: None,
             tool: 0,
             q: Vec::new(),
             observation: if rows == 3 {

@@ -291,9 +291,11 @@ pub fn run_calibration(
     let (validation_rows, validation) = kept(validation, DataSet::Validation);
     let (measurements, validation) = (&measurements[..], &validation[..]);
     let parameters = estimates(input, &guess.model, &report);
-    let predict = |model: &McpcModel, q: &[f64]| -> Result<Vec<Pose>> {
+    let predict = |model: &McpcModel, q: &[f64], payload: Option<f64>| -> Result<Vec<Pose>> {
         match input.flexibility {
-            Some(flexibility) => flexibility.deflected_tool_poses(input.tree, model, q),
+            Some(flexibility) => flexibility
+                .for_payload(payload)?
+                .deflected_tool_poses(input.tree, model, q),
             None => Ok(model.tool_poses(q)),
         }
     };
@@ -302,8 +304,8 @@ pub fn run_calibration(
             input,
             data,
             rows,
-            &|q| Ok(guess.model.tool_poses(q)),
-            &|q| predict(&report.model, q),
+            &|q, _| Ok(guess.model.tool_poses(q)),
+            &|q, payload| predict(&report.model, q, payload),
         )
     };
     let identification = residuals(measurements, &measurement_rows)?;
@@ -500,25 +502,29 @@ fn estimates(
         .collect()
 }
 
+/// Tool poses at a configuration with a row's payload (kg at every tool, `None`: the model's).
+type PredictAt<'a> = dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>> + 'a;
+
 /// `rows[i]`: the index of `data[i]` in the data set the run was given.
 fn arm_residuals(
     input: &CalibrationInput<'_>,
     data: &[Measurement],
     rows: &[usize],
-    before: &dyn Fn(&[f64]) -> Result<Vec<Pose>>,
-    after: &dyn Fn(&[f64]) -> Result<Vec<Pose>>,
+    before: &PredictAt<'_>,
+    after: &PredictAt<'_>,
 ) -> Result<Vec<ArmResiduals>> {
     let tools = input.nominal.tools().len();
     let mut position = vec![[Vec::new(), Vec::new()]; tools];
     let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
     let mut indices = vec![Vec::new(); tools];
-    let mut cache: Option<(&[f64], [Vec<Pose>; 2])> = None;
+    let mut cache: super::solver::Cached<'_, [Vec<Pose>; 2]> = None;
     for (i, m) in data.iter().enumerate() {
         if let Some(list) = indices.get_mut(m.tool) {
             list.push(rows.get(i).copied().unwrap_or(i));
         }
-        if cache.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
-            cache = Some((&m.q, [before(&m.q)?, after(&m.q)?]));
+        let key = (m.q.as_slice(), m.payload);
+        if cache.as_ref().is_none_or(|(k, _)| *k != key) {
+            cache = Some((key, [before(&m.q, m.payload)?, after(&m.q, m.payload)?]));
         }
         let Some((_, predictions)) = &cache else {
             continue;

@@ -30,6 +30,24 @@ pub trait Predictor: Sync {
     fn jacobians(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<ToolJacobian>> {
         Ok(model.tool_jacobians(q))
     }
+
+    /// [`Self::predict`] for a row measured with `payload` kg at every tool (`None`: the
+    /// predictor's own loads). Rigid predictions ignore it.
+    fn predict_at(&self, model: &McpcModel, q: &[f64], payload: Option<f64>) -> Result<Vec<Pose>> {
+        let _ = payload;
+        self.predict(model, q)
+    }
+
+    /// [`Self::jacobians`] for a row measured with `payload` kg at every tool.
+    fn jacobians_at(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        payload: Option<f64>,
+    ) -> Result<Vec<ToolJacobian>> {
+        let _ = payload;
+        self.jacobians(model, q)
+    }
 }
 
 /// The rigid MCPC forward kinematics.
@@ -54,21 +72,43 @@ pub struct Deflected<'a> {
 
 impl Predictor for Deflected<'_> {
     fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Pose>> {
-        self.flexibility.deflected_tool_poses(self.tree, model, q)
+        self.predict_at(model, q, None)
     }
 
     /// The Jacobian on the deflected chain: parameter changes move the bent robot, but how the
     /// deflections themselves change with the parameters (through the lever arms of the loads)
     /// is left out. [`DeflectedWithDerivative`] adds it.
     fn jacobians(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<ToolJacobian>> {
-        Ok(model.jacobians_on(&self.flexibility.deflected_chain(self.tree, model, q)?))
+        self.jacobians_at(model, q, None)
+    }
+
+    fn predict_at(&self, model: &McpcModel, q: &[f64], payload: Option<f64>) -> Result<Vec<Pose>> {
+        self.flexibility
+            .for_payload(payload)?
+            .deflected_tool_poses(self.tree, model, q)
+    }
+
+    fn jacobians_at(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        payload: Option<f64>,
+    ) -> Result<Vec<ToolJacobian>> {
+        let flexibility = self.flexibility.for_payload(payload)?;
+        Ok(model.jacobians_on(&flexibility.deflected_chain(self.tree, model, q)?))
     }
 }
 
 impl Deflected<'_> {
-    /// The deflection of every tool at `q`: `deflected ⊖ rigid` (exact, not the linear map).
-    pub fn offsets(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Vector6<f64>>> {
-        let deflected = self.flexibility.deflected_tool_poses(self.tree, model, q)?;
+    /// The deflection of every tool at `q` with `payload` kg at every tool (`None`: the
+    /// model's own loads): `deflected ⊖ rigid` (exact, not the linear map).
+    pub fn offsets(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        payload: Option<f64>,
+    ) -> Result<Vec<Vector6<f64>>> {
+        let deflected = self.predict_at(model, q, payload)?;
         Ok(deflected
             .iter()
             .zip(model.tool_poses(q))
@@ -90,8 +130,18 @@ pub struct DeflectedWithDerivative<'a> {
     source: Deflected<'a>,
     /// Per configuration (keyed by the bits of `q`: O(1) lookup): where the correction was
     /// computed and the correction.
-    cache: std::sync::Mutex<std::collections::HashMap<Vec<u64>, Correction>>,
+    cache: std::sync::Mutex<std::collections::HashMap<CorrectionKey, Correction>>,
 }
+
+/// Where a row is evaluated: its configuration and payload (rows of several tools measured
+/// there share one evaluation).
+pub(crate) type RowKey<'a> = (&'a [f64], Option<f64>);
+
+/// The latest evaluation and where it was made.
+pub(crate) type Cached<'a, T> = Option<(RowKey<'a>, T)>;
+
+/// The cache key of a correction: the bits of the configuration and of the payload.
+type CorrectionKey = (Vec<u64>, Option<u64>);
 
 /// A cached Jacobian correction: parameters where it was computed, parameters of the latest
 /// request, and `J_exact − J_chain` per tool.
@@ -123,6 +173,7 @@ impl<'a> DeflectedWithDerivative<'a> {
         &self,
         model: &McpcModel,
         q: &[f64],
+        payload: Option<f64>,
         chain: &[ToolJacobian],
     ) -> Result<Vec<DMatrix<f64>>> {
         let parameters = model.parameters();
@@ -131,7 +182,7 @@ impl<'a> DeflectedWithDerivative<'a> {
                 .zip(&parameters)
                 .all(|(a, b)| (a - b).abs() <= CORRECTION_RADIUS)
         };
-        let key = configuration_key(q);
+        let key = (configuration_key(q), payload.map(f64::to_bits));
         {
             let mut cache = self
                 .cache
@@ -160,12 +211,17 @@ impl<'a> DeflectedWithDerivative<'a> {
             }
         }
         let step = 1e-7;
-        let base = self.source.predict(model, q)?;
+        let base = self.source.predict_at(model, q, payload)?;
         let mut correction: Vec<DMatrix<f64>> = chain.iter().map(|c| -c.jacobian.clone()).collect();
         let mut shifted = model.clone();
         for (index, &value) in parameters.iter().enumerate() {
             shifted.set_parameter(index, value + step)?;
-            for (tool, pose) in self.source.predict(&shifted, q)?.iter().enumerate() {
+            for (tool, pose) in self
+                .source
+                .predict_at(&shifted, q, payload)?
+                .iter()
+                .enumerate()
+            {
                 let column = pose_error(pose, &base[tool]) / step;
                 let mut target = correction[tool].column_mut(index);
                 target += column;
@@ -188,8 +244,21 @@ impl Predictor for DeflectedWithDerivative<'_> {
 
     /// The deflected-chain Jacobian plus the (frozen) effect of the deflections' own change.
     fn jacobians(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<ToolJacobian>> {
-        let chain = self.source.jacobians(model, q)?;
-        let correction = self.correction(model, q, &chain)?;
+        self.jacobians_at(model, q, None)
+    }
+
+    fn predict_at(&self, model: &McpcModel, q: &[f64], payload: Option<f64>) -> Result<Vec<Pose>> {
+        self.source.predict_at(model, q, payload)
+    }
+
+    fn jacobians_at(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        payload: Option<f64>,
+    ) -> Result<Vec<ToolJacobian>> {
+        let chain = self.source.jacobians_at(model, q, payload)?;
+        let correction = self.correction(model, q, payload, &chain)?;
         Ok(chain
             .into_iter()
             .zip(correction)
@@ -392,8 +461,9 @@ pub(super) fn linearise(
     let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
     let mut row = 0;
     // Measurements of several tools at one configuration share one evaluation.
-    let mut cached: Option<(&[f64], Vec<ToolJacobian>)> = None;
-    let mut cached_poses: Option<(&[f64], Vec<Pose>)> = None;
+    // Keyed by configuration and payload.
+    let mut cached: Cached<'_, Vec<ToolJacobian>> = None;
+    let mut cached_poses: Cached<'_, Vec<Pose>> = None;
     for (index, m) in measurements.iter().enumerate() {
         let count = m.observation.rows();
         // Multiplying by exactly 1.0 keeps unweighted problems bit for bit as before.
@@ -403,8 +473,9 @@ pub(super) fn linearise(
             .map_or(1.0, |w| w.sqrt());
         let weights = [weights[0] * observation, weights[1] * observation];
         let predicted = if with_jacobian {
-            if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
-                cached = Some((&m.q, predictor.jacobians(model, &m.q)?));
+            let key = (m.q.as_slice(), m.payload);
+            if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+                cached = Some((key, predictor.jacobians_at(model, &m.q, m.payload)?));
             }
             let tools = cached
                 .as_ref()
@@ -427,11 +498,9 @@ pub(super) fn linearise(
             }
             tool.pose
         } else {
-            if cached_poses
-                .as_ref()
-                .is_none_or(|(q, _)| *q != m.q.as_slice())
-            {
-                cached_poses = Some((&m.q, predictor.predict(model, &m.q)?));
+            let key = (m.q.as_slice(), m.payload);
+            if cached_poses.as_ref().is_none_or(|(k, _)| *k != key) {
+                cached_poses = Some((key, predictor.predict_at(model, &m.q, m.payload)?));
             }
             cached_poses
                 .as_ref()
@@ -464,7 +533,7 @@ fn residual_rms(
             continue;
         }
         count += 1;
-        let predicted = predictor.predict(model, &m.q)?;
+        let predicted = predictor.predict_at(model, &m.q, m.payload)?;
         let error = raw_residual(
             &m.observation,
             &predicted[m.tool],

@@ -7,6 +7,7 @@ use super::units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
 use crate::error::{did_you_mean, Error, Result};
+use crate::kinematics::flexibility::stiffness::mass_problem;
 use crate::kinematics::McpcModel;
 use crate::limits::{self, Quantity};
 use crate::math::{Pose, Vec3};
@@ -96,6 +97,9 @@ const RESERVED: [&str; 19] = [
     "bz", "cx", "cy", "cz",
 ];
 
+/// The optional column of the payload at every tool (kg) a row was measured with.
+pub const PAYLOAD_COLUMN: &str = "payload_kg";
+
 /// The three accepted observation layouts, for messages.
 const LAYOUTS: &str = "x,y,z (a position); x,y,z,qw,qx,qy,qz (a pose); or \
                        ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C)";
@@ -104,6 +108,8 @@ const LAYOUTS: &str = "x,y,z (a position); x,y,z,qw,qx,qy,qz (a pose); or \
 struct Columns {
     id: Option<usize>,
     stage: Option<usize>,
+    /// `payload_kg`: the payload at every tool for this row (kg).
+    payload: Option<usize>,
     tool: usize,
     /// `(column, dof)` of independent joints.
     joints: Vec<(usize, usize)>,
@@ -289,6 +295,19 @@ pub(super) fn measurements_from_table(
             .stage
             .map(|column| fields[column].clone())
             .filter(|s| !s.is_empty());
+        let payload = match columns.payload {
+            Some(column) if !fields[column].is_empty() => {
+                let mass = number(&fields[column], "kg").map_err(|m| invalid(column, m))?;
+                if let Some(why) = mass_problem(mass) {
+                    return Err(invalid(
+                        column,
+                        format!("the payload {why}; give the mass at the tool in kg, or leave it empty for the stiffness file's"),
+                    ));
+                }
+                Some(mass)
+            }
+            _ => None,
+        };
         let tool_name = &fields[columns.tool];
         let tool = tool_names
             .iter()
@@ -421,6 +440,7 @@ pub(super) fn measurements_from_table(
             }
         };
         set.measurements.push(Measurement {
+            payload,
             tool,
             q,
             observation,
@@ -671,6 +691,7 @@ fn classify(
     let at = |name: &str| places.header(origin, header_line, Some(name));
     let mut id = None;
     let mut stage = None;
+    let mut payload = None;
     let mut tool = None;
     let mut joints = Vec::new();
     let mut observed: HashMap<&str, usize> = HashMap::new();
@@ -681,6 +702,7 @@ fn classify(
         match name.as_str() {
             "id" => id = Some(column),
             "stage" => stage = Some(column),
+            PAYLOAD_COLUMN => payload = Some(column),
             "tool" => tool = Some(column),
             other if RESERVED.contains(&other) => {
                 observed.insert(other, column);
@@ -772,6 +794,7 @@ fn classify(
     Ok(Columns {
         id,
         stage,
+        payload,
         tool,
         joints,
         observation,
@@ -841,6 +864,11 @@ pub fn measurements_to_csv_with(
     let mut header: Vec<String> = vec!["id".into(), "stage".into(), "tool".into()];
     header.extend(tree.dofs().iter().map(|j| tree.joint(*j).name.clone()));
     header.extend(kind.columns().iter().map(|c| c.to_string()));
+    // The payload column only when some row states its payload.
+    let payloads = measurements.iter().any(|m| m.payload.is_some());
+    if payloads {
+        header.push(PAYLOAD_COLUMN.into());
+    }
     let length = options.length_unit.in_metres();
     let joint_scales: Vec<f64> = tree
         .dofs()
@@ -889,6 +917,9 @@ pub fn measurements_to_csv_with(
                 row.extend([t.x, t.y, t.z, q.w, q.i, q.j, q.k].map(text));
             }
             Observation::Position(p) => row.extend((p / length).iter().map(|v| text(*v))),
+        }
+        if payloads {
+            row.push(m.payload.map(text).unwrap_or_default());
         }
         rows.push(row);
     }

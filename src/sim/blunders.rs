@@ -70,6 +70,7 @@ mod tests {
     fn the_chosen_rows_move_by_the_size_and_the_others_not() {
         let clean: Vec<Measurement> = (0..100)
             .map(|k| Measurement {
+                payload: None,
                 tool: 0,
                 q: vec![k as f64],
                 observation: if k % 2 == 0 {

@@ -58,6 +58,10 @@ pub struct SimulationOptions {
     pub outliers: f64,
     /// How far a blunder moves its target (m).
     pub outlier_size: f64,
+    /// Payloads (kg at every tool) the identification configurations are measured at, in
+    /// turn (the rows split evenly, each row carrying its payload); empty: the stiffness
+    /// file's payloads.
+    pub payloads: Vec<f64>,
 }
 
 impl Default for SimulationOptions {
@@ -77,6 +81,7 @@ impl Default for SimulationOptions {
             robust: RobustLoss::default(),
             outliers: 0.0,
             outlier_size: 0.05,
+            payloads: Vec::new(),
         }
     }
 }
@@ -278,14 +283,21 @@ pub fn run_trial(
 
     // Measure the deflected truth.
     let mut measurements = Vec::new();
+    let mut measured = 0;
     let mut measure =
         |configurations: &[Vec<f64>], stage: &str, rng: &mut ChaCha8Rng| -> Result<()> {
             for q in configurations {
+                // The payloads in turn, so that every stage sees each of them.
+                let payload = (!options.payloads.is_empty())
+                    .then(|| options.payloads[measured % options.payloads.len()]);
+                measured += 1;
                 let poses = setup
                     .truth_flexibility
+                    .for_payload(payload)?
                     .deflected_tool_poses(tree, &truth, q)?;
                 for (tool, pose) in poses.iter().enumerate() {
                     measurements.push(Measurement {
+                        payload,
                         tool,
                         q: q.clone(),
                         observation: observe(pose, options.targets, &options.noise, rng),
@@ -460,11 +472,19 @@ fn finish_trial(
     let identified = match &options.identify_stiffness {
         Some(stiffness) => {
             let free: Vec<usize> = (0..compensated.model.parameter_count()).collect();
+            // The rows the robust calibration named as blunders are left out, as in its fit.
+            let outliers = compensated_robust.outliers();
+            let kept: Vec<Measurement> = measurements
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| !outliers.contains(k))
+                .map(|(_, m)| m.clone())
+                .collect();
             Some(identify_stiffness(
                 tree,
                 &compensated.model,
                 setup.model_flexibility,
-                &measurements,
+                &kept,
                 None,
                 &free,
                 &identification_options,

@@ -376,6 +376,7 @@ fn jacobian_blocks(
                 .iter()
                 .flat_map(|q| {
                     (0..tool_count).map(move |tool| Measurement {
+                        payload: None,
                         tool,
                         q: q.clone(),
                         observation: Observation::Position(Vec3::zeros()),

@@ -510,6 +510,7 @@ fn compliance_check(
         };
         for load in &loads {
             measurements.push(Measurement {
+                payload: None,
                 tool: row.tool,
                 q: row.q.clone(),
                 observation: observation.clone(),

@@ -83,6 +83,9 @@ pub struct SimulateConfig {
     pub length_error: f64,
     /// Payload at every tool (kg), overriding the stiffness file.
     pub payload: Option<f64>,
+    /// Payloads (kg at every tool) the identification poses are measured at, in turn (empty:
+    /// the stiffness file's).
+    pub payloads: Vec<f64>,
     /// Bending and torsion stiffness of every joint (N·m/rad), overriding the stiffness file.
     pub joint_stiffness: Option<f64>,
     /// Stiffness the compensating model assumes, relative to the truth's.
@@ -118,6 +121,7 @@ impl Default for SimulateConfig {
             angle_error: 0.05,
             length_error: 0.05,
             payload: None,
+            payloads: Vec::new(),
             joint_stiffness: None,
             model_stiffness_scale: 1.0,
             identify_stiffness: false,
@@ -354,6 +358,9 @@ fn stiffness(
             return Err(invalid("--stiffness", message.into()));
         }
     };
+    for &mass in &config.payloads {
+        limits::check_range(mass, (0.0, limits::MAX_MASS), "--payloads", "kg")?;
+    }
     if let Some(mass) = config.payload {
         limits::check_range(mass, (0.0, limits::MAX_MASS), "--payload", "kg")?;
         for payload in &mut stiffness.payloads {
@@ -413,6 +420,7 @@ fn options(config: &SimulateConfig, noise: NoiseModel) -> Result<SimulationOptio
         robust: config.robust,
         outliers: config.outliers,
         outlier_size: config.outlier_size_mm * 1e-3,
+        payloads: config.payloads.clone(),
     })
 }
 

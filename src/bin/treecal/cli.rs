@@ -241,6 +241,10 @@ pub struct SimulateArgs {
     /// How far a blunder moves its target (mm).
     #[arg(long, default_value_t = 50.0, value_name = "MM")]
     pub outlier_size: f64,
+    /// Payloads (kg at every tool) the identification poses are measured at, in turn: the
+    /// rows split evenly, each with its `payload_kg` [default: the stiffness file's payload].
+    #[arg(long, value_delimiter = ',', value_name = "KG,KG")]
+    pub payloads: Option<Vec<f64>>,
     /// Targets per tool: 3 (a frame, as in the paper's section 5.3.1) or 1 (a position).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
     pub targets: u8,

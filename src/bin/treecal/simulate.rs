@@ -30,6 +30,7 @@ fn config(args: SimulateArgs) -> SimulateConfig {
         angle_error: args.angle_error,
         length_error: args.length_error,
         payload: args.payload,
+        payloads: args.payloads.clone().unwrap_or_default(),
         joint_stiffness: args.joint_stiffness,
         model_stiffness_scale: args.model_stiffness_scale,
         identify_stiffness: args.identify_stiffness,

@@ -269,6 +269,17 @@ impl FlexibilityModel {
         Ok(copy)
     }
 
+    /// The model for one measurement row: this one when the row states no payload, else a
+    /// copy with `payload` kg at every tool ([`Self::with_payload_at_every_tool`]).
+    pub fn for_payload(&self, payload: Option<f64>) -> Result<std::borrow::Cow<'_, Self>> {
+        match payload {
+            None => Ok(std::borrow::Cow::Borrowed(self)),
+            Some(mass) => self
+                .with_payload_at_every_tool(mass)
+                .map(std::borrow::Cow::Owned),
+        }
+    }
+
     /// Total mass that loads the structure (links when self-weight is on, and payloads), kg.
     pub fn total_mass(&self) -> f64 {
         self.masses.iter().map(|m| m.mass).sum()

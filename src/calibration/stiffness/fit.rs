@@ -1,0 +1,170 @@
+//! The joint fit: Levenberg–Marquardt over the free geometry and the logarithms of the chosen
+//! compliance scales.
+
+use super::covariance::covariance;
+use super::problem::Problem;
+use super::GROUPS;
+use crate::calibration::solver::Termination;
+use crate::calibration::solver::{column_scales, scale_columns, singular_decomposition};
+use crate::error::Result;
+use crate::kinematics::McpcModel;
+use nalgebra::{DMatrix, DVector};
+
+pub(super) struct Fit {
+    pub(super) model: McpcModel,
+    pub(super) scales: Vec<f64>,
+    pub(super) cost: [f64; 2],
+    pub(super) iterations: usize,
+    pub(super) termination: Termination,
+    pub(super) rank: usize,
+    pub(super) residual_scale: f64,
+    /// A factor `F` of the covariance of the logarithms of the chosen scales (`F·Fᵀ`), one
+    /// row per chosen scale in `chosen` order.
+    pub(super) log_factor: DMatrix<f64>,
+}
+
+impl Problem<'_> {
+    /// The joint fit in two steps: the common scales (all joints, all links) with the geometry
+    /// first, then every chosen scale from that geometry. Started from a geometry calibrated with a
+    /// stiffness that is off everywhere, the individual scales alone can run into a wrong
+    /// minimum (some to 0, some ×10) while the geometry still carries the common error.
+    pub(super) fn fit(
+        &self,
+        start: &McpcModel,
+        chosen: &[usize],
+        max_iterations: usize,
+    ) -> Result<Fit> {
+        let count = self.parameters().len() + GROUPS;
+        let ones = vec![1.0; count];
+        let groups: Vec<usize> = chosen
+            .iter()
+            .copied()
+            .filter(|&c| c >= self.parameters().len())
+            .collect();
+        if groups.is_empty() || groups.len() == chosen.len() {
+            return self.fit_from(start, ones, chosen, max_iterations);
+        }
+        // The second step keeps only the geometry: the scales restart at the prior, so that
+        // what the data leave undetermined stays there.
+        let common = self.fit_from(start, ones.clone(), &groups, max_iterations)?;
+        let mut fit = self.fit_from(&common.model, ones, chosen, max_iterations)?;
+        fit.cost[0] = common.cost[0];
+        fit.iterations += common.iterations;
+        Ok(fit)
+    }
+
+    /// Levenberg–Marquardt over the free geometry and the logarithms of the compliance scales
+    /// `chosen`, from `start` and `scales`, with SVD-truncated steps (directions the data
+    /// cannot determine stay where they start).
+    fn fit_from(
+        &self,
+        start: &McpcModel,
+        scales: Vec<f64>,
+        chosen: &[usize],
+        max_iterations: usize,
+    ) -> Result<Fit> {
+        let mut model = start.clone();
+        let mut scales = scales;
+        let mut lin = self.linearise(&model, &scales, chosen, true)?;
+        let mut cost = 0.5 * lin.residual.norm_squared();
+        let initial_cost = cost;
+        let mut damping = 0.0;
+        let mut iterations = 0;
+        let mut termination = Termination::MaxIterations;
+        let tolerance = self.options.rank_tolerance;
+        while iterations < max_iterations {
+            let columns = column_scales(&lin.jacobian);
+            let scaled = scale_columns(&lin.jacobian, &columns);
+            let gradient = scaled.tr_mul(&lin.residual);
+            let (singular, v_t) = singular_decomposition(scaled);
+            let largest = singular.max();
+            let step_for = |damping: f64| -> DVector<f64> {
+                let mut step = DVector::zeros(columns.len());
+                for (i, &sigma) in singular.iter().enumerate() {
+                    if sigma > tolerance * largest {
+                        let v = v_t.row(i).transpose();
+                        step += &v * (v.dot(&gradient) / (sigma * sigma + damping));
+                    }
+                }
+                step.component_div(&columns)
+            };
+            if step_for(0.0).component_mul(&columns).norm() <= 1e-12 * (1.0 + largest) {
+                termination = Termination::StepConverged;
+                break;
+            }
+            let mut accepted = None;
+            for _ in 0..30 {
+                let step = step_for(damping);
+                let (trial_model, trial_scales) = self.moved(&model, &scales, chosen, &step)?;
+                let trial_cost = match &trial_scales {
+                    Some(s) => {
+                        0.5 * self
+                            .linearise(&trial_model, s, chosen, false)?
+                            .residual
+                            .norm_squared()
+                    }
+                    None => f64::INFINITY,
+                };
+                if trial_cost < cost {
+                    accepted = Some((trial_model, trial_scales, trial_cost));
+                    damping *= 0.1;
+                    break;
+                }
+                damping = if damping == 0.0 {
+                    1e-6 * largest * largest
+                } else {
+                    damping * 10.0
+                };
+            }
+            let Some((trial_model, Some(trial_scales), trial_cost)) = accepted else {
+                termination = Termination::NoDecrease;
+                break;
+            };
+            let decrease = cost - trial_cost;
+            model = trial_model;
+            scales = trial_scales;
+            cost = trial_cost;
+            iterations += 1;
+            lin = self.linearise(&model, &scales, chosen, true)?;
+            if decrease <= 1e-12 * cost.max(f64::MIN_POSITIVE) || cost < 1e-24 {
+                termination = Termination::CostConverged;
+                break;
+            }
+        }
+        let (rank, residual_scale, factor) = covariance(&lin, cost, tolerance);
+        let log_factor = factor.rows(self.free.len(), chosen.len()).into_owned();
+        Ok(Fit {
+            model,
+            scales,
+            cost: [initial_cost, cost],
+            iterations,
+            termination,
+            rank,
+            residual_scale,
+            log_factor,
+        })
+    }
+
+    /// The model and scales after `step` (geometry additive, compliance scales by the factor
+    /// `exp(step)`; `None` scales if one is not finite).
+    fn moved(
+        &self,
+        model: &McpcModel,
+        scales: &[f64],
+        chosen: &[usize],
+        step: &DVector<f64>,
+    ) -> Result<(McpcModel, Option<Vec<f64>>)> {
+        let mut values = model.parameters();
+        for (k, &p) in self.free.iter().enumerate() {
+            values[p] += step[k];
+        }
+        let mut moved = model.clone();
+        moved.set_parameters(&values)?;
+        let mut next = scales.to_vec();
+        for (k, &c) in chosen.iter().enumerate() {
+            next[c] *= step[self.free.len() + k].exp();
+        }
+        let valid = next.iter().all(|s| s.is_finite() && *s >= 0.0);
+        Ok((moved, valid.then_some(next)))
+    }
+}

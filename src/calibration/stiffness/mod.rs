@@ -1,0 +1,228 @@
+//! Stiffness identification: compliance scale factors identified jointly with the MCPC
+//! parameters (`--identify-stiffness`).
+//!
+//! The stiffness file is the prior: every compliance starts at scale 1. Which compliance
+//! parameters the data determine is decided first, on the linearisation at the start, with
+//! the geometric parameters free (a compliance whose effect the geometry can imitate is not
+//! determined): a greedy elimination drops, one at a time, a parameter in an exact null
+//! direction, else the one the data determine worst, until every remaining one is determined
+//! to better than the prior's relative uncertainty. The rest stay at the prior and are
+//! reported. Then a Levenberg–Marquardt iteration fits the geometry and the determined
+//! compliances together, with the exact deflected kinematics as the model. See
+//! `docs/identification.md` (stiffness identification) and `docs/flexibility.md`, section 11.
+
+mod covariance;
+mod fit;
+mod output;
+mod problem;
+mod selection;
+
+pub use output::identified_stiffness;
+pub use selection::{analyse_compliance, ComplianceIdentifiability};
+
+use super::solver::{IdentificationOptions, Termination};
+use crate::error::{Error, Result};
+use crate::kinematics::flexibility::{ComplianceKind, ComplianceParameter};
+use crate::kinematics::{FlexibilityModel, McpcModel};
+use crate::measurement::Measurement;
+use crate::tree::KinematicTree;
+use problem::Problem;
+use selection::select;
+use serde::Serialize;
+
+/// Settings of the stiffness identification.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StiffnessOptions {
+    /// Relative standard deviation of the prior compliances (0.5: the stiffness file is right
+    /// to ±50 %). A compliance is identified when the data determine its scale to
+    /// [`DETERMINED`] of this or better.
+    pub prior_sigma: f64,
+    /// Iteration limit of the joint fit.
+    pub max_iterations: usize,
+}
+
+impl Default for StiffnessOptions {
+    fn default() -> Self {
+        Self {
+            prior_sigma: 0.5,
+            max_iterations: 100,
+        }
+    }
+}
+
+/// One compliance parameter before and after.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ComplianceEstimate {
+    /// E.g. `left_joint2 bending` or `left_joint2 EI_y` (the body the joint moves).
+    pub name: String,
+    /// The joint (joint compliances) or the joint moving the body (link compliances).
+    pub owner: String,
+    /// What it scales.
+    pub kind: ComplianceKind,
+    /// Unit of the stiffness values.
+    pub unit: String,
+    /// Stiffness of the prior (the stiffness file); infinite for rigid.
+    pub prior_stiffness: f64,
+    /// Identified stiffness (the prior where not identified).
+    pub stiffness: f64,
+    /// Identified compliance relative to the prior's (1 = as the file says; 1.5 = 50 % softer).
+    pub scale: f64,
+    /// Standard deviation of `scale` from the joint fit (identified parameters).
+    pub scale_std_dev: Option<f64>,
+    /// How well the data alone determine `scale` (geometry free), at the start; infinite when
+    /// not at all.
+    pub data_std_dev: f64,
+    /// Whether it was identified (else kept at the prior).
+    pub identified: bool,
+}
+
+impl ComplianceEstimate {
+    /// Standard deviation of the identified stiffness (its unit), first order.
+    pub fn stiffness_std_dev(&self) -> Option<f64> {
+        self.scale_std_dev
+            .map(|sd| self.prior_stiffness * sd / (self.scale * self.scale))
+    }
+}
+
+/// What the stiffness identification found.
+#[derive(Debug, Clone)]
+pub struct StiffnessReport {
+    /// The geometry fitted jointly with the compliances.
+    pub model: McpcModel,
+    /// The prior with the identified compliances (payloads as in the prior).
+    pub flexibility: FlexibilityModel,
+    /// Every compliance parameter.
+    pub estimates: Vec<ComplianceEstimate>,
+    /// Weighted cost ½‖r‖² at the start and at the solution.
+    pub cost: [f64; 2],
+    /// Accepted iterations.
+    pub iterations: usize,
+    /// Why the iteration stopped.
+    pub termination: Termination,
+    /// Rank of the joint (geometry + identified compliances) Jacobian at the solution.
+    pub rank: usize,
+    /// Free parameters of the joint fit (geometric + identified compliances).
+    pub free: usize,
+    /// `σ̂ = √(2·cost / (rows − rank))`.
+    pub residual_scale: f64,
+    /// The common scale of all joint compliances and of all link compliances, with its
+    /// standard deviation (`None`: not identified, kept at 1).
+    pub group_scales: [(f64, Option<f64>); 2],
+    /// Compliance combinations the data cannot tell from the geometry or from each other, in
+    /// words (kept at the prior).
+    pub unidentifiable: Vec<String>,
+}
+
+/// Identifies the compliance scales of `prior` jointly with the `free` MCPC parameters of
+/// `start` from `measurements`. Each row is predicted at its own payload
+/// ([`Measurement::payload`], kg at every tool; `None`: the prior's payloads); `payloads`, if
+/// given, overrides them, one per measurement.
+#[allow(clippy::too_many_arguments)]
+pub fn identify_stiffness(
+    tree: &KinematicTree,
+    start: &McpcModel,
+    prior: &FlexibilityModel,
+    measurements: &[Measurement],
+    payloads: Option<&[f64]>,
+    free: &[usize],
+    options: &IdentificationOptions,
+    stiffness: &StiffnessOptions,
+) -> Result<StiffnessReport> {
+    let problem = Problem::new(tree, prior, measurements, payloads, free, options)?;
+    if !(stiffness.prior_sigma.is_finite() && stiffness.prior_sigma > 0.0) {
+        return Err(Error::InvalidData {
+            origin: "stiffness prior".into(),
+            message: format!(
+                "relative uncertainty {} must be positive",
+                stiffness.prior_sigma
+            ),
+        });
+    }
+    let count = problem.parameters().len() + GROUPS;
+    let all: Vec<usize> = (0..count).collect();
+    let ones = vec![1.0; count];
+    let first = problem.linearise(start, &ones, &all, true)?;
+    let selection = select(
+        &first,
+        free.len(),
+        problem.parameters(),
+        stiffness.prior_sigma,
+        options,
+    );
+    let chosen = selection.chosen.clone();
+    let fit = problem.fit(start, &chosen, stiffness.max_iterations)?;
+    let estimates = problem.estimates(tree, start, &fit, &selection)?;
+    // The prior's own payloads, whatever the rows carried.
+    let flexibility =
+        prior.with_compliance_scales(problem.parameters(), &problem.effective(&fit.scales))?;
+    let group_scales = [0, 1].map(|g| {
+        let index = problem.parameters().len() + g;
+        (
+            fit.scales[index],
+            chosen
+                .iter()
+                .position(|&c| c == index)
+                .map(|c| fit.scales[index] * fit.log_factor.row(c).norm()),
+        )
+    });
+    Ok(StiffnessReport {
+        model: fit.model,
+        flexibility,
+        estimates,
+        cost: fit.cost,
+        iterations: fit.iterations,
+        termination: fit.termination,
+        rank: fit.rank,
+        free: free.len() + chosen.len(),
+        residual_scale: fit.residual_scale,
+        group_scales,
+        unidentifiable: selection
+            .combinations
+            .iter()
+            .map(|c| describe(tree, start, problem.parameters(), c))
+            .collect(),
+    })
+}
+
+/// Common scale factors after the individual ones: all joint compliances, all link compliances.
+/// A compliance's scale is its own times its group's, so a stiffness file that is off by the
+/// same factor everywhere is corrected everywhere, also where the data cannot tell one joint or
+/// link from another.
+pub(super) const GROUPS: usize = 2;
+
+/// A compliance is identified when the data alone determine its scale to this fraction of the
+/// prior's uncertainty or better (a third: the data carry nine times the prior's information),
+/// so that what is identified is determined by the data rather than fitted to their noise.
+pub const DETERMINED: f64 = 1.0 / 3.0;
+
+/// The groups in words.
+pub(super) const GROUP_NAMES: [&str; GROUPS] = ["all joints", "all links"];
+
+/// "left_joint1 bending (+0.71) with torso_joint2 EI_z (−0.71)".
+pub(super) fn describe(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    parameters: &[ComplianceParameter],
+    terms: &[(usize, f64)],
+) -> String {
+    terms
+        .iter()
+        .map(|&(k, w)| {
+            let name = match parameters.get(k) {
+                Some(parameter) => name(tree, model, parameter),
+                None => GROUP_NAMES[k - parameters.len()].to_owned(),
+            };
+            format!("{name} ({w:+.2})")
+        })
+        .collect::<Vec<_>>()
+        .join(" with ")
+}
+
+/// `left_joint2 bending`, `left_joint2 EI_y`.
+pub fn name(tree: &KinematicTree, model: &McpcModel, parameter: &ComplianceParameter) -> String {
+    format!(
+        "{} {}",
+        tree.joint(model.frames()[parameter.frame].joint).name,
+        parameter.kind.name()
+    )
+}

@@ -1,0 +1,226 @@
+//! The identification problem: measurements grouped by payload, one compliance basis per
+//! payload, and its linearisation (weighted residual and Jacobian over the free geometry and
+//! the compliance scales).
+
+use crate::calibration::solver::IdentificationOptions;
+use crate::error::{Error, Result};
+use crate::kinematics::flexibility::{ComplianceBasis, ComplianceParameter};
+use crate::kinematics::{FlexibilityModel, McpcModel};
+use crate::math::{pose_error, Pose};
+use crate::measurement::{Measurement, Observation};
+use crate::tree::KinematicTree;
+use nalgebra::{DMatrix, DVector, Vector6};
+
+/// The measurements, grouped by payload, with one compliance basis per payload.
+pub(super) struct Problem<'a> {
+    pub(super) tree: &'a KinematicTree,
+    pub(super) measurements: &'a [Measurement],
+    /// Per distinct payload (`None`: the prior's own), its basis.
+    pub(super) bases: Vec<(Option<f64>, ComplianceBasis)>,
+    /// Per measurement, its basis.
+    pub(super) basis_of: Vec<usize>,
+    pub(super) free: &'a [usize],
+    pub(super) options: &'a IdentificationOptions,
+}
+
+/// A linearisation: weighted residual and Jacobian, columns `[free geometry, compliances]`.
+pub(super) struct Linearisation {
+    pub(super) residual: DVector<f64>,
+    pub(super) jacobian: DMatrix<f64>,
+}
+
+impl<'a> Problem<'a> {
+    pub(super) fn new(
+        tree: &'a KinematicTree,
+        prior: &FlexibilityModel,
+        measurements: &'a [Measurement],
+        payloads: Option<&[f64]>,
+        free: &'a [usize],
+        options: &'a IdentificationOptions,
+    ) -> Result<Self> {
+        let bad = |message: String| Error::InvalidData {
+            origin: "stiffness identification".into(),
+            message,
+        };
+        if measurements.is_empty() {
+            return Err(bad("no measurements".into()));
+        }
+        if let Some(payloads) = payloads {
+            if payloads.len() != measurements.len() {
+                return Err(bad(format!(
+                    "{} payloads for {} measurements",
+                    payloads.len(),
+                    measurements.len()
+                )));
+            }
+        }
+        let mut bases: Vec<(Option<f64>, ComplianceBasis)> = Vec::new();
+        let mut basis_of = Vec::with_capacity(measurements.len());
+        for (index, m) in measurements.iter().enumerate() {
+            // A given list overrides the rows' own payloads (`payload_kg`).
+            let payload = payloads.map_or(m.payload, |p| Some(p[index]));
+            let basis = match bases.iter().position(|(p, _)| *p == payload) {
+                Some(basis) => basis,
+                None => {
+                    let model = prior.for_payload(payload)?;
+                    bases.push((payload, ComplianceBasis::new(&model)));
+                    bases.len() - 1
+                }
+            };
+            basis_of.push(basis);
+        }
+        Ok(Self {
+            tree,
+            measurements,
+            bases,
+            basis_of,
+            free,
+            options,
+        })
+    }
+
+    pub(super) fn parameters(&self) -> &[ComplianceParameter] {
+        self.bases[0].1.parameters()
+    }
+
+    /// Each parameter's scale times its group's.
+    pub(super) fn effective(&self, scales: &[f64]) -> Vec<f64> {
+        let count = self.parameters().len();
+        self.parameters()
+            .iter()
+            .enumerate()
+            .map(|(k, p)| scales[k] * scales[count + usize::from(!p.kind.is_joint())])
+            .collect()
+    }
+
+    /// Weighted residual and, if asked, the Jacobian over the free geometry and the compliance
+    /// scales `chosen`: the compliance columns exact (see `ComplianceBasis::jacobian`), the
+    /// geometric ones by forward differences of the deflected poses (a deflection changes with
+    /// the geometry through its lever arms, which the deflected-chain Jacobian leaves out; with
+    /// compliances moving by tens of percent that slows the joint fit to a crawl).
+    pub(super) fn linearise(
+        &self,
+        model: &McpcModel,
+        scales: &[f64],
+        chosen: &[usize],
+        with_jacobian: bool,
+    ) -> Result<Linearisation> {
+        let rows: usize = self.measurements.iter().map(|m| m.observation.rows()).sum();
+        let columns = self.free.len() + chosen.len();
+        let mut residual = DVector::zeros(rows);
+        let mut jacobian = DMatrix::zeros(if with_jacobian { rows } else { 0 }, columns);
+        let weights = [
+            1.0 / self.options.position_sigma,
+            1.0 / self.options.rotation_sigma,
+        ];
+        let effective = self.effective(scales);
+        let flexibilities = self
+            .bases
+            .iter()
+            .map(|(_, b)| b.scaled(&effective))
+            .collect::<Result<Vec<_>>>()?;
+        // Distinct (configuration, payload) pairs: several tools measured there share them.
+        let mut groups: Vec<(&[f64], usize)> = Vec::new();
+        let group_of: Vec<usize> = self
+            .measurements
+            .iter()
+            .zip(&self.basis_of)
+            .map(|(m, &basis)| {
+                let key = (m.q.as_slice(), basis);
+                match groups.iter().rposition(|g| *g == key) {
+                    Some(g) => g,
+                    None => {
+                        groups.push(key);
+                        groups.len() - 1
+                    }
+                }
+            })
+            .collect();
+        let mut poses: Vec<Vec<Pose>> = Vec::with_capacity(groups.len());
+        let mut compliance: Vec<Vec<DMatrix<f64>>> = Vec::new();
+        for &(q, basis) in &groups {
+            if with_jacobian {
+                let found = self.bases[basis]
+                    .1
+                    .jacobian(&effective, self.tree, model, q)?;
+                poses.push(found.poses);
+                compliance.push(found.jacobians);
+            } else {
+                poses.push(flexibilities[basis].deflected_tool_poses(self.tree, model, q)?);
+            }
+        }
+        // Per group and free parameter, the change of every tool pose per unit parameter.
+        let mut geometry: Vec<Vec<Vec<Vector6<f64>>>> = Vec::new();
+        if with_jacobian {
+            geometry = vec![Vec::with_capacity(self.free.len()); groups.len()];
+            let step = 1e-7;
+            let values = model.parameters();
+            let mut shifted = model.clone();
+            for &p in self.free {
+                shifted.set_parameter(p, values[p] + step)?;
+                for (g, &(q, basis)) in groups.iter().enumerate() {
+                    let moved =
+                        flexibilities[basis].deflected_tool_poses(self.tree, &shifted, q)?;
+                    geometry[g].push(
+                        moved
+                            .iter()
+                            .zip(&poses[g])
+                            .map(|(a, b)| pose_error(a, b) / step)
+                            .collect(),
+                    );
+                }
+                shifted.set_parameter(p, values[p])?;
+            }
+        }
+        let mut row = 0;
+        for (index, m) in self.measurements.iter().enumerate() {
+            let g = group_of[index];
+            let predicted = poses[g].get(m.tool).ok_or_else(|| Error::InvalidData {
+                origin: "stiffness identification".into(),
+                message: format!("measurement {index} names tool {}", m.tool),
+            })?;
+            let error = raw_residual(&m.observation, predicted);
+            let count = m.observation.rows();
+            for k in 0..count {
+                let weight = weights[k / 3];
+                residual[row + k] = error[k] * weight;
+                if with_jacobian {
+                    for (column, change) in geometry[g].iter().enumerate() {
+                        jacobian[(row + k, column)] = change[m.tool][k] * weight;
+                    }
+                    // Columns per unit log-scale (d/d ln s = s·d/ds): the fit moves ln s, so a
+                    // compliance never turns negative and a large step is a factor, not a jump.
+                    let per_unit = &compliance[g][m.tool];
+                    for (column, &c) in chosen.iter().enumerate() {
+                        let value = match self.parameters().get(c) {
+                            Some(_) => per_unit[(k, c)] * effective[c],
+                            // A group: the sum over its members.
+                            None => self
+                                .parameters()
+                                .iter()
+                                .enumerate()
+                                .filter(|(_, p)| {
+                                    usize::from(!p.kind.is_joint()) == c - self.parameters().len()
+                                })
+                                .map(|(j, _)| per_unit[(k, j)] * effective[j])
+                                .sum(),
+                        };
+                        jacobian[(row + k, self.free.len() + column)] = value * weight;
+                    }
+                }
+            }
+            row += count;
+        }
+        Ok(Linearisation { residual, jacobian })
+    }
+}
+
+fn raw_residual(measured: &Observation, predicted: &Pose) -> Vector6<f64> {
+    match measured {
+        Observation::Pose(pose) => pose_error(pose, predicted),
+        Observation::Position(p) => {
+            let d = p - predicted.translation.vector;
+            Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
+        }
+    }
+}
