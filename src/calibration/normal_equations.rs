@@ -222,13 +222,24 @@ fn chunk_products(
     range: Range<usize>,
     products: Products,
 ) -> Result<NormalEquations> {
+    // The chunk's rows are its measurements', so its observation weights (robust estimation)
+    // are theirs too: linearise indexes the weights by position in the slice it gets.
+    let sliced;
+    let options = if problem.options.observation_weights.is_empty() {
+        problem.options
+    } else {
+        sliced = problem
+            .options
+            .for_measurements(&range.clone().collect::<Vec<_>>());
+        &sliced
+    };
     let lin = linearise(
         model,
         &problem.measurements[range.clone()],
         problem.offsets.map(|o| &o[range.clone()]),
         problem.predictor,
         problem.free,
-        problem.options,
+        options,
         products != Products::Cost,
     )?;
     let cost = 0.5 * lin.residual.norm_squared();
@@ -383,6 +394,39 @@ mod tests {
                 assert!((a - b).abs() < 1e-10 * reference[0], "{a} vs {b}");
             }
         }
+    }
+
+    /// Robust weights (some 0) follow their measurements into every chunk: the streamed
+    /// products equal the stacked ones over several chunks.
+    #[test]
+    fn observation_weights_follow_the_measurements_into_every_chunk() {
+        let robot = robonaut();
+        let model = &robot.0;
+        let measurements = problem(&robot, 120, true);
+        assert!(chunks(&measurements).len() > 2);
+        let options = IdentificationOptions {
+            observation_weights: (0..measurements.len())
+                .map(|i| [1.0, 0.0, 0.25, 1.0, 0.7][i % 5])
+                .collect(),
+            ..Default::default()
+        };
+        let free: Vec<usize> = (0..model.parameter_count()).collect();
+        let problem = Problem {
+            measurements: &measurements,
+            offsets: None,
+            predictor: &Rigid,
+            free: &free,
+            options: &options,
+        };
+        let stacked = linearise(model, &measurements, None, &Rigid, &free, &options, true)
+            .expect("linearise");
+        let normal = stacked.jacobian.tr_mul(&stacked.jacobian);
+        let streamed = accumulate(model, &problem, Products::Normal).expect("accumulate");
+        assert!(relative(&streamed.normal, &normal) < 1e-12);
+        let gradient = stacked.jacobian.tr_mul(&stacked.residual);
+        assert!((&streamed.gradient - &gradient).amax() < 1e-12 * gradient.amax());
+        let cost = 0.5 * stacked.residual.norm_squared();
+        assert!((streamed.cost - cost).abs() < 1e-12 * cost);
     }
 
     #[test]
