@@ -4,7 +4,7 @@
 use super::fit::Fit;
 use super::problem::{Linearisation, Problem};
 use super::selection::Selection;
-use super::{name, ComplianceEstimate};
+use super::{name, ComplianceEstimate, GROUPS};
 use crate::calibration::solver::{column_scales, scale_columns, singular_decomposition};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
@@ -70,21 +70,61 @@ pub(super) fn covariance(
     cost: f64,
     tolerance: f64,
 ) -> (usize, f64, DMatrix<f64>) {
-    let columns = column_scales(&lin.jacobian);
-    let (singular, v_t) = singular_decomposition(scale_columns(&lin.jacobian, &columns));
+    let rows = lin.jacobian.nrows();
+    let (rank, unit) = unit_factor(&lin.jacobian, tolerance);
+    let residual_scale = if rows > rank {
+        (2.0 * cost / (rows - rank) as f64).sqrt()
+    } else {
+        f64::NAN
+    };
+    (rank, residual_scale, unit * residual_scale)
+}
+
+/// Rank and a factor `G = S⁻¹·V_k·Σ_k⁻¹` of `(JᵀJ)⁺` (SVD-truncated at `tolerance`, on the
+/// columns scaled to unit length by `S`).
+fn unit_factor(jacobian: &DMatrix<f64>, tolerance: f64) -> (usize, DMatrix<f64>) {
+    let columns = column_scales(jacobian);
+    let (singular, v_t) = singular_decomposition(scale_columns(jacobian, &columns));
     let largest = singular.max();
     let kept: Vec<usize> = (0..singular.len())
         .filter(|&i| singular[i] > tolerance * largest)
         .collect();
-    let rows = lin.jacobian.nrows();
-    let residual_scale = if rows > kept.len() {
-        (2.0 * cost / (rows - kept.len()) as f64).sqrt()
-    } else {
-        f64::NAN
-    };
-    // F = σ̂·S⁻¹·V_k·Σ_k⁻¹.
     let factor = DMatrix::from_fn(columns.len(), kept.len(), |k, j| {
-        residual_scale * v_t[(kept[j], k)] / singular[kept[j]] / columns[k]
+        v_t[(kept[j], k)] / singular[kept[j]] / columns[k]
     });
-    (kept.len(), residual_scale, factor)
+    (kept.len(), factor)
+}
+
+impl Problem<'_> {
+    /// Adds to the covariance factor of `fit` what the compliances held at the prior leave
+    /// uncertain (a "consider" covariance): a held compliance that is off by `δ` (in its
+    /// logarithm) moves the fitted parameters by `K·δ`, `K = (JᵀJ)⁺·Jᵀ·J_c` with `J_c` the
+    /// held compliances' columns, so the covariance grows by `K·P_c·Kᵀ`, `P_c = prior_sigma²·I`.
+    /// The factor gets the columns `prior_sigma·K`.
+    pub(super) fn consider(&self, fit: &mut Fit, chosen: &[usize], prior_sigma: f64) -> Result<()> {
+        let held: Vec<usize> = (0..self.parameters().len() + GROUPS)
+            .filter(|k| !chosen.contains(k))
+            .collect();
+        if held.is_empty() {
+            return Ok(());
+        }
+        let all: Vec<usize> = chosen.iter().chain(&held).copied().collect();
+        let lin = self.linearise(&fit.model, &fit.scales, &all, true)?;
+        let fitted = self.free.len() + chosen.len();
+        let jacobian = lin.jacobian.columns(0, fitted).into_owned();
+        let held_columns = lin.jacobian.columns(fitted, held.len());
+        let (_, unit) = unit_factor(&jacobian, self.options.rank_tolerance);
+        // K = G·Gᵀ·Jᵀ·J_c, of which only the chosen scales' rows are kept.
+        let k = &unit * (unit.tr_mul(&jacobian.tr_mul(&held_columns)));
+        let extra = k.rows(self.free.len(), chosen.len()) * prior_sigma;
+        let data = &fit.log_factor;
+        fit.log_factor = DMatrix::from_fn(data.nrows(), data.ncols() + extra.ncols(), |r, c| {
+            if c < data.ncols() {
+                data[(r, c)]
+            } else {
+                extra[(r, c - data.ncols())]
+            }
+        });
+        Ok(())
+    }
 }

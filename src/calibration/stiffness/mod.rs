@@ -150,7 +150,8 @@ pub fn identify_stiffness(
         options,
     );
     let chosen = selection.chosen.clone();
-    let fit = problem.fit(start, &chosen, stiffness.max_iterations)?;
+    let mut fit = problem.fit(start, &chosen, stiffness.max_iterations)?;
+    problem.consider(&mut fit, &chosen, stiffness.prior_sigma)?;
     let estimates = problem.estimates(tree, start, &fit, &selection)?;
     // The prior's own payloads, whatever the rows carried.
     let flexibility =
