@@ -12,7 +12,6 @@ use crate::calibration::{
 use crate::error::{Error, Result};
 use crate::io::{read_registration, MeasurementReadOptions};
 use crate::kinematics::{FlexibilityModel, McpcModel, Stiffness};
-use crate::limits::{check_range, POSITION_SIGMA, ROTATION_SIGMA};
 use crate::measurement::Measurement;
 use crate::report::StiffnessSummary;
 use crate::tree::Branches;
@@ -31,18 +30,7 @@ fn invalid(origin: &str, message: String) -> Error {
 /// The σ within their bounds (a tiny σ overflows the weighted cost, a huge one hides every
 /// residual) and a positive stiffness prior.
 pub(super) fn check_config(config: &CalibrateConfig) -> Result<()> {
-    check_range(
-        config.position_sigma,
-        POSITION_SIGMA,
-        "--position-sigma",
-        "m",
-    )?;
-    check_range(
-        config.rotation_sigma,
-        ROTATION_SIGMA,
-        "--rotation-sigma",
-        "rad",
-    )?;
+    super::checks::sigmas(config.position_sigma, config.rotation_sigma)?;
     let prior = config.stiffness_prior;
     if config.identify_stiffness && !(prior.is_finite() && prior > 0.0) {
         return Err(invalid(
