@@ -226,6 +226,21 @@ pub fn convergence(stage: &StageReport) -> Option<Finding> {
     })
 }
 
+/// The stiffness fit put some compliance scales at or below zero (held at the prior since).
+pub fn stiffness_below_zero(report: &super::StiffnessReport) -> Option<Finding> {
+    let held = &report.held_below_zero;
+    (!held.is_empty()).then(|| {
+        Finding::warning(
+            "stiffness-below-zero",
+            format!(
+                "the stiffness fit put {} compliance scale(s) at or below zero, which no robot has, and holds them at the prior: {}. The data ask for a negative compliance there, so something the fit holds fixed is off (a compliance kept at the prior nearby, the stiffness file's structure, or the geometry); measure at a second payload (payload_kg) or give a wider --stiffness-prior, and trust these compliances less",
+                held.len(),
+                held.join("; ")
+            ),
+        )
+    })
+}
+
 /// RMS over the position errors (mm) after calibration of every arm of a data set.
 fn rms_after(arms: &[super::run::ArmResiduals]) -> Option<f64> {
     let values: Vec<f64> = arms.iter().flat_map(|a| a.position_mm[1].clone()).collect();

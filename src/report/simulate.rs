@@ -202,7 +202,33 @@ pub fn simulation_markdown(
         );
         blunder_line(&mut out, &summary.blunders);
     }
+    stiffness_line(&mut out, trials);
     out
+}
+
+/// What the stiffness identification made of the trials (nothing without it).
+fn stiffness_line(out: &mut String, trials: &[TrialReport]) {
+    let estimates: Vec<_> = trials.iter().filter_map(|t| t.stiffness.as_ref()).collect();
+    let Some(total) = estimates.first().map(|e| e.len()) else {
+        return;
+    };
+    let identified: Vec<usize> = estimates
+        .iter()
+        .map(|e| e.iter().filter(|c| c.identified).count())
+        .collect();
+    let below: Vec<usize> = estimates
+        .iter()
+        .map(|e| e.iter().filter(|c| c.fitted_below_zero.is_some()).count())
+        .collect();
+    let _ = writeln!(
+        out,
+        "Stiffness identification: {}–{} of {total} compliance scales identified per trial; {} fitted at or below zero and held at the prior (in {} of {} trials).\n",
+        identified.iter().min().unwrap_or(&0),
+        identified.iter().max().unwrap_or(&0),
+        below.iter().sum::<usize>(),
+        below.iter().filter(|&&b| b > 0).count(),
+        estimates.len()
+    );
 }
 
 /// What robust estimation made of the injected blunders (nothing when there were none and

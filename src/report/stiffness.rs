@@ -27,6 +27,8 @@ pub struct StiffnessSummary {
     pub parameters: Vec<ComplianceEstimate>,
     /// Combinations the data cannot determine (kept at the prior), in words.
     pub unidentifiable: Vec<String>,
+    /// Scales the joint fit put at or below zero (held at the prior), in words.
+    pub held_below_zero: Vec<String>,
     /// Common scale of all joint compliances and of all link compliances, with its standard
     /// deviation (`None`: not identified, 1) (JSON: `joint` and `link`, each with `scale` and
     /// `std_dev`).
@@ -69,6 +71,7 @@ impl StiffnessSummary {
             residual_scale: report.residual_scale,
             parameters: report.estimates.clone(),
             unidentifiable: report.unidentifiable.clone(),
+            held_below_zero: report.held_below_zero.clone(),
             group_scales: report.group_scales,
         }
     }
@@ -120,10 +123,23 @@ pub fn stiffness_markdown(summary: &StiffnessSummary) -> String {
             e.scale,
             sd(e.scale_std_dev),
             relative(e.data_std_dev),
-            if e.identified { "yes" } else { "no (prior)" }
+            match (e.identified, e.fitted_below_zero) {
+                (true, _) => "yes".to_owned(),
+                (false, Some(value)) => format!("no (fitted at {value:.3}; prior)"),
+                (false, None) => "no (prior)".to_owned(),
+            }
         );
     }
     combinations(&mut out, &summary.unidentifiable);
+    if !summary.held_below_zero.is_empty() {
+        let _ = writeln!(
+            out,
+            "\nFitted at or below zero (not physical), held at the prior, the fit redone without them:\n"
+        );
+        for h in &summary.held_below_zero {
+            let _ = writeln!(out, "- {h}");
+        }
+    }
     out
 }
 

@@ -208,6 +208,8 @@ pub(super) fn identify(
             ..input
         };
         run = run_calibration(&again, &data.measurements, &data.validation)?;
+        run.findings
+            .extend(crate::calibration::checks::stiffness_below_zero(&report));
         let file = identified_stiffness(stiffness, tree, &loaded.nominal, &report.estimates);
         identified = Some((StiffnessSummary::new(&report, config.stiffness_prior), file));
     }

@@ -30,13 +30,13 @@ impl Problem<'_> {
                 let scale = effective[k];
                 let position = |index: usize| selection.chosen.iter().position(|&c| c == index);
                 let chosen = position(k);
-                let group =
-                    position(self.parameters().len() + usize::from(!parameter.kind.is_joint()));
-                // var(ln s·g) = ‖F_s + F_g‖², the rows of the covariance factor.
-                let f = &fit.log_factor;
+                let group_index = self.parameters().len() + usize::from(!parameter.kind.is_joint());
+                let group = position(group_index);
+                // A fitted scale's row is of its effective scale; a held one follows its group's.
+                let f = &fit.factor;
                 let variance = match (chosen, group) {
-                    (Some(a), Some(b)) => Some((f.row(a) + f.row(b)).norm_squared()),
-                    (Some(a), None) | (None, Some(a)) => Some(f.row(a).norm_squared()),
+                    (Some(a), _) => Some(f.row(a).norm_squared()),
+                    (None, Some(b)) => Some((f.row(b) * fit.scales[k]).norm_squared()),
                     (None, None) => None,
                 };
                 ComplianceEstimate {
@@ -51,10 +51,11 @@ impl Problem<'_> {
                     stiffness: prior / scale,
                     scale,
                     scale_std_dev: variance
-                        .map(|v| scale * v.max(0.0).sqrt())
+                        .map(|v| v.max(0.0).sqrt())
                         .filter(|s| s.is_finite()),
                     data_std_dev: selection.data_std_dev[k],
                     identified: chosen.is_some(),
+                    fitted_below_zero: None,
                 }
             })
             .collect())
@@ -97,10 +98,11 @@ fn unit_factor(jacobian: &DMatrix<f64>, tolerance: f64) -> (usize, DMatrix<f64>)
 
 impl Problem<'_> {
     /// Adds to the covariance factor of `fit` what the compliances held at the prior leave
-    /// uncertain (a "consider" covariance): a held compliance that is off by `δ` (in its
-    /// logarithm) moves the fitted parameters by `K·δ`, `K = (JᵀJ)⁺·Jᵀ·J_c` with `J_c` the
-    /// held compliances' columns, so the covariance grows by `K·P_c·Kᵀ`, `P_c = prior_sigma²·I`.
-    /// The factor gets the columns `prior_sigma·K`.
+    /// uncertain (a "consider" covariance): a held compliance whose scale is off by `δ` moves
+    /// the fitted parameters by `K·δ`, `K = (JᵀJ)⁺·Jᵀ·J_c` with `J_c` the held compliances'
+    /// columns, so the covariance grows by `K·P_c·Kᵀ`. The prior is log-normal (`ln s` has σ
+    /// `prior_sigma`), so a held scale has variance `P_c = e^{σ²}·(e^{σ²} − 1)` (σ 0.5: 0.60²).
+    /// The factor gets the columns `√P_c·K`.
     pub(super) fn consider(&self, fit: &mut Fit, chosen: &[usize], prior_sigma: f64) -> Result<()> {
         let held: Vec<usize> = (0..self.parameters().len() + GROUPS)
             .filter(|k| !chosen.contains(k))
@@ -109,16 +111,16 @@ impl Problem<'_> {
             return Ok(());
         }
         let all: Vec<usize> = chosen.iter().chain(&held).copied().collect();
-        let lin = self.linearise(&fit.model, &fit.scales, &all, true)?;
+        let lin = self.linearise(&fit.model, &fit.scales, &all, chosen, true)?;
         let fitted = self.free.len() + chosen.len();
         let jacobian = lin.jacobian.columns(0, fitted).into_owned();
         let held_columns = lin.jacobian.columns(fitted, held.len());
         let (_, unit) = unit_factor(&jacobian, self.options.rank_tolerance);
         // K = G·Gᵀ·Jᵀ·J_c, of which only the chosen scales' rows are kept.
         let k = &unit * (unit.tr_mul(&jacobian.tr_mul(&held_columns)));
-        let extra = k.rows(self.free.len(), chosen.len()) * prior_sigma;
-        let data = &fit.log_factor;
-        fit.log_factor = DMatrix::from_fn(data.nrows(), data.ncols() + extra.ncols(), |r, c| {
+        let extra = k.rows(self.free.len(), chosen.len()) * prior_scale_std_dev(prior_sigma);
+        let data = &fit.factor;
+        fit.factor = DMatrix::from_fn(data.nrows(), data.ncols() + extra.ncols(), |r, c| {
             if c < data.ncols() {
                 data[(r, c)]
             } else {
@@ -127,4 +129,11 @@ impl Problem<'_> {
         });
         Ok(())
     }
+}
+
+/// Standard deviation of a scale under the log-normal prior, `ln s ~ N(0, σ²)`:
+/// `√(e^{σ²}·(e^{σ²} − 1))`.
+pub(super) fn prior_scale_std_dev(prior_sigma: f64) -> f64 {
+    let v = (prior_sigma * prior_sigma).exp();
+    (v * (v - 1.0)).sqrt()
 }

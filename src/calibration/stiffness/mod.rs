@@ -74,6 +74,9 @@ pub struct ComplianceEstimate {
     pub data_std_dev: f64,
     /// Whether it was identified (else kept at the prior).
     pub identified: bool,
+    /// The scale the joint fit gave it when that was not physical (≤ 0): it was then held at
+    /// the prior and the fit redone without it.
+    pub fitted_below_zero: Option<f64>,
 }
 
 impl ComplianceEstimate {
@@ -111,6 +114,10 @@ pub struct StiffnessReport {
     /// Compliance combinations the data cannot tell from the geometry or from each other, in
     /// words (kept at the prior).
     pub unidentifiable: Vec<String>,
+    /// Scales the data determine but the joint fit put at or below zero (not physical), in
+    /// words: held at the prior, the fit redone without them. A compliance held elsewhere (or
+    /// the geometry) is then likely off; the verdict warns.
+    pub held_below_zero: Vec<String>,
 }
 
 /// Identifies the compliance scales of `prior` jointly with the `free` MCPC parameters of
@@ -141,7 +148,7 @@ pub fn identify_stiffness(
     let count = problem.parameters().len() + GROUPS;
     let all: Vec<usize> = (0..count).collect();
     let ones = vec![1.0; count];
-    let first = problem.linearise(start, &ones, &all, true)?;
+    let first = problem.linearise(start, &ones, &all, &[], true)?;
     let selection = select(
         &first,
         free.len(),
@@ -149,10 +156,16 @@ pub fn identify_stiffness(
         stiffness.prior_sigma,
         options,
     );
+    let mut selection = selection;
+    let (mut fit, below_zero) = fit_physical(&problem, start, &mut selection.chosen, stiffness)?;
     let chosen = selection.chosen.clone();
-    let mut fit = problem.fit(start, &chosen, stiffness.max_iterations)?;
     problem.consider(&mut fit, &chosen, stiffness.prior_sigma)?;
-    let estimates = problem.estimates(tree, start, &fit, &selection)?;
+    let mut estimates = problem.estimates(tree, start, &fit, &selection)?;
+    for &(k, value) in &below_zero {
+        if let Some(estimate) = estimates.get_mut(k) {
+            estimate.fitted_below_zero = Some(value);
+        }
+    }
     // The prior's own payloads, whatever the rows carried.
     let flexibility =
         prior.with_compliance_scales(problem.parameters(), &problem.effective(&fit.scales))?;
@@ -163,7 +176,7 @@ pub fn identify_stiffness(
             chosen
                 .iter()
                 .position(|&c| c == index)
-                .map(|c| fit.scales[index] * fit.log_factor.row(c).norm()),
+                .map(|c| fit.factor.row(c).norm()),
         )
     });
     Ok(StiffnessReport {
@@ -182,7 +195,43 @@ pub fn identify_stiffness(
             .iter()
             .map(|c| describe(tree, start, problem.parameters(), c))
             .collect(),
+        held_below_zero: below_zero
+            .iter()
+            .map(|&(k, value)| {
+                let name = describe(tree, start, problem.parameters(), &[(k, 1.0)]);
+                let name = name.trim_end_matches(" (+1.00)");
+                format!("{name}: fitted at {value:.3}, below zero; held at the prior")
+            })
+            .collect(),
     })
+}
+
+/// The joint fit over the scales `chosen`, again without those it puts at or below zero (not
+/// physical: the data, read through the compliances held at the prior, ask for a negative
+/// compliance, so a held compliance or the geometry is off and this one absorbs it) until every
+/// fitted scale is positive. Returns the fit and the rejected scales with their fitted values;
+/// `chosen` loses them.
+fn fit_physical(
+    problem: &Problem,
+    start: &McpcModel,
+    chosen: &mut Vec<usize>,
+    stiffness: &StiffnessOptions,
+) -> Result<(fit::Fit, Vec<(usize, f64)>)> {
+    let mut below_zero = Vec::new();
+    loop {
+        let fit = problem.fit(start, chosen, stiffness.max_iterations)?;
+        let effective = problem.effective(&fit.scales);
+        let below: Vec<(usize, f64)> = chosen
+            .iter()
+            .map(|&c| (c, effective.get(c).copied().unwrap_or(fit.scales[c])))
+            .filter(|&(_, value)| value <= 0.0)
+            .collect();
+        if below.is_empty() {
+            return Ok((fit, below_zero));
+        }
+        chosen.retain(|c| below.iter().all(|&(b, _)| b != *c));
+        below_zero.extend(below);
+    }
 }
 
 /// Common scale factors after the individual ones: all joint compliances, all link compliances.

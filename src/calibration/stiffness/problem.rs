@@ -94,15 +94,21 @@ impl<'a> Problem<'a> {
     }
 
     /// Weighted residual and, if asked, the Jacobian over the free geometry and the compliance
-    /// scales `chosen`: the compliance columns exact (see `ComplianceBasis::jacobian`), the
+    /// scales `chosen` (per unit scale; at scale 1 that is per unit of its logarithm too): the compliance columns exact (see `ComplianceBasis::jacobian`), the
     /// geometric ones by forward differences of the deflected poses (a deflection changes with
     /// the geometry through its lever arms, which the deflected-chain Jacobian leaves out; with
     /// compliances moving by tens of percent that slows the joint fit to a crawl).
+    ///
+    /// `fitted`: the individual scales whose effective scale (its own times its group's) is a
+    /// parameter of its own; their columns are per unit effective scale, and their group's
+    /// column covers only the other members (those that follow the group). With the product
+    /// `s·g` as two parameters instead, the sign of both could flip together at no cost.
     pub(super) fn linearise(
         &self,
         model: &McpcModel,
         scales: &[f64],
         chosen: &[usize],
+        fitted: &[usize],
         with_jacobian: bool,
     ) -> Result<Linearisation> {
         let rows: usize = self.measurements.iter().map(|m| m.observation.rows()).sum();
@@ -172,6 +178,8 @@ impl<'a> Problem<'a> {
                 shifted.set_parameter(p, values[p])?;
             }
         }
+        let count_of = self.parameters().len();
+        let group = |p: &ComplianceParameter| usize::from(!p.kind.is_joint());
         let mut row = 0;
         for (index, m) in self.measurements.iter().enumerate() {
             let g = group_of[index];
@@ -188,21 +196,21 @@ impl<'a> Problem<'a> {
                     for (column, change) in geometry[g].iter().enumerate() {
                         jacobian[(row + k, column)] = change[m.tool][k] * weight;
                     }
-                    // Columns per unit log-scale (d/d ln s = s·d/ds): the fit moves ln s, so a
-                    // compliance never turns negative and a large step is a factor, not a jump.
+                    // Columns per unit scale (the deflections are linear in the effective
+                    // scales): a fitted scale per unit of its effective scale, a held one per
+                    // unit of its own (times its group's), a group per unit of its own over the
+                    // members that follow it.
                     let per_unit = &compliance[g][m.tool];
                     for (column, &c) in chosen.iter().enumerate() {
                         let value = match self.parameters().get(c) {
-                            Some(_) => per_unit[(k, c)] * effective[c],
-                            // A group: the sum over its members.
+                            Some(_) if fitted.contains(&c) => per_unit[(k, c)],
+                            Some(p) => per_unit[(k, c)] * scales[count_of + group(p)],
                             None => self
                                 .parameters()
                                 .iter()
                                 .enumerate()
-                                .filter(|(_, p)| {
-                                    usize::from(!p.kind.is_joint()) == c - self.parameters().len()
-                                })
-                                .map(|(j, _)| per_unit[(k, j)] * effective[j])
+                                .filter(|(j, p)| group(p) == c - count_of && !fitted.contains(j))
+                                .map(|(j, _)| per_unit[(k, j)] * scales[j])
                                 .sum(),
                         };
                         jacobian[(row + k, self.free.len() + column)] = value * weight;

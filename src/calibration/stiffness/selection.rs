@@ -187,7 +187,7 @@ pub fn analyse_compliance(
     let problem = Problem::new(tree, prior, measurements, payloads, free, options)?;
     let count = problem.parameters().len() + GROUPS;
     let all: Vec<usize> = (0..count).collect();
-    let lin = problem.linearise(model, &vec![1.0; count], &all, true)?;
+    let lin = problem.linearise(model, &vec![1.0; count], &all, &[], true)?;
     let selection = select(&lin, free.len(), problem.parameters(), prior_sigma, options);
     Ok(ComplianceIdentifiability {
         parameters: (0..count)

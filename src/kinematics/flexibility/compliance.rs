@@ -145,6 +145,23 @@ impl FlexibilityModel {
         parameters: &[ComplianceParameter],
         scales: &[f64],
     ) -> Result<Self> {
+        if let Some(scale) = scales.iter().find(|s| **s < 0.0) {
+            return Err(Error::InvalidData {
+                origin: "compliance scales".into(),
+                message: format!("scale {scale} is not a finite non-negative number"),
+            });
+        }
+        self.with_signed_compliance_scales(parameters, scales)
+    }
+
+    /// [`Self::with_compliance_scales`] that also takes negative scales (finite): not a physical
+    /// model, but the deflections stay linear in the compliances through zero, which the joint
+    /// stiffness fit relies on while it iterates.
+    fn with_signed_compliance_scales(
+        &self,
+        parameters: &[ComplianceParameter],
+        scales: &[f64],
+    ) -> Result<Self> {
         if parameters.len() != scales.len() {
             return Err(Error::InvalidData {
                 origin: "compliance scales".into(),
@@ -157,10 +174,10 @@ impl FlexibilityModel {
         }
         let mut scaled = self.clone();
         for (parameter, &scale) in parameters.iter().zip(scales) {
-            if !(scale.is_finite() && scale >= 0.0) {
+            if !scale.is_finite() {
                 return Err(Error::InvalidData {
                     origin: "compliance scales".into(),
-                    message: format!("scale {scale} is not a finite non-negative number"),
+                    message: format!("scale {scale} is not a finite number"),
                 });
             }
             let frame = parameter.frame;
@@ -242,10 +259,13 @@ impl ComplianceBasis {
         &self.reference
     }
 
-    /// The reference model with every parameter's compliance times its scale.
+    /// The reference model with every parameter's compliance times its scale. A negative scale
+    /// (finite) is accepted: not a physical model, but the deflections are linear in the
+    /// compliances through zero, and a least-squares fit may pass there (or end there, which
+    /// its caller must then reject).
     pub fn scaled(&self, scales: &[f64]) -> Result<FlexibilityModel> {
         self.reference
-            .with_compliance_scales(&self.parameters, scales)
+            .with_signed_compliance_scales(&self.parameters, scales)
     }
 
     /// The deflected tool poses of the model with compliance `scales` at configuration `q`,
