@@ -335,4 +335,8 @@ fn report_json_with_stiffness_keeps_its_key_order() {
     assert!(f64_of(&block["cost"]["after"]) <= f64_of(&block["cost"]["before"]));
     assert!(block["identified"]["identified"].as_u64() <= block["identified"]["total"].as_u64());
     assert!(f64_of(&block["group_scales"]["joint"]["scale"]) > 0.0);
+    // The example data: nothing fitted below zero, so no such warning and null per parameter.
+    assert_eq!(block["held_below_zero"], serde_json::json!([]), "{block}");
+    assert!(block["parameters"][0]["fitted_below_zero"].is_null());
+    assert_eq!(report["verdict"]["status"], "ok", "{}", report["verdict"]);
 }
