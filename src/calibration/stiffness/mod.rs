@@ -219,6 +219,16 @@ fn fit_physical(
 ) -> Result<(fit::Fit, Vec<(usize, f64)>)> {
     let mut below_zero = Vec::new();
     loop {
+        // A group whose members are all fitted on their own moves nothing.
+        let count = problem.parameters().len();
+        let followed: Vec<usize> = problem
+            .parameters()
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| !chosen.contains(j))
+            .map(|(_, p)| count + usize::from(!p.kind.is_joint()))
+            .collect();
+        chosen.retain(|c| *c < count || followed.contains(c));
         let fit = problem.fit(start, chosen, stiffness.max_iterations)?;
         let effective = problem.effective(&fit.scales);
         let below: Vec<(usize, f64)> = chosen
