@@ -20,13 +20,13 @@ impl Problem<'_> {
         selection: &Selection,
     ) -> Result<Vec<ComplianceEstimate>> {
         let reference = self.bases[0].1.reference();
+        let effective = self.effective(&fit.scales);
         Ok(self
             .parameters()
             .iter()
             .enumerate()
             .map(|(k, parameter)| {
                 let prior = reference.compliance(parameter).recip();
-                let effective = self.effective(&fit.scales);
                 let scale = effective[k];
                 let position = |index: usize| selection.chosen.iter().position(|&c| c == index);
                 let chosen = position(k);

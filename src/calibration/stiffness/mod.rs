@@ -198,8 +198,7 @@ pub fn identify_stiffness(
         held_below_zero: below_zero
             .iter()
             .map(|&(k, value)| {
-                let name = describe(tree, start, problem.parameters(), &[(k, 1.0)]);
-                let name = name.trim_end_matches(" (+1.00)");
+                let name = label(tree, start, problem.parameters(), k);
                 format!("{name}: fitted at {value:.3}, below zero; held at the prior")
             })
             .collect(),
@@ -267,15 +266,22 @@ pub(super) fn describe(
 ) -> String {
     terms
         .iter()
-        .map(|&(k, w)| {
-            let name = match parameters.get(k) {
-                Some(parameter) => name(tree, model, parameter),
-                None => GROUP_NAMES[k - parameters.len()].to_owned(),
-            };
-            format!("{name} ({w:+.2})")
-        })
+        .map(|&(k, w)| format!("{} ({w:+.2})", label(tree, model, parameters, k)))
         .collect::<Vec<_>>()
         .join(" with ")
+}
+
+/// Scale `k` in words: a compliance's name, or a group's (indices after the parameters).
+fn label(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    parameters: &[ComplianceParameter],
+    k: usize,
+) -> String {
+    match parameters.get(k) {
+        Some(parameter) => name(tree, model, parameter),
+        None => GROUP_NAMES[k - parameters.len()].to_owned(),
+    }
 }
 
 /// `left_joint2 bending`, `left_joint2 EI_y`.

@@ -180,6 +180,7 @@ impl<'a> Problem<'a> {
         }
         let count_of = self.parameters().len();
         let group = |p: &ComplianceParameter| usize::from(!p.kind.is_joint());
+        let is_fitted: Vec<bool> = (0..count_of).map(|j| fitted.contains(&j)).collect();
         let mut row = 0;
         for (index, m) in self.measurements.iter().enumerate() {
             let g = group_of[index];
@@ -203,13 +204,13 @@ impl<'a> Problem<'a> {
                     let per_unit = &compliance[g][m.tool];
                     for (column, &c) in chosen.iter().enumerate() {
                         let value = match self.parameters().get(c) {
-                            Some(_) if fitted.contains(&c) => per_unit[(k, c)],
+                            Some(_) if is_fitted[c] => per_unit[(k, c)],
                             Some(p) => per_unit[(k, c)] * scales[count_of + group(p)],
                             None => self
                                 .parameters()
                                 .iter()
                                 .enumerate()
-                                .filter(|(j, p)| group(p) == c - count_of && !fitted.contains(j))
+                                .filter(|(j, p)| group(p) == c - count_of && !is_fitted[*j])
                                 .map(|(j, _)| per_unit[(k, j)] * scales[j])
                                 .sum(),
                         };
