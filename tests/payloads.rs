@@ -80,13 +80,7 @@ fn the_payload_column_round_trips_and_bad_masses_are_named() {
     assert_eq!(back, written);
 
     // No payloads: no column, and rows read without one carry none.
-    let plain: Vec<Measurement> = measurements
-        .iter()
-        .map(|m| Measurement {
-            payload: None,
-            ..m.clone()
-        })
-        .collect();
+    let plain = without_payloads(&measurements);
     let text_plain = measurements_to_csv(&tree, &model, &plain).unwrap();
     assert!(!text_plain.contains("payload_kg"));
     let read = parse_measurements(&text_plain, "plain.csv", &tree, &model, &options).unwrap();
@@ -142,13 +136,7 @@ fn predictions_use_the_rows_payload() {
         let residual = weighted_residual(&model, &rows, &exact, &options).unwrap();
         assert!(residual.amax() <= 1e-9, "residual {:e}", residual.amax());
         if payload == 0.0 {
-            let unloaded: Vec<Measurement> = rows
-                .iter()
-                .map(|m| Measurement {
-                    payload: None,
-                    ..m.clone()
-                })
-                .collect();
+            let unloaded = without_payloads(&rows);
             let none = exact.offsets(&model, &q, None).unwrap();
             let loaded = exact.offsets(&model, &q, Some(payload)).unwrap();
             let gap = (none[0] - loaded[0]).fixed_rows::<3>(0).norm();
@@ -195,13 +183,7 @@ fn the_compliance_analysis_takes_the_rows_payloads() {
     };
     let from_rows = analyse(&rows, None);
     let from_list = analyse(&rows, Some(&list));
-    let unloaded: Vec<Measurement> = rows
-        .iter()
-        .map(|m| Measurement {
-            payload: None,
-            ..m.clone()
-        })
-        .collect();
+    let unloaded = without_payloads(&rows);
     let from_file = analyse(&unloaded, None);
     let spread = |a: &treecal::calibration::ComplianceIdentifiability| -> Vec<f64> {
         a.parameters.iter().map(|p| p.1).collect()
@@ -335,4 +317,14 @@ fn what_one_two_and_three_payloads_determine() {
         counts.iter().all(|&c| c < results[0].parameters.len()),
         "{counts:?}"
     );
+}
+
+/// The same rows with no payload stated.
+fn without_payloads(rows: &[Measurement]) -> Vec<Measurement> {
+    rows.iter()
+        .map(|m| Measurement {
+            payload: None,
+            ..m.clone()
+        })
+        .collect()
 }

@@ -301,7 +301,7 @@ pub(super) fn accumulate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::solver::Rigid;
+    use crate::calibration::solver::{Linearisation, Rigid};
     use crate::measurement::Observation;
     use crate::{detect_branches, load_urdf};
     use rand::rngs::ChaCha8Rng;
@@ -372,16 +372,9 @@ mod tests {
                 free: &free,
                 options: &options,
             };
-            let stacked = linearise(model, &measurements, None, &Rigid, &free, &options, true)
-                .expect("linearise");
+            let (stacked, streamed) =
+                streamed_and_stacked(model, &problem, Products::NormalAndFactor);
             let normal = stacked.jacobian.tr_mul(&stacked.jacobian);
-            let streamed =
-                accumulate(model, &problem, Products::NormalAndFactor).expect("accumulate");
-            assert!(relative(&streamed.normal, &normal) < 1e-12);
-            let gradient = stacked.jacobian.tr_mul(&stacked.residual);
-            assert!((&streamed.gradient - &gradient).amax() < 1e-12 * gradient.amax());
-            let cost = 0.5 * stacked.residual.norm_squared();
-            assert!((streamed.cost - cost).abs() < 1e-12 * cost);
             let cost_only = accumulate(model, &problem, Products::Cost).expect("cost");
             assert_eq!(cost_only.cost, streamed.cost);
             // RᵀR = JᵀJ, and R has J's singular values (to round-off).
@@ -418,15 +411,34 @@ mod tests {
             free: &free,
             options: &options,
         };
-        let stacked = linearise(model, &measurements, None, &Rigid, &free, &options, true)
-            .expect("linearise");
+        streamed_and_stacked(model, &problem, Products::Normal);
+    }
+
+    /// The streamed products of `problem` and the stacked linearisation, after checking that
+    /// they agree on JᵀJ, Jᵀr and the cost (to 1e-12 relative).
+    fn streamed_and_stacked(
+        model: &McpcModel,
+        problem: &Problem<'_>,
+        products: Products,
+    ) -> (Linearisation, NormalEquations) {
+        let stacked = linearise(
+            model,
+            problem.measurements,
+            None,
+            &Rigid,
+            problem.free,
+            problem.options,
+            true,
+        )
+        .expect("linearise");
         let normal = stacked.jacobian.tr_mul(&stacked.jacobian);
-        let streamed = accumulate(model, &problem, Products::Normal).expect("accumulate");
+        let streamed = accumulate(model, problem, products).expect("accumulate");
         assert!(relative(&streamed.normal, &normal) < 1e-12);
         let gradient = stacked.jacobian.tr_mul(&stacked.residual);
         assert!((&streamed.gradient - &gradient).amax() < 1e-12 * gradient.amax());
         let cost = 0.5 * stacked.residual.norm_squared();
         assert!((streamed.cost - cost).abs() < 1e-12 * cost);
+        (stacked, streamed)
     }
 
     #[test]
