@@ -12,10 +12,14 @@
 //! - [`stiffness`]: compliance scale factors identified jointly with the MCPC parameters
 //!   (`--identify-stiffness`), and what a set of measurements can determine of them.
 //! - [`robust`]: robust estimation (Huber or Cauchy by IRLS): blunders named and left out.
+//! - [`baseline`]: the fair "before": the nominal robot registered like the calibrated one.
+//! - [`validation`]: where validation configurations lie (repeat, inside, outside the
+//!   identification ranges).
 //! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
 //!   validation) that feed the verdict.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
+pub mod baseline;
 pub mod checks;
 pub mod frame;
 pub mod identifiability;
@@ -26,6 +30,7 @@ pub mod robust;
 pub mod run;
 pub mod solver;
 pub mod stiffness;
+pub mod validation;
 pub mod verdict;
 
 pub use frame::{

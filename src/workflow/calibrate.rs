@@ -16,12 +16,14 @@ use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit};
 use std::path::{Path, PathBuf};
 
 /// The files [`Calibration::write`] writes besides the SVG plots.
-pub const OUTPUT_FILES: [&str; 5] = [
+pub const OUTPUT_FILES: [&str; 7] = [
     "calibrated.urdf",
     "params.yaml",
     "report.md",
     "report.json",
     "stiffness.yaml",
+    super::calibrate_artifact::REGISTRATION_FILE,
+    super::calibrate_artifact::COMPENSATED_URDF,
 ];
 
 /// Whether a file name is one `calibrate` writes (a previous output may be replaced).

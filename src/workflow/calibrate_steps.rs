@@ -7,7 +7,7 @@ use super::note::Note;
 use super::source::{measured_branches, LoadedRobot};
 use crate::calibration::{
     hold_out_indices, identified_stiffness, identify_stiffness, run_calibration, CalibrationInput,
-    CalibrationRun, Finding, IdentificationOptions, MeasurementFrame, StiffnessOptions,
+    CalibrationRun, Finding, IdentificationOptions, MeasurementFrame, Plan, StiffnessOptions,
 };
 use crate::error::{Error, Result};
 use crate::io::{read_registration, MeasurementReadOptions};
@@ -132,6 +132,10 @@ pub(super) struct Identified {
     pub run: CalibrationRun,
     pub plan_name: String,
     pub options: IdentificationOptions,
+    /// The plan the run used.
+    pub plan: Plan,
+    /// The flexibility model of the final run (with the identified stiffness, if any).
+    pub flexibility: Option<FlexibilityModel>,
 }
 
 /// With `--identify-stiffness`: the report's summary and the identified stiffness.
@@ -185,6 +189,7 @@ pub(super) fn identify(
     };
     let mut run = run_calibration(&input, &data.measurements, &data.validation)?;
     let mut identified = None;
+    let mut final_flexibility = flexibility.clone();
     if let (Some(prior), Some(stiffness), true) =
         (&flexibility, &stiffness, config.identify_stiffness)
     {
@@ -212,11 +217,14 @@ pub(super) fn identify(
             .extend(crate::calibration::checks::stiffness_below_zero(&report));
         let file = identified_stiffness(stiffness, tree, &loaded.nominal, &report.estimates);
         identified = Some((StiffnessSummary::new(&report, config.stiffness_prior), file));
+        final_flexibility = Some(report.flexibility);
     }
     let identified_run = Identified {
         run,
         plan_name,
         options,
+        plan,
+        flexibility: final_flexibility,
     };
     Ok((identified_run, identified))
 }
