@@ -127,7 +127,7 @@ fn down_weighted_finding(run: &CalibrationRun, ids: &[String]) -> Option<Finding
     let mut rows: Vec<(usize, f64)> = weights
         .iter()
         .enumerate()
-        .filter(|(_, &w)| w < 1.0 && w >= OUTLIER_WEIGHT)
+        .filter(|(_, &w)| (OUTLIER_WEIGHT..1.0).contains(&w))
         .map(|(i, &w)| (i, w))
         .collect();
     if rows.is_empty() {
