@@ -48,16 +48,20 @@ fn tracker() -> Pose {
     )
 }
 
-/// Robonaut with paper-size errors (or none), seen from `world_from_base`.
-fn scene(seed: u64, errors: bool, world_from_base: &Pose) -> Scene {
+/// Robonaut with `errors`× the paper's errors (0: none), seen from `world_from_base`.
+fn scene(seed: u64, errors: f64, world_from_base: &Pose) -> Scene {
     let tree = load_urdf(&robot("robonaut/robonaut.urdf"))
         .unwrap_or_else(|e| panic!("{e}"))
         .tree;
     let branches = branches_with_tools(&tree, None);
     let nominal = McpcModel::from_tree(&tree, &branches).unwrap();
     let mut rng = rng(seed);
-    let mut truth = if errors {
-        true_model(&nominal, &ErrorRanges::default(), &mut rng).unwrap()
+    let ranges = ErrorRanges {
+        angle: errors * ErrorRanges::default().angle,
+        length: errors * ErrorRanges::default().length,
+    };
+    let mut truth = if errors > 0.0 {
+        true_model(&nominal, &ranges, &mut rng).unwrap()
     } else {
         nominal.clone()
     };
@@ -137,11 +141,12 @@ fn rms_mm(model: &McpcModel, data: &[Measurement]) -> f64 {
     let sum: f64 = data
         .iter()
         .map(|m| {
-            let Observation::Pose(measured) = &m.observation else {
-                unreachable!()
+            let measured = match &m.observation {
+                Observation::Pose(pose) => pose.translation.vector,
+                Observation::Position(p) => *p,
             };
             let p = model.tool_poses(&m.q)[m.tool].translation.vector;
-            (measured.translation.vector - p).norm_squared()
+            (measured - p).norm_squared()
         })
         .sum();
     (sum / data.len() as f64).sqrt() * 1e3
@@ -158,9 +163,21 @@ fn arms_rms(arms: &[treecal::calibration::ArmResiduals], k: usize) -> f64 {
 /// validation, and at the noise when the robot is the nominal one.
 #[test]
 fn before_is_the_registered_nominal_robot() {
-    let mut s = scene(2801, true, &tracker());
-    let data = measure(&mut s, 30, 1.0, &rigid);
-    let validation = measure(&mut s, 12, 1.0, &rigid);
+    // Positions: the registration's objective is the position error alone.
+    let points = |data: Vec<Measurement>| -> Vec<Measurement> {
+        data.into_iter()
+            .map(|m| match m.observation {
+                Observation::Pose(pose) => Measurement {
+                    observation: Observation::Position(pose.translation.vector),
+                    ..m
+                },
+                Observation::Position(_) => m,
+            })
+            .collect()
+    };
+    let mut s = scene(2801, 1.0, &tracker());
+    let data = points(measure(&mut s, 30, 1.0, &rigid));
+    let validation = points(measure(&mut s, 12, 1.0, &rigid));
     let result = run(&s, MeasurementFrame::Fit, &data, &validation);
     let closed_form = [
         rms_mm(&result.guess.model, &data),
@@ -191,7 +208,7 @@ fn before_is_the_registered_nominal_robot() {
 
     // A robot that is exactly nominal, seen from a tracker: the registration finds it, and
     // "before" is at the noise (√3·σ per point), where the closed form is not.
-    let mut s = scene(2802, false, &tracker());
+    let mut s = scene(2802, 0.0, &tracker());
     let data = measure(&mut s, 30, 1.0, &rigid);
     let validation = measure(&mut s, 12, 1.0, &rigid);
     let result = run(&s, MeasurementFrame::Fit, &data, &validation);
@@ -203,7 +220,7 @@ fn before_is_the_registered_nominal_robot() {
 /// posture, a new one inside the identification ranges, one outside.
 #[test]
 fn validation_rows_are_stratified() {
-    let mut s = scene(2803, true, &Pose::identity());
+    let mut s = scene(2803, 1.0, &Pose::identity());
     let data = measure(&mut s, 20, 1.0, &rigid);
     let mut validation: Vec<Measurement> = data[..4].to_vec();
     // A repeat within a hair of noise on every joint.
@@ -246,7 +263,7 @@ fn validation_rows_are_stratified() {
 /// unexplained and points to --cv / --model auto; the accuracy to trust is the validation RMS.
 #[test]
 fn a_large_sigma_ratio_says_how_much_is_unexplained() {
-    let mut s = scene(2804, true, &Pose::identity());
+    let mut s = scene(2804, 1.0, &Pose::identity());
     let data = measure(&mut s, 30, 30.0, &rigid);
     let validation = measure(&mut s, 8, 30.0, &rigid);
     let result = run(&s, MeasurementFrame::Base, &data, &validation);
@@ -269,8 +286,12 @@ fn a_large_sigma_ratio_says_how_much_is_unexplained() {
         "{}",
         finding.message
     );
+    assert!(result
+        .findings
+        .iter()
+        .all(|f| !f.code.ends_with("joint-columns")));
     // Clean data: no such warning.
-    let mut s = scene(2804, true, &Pose::identity());
+    let mut s = scene(2804, 1.0, &Pose::identity());
     let data = measure(&mut s, 30, 1.0, &rigid);
     let result = run(&s, MeasurementFrame::Base, &data, &[]);
     assert!(result.findings.iter().all(|f| f.code != "sigma-ratio"));
@@ -333,7 +354,7 @@ fn number(value: &Value) -> f64 {
 /// registration; clean data raise none of the new alarms.
 #[test]
 fn the_written_urdf_and_registration_are_what_was_validated() {
-    let mut s = scene(2805, true, &tracker());
+    let mut s = scene(2805, 1.0, &tracker());
     let data = measure(&mut s, 30, 1.0, &rigid);
     let validation = measure(&mut s, 12, 1.0, &rigid);
     let dir = tempfile::tempdir().unwrap();
@@ -429,7 +450,7 @@ fn the_written_urdf_and_registration_are_what_was_validated() {
 /// written and reproduces the compensated validation figure.
 #[test]
 fn a_compensated_geometry_is_never_shipped_alone_when_worse_than_nominal() {
-    let mut s = scene(2806, false, &Pose::identity());
+    let mut s = scene(2806, 0.0, &Pose::identity());
     let stiffness_path = robot("robonaut/stiffness.yaml");
     let stiffness = read_stiffness(&stiffness_path, &s.tree, &s.nominal).unwrap();
     let flexibility = FlexibilityModel::new(&s.tree, &s.truth, &stiffness).unwrap();
@@ -501,5 +522,54 @@ fn a_compensated_geometry_is_never_shipped_alone_when_worse_than_nominal() {
     assert!(
         (in_memory - compensated).abs() < 1e-6 * compensated,
         "{in_memory} vs {compensated}"
+    );
+}
+
+/// Item 11: two joint columns swapped in the CSV. The root cause is named by joint, and the
+/// σ̂ finding it causes is marked as its probable consequence, not separate advice. Noise far
+/// above the declared one (the σ̂ test above) names no columns.
+#[test]
+fn swapped_joint_columns_are_named_and_their_consequences_marked() {
+    let mut s = scene(2807, 0.04, &Pose::identity());
+    let mut data = measure(&mut s, 30, 1.0, &rigid);
+    let chain: Vec<usize> = s
+        .nominal
+        .tool_chain(0)
+        .iter()
+        .filter_map(|&f| match s.nominal.frames()[f].actuation {
+            treecal::tree::Actuation::Independent(dof) => Some(dof.0),
+            _ => None,
+        })
+        .collect();
+    let (a, b) = (chain[chain.len() - 4], chain[chain.len() - 2]);
+    for m in &mut data {
+        m.q.swap(a, b);
+    }
+    let result = run(&s, MeasurementFrame::Base, &data, &[]);
+    let name = |dof: usize| s.tree.joint(s.tree.dofs()[dof]).name.clone();
+    let cause = result
+        .findings
+        .iter()
+        .find(|f| f.code == "swapped-joint-columns")
+        .unwrap_or_else(|| panic!("{:#?}", result.findings));
+    assert!(
+        cause
+            .message
+            .contains(&format!("'{}' and '{}'", name(a), name(b)))
+            || cause
+                .message
+                .contains(&format!("'{}' and '{}'", name(b), name(a))),
+        "{}",
+        cause.message
+    );
+    let sigma = result
+        .findings
+        .iter()
+        .find(|f| f.code == "sigma-ratio")
+        .expect("a sigma-ratio finding");
+    assert!(
+        sigma.message.starts_with("probable consequence"),
+        "{}",
+        sigma.message
     );
 }

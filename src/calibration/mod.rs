@@ -15,12 +15,15 @@
 //! - [`baseline`]: the fair "before": the nominal robot registered like the calibrated one.
 //! - [`validation`]: where validation configurations lie (repeat, inside, outside the
 //!   identification ranges).
+//! - [`columns`]: joint columns that look swapped or shifted, named by joint, and the
+//!   findings that follow from them marked as probable consequences.
 //! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
 //!   validation) that feed the verdict.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
 pub mod baseline;
 pub mod checks;
+pub mod columns;
 pub mod frame;
 pub mod identifiability;
 pub mod initial_guess;

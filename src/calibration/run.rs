@@ -381,6 +381,25 @@ pub fn run_calibration(
     };
     let found = super::checks::assess(&run, input.tree);
     run.findings.extend(found);
+    // Residuals far above the noise: look for a root cause in the joint columns.
+    let suspicious = run.report.stages.iter().any(|s| {
+        let scale = s.identification.residual_scale;
+        !scale.is_finite() || scale > super::checks::SIGMA_WARNING
+    });
+    if suspicious {
+        let frame = run.report.model.world_from_base();
+        if let Some(cause) = super::columns::diagnose_columns(
+            input.tree,
+            input.nominal,
+            measurements,
+            fitted_frame,
+            &frame,
+            input.options,
+        )? {
+            run.findings.insert(1, cause);
+            super::columns::mark_consequences(&mut run.findings);
+        }
+    }
     Ok(run)
 }
 

@@ -105,6 +105,7 @@ fn summary(
     }
     run.findings
         .extend(down_weighted_finding(run, &data.ids[0]));
+    crate::calibration::columns::mark_consequences(&mut run.findings);
     let changed: Vec<String> = export
         .iter()
         .flat_map(|e| e.changes.iter().map(|c| c.joint.clone()))
