@@ -22,7 +22,8 @@ pub const ROOT_CAUSE_RATIO: f64 = 3.0;
 pub const ROOT_CAUSES: [&str; 2] = ["swapped-joint-columns", "shifted-joint-columns"];
 
 /// The codes of findings that follow from a wrong data set rather than stand on their own.
-pub const CONSEQUENCES: [&str; 9] = [
+pub const CONSEQUENCES: [&str; 10] = [
+    "urdf-alone-worse",
     "sigma-ratio",
     "down-weighted",
     "validation-worse",
