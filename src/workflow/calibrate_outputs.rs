@@ -101,7 +101,18 @@ fn summary(
                 DataSet::Validation => format!("{} (validation)", o.id),
             })
             .collect();
-        finding.message = format!("{}; rows: {}", finding.message, rows.join(", "));
+        // One stderr line: the first rows, and how many in all (report.md lists every one).
+        let shown = rows.len().min(2 * FIRST_IDS);
+        finding.message = format!(
+            "{}; rows: {}{}",
+            finding.message,
+            rows[..shown].join(", "),
+            if rows.len() > shown {
+                format!(", … ({} in all, every one in report.md)", rows.len())
+            } else {
+                String::new()
+            }
+        );
     }
     run.findings
         .extend(down_weighted_finding(run, &data.ids[0]));
