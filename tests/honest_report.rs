@@ -573,3 +573,36 @@ fn swapped_joint_columns_are_named_and_their_consequences_marked() {
         sigma.message
     );
 }
+
+/// Item 11: tracker data declared to be in the root frame. The failed measurement-frame
+/// finding is the root cause; the σ̂ failure it causes is marked as its consequence.
+#[test]
+fn a_wrong_fixed_frame_marks_its_consequences() {
+    let mut s = scene(2808, 0.04, &tracker());
+    let data = measure(&mut s, 30, 1.0, &rigid);
+    let result = run(&s, MeasurementFrame::Base, &data, &[]);
+    let frame = &result.findings[0];
+    assert_eq!(frame.code, "measurement-frame");
+    assert_eq!(
+        frame.status,
+        treecal::calibration::Status::Failed,
+        "{}",
+        frame.message
+    );
+    let consequences: Vec<&str> = result
+        .findings
+        .iter()
+        .filter(|f| f.code == "sigma-ratio")
+        .map(|f| f.message.as_str())
+        .collect();
+    assert!(!consequences.is_empty(), "{:#?}", result.findings);
+    for message in consequences {
+        assert!(
+            message.starts_with(
+                "probable consequence of the root cause above (the measurement frame)"
+            ),
+            "{message}"
+        );
+    }
+    assert!(!frame.message.starts_with("probable"));
+}

@@ -8,7 +8,7 @@
 use super::baseline::registered_nominal;
 use super::initial_guess::{initial_guess, initial_tool_frames};
 use super::solver::IdentificationOptions;
-use super::verdict::Finding;
+use super::verdict::{Finding, Status};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::math::Pose;
@@ -199,6 +199,13 @@ pub fn diagnose_columns(
     )))
 }
 
+/// A finding that names a root cause: swapped or shifted columns, or a fixed measurement
+/// frame that cannot explain the data.
+fn is_root_cause(finding: &Finding) -> bool {
+    ROOT_CAUSES.contains(&finding.code.as_str())
+        || (finding.code == "measurement-frame" && finding.status == Status::Failed)
+}
+
 /// How a consequence's message starts.
 pub const CONSEQUENCE_PREFIX: &str = "probable consequence";
 
@@ -206,8 +213,11 @@ pub const CONSEQUENCE_PREFIX: &str = "probable consequence";
 pub fn mark_consequences(findings: &mut [Finding]) {
     let Some(cause) = findings
         .iter()
-        .find(|f| ROOT_CAUSES.contains(&f.code.as_str()))
-        .map(|f| f.message.split(':').next().unwrap_or_default().to_owned())
+        .find(|f| is_root_cause(f))
+        .map(|f| match f.code.as_str() {
+            "measurement-frame" => "the measurement frame".to_owned(),
+            _ => f.message.split(':').next().unwrap_or_default().to_owned(),
+        })
     else {
         return;
     };

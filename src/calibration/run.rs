@@ -397,9 +397,9 @@ pub fn run_calibration(
             input.options,
         )? {
             run.findings.insert(1, cause);
-            super::columns::mark_consequences(&mut run.findings);
         }
     }
+    super::columns::mark_consequences(&mut run.findings);
     Ok(run)
 }
 
