@@ -26,6 +26,7 @@ mod real_robots;
 mod recalibration;
 mod report_json;
 mod robust;
+mod sessions;
 mod simulate;
 mod stiffness;
 mod urdf_import;

@@ -347,6 +347,7 @@ mod tests {
                     q: q.clone(),
                     observation,
                     stage: None,
+                    session: None,
                 });
             }
         }
