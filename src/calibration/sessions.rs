@@ -262,7 +262,11 @@ fn mean_translation(from: &[Vec3], to: &[Vec3]) -> Pose {
 
 /// `measured ⊖ predicted` divided by the σ's (rows of a position: 3, the rest 0) and its
 /// squared norm.
-fn weighted_error(measured: &Measurement, predicted: &Pose, sigma: [f64; 2]) -> (Vector6<f64>, f64) {
+fn weighted_error(
+    measured: &Measurement,
+    predicted: &Pose,
+    sigma: [f64; 2],
+) -> (Vector6<f64>, f64) {
     let mut error = match &measured.observation {
         Observation::Pose(p) => crate::math::pose_error(p, predicted),
         Observation::Position(p) => {
@@ -433,7 +437,11 @@ pub fn calibrate_sessions(
             .enumerate()
             .map(|(k, (a, b))| {
                 let scale = if k % 2 == 0 { 1.0 } else { ROTATION_LENGTH };
-                scale * a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+                scale
+                    * a.iter()
+                        .zip(b)
+                        .map(|(x, y)| (x - y).abs())
+                        .fold(0.0, f64::max)
             })
             .fold(0.0, f64::max);
         if change <= ROUND_TOLERANCE || rounds >= MAX_ROUNDS {
@@ -533,8 +541,8 @@ pub fn validate_sessions(
                 .filter(|&i| groups.of[i] == s)
                 .collect();
             let seen = sessions.frames.iter().any(|f| f.name == *name);
-            let training = training_frame(&validation[rows[0]], Some(sessions))
-                .unwrap_or_else(Pose::identity);
+            let training =
+                training_frame(&validation[rows[0]], Some(sessions)).unwrap_or_else(Pose::identity);
             let (refitted, _) = fit_session_frame(
                 &rows.iter().map(|&i| predicted[i]).collect::<Vec<_>>(),
                 &rows.iter().map(|&i| &validation[i]).collect::<Vec<_>>(),
@@ -574,7 +582,11 @@ pub fn session_findings(report: &SessionsReport) -> Vec<Finding> {
         .enumerate()
         .map(|(s, f)| {
             if s == 0 {
-                format!("{} {} rows (the reference frame)", session_label(&f.name), f.rows)
+                format!(
+                    "{} {} rows (the reference frame)",
+                    session_label(&f.name),
+                    f.rows
+                )
             } else {
                 format!(
                     "{} {} rows (frame {} from the first)",
@@ -605,7 +617,11 @@ pub fn session_findings(report: &SessionsReport) -> Vec<Finding> {
             ),
         ));
     }
-    for f in report.frames.iter().filter(|f| f.determined < FRAME_BLOCK_PARAMETERS) {
+    for f in report
+        .frames
+        .iter()
+        .filter(|f| f.determined < FRAME_BLOCK_PARAMETERS)
+    {
         findings.push(Finding::warning(
             "sessions",
             format!(

@@ -107,7 +107,11 @@ pub fn sessions_summary(report: &SessionsReport) -> SessionsSummary {
             .map(|v| ValidationSessionRow {
                 name: v.name.clone(),
                 rows: v.rows,
-                training_frame: if v.seen_in_training { "training" } else { "new" },
+                training_frame: if v.seen_in_training {
+                    "training"
+                } else {
+                    "new"
+                },
                 training_frame_rms_mm: v.training_frame_rms * 1e3,
                 reregistered_rms_mm: v.reregistered_rms * 1e3,
                 refitted_parameters: v.refitted_parameters,

@@ -110,7 +110,9 @@ fn gaussian(rng: &mut rand::rngs::ChaCha8Rng, sigma: f64) -> f64 {
 pub fn second_robot(seed: u64) -> SecondRobot {
     let urdf = data("second_robot_arm.urdf");
     let stiffness_path = data("second_robot_stiffness.yaml");
-    let tree = load_urdf(&urdf).expect("the second robot's URDF loads").tree;
+    let tree = load_urdf(&urdf)
+        .expect("the second robot's URDF loads")
+        .tree;
     let tool = tree.link_id(TOOL).expect("tool link");
     let branches = detect_branches(&tree, Some(&[tool])).expect("branches");
     let nominal = McpcModel::from_tree(&tree, &branches).expect("model");
@@ -140,7 +142,9 @@ pub fn second_robot(seed: u64) -> SecondRobot {
         random_motion(&mut rng, 0.008, 0.5f64.to_radians()),
         random_motion(&mut rng, 0.0075, 0.45f64.to_radians()),
     ];
-    let poses: Vec<Vec<f64>> = (0..POSE_POSTURES).map(|_| posture(&tree, &mut rng)).collect();
+    let poses: Vec<Vec<f64>> = (0..POSE_POSTURES)
+        .map(|_| posture(&tree, &mut rng))
+        .collect();
     // Day 2 repeats 14 postures of day 1; day 3 has new ones.
     let repeated: Vec<Vec<f64>> = poses[..POSITION_POSTURES].to_vec();
     let new: Vec<Vec<f64>> = (0..POSITION_POSTURES)
@@ -235,7 +239,13 @@ impl SecondRobot {
     /// `session` when labelled); poses and positions go to separate files, since one file
     /// holds one observation layout: returns the paths written (`<stem>_poses.csv`,
     /// `<stem>_points.csv`, each only when it has rows).
-    pub fn write_csv(&self, indices: &[usize], sessions: bool, dir: &Path, stem: &str) -> Vec<PathBuf> {
+    pub fn write_csv(
+        &self,
+        indices: &[usize],
+        sessions: bool,
+        dir: &Path,
+        stem: &str,
+    ) -> Vec<PathBuf> {
         let rows = self.rows(indices, sessions);
         let mut written = Vec::new();
         for (suffix, poses) in [("poses", true), ("points", false)] {
@@ -249,8 +259,8 @@ impl SecondRobot {
                 continue;
             }
             let data: Vec<Measurement> = part.iter().map(|(_, m)| m.clone()).collect();
-            let text = treecal::io::measurements_to_csv(&self.tree, &self.nominal, &data)
-                .expect("CSV");
+            let text =
+                treecal::io::measurements_to_csv(&self.tree, &self.nominal, &data).expect("CSV");
             // Keep the generator's ids (the writer numbers rows 1…).
             let mut lines: Vec<String> = text.lines().map(String::from).collect();
             for (line, (i, _)) in lines.iter_mut().skip(1).zip(&part) {
