@@ -240,7 +240,8 @@ pub fn fit_session_frame(
         };
         let trial = moved(&frame, &centre, &step);
         let trial_cost = cost_at(&trial);
-        if !(trial_cost < cost) {
+        // Also stops on a NaN cost.
+        if trial_cost.partial_cmp(&cost) != Some(std::cmp::Ordering::Less) {
             break;
         }
         let done = cost - trial_cost <= 1e-14 * cost || step.norm() < 1e-14;
