@@ -483,9 +483,10 @@ pub fn calibrate_sessions(
     })
 }
 
-/// The validation rows in their training frames: a session seen in training by its fitted
-/// frame, a new one (and every row without sessions) as given, i.e. in the first session's
-/// frame.
+/// Rows in their training frames: a session seen in training mapped into the first
+/// session's frame by its fitted frame, a new one (and every row without sessions) as given,
+/// i.e. taken to be in the first session's frame. Maps validation rows, and the training rows
+/// themselves (for a later fit on the same data, e.g. the stiffness identification).
 pub fn validation_in_training_frames(
     validation: &[Measurement],
     sessions: Option<&SessionsReport>,
