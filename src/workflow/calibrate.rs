@@ -17,12 +17,13 @@ use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit};
 use std::path::{Path, PathBuf};
 
 /// The files [`Calibration::write`] writes besides the SVG plots.
-pub const OUTPUT_FILES: [&str; 5] = [
+pub const OUTPUT_FILES: [&str; 6] = [
     "calibrated.urdf",
     "params.yaml",
     "report.md",
     "report.json",
     "stiffness.yaml",
+    "joint_errors.yaml",
 ];
 
 /// Whether a file name is one `calibrate` writes (a previous output may be replaced).
@@ -183,7 +184,12 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
     let (mut result, identified) = identify(config, &loaded, &data, &mut notes)?;
     let export = export_calibrated(config, &loaded, &mut result.run);
     let mut outputs = outputs(config, &loaded, &data, &mut result, export, identified)?;
-    super::calibrate_steps::add_model_choice(&result, &mut outputs, &mut notes)?;
+    super::calibrate_steps::add_model_choice(
+        loaded.robot.tree(),
+        &result,
+        &mut outputs,
+        &mut notes,
+    )?;
     notes.extend(outputs.verdict.reasons.iter().map(Note::from));
     Ok(Calibration {
         verdict: outputs.verdict,

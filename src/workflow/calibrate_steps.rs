@@ -319,10 +319,21 @@ fn choose_model(
 /// Adds the cross-validation table to report.md and report.json (`"model_choice"`), and the
 /// model calibrated (`"model"`).
 pub(super) fn add_model_choice(
+    tree: &crate::tree::KinematicTree,
     result: &Identified,
     outputs: &mut super::calibrate_outputs::Outputs,
     notes: &mut Vec<Note>,
 ) -> Result<()> {
+    if let Some(text) = joint_errors_yaml(tree, &result.run.report.model) {
+        let message = "calibrated.urdf cannot carry the identified joint-angle errors (harmonics, backlash): they are in joint_errors.yaml (docs/file-formats.md), to be added to the commanded joint angles; the validation figures include them";
+        notes.push(Note::warning(message));
+        outputs
+            .markdown
+            .push_str(&format!("\n## Joint-angle errors\n\n{message}.\n"));
+        outputs
+            .files
+            .push(("joint_errors.yaml".into(), text.into_bytes()));
+    }
     if let serde_json::Value::Object(map) = &mut outputs.report {
         map.insert(
             "model".into(),
@@ -357,6 +368,34 @@ pub(super) fn add_model_choice(
         }
     }
     Ok(())
+}
+
+/// joint_errors.yaml: the harmonic and backlash terms of `model` (none: `None`).
+fn joint_errors_yaml(tree: &crate::tree::KinematicTree, model: &McpcModel) -> Option<String> {
+    let terms = model.joint_error_terms();
+    if !(terms.harmonics || terms.backlash) {
+        return None;
+    }
+    let mut text = String::from(
+        "# Joint-angle errors identified by treecal calibrate (docs/file-formats.md); a URDF cannot carry them.\n# The joint turns by theta = q + sine*sin(q) + cosine*cos(q) + backlash*sign(tau), q the commanded angle,\n# tau the gravity torque about the joint axis (URDF inertials, gravity along -z of the root link).\n# Joint zero offsets are in calibrated.urdf already.\nunits: {angle: rad}\njoints:\n",
+    );
+    for (frame, f) in model.frames().iter().enumerate() {
+        let [_, sine, cosine, backlash] = model.joint_error_values(frame);
+        let mut parts = Vec::new();
+        for (name, value) in [("sine", sine), ("cosine", cosine), ("backlash", backlash)] {
+            if let Some(value) = value {
+                parts.push(format!("{name}: {value:.9}"));
+            }
+        }
+        if !parts.is_empty() {
+            text.push_str(&format!(
+                "  {}: {{{}}}\n",
+                tree.joint(f.joint).name,
+                parts.join(", ")
+            ));
+        }
+    }
+    Some(text)
 }
 
 /// The calibrated URDF; what the export dropped or added, or why it failed, goes among the
