@@ -285,9 +285,22 @@ pub fn calibrate(
                             None => locked_arm_model(&current, &coupled_frames, data, &stage.name)?,
                         };
                         let kept = position_only_orientations(&stage_model, &stage_data);
+                        // The torso frames' parameters are the first of both models.
+                        let shared: usize = stage_model
+                            .frames()
+                            .iter()
+                            .map(|f| f.kind.parameter_count())
+                            .sum();
                         let free: Vec<usize> = (0..stage_model.parameter_count())
                             .filter(|p| !kept.contains(p))
+                            .filter(|p| !(*p < shared && options.frozen.contains(p)))
                             .collect();
+                        let reduced = IdentificationOptions {
+                            prior: options.prior.as_ref().map(|prior| {
+                                prior.for_reduced_model(shared, stage_model.parameter_count())
+                            }),
+                            ..stage_options[index].clone()
+                        };
                         let identification = identify(
                             &stage_model,
                             &stage_data,
@@ -295,7 +308,7 @@ pub fn calibrate(
                             // The reduced model is rigid; its deflections come as offsets.
                             &Rigid,
                             &free,
-                            &stage_options[index],
+                            &reduced,
                         )?;
                         // Copy the torso frames back into the full model.
                         let before = current.parameters();
@@ -337,7 +350,7 @@ pub fn calibrate(
                     let free: Vec<usize> =
                         stage_parameters(&current, &coupled_frames, stage.parameters)
                             .into_iter()
-                            .filter(|p| !kept.contains(p))
+                            .filter(|p| !kept.contains(p) && !options.frozen.contains(p))
                             .collect();
                     let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
                         .as_ref()
