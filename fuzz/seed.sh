@@ -31,7 +31,7 @@ if [ -n "$root" ]; then
     target=$ext; [ "$ext" = dae ] && target=collada
     find "$root" -iname "*.$ext" -size -40k | sort | head -12 | while read -r f; do
       cp "$f" "$corpus/$target/erd_$(basename "$f")"
-    done
+    done || true
   done
 fi
 printf 'units: {length: mm, angle: deg}\nxyz: [2300.0, -150.0, 420.0]\nrpy: [0.0, 0.0, 90.0]\n' > "$corpus/registration/r1.yaml"

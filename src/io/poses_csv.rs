@@ -53,13 +53,15 @@ pub fn pose_rows(
             None | Some("") => None,
             Some(text) => match STAGES.iter().find(|s| s.eq_ignore_ascii_case(text)) {
                 Some(stage) => Some((*stage).to_owned()),
-                None => return Err(Error::InvalidData {
-                    origin: format!("{origin}:{line}:stage"),
-                    message: format!(
+                None => {
+                    return Err(Error::InvalidData {
+                        origin: format!("{origin}:{line}:stage"),
+                        message: format!(
                         "'{}' is not a stage; use torso (arms locked) or arms, or leave it empty",
                         crate::limits::cut(text)
                     ),
-                }),
+                    })
+                }
             },
         };
         let tools: Vec<usize> = match tool_column.map(|c| fields[c].as_str()) {
