@@ -28,6 +28,7 @@ pub enum ParameterSet {
 
 /// One stage of a plan.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Stage {
     /// Name shown in reports.
     pub name: String,
@@ -40,6 +41,7 @@ pub struct Stage {
 
 /// An ordered list of stages.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Plan {
     /// The stages, run in order, each starting from the previous one's result.
     pub stages: Vec<Stage>,
