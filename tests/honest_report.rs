@@ -102,6 +102,7 @@ fn measure(
                     UnitQuaternion::from_scaled_axis(dr) * pose.rotation,
                 )),
                 stage: None,
+                session: None,
             });
         }
     }

@@ -132,6 +132,9 @@ pub struct CalibrationSummary {
     /// The stiffness identification (`--identify-stiffness`), if it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stiffness: Option<StiffnessSummary>,
+    /// The measurement sessions, when the data name any (`session` column).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sessions: Option<super::sessions::SessionsSummary>,
 }
 
 /// The errors of one arm's tool on one data set (identification or validation).
@@ -393,6 +396,7 @@ pub fn calibration_summary(
         outliers: Vec::new(),
         artifact: None,
         stiffness: None,
+        sessions: run.sessions.as_ref().map(super::sessions::sessions_summary),
     }
 }
 

@@ -347,7 +347,11 @@ pub(super) fn assess(
         world_from_base: frame,
         export,
     };
-    let validation = &data.validation;
+    // Rows of other sessions are placed in the training frame, as the run scored them.
+    let validation = &crate::calibration::sessions::validation_in_training_frames(
+        &data.validation,
+        run.sessions.as_ref(),
+    );
     let gravity = config.gravity_frame;
     let alone_name = with_registration("calibrated.urdf");
     let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;

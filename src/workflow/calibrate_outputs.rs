@@ -223,6 +223,9 @@ pub(super) fn outputs(
     summary.artifact = Some(artifact.report);
     let run = &result.run;
     let mut markdown = calibration_markdown(&summary, &result.options);
+    if let Some(sessions) = &summary.sessions {
+        markdown.push_str(&crate::report::sessions_markdown(sessions));
+    }
     let mut params = to_yaml(&parameter_file(tree.name(), run))?;
     let json_error = |e: serde_json::Error| Error::InvalidData {
         origin: "report.json".into(),
