@@ -99,6 +99,10 @@ const RESERVED: [&str; 19] = [
 /// The optional column of the payload at every tool (kg) a row was measured with.
 pub const PAYLOAD_COLUMN: &str = "payload_kg";
 
+/// The optional column naming the measurement session of a row: one measurement frame per
+/// session (`calibration::sessions`).
+pub const SESSION_COLUMN: &str = "session";
+
 /// The three accepted observation layouts, for messages.
 const LAYOUTS: &str = "x,y,z (a position); x,y,z,qw,qx,qy,qz (a pose); or \
                        ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C)";
@@ -109,6 +113,8 @@ struct Columns {
     stage: Option<usize>,
     /// `payload_kg`: the payload at every tool for this row (kg).
     payload: Option<usize>,
+    /// `session`: the measurement session of this row.
+    session: Option<usize>,
     tool: usize,
     /// `(column, dof)` of independent joints.
     joints: Vec<(usize, usize)>,
@@ -294,6 +300,10 @@ pub(super) fn measurements_from_table(
             .stage
             .map(|column| fields[column].clone())
             .filter(|s| !s.is_empty());
+        let session = columns
+            .session
+            .map(|column| fields[column].clone())
+            .filter(|s| !s.is_empty());
         let payload = match columns.payload {
             Some(column) if !fields[column].is_empty() => {
                 let mass = number(&fields[column], "kg").map_err(|m| invalid(column, m))?;
@@ -445,6 +455,7 @@ pub(super) fn measurements_from_table(
             q,
             observation,
             stage,
+            session,
         });
         set.ids.push(id);
         set.lines.push(line);
@@ -696,6 +707,7 @@ fn classify(
     let mut id = None;
     let mut stage = None;
     let mut payload = None;
+    let mut session = None;
     let mut tool = None;
     let mut joints = Vec::new();
     let mut observed: HashMap<&str, usize> = HashMap::new();
@@ -707,6 +719,7 @@ fn classify(
             "id" => id = Some(column),
             "stage" => stage = Some(column),
             PAYLOAD_COLUMN => payload = Some(column),
+            SESSION_COLUMN => session = Some(column),
             "tool" => tool = Some(column),
             other if RESERVED.contains(&other) => {
                 observed.insert(other, column);
@@ -800,6 +813,7 @@ fn classify(
         id,
         stage,
         payload,
+        session,
         tool,
         joints,
         observation,
@@ -874,6 +888,11 @@ pub fn measurements_to_csv_with(
     if payloads {
         header.push(PAYLOAD_COLUMN.into());
     }
+    // The session column only when some row names its session.
+    let sessions = measurements.iter().any(|m| m.session.is_some());
+    if sessions {
+        header.push(SESSION_COLUMN.into());
+    }
     let length = options.length_unit.in_metres();
     let joint_scales: Vec<f64> = tree
         .dofs()
@@ -925,6 +944,9 @@ pub fn measurements_to_csv_with(
         }
         if payloads {
             row.push(m.payload.map(text).unwrap_or_default());
+        }
+        if sessions {
+            row.push(m.session.clone().unwrap_or_default());
         }
         rows.push(row);
     }
