@@ -24,6 +24,7 @@ pub mod identifiability;
 pub mod initial_guess;
 mod normal_equations;
 pub mod plan;
+pub mod prior;
 pub mod robust;
 pub mod run;
 pub mod sessions;
@@ -42,6 +43,7 @@ pub use initial_guess::{fit_rigid_transform, fit_similarity_scale, initial_guess
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
 };
+pub use prior::Prior;
 pub use robust::{calibrate_robust, RobustLoss, RobustReport};
 pub use run::{
     assembled_covariance, hold_out, hold_out_indices, run_calibration, ArmResiduals,

@@ -517,6 +517,7 @@ fn estimates(
                 ParameterOwner::Tool(t) => {
                     input.tree.link(report.model.tools()[*t].link).name.clone()
                 }
+                ParameterOwner::Measurement => "measurement_frame".into(),
             };
             ParameterEstimate {
                 name: report.model.parameter_name(input.tree, i),

@@ -7,9 +7,8 @@ use super::units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
 use crate::error::{did_you_mean, Error, Result};
-use crate::kinematics::flexibility::stiffness::mass_problem;
 use crate::kinematics::McpcModel;
-use crate::limits::{self, Quantity};
+use crate::limits::{self, magnitude_problem, Quantity};
 use crate::math::{Pose, Vec3};
 use crate::measurement::{
     frame_from_targets, targets_on, targets_problem, Measurement, Observation,
@@ -308,10 +307,10 @@ pub(super) fn measurements_from_table(
         let payload = match columns.payload {
             Some(column) if !fields[column].is_empty() => {
                 let mass = number(&fields[column], "kg").map_err(|m| invalid(column, m))?;
-                if let Some(why) = mass_problem(mass) {
+                if let Some(why) = magnitude_problem(mass, Quantity::Mass) {
                     return Err(invalid(
                         column,
-                        format!("the payload {why}; give the mass at the tool in kg, or leave it empty for the stiffness file's"),
+                        format!("the payload: {why}; give the mass at the tool in kg, or leave it empty for the stiffness file's"),
                     ));
                 }
                 Some(mass)
@@ -326,7 +325,8 @@ pub(super) fn measurements_from_table(
                 invalid(
                     columns.tool,
                     format!(
-                        "'{tool_name}' is not a tool of the model{}; the tools are {}",
+                        "'{}' is not a tool of the model{}; the tools are {}",
+                        crate::limits::cut(tool_name),
                         did_you_mean(tool_name, tool_names.iter().copied()),
                         quoted_list(&tool_names)
                     ),
@@ -675,9 +675,13 @@ fn number(text: &str, unit: &str) -> std::result::Result<f64, String> {
     match text.parse::<f64>() {
         Ok(value) if value.is_finite() => Ok(value),
         Ok(_) => Err(format!(
-            "'{text}' is not a finite number; give a number{unit}"
+            "'{}' is not a finite number; give a number{unit}",
+            crate::limits::cut(text)
         )),
-        Err(_) => Err(format!("'{text}' is not a number; give a number{unit}")),
+        Err(_) => Err(format!(
+            "'{}' is not a number; give a number{unit}",
+            crate::limits::cut(text)
+        )),
     }
 }
 
@@ -752,8 +756,9 @@ fn classify(
                     return Err(Error::InvalidData {
                         origin: at(other),
                         message: format!(
-                            "column '{other}' matches no joint of '{}' and no measurement \
+                            "column '{}' matches no joint of '{}' and no measurement \
                              column{}; rename it, or list it among the ignored columns",
+                            crate::limits::cut(other),
                             tree.name(),
                             did_you_mean(other, candidates)
                         ),
