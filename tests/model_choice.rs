@@ -54,6 +54,7 @@ fn measure(
                 q: q.clone(),
                 observation: Observation::Pose(noisy),
                 stage: None,
+                session: None,
             });
         }
     }

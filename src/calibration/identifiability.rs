@@ -488,6 +488,7 @@ pub fn analyse(
                     q: r.q.clone(),
                     observation: Observation::Position(Vector3::zeros()),
                     stage: r.stage.clone(),
+                    session: None,
                 })
                 .collect();
             let (stage_model, stage_data, locked_tools) =

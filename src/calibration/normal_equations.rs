@@ -384,6 +384,7 @@ mod tests {
                     q: q.clone(),
                     observation,
                     stage: None,
+                    session: None,
                 });
             }
         }

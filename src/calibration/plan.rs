@@ -28,6 +28,7 @@ pub enum ParameterSet {
 
 /// One stage of a plan.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Stage {
     /// Name shown in reports.
     pub name: String,
@@ -40,6 +41,7 @@ pub struct Stage {
 
 /// An ordered list of stages.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Plan {
     /// The stages, run in order, each starting from the previous one's result.
     pub stages: Vec<Stage>,
@@ -576,14 +578,14 @@ const ANDERSON_DEPTH: usize = 3;
 /// `G(xₖ) − ΔG·γ` with `γ` the least-squares fit of the latest residual `fₖ = G(xₖ) − xₖ` by
 /// the last residual differences `ΔF`. Falls back to the plain step `G(xₖ)` whenever the
 /// residual grew, so it is never worse than repeating the plan.
-struct Anderson {
+pub(super) struct Anderson {
     depth: usize,
     /// `(G(x), f)` of the latest cycles, oldest first.
     history: Vec<(DVector<f64>, DVector<f64>)>,
 }
 
 impl Anderson {
-    fn new(depth: usize) -> Self {
+    pub(super) fn new(depth: usize) -> Self {
         Self {
             depth,
             history: Vec::new(),
@@ -591,7 +593,7 @@ impl Anderson {
     }
 
     /// The start of the next cycle, given this cycle's start `x` and result `g = G(x)`.
-    fn next(&mut self, x: &[f64], g: &[f64]) -> Vec<f64> {
+    pub(super) fn next(&mut self, x: &[f64], g: &[f64]) -> Vec<f64> {
         let g = DVector::from_column_slice(g);
         let f = &g - DVector::from_column_slice(x);
         if self

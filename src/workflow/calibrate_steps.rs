@@ -228,11 +228,16 @@ pub(super) fn identify(
             ..StiffnessOptions::default()
         };
         let free: Vec<usize> = (0..run.report.model.parameter_count()).collect();
+        // Every session's rows in the first session's frame, by the frames the run fitted.
+        let in_first_frame = crate::calibration::sessions::validation_in_training_frames(
+            &data.measurements,
+            run.sessions.as_ref(),
+        );
         let report = identify_stiffness(
             tree,
             &run.report.model,
             prior,
-            &data.measurements,
+            &in_first_frame,
             None,
             &free,
             &options,
