@@ -4,6 +4,7 @@
 //! folds never split a posture, and the cross-validation prefers the level the data were
 //! simulated with.
 
+use crate::common::cli::*;
 use crate::common::*;
 use rand::RngExt;
 use treecal::calibration::{
@@ -417,4 +418,54 @@ fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
         }
     );
     assert!(cv.rows[0].rms_mm.unwrap() > 2.0 * cv.rows[1].rms_mm.unwrap());
+}
+
+/// `--joint-errors harmonics` writes joint_errors.yaml and says the URDF lacks it; a pattern
+/// that matches no parameter is an error naming it.
+#[test]
+fn calibrate_writes_joint_errors_and_refuses_unknown_patterns() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let csv = robot("robonaut/example/measurements.csv");
+    let run = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&csv),
+        "--joint-errors",
+        "harmonics",
+        "--stiffness",
+        path_str(&robot("robonaut/stiffness.yaml")),
+        "--freeze",
+        "* cosine",
+        "--out",
+        path_str(&out),
+    ]);
+    assert_success(&run, "calibrate --joint-errors harmonics");
+    assert!(run.stderr.contains("joint_errors.yaml"), "{}", run.stderr);
+    let yaml = std::fs::read_to_string(out.join("joint_errors.yaml")).unwrap();
+    assert!(yaml.contains("sine:") && yaml.contains("cosine:"), "{yaml}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["model"]["name"], "geometry+harmonics");
+    let frozen = report["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["name"].as_str().unwrap().ends_with("cosine"))
+        .all(|p| p["change"].as_f64() == Some(0.0));
+    assert!(frozen, "a frozen cosine term moved");
+    let wrong = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&csv),
+        "--freeze",
+        "no_such_joint *",
+        "--out",
+        path_str(&dir.path().join("wrong")),
+    ]);
+    assert_error(
+        &wrong,
+        &["no_such_joint *", "matches no parameter"],
+        "bad pattern",
+    );
 }

@@ -347,18 +347,17 @@ pub(super) fn add_model_choice(
             .files
             .push(("joint_errors.yaml".into(), text.into_bytes()));
     }
-    if let serde_json::Value::Object(map) = &mut outputs.report {
-        map.insert(
-            "model".into(),
-            serde_json::json!({ "name": result.spec.name(), "spec": result.spec }),
-        );
-        if let Some(cv) = &result.cross_validation {
-            map.insert(
-                "model_choice".into(),
-                serde_json::to_value(cv).map_err(|e| invalid("report.json", e.to_string()))?,
-            );
-        }
+    let mut extra = vec![(
+        "model".to_string(),
+        serde_json::json!({ "name": result.spec.name(), "spec": result.spec }),
+    )];
+    if let Some(cv) = &result.cross_validation {
+        extra.push((
+            "model_choice".into(),
+            serde_json::to_value(cv).map_err(|e| invalid("report.json", e.to_string()))?,
+        ));
     }
+    add_before_stiffness(&mut outputs.report, &extra);
     if let Some(cv) = &result.cross_validation {
         outputs.markdown.push_str(&cross_validation_markdown(cv));
         for row in &cv.rows {
@@ -371,16 +370,32 @@ pub(super) fn add_model_choice(
             )));
         }
     }
-    let json = serde_json::to_string_pretty(&outputs.report)
-        .map_err(|e| invalid("report.json", e.to_string()))?;
     for (name, bytes) in outputs.files.iter_mut() {
         match name.as_str() {
             "report.md" => *bytes = outputs.markdown.clone().into_bytes(),
-            "report.json" => *bytes = format!("{json}\n").into_bytes(),
+            "report.json" => {
+                let mut written: serde_json::Value = serde_json::from_slice(bytes)
+                    .map_err(|e| invalid("report.json", e.to_string()))?;
+                add_before_stiffness(&mut written, &extra);
+                *bytes = crate::io::to_json(&written)?.into_bytes();
+            }
             _ => {}
         }
     }
     Ok(())
+}
+
+/// Adds `extra` to a report.json object, before the `stiffness` block (which stays last).
+fn add_before_stiffness(report: &mut serde_json::Value, extra: &[(String, serde_json::Value)]) {
+    if let serde_json::Value::Object(map) = report {
+        let stiffness = map.shift_remove("stiffness");
+        for (key, value) in extra {
+            map.insert(key.clone(), value.clone());
+        }
+        if let Some(stiffness) = stiffness {
+            map.insert("stiffness".into(), stiffness);
+        }
+    }
 }
 
 /// joint_errors.yaml: the harmonic and backlash terms of `model` (none: `None`).

@@ -27,7 +27,7 @@ pub enum ModelLevel {
 pub enum ModelChoice {
     /// One level.
     Level(ModelLevel),
-    /// The candidate with the lowest cross-validated error ([`candidates`]).
+    /// The candidate with the lowest cross-validated error ([`super::cross_validation::candidates`]).
     #[default]
     Auto,
 }
