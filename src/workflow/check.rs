@@ -376,6 +376,7 @@ fn measurement_rows(
         joint_length_unit: config.joint_length_unit,
         ignore_columns: config.ignore_columns.clone(),
         strict_limits: false,
+        ..MeasurementReadOptions::default()
     };
     let set = source.read(tree, model, &options)?;
     notes.extend(set.warnings.iter().map(Note::warning));
