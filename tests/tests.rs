@@ -16,6 +16,7 @@ mod identifiability;
 mod identification;
 mod jacobian;
 mod mcpc;
+mod measured_points;
 mod measurements_csv;
 mod oracle;
 mod payloads;
