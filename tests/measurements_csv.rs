@@ -43,6 +43,7 @@ fn simulated(tree: &KinematicTree, model: &McpcModel, seed: u64, poses: bool) ->
                     Observation::Position(pose.translation.vector)
                 },
                 stage: (i % 3 != 0).then(|| ["torso", "arms"][i % 2].to_owned()),
+                session: None,
             }
         })
         .collect()
@@ -525,6 +526,7 @@ fn mimic_joint_columns_name_their_master() {
         observation: Observation::Position(Vec3::new(1.0, 2.0, 3.0)),
         stage: None,
         payload: None,
+        session: None,
     };
     let mut full = measurements_to_csv(&tree, &model, &[one]).unwrap();
     full = full.replacen(",x,", ",l_finger_right,x,", 1);

@@ -11,9 +11,8 @@ use super::units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
 use crate::error::{did_you_mean, Error, Result};
-use crate::kinematics::flexibility::stiffness::mass_problem;
 use crate::kinematics::McpcModel;
-use crate::limits::{self, Quantity};
+use crate::limits::{self, magnitude_problem, Quantity};
 use crate::measurement::{targets_on, Measurement, Observation};
 use crate::tree::{Actuation, JointKind, KinematicTree};
 use std::collections::HashMap;
@@ -91,12 +90,18 @@ pub fn measured_link_name(tool: &str, point: Option<&str>) -> String {
 /// The optional column of the payload at every tool (kg) a row was measured with.
 pub const PAYLOAD_COLUMN: &str = "payload_kg";
 
+/// The optional column naming the measurement session of a row: one measurement frame per
+/// session (`calibration::sessions`).
+pub const SESSION_COLUMN: &str = "session";
+
 /// Where the columns of a measurement CSV go.
 struct Columns {
     id: Option<usize>,
     stage: Option<usize>,
     /// `payload_kg`: the payload at every tool for this row (kg).
     payload: Option<usize>,
+    /// `session`: the measurement session of this row.
+    session: Option<usize>,
     tool: Option<usize>,
     point: Option<usize>,
     /// Columns skipped as neither joints nor measurement columns: name, and how to say it.
@@ -303,13 +308,17 @@ pub(super) fn measurements_from_table(
             .stage
             .map(|column| fields[column].clone())
             .filter(|s| !s.is_empty());
+        let session = columns
+            .session
+            .map(|column| fields[column].clone())
+            .filter(|s| !s.is_empty());
         let payload = match columns.payload {
             Some(column) if !fields[column].is_empty() => {
                 let mass = number(&fields[column], "kg").map_err(|m| invalid(column, m))?;
-                if let Some(why) = mass_problem(mass) {
+                if let Some(why) = magnitude_problem(mass, Quantity::Mass) {
                     return Err(invalid(
                         column,
-                        format!("the payload {why}; give the mass at the tool in kg, or leave it empty for the stiffness file's"),
+                        format!("the payload: {why}; give the mass at the tool in kg, or leave it empty for the stiffness file's"),
                     ));
                 }
                 Some(mass)
@@ -327,9 +336,15 @@ pub(super) fn measurements_from_table(
             .iter()
             .position(|t| *t == measured)
             .ok_or_else(|| {
+                let cut = crate::limits::cut;
                 let what = match point.filter(|p| !p.is_empty()) {
-                    Some(point) => format!("point '{point}' on '{tool_name}' (link '{measured}')"),
-                    None => format!("'{tool_name}'"),
+                    Some(point) => format!(
+                        "point '{}' on '{}' (link '{}')",
+                        cut(point),
+                        cut(tool_name),
+                        cut(&measured)
+                    ),
+                    None => format!("'{}'", cut(tool_name)),
                 };
                 let column = match point.filter(|p| !p.is_empty()) {
                     Some(_) => columns.point.unwrap_or(tool_column),
@@ -443,6 +458,7 @@ pub(super) fn measurements_from_table(
             q,
             observation,
             stage,
+            session,
         });
         set.ids.push(id);
         set.lines.push(line);
@@ -692,9 +708,13 @@ fn number(text: &str, unit: &str) -> std::result::Result<f64, String> {
     match text.parse::<f64>() {
         Ok(value) if value.is_finite() => Ok(value),
         Ok(_) => Err(format!(
-            "'{text}' is not a finite number; give a number{unit}"
+            "'{}' is not a finite number; give a number{unit}",
+            crate::limits::cut(text)
         )),
-        Err(_) => Err(format!("'{text}' is not a number; give a number{unit}")),
+        Err(_) => Err(format!(
+            "'{}' is not a number; give a number{unit}",
+            crate::limits::cut(text)
+        )),
     }
 }
 
@@ -721,6 +741,7 @@ fn classify(
     let mut id = None;
     let mut stage = None;
     let mut payload = None;
+    let mut session = None;
     let mut tool = None;
     let mut point = None;
     let mut joints = Vec::new();
@@ -734,6 +755,7 @@ fn classify(
             "id" => id = Some(column),
             "stage" => stage = Some(column),
             PAYLOAD_COLUMN => payload = Some(column),
+            SESSION_COLUMN => session = Some(column),
             "tool" => tool = Some(column),
             POINT_COLUMN => point = Some(column),
             other if OBSERVATION_COLUMNS.contains(&other) => {
@@ -758,9 +780,12 @@ fn classify(
                         .map(|j| tree.joint(*j).name.as_str())
                         .chain(OBSERVATION_COLUMNS)
                         .chain(IDENTITY)
-                        .chain([PAYLOAD_COLUMN]);
+                        .chain([PAYLOAD_COLUMN, SESSION_COLUMN]);
                     let hint = did_you_mean(other, candidates);
-                    skipped.push((other.to_owned(), format!("'{other}'{hint}")));
+                    skipped.push((
+                        other.to_owned(),
+                        format!("'{}'{hint}", crate::limits::cut(other)),
+                    ));
                 }
             },
         }
@@ -808,6 +833,7 @@ fn classify(
         id,
         stage,
         payload,
+        session,
         tool,
         point,
         skipped,
@@ -884,6 +910,11 @@ pub fn measurements_to_csv_with(
     if payloads {
         header.push(PAYLOAD_COLUMN.into());
     }
+    // The session column only when some row names its session.
+    let sessions = measurements.iter().any(|m| m.session.is_some());
+    if sessions {
+        header.push(SESSION_COLUMN.into());
+    }
     let length = options.length_unit.in_metres();
     let joint_scales: Vec<f64> = tree
         .dofs()
@@ -935,6 +966,9 @@ pub fn measurements_to_csv_with(
         }
         if payloads {
             row.push(m.payload.map(text).unwrap_or_default());
+        }
+        if sessions {
+            row.push(m.session.clone().unwrap_or_default());
         }
         rows.push(row);
     }
