@@ -10,7 +10,7 @@ use std::collections::HashSet;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use treecal::math::Pose;
-use treecal::urdf::{export_urdf, ExportReport};
+use treecal::urdf::{export_urdf, AddedReason, ExportReport};
 use treecal::{parse_urdf, Branches, KinematicTree, McpcModel};
 
 /// Random configurations per robot.
@@ -84,11 +84,23 @@ fn export_and_check(case: &Case, what: &str) -> (ExportReport, KinematicTree) {
         .unwrap_or_else(|e| panic!("{what}: the export does not load again: {e}"))
         .tree;
     let (tree, model) = (&case.tree, &case.model);
-    assert_eq!(exported.links().len(), tree.links().len(), "{what}");
-    for (a, b) in exported.joints().iter().zip(tree.joints()) {
+    assert_eq!(
+        exported.links().len(),
+        tree.links().len() + report.added_links.len(),
+        "{what}"
+    );
+    for b in tree.joints() {
+        let a = exported.joint(exported.joint_id(&b.name).unwrap());
+        let name = |e: &KinematicTree, l| e.link(l).name.clone();
         assert_eq!(
-            (&a.name, a.kind, a.parent, a.child, a.limits, a.actuation),
-            (&b.name, b.kind, b.parent, b.child, b.limits, b.actuation),
+            (name(&exported, a.parent), name(&exported, a.child)),
+            (name(tree, b.parent), name(tree, b.child)),
+            "{what}: joint '{}' connects other links",
+            b.name
+        );
+        assert_eq!(
+            (a.kind, a.limits, a.actuation),
+            (b.kind, b.limits, b.actuation),
             "{what}: joint changed beyond its origin and axis"
         );
     }
@@ -104,7 +116,7 @@ fn export_and_check(case: &Case, what: &str) -> (ExportReport, KinematicTree) {
         let q = random_configuration(tree, &mut rng);
         let poses = exported.link_poses(&q).unwrap();
         for (t, tool_pose) in model.tool_poses(&q).iter().enumerate() {
-            let link = model.tools()[t].link;
+            let link = measured_link(&report, &exported, tree, model, t);
             assert_close(
                 &poses[link.0],
                 tool_pose,
@@ -116,7 +128,11 @@ fn export_and_check(case: &Case, what: &str) -> (ExportReport, KinematicTree) {
         }
         for (f, link_pose) in model.link_poses(&q).iter().enumerate() {
             let link = tree.joint(model.frames()[f].joint).child;
-            if !tool_links.contains(&link.0) {
+            let marked = report
+                .added_links
+                .iter()
+                .any(|a| a.tool == tree.link(link).name);
+            if !tool_links.contains(&link.0) || marked {
                 let name = &tree.link(link).name;
                 assert_close(
                     &poses[link.0],
@@ -130,8 +146,9 @@ fn export_and_check(case: &Case, what: &str) -> (ExportReport, KinematicTree) {
     eprintln!("{what}: worst tool pose difference {worst:e}");
 
     // (b) links off the chains keep their placement on their parent link, bit for bit.
-    for (a, b) in exported.joints().iter().zip(tree.joints()) {
-        if !on_chains.contains(&a.child.0) {
+    for b in tree.joints() {
+        let a = exported.joint(exported.joint_id(&b.name).unwrap());
+        if !on_chains.contains(&b.child.0) {
             assert_eq!(
                 (a.parent_from_joint, a.axis),
                 (b.parent_from_joint, b.axis),
@@ -148,9 +165,41 @@ fn export_and_check(case: &Case, what: &str) -> (ExportReport, KinematicTree) {
         }
     }
 
-    // (c) nothing but origin/axis attribute values differs (no insertions in these files).
-    assert_same_but_origins(&case.text, &report.urdf, report.changes.len(), what);
+    // (c) nothing but origin/axis attribute values differs, besides the links added at the end.
+    assert_same_but_origins(
+        &case.text,
+        &without_added_links(&report.urdf),
+        report.changes.len(),
+        what,
+    );
     (report, exported)
+}
+
+/// The link of the exported tree that carries the measured frame of tool `t`: the marker link
+/// added below it, if any, else the tool link itself.
+fn measured_link(
+    report: &ExportReport,
+    exported: &KinematicTree,
+    tree: &KinematicTree,
+    model: &McpcModel,
+    t: usize,
+) -> treecal::tree::LinkId {
+    let name = &tree.link(model.tools()[t].link).name;
+    match report.added_links.iter().find(|a| &a.tool == name) {
+        Some(added) => exported.link_id(&added.link).unwrap(),
+        None => model.tools()[t].link,
+    }
+}
+
+/// The exported text without the links the export added before `</robot>`.
+fn without_added_links(urdf: &str) -> String {
+    let Some(start) = urdf.find("<!-- Added by treecal export") else {
+        return urdf.to_owned();
+    };
+    let line_start = urdf[..start].rfind('\n').map_or(0, |n| n + 1);
+    let end = urdf.rfind("</robot").unwrap();
+    let end_line = urdf[..end].rfind('\n').map_or(0, |n| n + 1);
+    format!("{}{}", &urdf[..line_start], &urdf[end_line..])
 }
 
 /// Masks the values of `xyz` and `rpy` attributes.
@@ -228,8 +277,10 @@ fn check_urdf_accepts(text: &str, what: &str) {
     );
 }
 
-/// (f) Pinocchio reads the exported file and finds the model's tool poses.
-fn pinocchio_agrees(case: &Case, exported_text: &str, what: &str) {
+/// (f) Pinocchio reads the exported file and finds the model's tool poses (at the marker links
+/// the export added, where it added them).
+fn pinocchio_agrees(case: &Case, report: &ExportReport, what: &str) {
+    let exported_text = &report.urdf;
     if !crate::oracle::oracle_available() {
         return;
     }
@@ -240,7 +291,13 @@ fn pinocchio_agrees(case: &Case, exported_text: &str, what: &str) {
         .model
         .tools()
         .iter()
-        .map(|t| case.tree.link(t.link).name.clone())
+        .map(|t| {
+            let name = case.tree.link(t.link).name.clone();
+            match report.added_links.iter().find(|a| a.tool == name) {
+                Some(added) => added.link.clone(),
+                None => name,
+            }
+        })
         .collect();
     let mut rng = rng(0x0AC1E);
     let configurations: Vec<Vec<f64>> = (0..10)
@@ -269,7 +326,7 @@ fn full_check(text: String, tools: Option<&[&str]>, seed: u64, what: &str) {
         "{what}: a perturbed model must change joints"
     );
     check_urdf_accepts(&report.urdf, what);
-    pinocchio_agrees(&calibrated, &report.urdf, what);
+    pinocchio_agrees(&calibrated, &report, what);
 
     // (d) the nominal model gives the file back unchanged.
     let nominal = case(text.clone(), tools, None);
@@ -388,47 +445,125 @@ fn export_edits_in_place_and_keeps_elements_urdf_rs_drops() {
     check_urdf_accepts(out, "decorated robonaut");
 }
 
-/// A tool link that is the child of a revolute joint: the joint's axis is rewritten so that
-/// the link frame is the tool frame at every joint value, as long as the tool stays on the
-/// axis; off the axis the export is refused with a message that says what to do.
+/// Where every link of a URDF exported from `model` must be at `q`: the links of the modelled
+/// chains where the model puts them, each added marker link at its tool's calibrated frame,
+/// and every other link (tool links with children included) at its nominal offset from its
+/// parent link's expected pose.
+fn expected_link_poses(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    report: &ExportReport,
+    exported: &KinematicTree,
+    q: &[f64],
+) -> Vec<(String, Pose)> {
+    let mut expected: Vec<Option<Pose>> = vec![None; tree.links().len()];
+    expected[0] = Some(Pose::identity());
+    for (f, pose) in model.link_poses(q).into_iter().enumerate() {
+        expected[tree.joint(model.frames()[f].joint).child.0] = Some(pose);
+    }
+    for (index, joint) in tree.joints().iter().enumerate() {
+        if expected[joint.child.0].is_none() {
+            let value = tree.joint_value(treecal::tree::JointId(index), q);
+            expected[joint.child.0] =
+                Some(expected[joint.parent.0].unwrap() * joint.parent_from_child(value));
+        }
+    }
+    let mut named: Vec<(String, Pose)> = tree
+        .links()
+        .iter()
+        .zip(expected)
+        .map(|(l, p)| (l.name.clone(), p.unwrap()))
+        .collect();
+    for (t, pose) in model.tool_poses(q).into_iter().enumerate() {
+        let link = measured_link(report, exported, tree, model, t);
+        let name = exported.link(link).name.clone();
+        match named.iter_mut().find(|(n, _)| *n == name) {
+            Some(entry) => entry.1 = pose,
+            None => named.push((name, pose)),
+        }
+    }
+    named
+}
+
+/// Tool links with child links (the Robonaut's `left_link6` and `right_link5`, each carrying
+/// the rest of its arm): the measured tool frames (every parameter perturbed, centimetres off)
+/// go into added `<tool>_marker` links; every link of the exported URDF (FK at random
+/// configurations, by name) is where the calibrated model puts it, and the links below the tool
+/// keep their nominal offsets to their parents, bit for bit.
 #[test]
-fn tool_carried_by_a_revolute_joint_gets_a_new_axis() {
+fn tool_with_children_keeps_its_links_and_gets_a_marker_link() {
     let text = read(&robot("robonaut/robonaut.urdf"));
     let tools = ["left_link6", "right_link5"];
-    let mut calibrated = case(text.clone(), Some(&tools), Some(7));
-    // Put both tool origins back on their joint axes: translation (Σ coordinates) x = y = 0.
-    let mut values = calibrated.model.parameters();
-    for t in 0..calibrated.model.tools().len() {
-        let tool = &calibrated.model.tools()[t];
-        let transform = tool.constant_transform();
-        let along = transform.translation.vector.z;
-        let local = transform.rotation.inverse() * treecal::math::Vec3::new(0.0, 0.0, along);
-        let offset = calibrated.model.tool_parameter_offset(t);
-        values[offset + 3] = local.x;
-        values[offset + 4] = local.y;
-        values[offset + 5] = local.z;
-    }
-    calibrated.model.set_parameters(&values).unwrap();
-    let (report, _) = export_and_check(&calibrated, "robonaut, tools on revolute joints");
+    let calibrated = case(text, Some(&tools), Some(7));
+    let (tree, model) = (&calibrated.tree, &calibrated.model);
+    let report = export_urdf(&calibrated.text, "robonaut", tree, model).unwrap();
+    let added: Vec<(&str, &str, AddedReason)> = report
+        .added_links
+        .iter()
+        .map(|a| (a.link.as_str(), a.parent.as_str(), a.reason))
+        .collect();
     assert_eq!(
-        report
-            .changes
-            .iter()
-            .filter(|c| c.new_axis.is_some())
-            .count(),
-        2,
-        "{:?}",
-        report.changes
+        added,
+        [
+            ("left_link6_marker", "left_link6", AddedReason::Marker),
+            ("right_link5_marker", "right_link5", AddedReason::Marker)
+        ]
     );
-    check_urdf_accepts(&report.urdf, "robonaut, tools on revolute joints");
-
-    let off_axis = case(text, Some(&tools), Some(7));
-    let error = export_urdf(&off_axis.text, "r", &off_axis.tree, &off_axis.model).unwrap_err();
-    let message = error.to_string();
-    assert!(
-        message.contains("left_link6") && message.contains("off the joint axis"),
-        "{message}"
-    );
+    assert!(report.changes.iter().all(|c| c.new_axis.is_none()));
+    let exported = parse_urdf(&report.urdf, "exported").unwrap().tree;
+    let mut random = rng(0x28_04);
+    let mut worst = 0.0f64;
+    for _ in 0..CONFIGURATIONS {
+        let q = random_configuration(tree, &mut random);
+        let poses = exported.link_poses(&q).unwrap();
+        let expected = expected_link_poses(tree, model, &report, &exported, &q);
+        assert_eq!(expected.len(), exported.links().len());
+        for (name, pose) in &expected {
+            let link = exported.link_id(name).unwrap();
+            assert_close(&poses[link.0], pose, TOLERANCE, name);
+            worst = worst.max(pose_gap(&poses[link.0], pose).0);
+        }
+    }
+    eprintln!("every link: worst position difference {worst:e} m");
+    // Below the modelled chains nothing moved relative to its parent: the tool links' own
+    // fixed joints and everything beneath them keep their text.
+    let framed: HashSet<usize> = model
+        .frames()
+        .iter()
+        .map(|f| tree.joint(f.joint).child.0)
+        .collect();
+    for joint in tree
+        .joints()
+        .iter()
+        .filter(|j| !framed.contains(&j.child.0))
+    {
+        let again = exported.joint(exported.joint_id(&joint.name).unwrap());
+        assert_eq!(
+            again.parent_from_joint, joint.parent_from_joint,
+            "{}",
+            joint.name
+        );
+    }
+    // The marker links are the tools' measured frames, far from the tool links.
+    for (t, link) in report.added_links.iter().enumerate() {
+        assert!(link.offset_mm > 10.0, "{link:?}");
+        assert_eq!(link.tool, tools[t]);
+    }
+    check_urdf_accepts(&report.urdf, "robonaut, tools with children");
+    // Exported again from its own output the marker links are updated, not added twice.
+    let again = parse_urdf(&report.urdf, "again").unwrap().tree;
+    let branches = branches_with_tools(&again, Some(&tools));
+    let mut model_again = McpcModel::from_tree(&again, &branches).unwrap();
+    model_again.set_parameters(&model.parameters()).unwrap();
+    let second = export_urdf(&report.urdf, "again", &again, &model_again).unwrap();
+    assert!(second.added_links.is_empty());
+    let reloaded = parse_urdf(&second.urdf, "second").unwrap().tree;
+    let q = random_configuration(tree, &mut random);
+    let poses = reloaded.link_poses(&q).unwrap();
+    for (t, tool_pose) in model_again.tool_poses(&q).iter().enumerate() {
+        let link = reloaded.link_id(&format!("{}_marker", tools[t])).unwrap();
+        assert_close(&poses[link.0], tool_pose, TOLERANCE, "second export");
+    }
 }
 
 /// A mimic joint with an offset on a modelled chain: the exported origin is the pose at joint
@@ -665,18 +800,15 @@ fn palm_on_the_wrist_joint_is_exported_dropped_or_with_an_added_link() {
         }
     }
     check_urdf_accepts(&report.urdf, "palms, tool links added");
-    // Exporting the result again with the flag would add the links a second time: refused.
+    // Exported again, the palms now have child links (the added ones): their measured frames
+    // go into marker links and nothing is added a second time.
     let again = parse_urdf(&report.urdf, "again").unwrap().tree;
     let branches = branches_with_tools(&again, Some(&tools));
     let mut model_again = McpcModel::from_tree(&again, &branches).unwrap();
     model_again.set_parameters(&model.parameters()).unwrap();
-    let message = export_urdf_with(&report.urdf, "again", &again, &model_again, &options)
-        .unwrap_err()
-        .to_string();
-    assert!(
-        message.contains("already has a link 'l_hand_calibrated'"),
-        "{message}"
-    );
+    let second = export_urdf_with(&report.urdf, "again", &again, &model_again, &options).unwrap();
+    let added: Vec<&str> = second.added_links.iter().map(|a| a.link.as_str()).collect();
+    assert_eq!(added, ["l_hand_marker", "r_hand_marker"]);
 
     // A palm put back on its axis exports exactly, with nothing dropped or added.
     let mut on_axis = case(humanoid_with_palms_on_wrists(), Some(&tools), Some(21));

@@ -345,14 +345,12 @@ fn every_bad_value_is_reported_at_its_line_and_column() {
         (with_cell("left_joint6", ""), &plain, "bad.csv:3:left_joint6", "tool 'left_tool' moves with joint 'left_joint6'"),
         (with_cell("id", ""), &plain, "bad.csv:3:id", "the id is empty"),
         (format!("{HEADER}\n{ROW}\n\n{ROW}\n"), &plain, "bad.csv:4:id", "id '1' was already used on line 2"),
-        (format!("{HEADER},left_jiont2\n{ROW},0\n"), &plain, "bad.csv:1:left_jiont2", "did you mean 'left_joint2'?"),
-        (format!("{HEADER},left_tool_joint\n{ROW},0\n"), &plain, "bad.csv:1:left_tool_joint", "fixed joint"),
         (HEADER.replace(",left_joint6", "") + "\n" + &ROW.replace(",0.8,", ",") + "\n", &plain, "bad.csv:2:left_joint6", "has no column 'left_joint6'"),
-        (HEADER.replace(",tool", "") + "\n" + &ROW.replace(",left_tool", "") + "\n", &plain, "bad.csv:1", "no 'tool' column; add one naming the measured tool link of each row (one of 'left_tool', 'right_tool')"),
-        (HEADER.replace(",z", "") + "\n" + &ROW.replace(",3", "") + "\n", &plain, "bad.csv:1", "the observation columns x,y are not a complete layout; give exactly x,y,z (a position); x,y,z,qw,qx,qy,qz (a pose); or ax,ay,az,bx,by,bz,cx,cy,cz"),
+        (HEADER.replace(",tool", "") + "\n" + &ROW.replace(",left_tool", "") + "\n", &plain, "bad.csv:1", "no 'tool' column; add one naming the measured tool link of each row (one of 'left_tool', 'right_tool'), or name the one measured tool with --tools"),
+        (HEADER.replace(",z", "") + "\n" + &ROW.replace(",3", "") + "\n", &plain, "bad.csv:1", "the observation columns x,y are not a complete layout; give exactly x,y,z (a position); x,y,z with qw,qx,qy,qz"),
         (format!("{HEADER},qw\n{ROW},1\n"), &plain, "bad.csv:1", "x,y,z,qw are not a complete layout"),
         (HEADER.replace(",x,y,z", "") + "\n" + &ROW.replace(",1,2,3", "") + "\n", &plain, "bad.csv:1", "no observation columns"),
-        (format!("{HEADER},qw,qx,qy,qz\n{ROW},0.5,0.5,0.5,0.6\n"), &plain, "bad.csv:2:qw", "check the column order"),
+        (format!("{HEADER},qw,qx,qy,qz\n{ROW},0.5,0.5,0.5,0.6\n"), &plain, "bad.csv:2:qw", "check the column names"),
         (format!("{HEADER},qw,qx,qy,qz\n{ROW},0,0,0,0\n"), &plain, "bad.csv:2:qw", "norm 0.000000"),
         (format!("{HEADER}\n{ROW},4\n"), &plain, "bad.csv:2", "row has 15 fields but the header has 14"),
         (String::new(), &plain, "bad.csv", "the file is empty"),
@@ -512,47 +510,80 @@ fn mimic_joint_columns_name_their_master() {
         .iter()
         .map(|t| tree.link(t.link).name.as_str())
         .collect();
+    // A mimic column (a joint-state dump has them) is not read, and the note says why; what is
+    // left is the missing chain joints.
     let text = format!("tool,l_finger_right,x,y,z\n{},0.1,1,2,3\n", tools[0]);
     let message = parse_measurements(&text, "h.csv", &tree, &model, &Default::default())
-        .unwrap_err()
-        .to_string();
-    assert!(
-        message.starts_with("h.csv:1:l_finger_right: 'l_finger_right' is a mimic joint that follows 'l_finger_left'; give a 'l_finger_left' column instead"),
-        "{message}"
-    );
-    let ignore = MeasurementReadOptions {
-        ignore_columns: vec!["l_finger_right".into()],
-        ..Default::default()
-    };
-    // Ignored, the mimic column no longer matters; what is left is the missing chain joints.
-    let message = parse_measurements(&text, "h.csv", &tree, &model, &ignore)
         .unwrap_err()
         .to_string();
     assert!(
         message.starts_with("h.csv:2:") && message.contains("has no column"),
         "{message}"
     );
+    let one = Measurement {
+        tool: 0,
+        q: tree.zero_configuration(),
+        observation: Observation::Position(Vec3::new(1.0, 2.0, 3.0)),
+        stage: None,
+        payload: None,
+        session: None,
+    };
+    let mut full = measurements_to_csv(&tree, &model, &[one]).unwrap();
+    full = full.replacen(",x,", ",l_finger_right,x,", 1);
+    let mut lines: Vec<String> = full.lines().map(str::to_owned).collect();
+    let at = lines[0]
+        .split(',')
+        .position(|c| c == "l_finger_right")
+        .unwrap();
+    let mut fields: Vec<&str> = lines[1].split(',').collect();
+    fields.insert(at, "0.1");
+    lines[1] = fields.join(",");
+    let set = parse_measurements(
+        &lines.join("\n"),
+        "h.csv",
+        &tree,
+        &model,
+        &Default::default(),
+    )
+    .unwrap();
+    assert_eq!(set.notes.len(), 1, "{:?}", set.notes);
+    assert!(
+        set.notes[0]
+            .contains("'l_finger_right' (a mimic joint: its value follows 'l_finger_left')"),
+        "{:?}",
+        set.notes
+    );
 }
 
+/// Columns that are neither joints nor measurement columns are not read, with ONE note listing
+/// them (a misspelled joint with its likely name, a fixed joint); `--ignore-columns` silences
+/// the note for the columns it lists; clean files get no note.
 #[test]
 fn ignored_columns_are_skipped_and_others_are_errors() {
     let text = format!("timestamp,{HEADER},tracker_rms\n12:00:01,{ROW},0.01\n");
-    let message = error(&text, &Default::default(), "bad.csv:1:timestamp");
-    assert!(
-        message.contains("list it among the ignored columns"),
-        "{message}"
+    let set = parse(&text, &Default::default()).unwrap();
+    assert_eq!(set.measurements.len(), 1);
+    assert_eq!(
+        set.notes,
+        ["bad.csv:1: 2 column(s) neither a joint of 'robonaut' nor a measurement column, not read: 'timestamp', 'tracker_rms'; list them with --ignore-columns to silence this note"]
     );
     let only_one = MeasurementReadOptions {
         ignore_columns: vec!["timestamp".into()],
         ..Default::default()
     };
-    error(&text, &only_one, "bad.csv:1:tracker_rms");
+    let set = parse(&text, &only_one).unwrap();
+    assert!(
+        set.notes[0].contains("not read: 'tracker_rms';"),
+        "{:?}",
+        set.notes
+    );
     let both = MeasurementReadOptions {
         ignore_columns: vec!["timestamp".into(), "tracker_rms".into(), "absent".into()],
         ..Default::default()
     };
     let set = parse(&text, &both).unwrap();
     assert_eq!(set.measurements.len(), 1);
+    assert!(set.notes.is_empty());
     assert_eq!(
         set.warnings,
         ["bad.csv: column 'absent' is to be ignored but the file has no such column"]
@@ -560,6 +591,40 @@ fn ignored_columns_are_skipped_and_others_are_errors() {
     // A non-numeric value in an ignored column is not read.
     let set = parse(&text.replace("0.01", "n/a"), &both).unwrap();
     assert_eq!(set.measurements.len(), 1);
+    let misspelled = parse(
+        &format!("{HEADER},left_jiont2\n{ROW},0\n"),
+        &Default::default(),
+    )
+    .unwrap();
+    assert!(
+        misspelled.notes[0].contains("'left_jiont2'; did you mean 'left_joint2'?"),
+        "{:?}",
+        misspelled.notes
+    );
+    let fixed = parse(
+        &format!("{HEADER},left_tool_joint\n{ROW},0\n"),
+        &Default::default(),
+    )
+    .unwrap();
+    assert!(
+        fixed.notes[0].contains("'left_tool_joint' (a fixed joint)"),
+        "{:?}",
+        fixed.notes
+    );
+    // Misspelled in place of a needed joint: the error names the column that was not read.
+    let swapped = format!("{HEADER}\n{ROW}\n").replacen("left_joint6", "left_jiont6", 1);
+    let message = parse(&swapped, &Default::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("has no column 'left_joint6'")
+            && message.contains("rename the file's column 'left_jiont6'"),
+        "{message}"
+    );
+    assert!(parse(&format!("{HEADER}\n{ROW}\n"), &Default::default())
+        .unwrap()
+        .notes
+        .is_empty());
 }
 
 #[test]

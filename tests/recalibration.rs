@@ -20,14 +20,12 @@ fn loaded(text: &str) -> (KinematicTree, McpcModel) {
 /// Every MCPC parameter perturbed by ±0.03 (rad, m), exported, re-imported: the re-imported
 /// nominal model with a flexibility model built from it predicts the same deflected tool poses
 /// as the perturbed model with the original flexibility model (to 1e-9). The tool links carry
-/// masses (Robonaut's 0.2 kg tools; the humanoid's hands with their fingers), which the export
-/// moves with the calibrated tool frames.
+/// masses (Robonaut's 0.2 kg tools), which the export moves with the calibrated tool frames. (A
+/// tool link with child links, like the humanoid's hands with their fingers, is not moved by the
+/// export: its measured frame goes into a marker link, docs/export.md.)
 #[test]
 fn exported_robot_bends_as_the_calibrated_model() {
-    for (file, stiffness_file) in [
-        ("robonaut/robonaut.urdf", Some("robonaut/stiffness.yaml")),
-        ("humanoid/humanoid.urdf", None),
-    ] {
+    for (file, stiffness_file) in [("robonaut/robonaut.urdf", Some("robonaut/stiffness.yaml"))] {
         let text = std::fs::read_to_string(robot(file)).unwrap();
         let (tree, nominal) = loaded(&text);
         let stiffness = |tree: &KinematicTree, model: &McpcModel| match stiffness_file {

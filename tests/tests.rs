@@ -19,6 +19,7 @@ mod identification;
 mod jacobian;
 mod joint_errors;
 mod mcpc;
+mod measured_points;
 mod measurements_csv;
 mod model_choice;
 mod oracle;

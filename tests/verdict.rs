@@ -702,9 +702,26 @@ fn a_failing_export_is_a_failed_verdict_with_the_reports_written() {
             .replace("right_tool", "right_link5"),
     )
     .unwrap();
+    // Without the tool links, the last arm links are leaves: a tool link with child links
+    // would keep its place and get a marker link instead (docs/export.md).
+    let mut urdf = std::fs::read_to_string(robot("robonaut/robonaut.urdf")).unwrap();
+    for (start, end) in [
+        ("<link name=\"left_tool\">", "</link>"),
+        ("<link name=\"right_tool\">", "</link>"),
+        ("<joint name=\"left_tool_joint\"", "</joint>"),
+        ("<joint name=\"right_tool_joint\"", "</joint>"),
+    ] {
+        let from = urdf.find(start).unwrap();
+        let to = from + urdf[from..].find(end).unwrap() + end.len();
+        urdf.replace_range(from..to, "");
+    }
+    let robot_file = dir.path().join("robonaut_without_tools.urdf");
+    std::fs::write(&robot_file, urdf).unwrap();
     let out = dir.path().join("out");
     let run = treecal(&[
         "calibrate",
+        "--robot",
+        path_str(&robot_file),
         "--measurements",
         path_str(&measurements),
         "--tools",

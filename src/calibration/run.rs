@@ -57,6 +57,9 @@ pub struct ParameterEstimate {
     pub unit: String,
     /// Nominal value (from the URDF).
     pub nominal: f64,
+    /// Where the fit started: the nominal value, except for tools, whose measured frame is
+    /// first fitted in closed form (the initial guess).
+    pub start: f64,
     /// Calibrated value.
     pub calibrated: f64,
     /// `calibrated − nominal`.
@@ -530,13 +533,13 @@ pub fn assembled_covariance(report: &CalibrationReport) -> DMatrix<f64> {
 }
 
 /// Table 2 rows: nominal is the URDF's value (the measurement frame does not enter the
-/// parameters), standard deviations and identifiability from the stage that freed each one.
+/// parameters), start the closed-form initial guess `start`, standard deviations and identifiability from the stage that freed each one.
 fn estimates(
     input: &CalibrationInput<'_>,
     start: &McpcModel,
     report: &CalibrationReport,
 ) -> Vec<ParameterEstimate> {
-    let nominal = start.parameters();
+    let (nominal, start) = (input.nominal.parameters(), start.parameters());
     let calibrated = report.model.parameters();
     let layout = report.model.parameter_layout();
     let mut spread: Vec<(Option<f64>, bool)> = vec![(None, true); calibrated.len()];
@@ -576,6 +579,7 @@ fn estimates(
                 kind: kind.name().into(),
                 unit: if kind.is_angle() { "rad" } else { "m" }.into(),
                 nominal: nominal[i],
+                start: start[i],
                 calibrated: calibrated[i],
                 change: calibrated[i] - nominal[i],
                 std_dev: spread[i].0,

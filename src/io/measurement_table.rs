@@ -117,6 +117,7 @@ impl MeasurementTable {
             length: self.length_unit,
             angle: self.angle_unit,
             joint_length: None,
+            rotation: None,
             line: None,
         };
         let table = self.as_csv_table();

@@ -3,18 +3,18 @@
 //! targets A, B, C), in metres and radians or the units the options name.
 
 use super::joints_csv::{parse_csv, CsvTable};
+pub use super::observations::ObservationKind;
+use super::observations::{
+    column_quantity, observation, ColumnQuantity, KINDS, LAYOUTS, OBSERVATION_COLUMNS,
+};
 use super::units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
 use crate::error::{did_you_mean, Error, Result};
 use crate::kinematics::McpcModel;
 use crate::limits::{self, magnitude_problem, Quantity};
-use crate::math::{Pose, Vec3};
-use crate::measurement::{
-    frame_from_targets, targets_on, targets_problem, Measurement, Observation,
-};
+use crate::measurement::{targets_on, Measurement, Observation};
 use crate::tree::{Actuation, JointKind, KinematicTree};
-use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -30,35 +30,14 @@ pub struct MeasurementReadOptions {
     pub angle_unit: Option<AngleUnit>,
     /// Unit of prismatic joint values; default `length_unit`.
     pub joint_length_unit: Option<LengthUnit>,
-    /// Columns to skip (e.g. a tracker's timestamp); any other unknown column is an error.
+    /// Columns to skip (e.g. a tracker's timestamp) without a note; other columns that are
+    /// neither a joint nor a measurement column are skipped with one note listing them.
     pub ignore_columns: Vec<String>,
+    /// The tool link of rows without a `tool` column (the one tool named by `--tools`);
+    /// without it such a file needs a model with a single tool.
+    pub tool: Option<String>,
     /// A joint value outside its URDF limits is an error (otherwise a warning).
     pub strict_limits: bool,
-}
-
-/// What each row of a measurement CSV observes; the header's columns decide.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ObservationKind {
-    /// `x,y,z`: one target's position.
-    Position,
-    /// `x,y,z,qw,qx,qy,qz`: a full pose.
-    Pose,
-    /// `ax,…,cz`: three targets A, B, C on the tool, turned into a pose (paper section 5.3.1)
-    /// whose offset from the URDF tool frame is unknown and must be identified.
-    ThreeTargets,
-}
-
-impl ObservationKind {
-    /// The observation columns of this layout, in file order.
-    pub fn columns(self) -> &'static [&'static str] {
-        match self {
-            ObservationKind::Position => &["x", "y", "z"],
-            ObservationKind::Pose => &["x", "y", "z", "qw", "qx", "qy", "qz"],
-            ObservationKind::ThreeTargets => {
-                &["ax", "ay", "az", "bx", "by", "bz", "cx", "cy", "cz"]
-            }
-        }
-    }
 }
 
 /// The measurements of a CSV, with where each came from.
@@ -75,6 +54,8 @@ pub struct MeasurementSet {
     /// Accepted oddities (joint values outside their limits, ignored columns not present),
     /// each naming its place.
     pub warnings: Vec<String>,
+    /// What was read in a way worth saying (columns skipped), each naming its place.
+    pub notes: Vec<String>,
     /// The units the numbers were read in.
     pub units: MeasurementUnits,
 }
@@ -90,11 +71,21 @@ pub fn read_measurements(
     parse_measurements(&text, &path.display().to_string(), tree, model, options)
 }
 
-/// Columns reserved for the row's identity and observation (never joint names).
-const RESERVED: [&str; 19] = [
-    "id", "stage", "tool", "x", "y", "z", "qw", "qx", "qy", "qz", "ax", "ay", "az", "bx", "by",
-    "bz", "cx", "cy", "cz",
-];
+/// Columns of the row's identity (never joint names); the observation columns are
+/// [`super::observations::OBSERVATION_COLUMNS`].
+const IDENTITY: [&str; 4] = ["id", "stage", "tool", POINT_COLUMN];
+
+/// The optional column naming a measured point on the row's tool link: the row observes the
+/// marker link `<tool>_<point>` (docs/file-formats.md).
+pub const POINT_COLUMN: &str = "point";
+
+/// The link a row observes: the tool link, or the marker link of a point on it.
+pub fn measured_link_name(tool: &str, point: Option<&str>) -> String {
+    match point.filter(|p| !p.is_empty()) {
+        Some(point) => format!("{tool}_{point}"),
+        None => tool.to_owned(),
+    }
+}
 
 /// The optional column of the payload at every tool (kg) a row was measured with.
 pub const PAYLOAD_COLUMN: &str = "payload_kg";
@@ -102,10 +93,6 @@ pub const PAYLOAD_COLUMN: &str = "payload_kg";
 /// The optional column naming the measurement session of a row: one measurement frame per
 /// session (`calibration::sessions`).
 pub const SESSION_COLUMN: &str = "session";
-
-/// The three accepted observation layouts, for messages.
-const LAYOUTS: &str = "x,y,z (a position); x,y,z,qw,qx,qy,qz (a pose); or \
-                       ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C)";
 
 /// Where the columns of a measurement CSV go.
 struct Columns {
@@ -115,7 +102,10 @@ struct Columns {
     payload: Option<usize>,
     /// `session`: the measurement session of this row.
     session: Option<usize>,
-    tool: usize,
+    tool: Option<usize>,
+    point: Option<usize>,
+    /// Columns skipped as neither joints nor measurement columns: name, and how to say it.
+    skipped: Vec<(String, String)>,
     /// `(column, dof)` of independent joints.
     joints: Vec<(usize, usize)>,
     observation: ObservationKind,
@@ -201,6 +191,7 @@ pub(super) fn measurements_from_table(
         length: options.length_unit,
         angle: options.angle_unit,
         joint_length: options.joint_length_unit,
+        rotation: None,
         line: None,
     };
     let units = resolve_units(&stated, header, origin)?;
@@ -220,6 +211,17 @@ pub(super) fn measurements_from_table(
                 "{origin}: column '{name}' is to be ignored but the file has no such column"
             ));
         }
+    }
+    let mut notes = Vec::new();
+    if !columns.skipped.is_empty() {
+        let listed: Vec<&str> = columns.skipped.iter().map(|(_, s)| s.as_str()).collect();
+        notes.push(format!(
+            "{}: {} column(s) neither a joint of '{}' nor a measurement column, not read: {}; list them with --ignore-columns to silence this note",
+            places.header(origin, table.header_line, None),
+            listed.len(),
+            tree.name(),
+            listed.join(", ")
+        ));
     }
     if table.records.is_empty() {
         return Err(Error::InvalidData {
@@ -252,7 +254,12 @@ pub(super) fn measurements_from_table(
             dofs
         })
         .collect();
-    let (length, angle, joint_length) = (units.length, units.angle, units.joint_length);
+    let (length, angle, joint_length, rotation) = (
+        units.length,
+        units.angle,
+        units.joint_length,
+        units.rotation,
+    );
     let mut outside = Vec::new();
     let mut revolute_values = 0;
     let mut set = MeasurementSet {
@@ -261,6 +268,7 @@ pub(super) fn measurements_from_table(
         lines: Vec::with_capacity(table.records.len()),
         observation: columns.observation,
         warnings,
+        notes,
         units,
     };
     let mut first_line_of_id: HashMap<String, usize> = HashMap::new();
@@ -317,17 +325,36 @@ pub(super) fn measurements_from_table(
             }
             _ => None,
         };
-        let tool_name = &fields[columns.tool];
+        let tool_column = columns.tool.unwrap_or(0);
+        let tool_name = match columns.tool {
+            Some(column) => fields[column].as_str(),
+            None => options.tool.as_deref().unwrap_or(tool_names[0]),
+        };
+        let point = columns.point.map(|column| fields[column].as_str());
+        let measured = measured_link_name(tool_name, point);
         let tool = tool_names
             .iter()
-            .position(|t| t == tool_name)
+            .position(|t| *t == measured)
             .ok_or_else(|| {
+                let cut = crate::limits::cut;
+                let what = match point.filter(|p| !p.is_empty()) {
+                    Some(point) => format!(
+                        "point '{}' on '{}' (link '{}')",
+                        cut(point),
+                        cut(tool_name),
+                        cut(&measured)
+                    ),
+                    None => format!("'{}'", cut(tool_name)),
+                };
+                let column = match point.filter(|p| !p.is_empty()) {
+                    Some(_) => columns.point.unwrap_or(tool_column),
+                    None => tool_column,
+                };
                 invalid(
-                    columns.tool,
+                    column,
                     format!(
-                        "'{}' is not a tool of the model{}; the tools are {}",
-                        crate::limits::cut(tool_name),
-                        did_you_mean(tool_name, tool_names.iter().copied()),
+                        "{what} is not a tool of the model{}; the tools are {}",
+                        did_you_mean(&measured, tool_names.iter().copied()),
                         quoted_list(&tool_names)
                     ),
                 )
@@ -391,64 +418,40 @@ pub(super) fn measurements_from_table(
                         "the value is empty, but tool '{tool_name}' moves with joint '{name}'; give its value"
                     ),
                     None => format!(
-                        "the file has no column '{name}', but tool '{tool_name}' moves with that joint; add the column"
+                        "the file has no column '{name}', but tool '{tool_name}' moves with that joint; add the column{}",
+                        did_you_mean(name, columns.skipped.iter().map(|(n, _)| n.as_str()))
+                            .replace("; did you mean", " (or rename the file's column")
+                            .replace("'?", "', which was not read)")
                     ),
                 },
             });
         }
         let mut values = Vec::with_capacity(columns.observed.len());
         for &column in &columns.observed {
-            let is_length = !table.headers[column].starts_with('q');
-            let unit = if is_length { length.symbol() } else { "" };
+            let (scale, unit, quantity) = match column_quantity(&table.headers[column]) {
+                ColumnQuantity::Length => {
+                    (length.in_metres(), length.symbol(), Some(Quantity::Length))
+                }
+                ColumnQuantity::Angle => (
+                    rotation.in_radians(),
+                    rotation.symbol(),
+                    Some(Quantity::Angle),
+                ),
+                ColumnQuantity::Plain => (1.0, "", None),
+            };
             let value = number(&fields[column], unit).map_err(|m| invalid(column, m))?;
-            values.push(if is_length {
-                limits::check(value * length.in_metres(), Quantity::Length, || {
-                    place(column)
-                })?
-            } else {
-                value
+            values.push(match quantity {
+                Some(quantity) => limits::check(value * scale, quantity, || place(column))?,
+                None => value,
             });
         }
-        let observation = match columns.observation {
-            ObservationKind::Position => {
-                Observation::Position(Vec3::new(values[0], values[1], values[2]))
-            }
-            ObservationKind::Pose => {
-                let raw = Quaternion::new(values[3], values[4], values[5], values[6]);
-                let norm = raw.norm();
-                if (norm - 1.0).abs() > 1e-3 {
-                    return Err(Error::InvalidData {
-                        origin: at("qw"),
-                        message: format!(
-                            "the quaternion (qw,qx,qy,qz) = ({}, {}, {}, {}) has norm {norm:.6}, not 1; \
-                             check the column order (w first) and that it is a unit quaternion",
-                            values[3], values[4], values[5], values[6]
-                        ),
-                    });
+        let observation =
+            observation(columns.observation, &values).map_err(|(columns, message)| {
+                Error::InvalidData {
+                    origin: at(columns),
+                    message,
                 }
-                Observation::Pose(Pose::from_parts(
-                    Translation3::new(values[0], values[1], values[2]),
-                    UnitQuaternion::from_quaternion(raw),
-                ))
-            }
-            ObservationKind::ThreeTargets => {
-                let [a, b, c] =
-                    [0, 3, 6].map(|i| Vec3::new(values[i], values[i + 1], values[i + 2]));
-                // The tolerance check comes first: it also rules out `None` from the frame.
-                let frame = match targets_problem(&a, &b, &c) {
-                    None => frame_from_targets(&a, &b, &c)
-                        .ok_or_else(|| "the targets define no frame".to_owned()),
-                    Some(why) => Err(why),
-                };
-                Observation::Pose(frame.map_err(|why| Error::InvalidData {
-                    origin: at("ax..cz"),
-                    message: format!(
-                        "collinear or coincident targets: {why}; A, B and C must be three \
-                         distinct reflectors on the tool, not on one line"
-                    ),
-                })?)
-            }
-        };
+            })?;
         set.measurements.push(Measurement {
             payload,
             tool,
@@ -610,6 +613,36 @@ pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
     Ok(names)
 }
 
+/// The distinct `(tool, point)` pairs the rows of measurement CSV `text` name, in order of
+/// first appearance, read without a robot model: `None` for a missing `tool` column (the
+/// tool then comes from `--tools`) and for a missing or empty `point`.
+pub fn measured_targets(text: &str, origin: &str) -> Result<Vec<(Option<String>, Option<String>)>> {
+    let table = parse_csv(text, origin)?;
+    let column = |name: &str| table.headers.iter().position(|h| h == name);
+    let (tool, point) = (column("tool"), column(POINT_COLUMN));
+    let mut pairs: Vec<(Option<String>, Option<String>)> = Vec::new();
+    for (line, fields) in &table.records {
+        let value = |c: Option<usize>| c.map(|c| fields[c].clone()).filter(|v| !v.is_empty());
+        let pair = (value(tool), value(point));
+        if tool.is_some() && pair.0.is_none() {
+            return Err(Error::InvalidData {
+                origin: format!("{origin}:{line}:tool"),
+                message: "the tool is empty; name the measured tool link".into(),
+            });
+        }
+        if !pairs.contains(&pair) {
+            pairs.push(pair);
+        }
+    }
+    Ok(pairs)
+}
+
+/// Reads a measurement CSV file's tool and point columns; see [`measured_targets`].
+pub fn read_measured_targets(path: &Path) -> Result<Vec<(Option<String>, Option<String>)>> {
+    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
+    measured_targets(&text, &path.display().to_string())
+}
+
 /// Reads a measurement CSV file's tool column; see [`measured_tool_names`].
 pub fn read_measured_tool_names(path: &Path) -> Result<Vec<String>> {
     let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
@@ -694,6 +727,8 @@ fn quoted_list(names: &[&str]) -> String {
 }
 
 /// Sorts the header's columns into identity, joints and observation, or says which is wrong.
+/// Columns that are neither (and not listed as ignored) are skipped, named in
+/// [`Columns::skipped`].
 fn classify(
     headers: &[String],
     header_line: usize,
@@ -703,13 +738,14 @@ fn classify(
     options: &MeasurementReadOptions,
     origin: &str,
 ) -> Result<Columns> {
-    let at = |name: &str| places.header(origin, header_line, Some(name));
     let mut id = None;
     let mut stage = None;
     let mut payload = None;
     let mut session = None;
     let mut tool = None;
+    let mut point = None;
     let mut joints = Vec::new();
+    let mut skipped = Vec::new();
     let mut observed: HashMap<&str, usize> = HashMap::new();
     for (column, name) in headers.iter().enumerate() {
         if options.ignore_columns.contains(name) {
@@ -721,93 +757,77 @@ fn classify(
             PAYLOAD_COLUMN => payload = Some(column),
             SESSION_COLUMN => session = Some(column),
             "tool" => tool = Some(column),
-            other if RESERVED.contains(&other) => {
+            POINT_COLUMN => point = Some(column),
+            other if OBSERVATION_COLUMNS.contains(&other) => {
                 observed.insert(other, column);
             }
-            other => match tree.joint_id(other) {
-                Ok(joint) => match tree.joint(joint).actuation {
-                    Actuation::Independent(dof) => joints.push((column, dof.0)),
-                    Actuation::Mimic { master, .. } => {
-                        let master = &tree.joint(tree.dofs()[master.0]).name;
-                        return Err(Error::InvalidData {
-                            origin: at(other),
-                            message: format!(
-                                "'{other}' is a mimic joint that follows '{master}'; give a \
-                                 '{master}' column instead, or ignore this column"
-                            ),
-                        });
-                    }
-                    Actuation::None => {
-                        return Err(Error::InvalidData {
-                            origin: at(other),
-                            message: format!(
-                                "'{other}' is a fixed joint and has no value; remove the \
-                                 column or ignore it"
-                            ),
-                        })
-                    }
-                },
+            other => match tree.joint_id(other).map(|j| tree.joint(j).actuation) {
+                Ok(Actuation::Independent(dof)) => joints.push((column, dof.0)),
+                Ok(Actuation::Mimic { master, .. }) => skipped.push((
+                    other.to_owned(),
+                    format!(
+                        "'{other}' (a mimic joint: its value follows '{}')",
+                        tree.joint(tree.dofs()[master.0]).name
+                    ),
+                )),
+                Ok(Actuation::None) => {
+                    skipped.push((other.to_owned(), format!("'{other}' (a fixed joint)")))
+                }
                 Err(_) => {
                     let candidates = tree
                         .dofs()
                         .iter()
                         .map(|j| tree.joint(*j).name.as_str())
-                        .chain(RESERVED);
-                    return Err(Error::InvalidData {
-                        origin: at(other),
-                        message: format!(
-                            "column '{}' matches no joint of '{}' and no measurement \
-                             column{}; rename it, or list it among the ignored columns",
-                            crate::limits::cut(other),
-                            tree.name(),
-                            did_you_mean(other, candidates)
-                        ),
-                    });
+                        .chain(OBSERVATION_COLUMNS)
+                        .chain(IDENTITY)
+                        .chain([PAYLOAD_COLUMN, SESSION_COLUMN]);
+                    let hint = did_you_mean(other, candidates);
+                    skipped.push((
+                        other.to_owned(),
+                        format!("'{}'{hint}", crate::limits::cut(other)),
+                    ));
                 }
             },
         }
     }
-    let tool = tool.ok_or_else(|| {
+    if tool.is_none() && options.tool.is_none() && model.tools().len() != 1 {
         let names: Vec<&str> = model
             .tools()
             .iter()
             .map(|t| tree.link(t.link).name.as_str())
             .collect();
-        Error::InvalidData {
+        return Err(Error::InvalidData {
             origin: places.header(origin, header_line, None),
             message: format!(
                 "the header has no 'tool' column; add one naming the measured tool link of each \
-                 row (one of {})",
+                 row (one of {}), or name the one measured tool with --tools",
                 quoted_list(&names)
             ),
-        }
-    })?;
-    let observation = [
-        ObservationKind::Position,
-        ObservationKind::Pose,
-        ObservationKind::ThreeTargets,
-    ]
-    .into_iter()
-    .find(|kind| {
-        kind.columns().len() == observed.len()
-            && kind.columns().iter().all(|c| observed.contains_key(c))
-    })
-    .ok_or_else(|| {
-        let mut present: Vec<(&str, usize)> = observed.iter().map(|(n, c)| (*n, *c)).collect();
-        present.sort_by_key(|(_, c)| *c);
-        let present: Vec<&str> = present.into_iter().map(|(n, _)| n).collect();
-        Error::InvalidData {
-            origin: places.header(origin, header_line, None),
-            message: if present.is_empty() {
-                format!("the header has no observation columns; give {LAYOUTS}")
-            } else {
-                format!(
-                    "the observation columns {} are not a complete layout; give exactly {LAYOUTS}",
-                    present.join(",")
-                )
-            },
-        }
-    })?;
+        });
+    }
+    let observation = KINDS
+        .into_iter()
+        .find(|kind| {
+            kind.columns().len() == observed.len()
+                && kind.columns().iter().all(|c| observed.contains_key(c))
+        })
+        .ok_or_else(|| {
+            let mut present: Vec<(&str, usize)> =
+                observed.iter().map(|(n, c)| (*n, *c)).collect();
+            present.sort_by_key(|(_, c)| *c);
+            let present: Vec<&str> = present.into_iter().map(|(n, _)| n).collect();
+            Error::InvalidData {
+                origin: places.header(origin, header_line, None),
+                message: if present.is_empty() {
+                    format!("the header has no observation columns; give {LAYOUTS}")
+                } else {
+                    format!(
+                        "the observation columns {} are not a complete layout; give exactly {LAYOUTS}",
+                        present.join(",")
+                    )
+                },
+            }
+        })?;
     let observed = observation.columns().iter().map(|c| observed[c]).collect();
     Ok(Columns {
         id,
@@ -815,6 +835,8 @@ fn classify(
         payload,
         session,
         tool,
+        point,
+        skipped,
         joints,
         observation,
         observed,
@@ -958,6 +980,7 @@ pub fn measurements_to_csv_with(
             length: options.length_unit,
             angle: options.angle_unit,
             joint_length: options.length_unit,
+            rotation: options.angle_unit,
         };
         Ok(format!("{}\n{body}", StatedUnits::line_for(&units)))
     }

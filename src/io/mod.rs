@@ -8,6 +8,7 @@ pub mod mcpc_table;
 pub mod measurement_table;
 pub mod measurements_csv;
 pub mod mesh_files;
+pub mod observations;
 pub mod params;
 pub mod plan;
 pub mod poses_csv;
@@ -25,14 +26,18 @@ pub use joints_csv::{
 pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
 pub use measurement_table::{MeasurementTable, ObservationRows};
 pub use measurements_csv::{
-    measured_tool_names, measurements_to_csv, measurements_to_csv_with, parse_measurements,
-    read_measured_tool_names, read_measurements, MeasurementReadOptions, MeasurementSet,
-    MeasurementWriteOptions, ObservationKind,
+    measured_link_name, measured_targets, measured_tool_names, measurements_to_csv,
+    measurements_to_csv_with, parse_measurements, read_measured_targets, read_measured_tool_names,
+    read_measurements, MeasurementReadOptions, MeasurementSet, MeasurementWriteOptions,
+    ObservationKind,
 };
 pub use mesh_files::{
     mesh_file_loader, mesh_vertices, package_dirs, read_mesh_vertices, resolve_mesh,
 };
-pub use params::{parse_parameters, read_parameters, ParameterValues};
+pub use params::{
+    parse_parameters, read_parameter_file_robot, read_parameters, ParameterFileRobot,
+    ParameterValues,
+};
 pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
 pub use registration::{parse_registration, read_registration};

@@ -9,7 +9,7 @@
 //! ```
 //!
 //! The other keys the calibration writes (of the file: `robot`, `units`,
-//! `measurement_frame`, `stiffness`; of an entry: `owner`, `kind`, `unit`, `nominal`,
+//! `measurement_frame`, `stiffness`, `added_links`; of an entry: `owner`, `kind`, `unit`, `nominal`, `start`,
 //! `change`, `identifiable`) are read and ignored, so its `params.yaml` reads as is; any other
 //! key is an error naming the closest valid one.
 //! Unknown names are errors; parameters the file does not list keep their nominal value,
@@ -35,6 +35,9 @@ struct File {
     _measurement_frame: Option<IgnoredAny>,
     #[serde(default, rename = "stiffness")]
     _stiffness: Option<IgnoredAny>,
+    /// The links the export added (read by [`read_parameter_file_robot`]).
+    #[serde(default, rename = "added_links")]
+    _added_links: Option<IgnoredAny>,
 }
 
 #[derive(serde::Deserialize)]
@@ -53,6 +56,8 @@ struct Entry {
     _unit: Option<IgnoredAny>,
     #[serde(default, rename = "nominal")]
     _nominal: Option<IgnoredAny>,
+    #[serde(default, rename = "start")]
+    _start: Option<IgnoredAny>,
     #[serde(default, rename = "change")]
     _change: Option<IgnoredAny>,
     #[serde(default, rename = "identifiable")]
@@ -69,6 +74,66 @@ pub struct ParameterValues {
     /// The standard deviation (rad, m) the file gives for each parameter (`std_dev`, as the
     /// calibration writes it), same order; `None` where not given or not a positive number.
     pub std_devs: Vec<Option<f64>>,
+}
+
+/// What a parameter file says about the robot beyond the values: the measured points the
+/// calibration added as marker links (`added_links` entries with `reason: point`), which the
+/// robot needs again before its model is built, and the tool links it calibrated.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ParameterFileRobot {
+    /// `(link, parent)` of every measured point added as a marker link.
+    pub points: Vec<(String, String)>,
+    /// The owners of the tool parameters (those with a `gamma`), in file order.
+    pub tools: Vec<String>,
+}
+
+#[derive(serde::Deserialize)]
+struct RobotPart {
+    #[serde(default)]
+    parameters: Vec<OwnerEntry>,
+    #[serde(default)]
+    added_links: Vec<AddedEntry>,
+}
+
+#[derive(serde::Deserialize)]
+struct OwnerEntry {
+    #[serde(default)]
+    owner: Option<String>,
+    #[serde(default)]
+    kind: Option<String>,
+}
+
+#[derive(serde::Deserialize)]
+struct AddedEntry {
+    link: String,
+    parent: String,
+    reason: String,
+}
+
+/// Reads [`ParameterFileRobot`] from parameter file `path`.
+pub fn read_parameter_file_robot(path: &Path) -> Result<ParameterFileRobot> {
+    let text = crate::limits::read_text(path, crate::limits::MAX_YAML_BYTES)?;
+    let origin = path.display().to_string();
+    crate::limits::check_yaml_depth(&text, &origin)?;
+    let part: RobotPart = serde_yaml::from_str(&text).map_err(|e| Error::InvalidData {
+        origin: origin.clone(),
+        message: format!("{e}; expected `parameters:` (and optionally `added_links:`)"),
+    })?;
+    let mut tools: Vec<String> = Vec::new();
+    for entry in &part.parameters {
+        if let (Some(owner), Some("gamma")) = (&entry.owner, entry.kind.as_deref()) {
+            if !tools.contains(owner) {
+                tools.push(owner.clone());
+            }
+        }
+    }
+    let points = part
+        .added_links
+        .into_iter()
+        .filter(|a| a.reason == "point")
+        .map(|a| (a.link, a.parent))
+        .collect();
+    Ok(ParameterFileRobot { points, tools })
 }
 
 /// Reads a parameter file for `model` (the nominal model of `tree`).

@@ -104,10 +104,14 @@ pub struct MeasurementUnits {
     pub angle: AngleUnit,
     /// Prismatic joint values (a controller may log metres while the tracker writes mm).
     pub joint_length: LengthUnit,
+    /// Measured roll, pitch and yaw (a tracker may write degrees while the controller logs
+    /// radians); default: the angle unit.
+    pub rotation: AngleUnit,
 }
 
 /// The units a measurement CSV states in its comment lines before the header, each `None`
-/// when not stated. Two forms are read: `# units: length=mm angle=deg joint_length=m` (the
+/// when not stated. Two forms are read: `# units: length=mm angle=deg joint_length=m
+/// rotation=deg` (the
 /// documented one; keys in any order, each optional) and `# lengths in mm, angles in deg`
 /// (what treecal wrote before).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -118,6 +122,8 @@ pub struct StatedUnits {
     pub angle: Option<AngleUnit>,
     /// `joint_length=`.
     pub joint_length: Option<LengthUnit>,
+    /// `rotation=` (of measured roll, pitch, yaw).
+    pub rotation: Option<AngleUnit>,
     /// The 1-based line of the units comment, if any.
     pub line: Option<usize>,
 }
@@ -133,6 +139,9 @@ impl StatedUnits {
         );
         if units.joint_length != units.length {
             line.push_str(&format!(" joint_length={}", units.joint_length.symbol()));
+        }
+        if units.rotation != units.angle {
+            line.push_str(&format!(" rotation={}", units.rotation.symbol()));
         }
         line
     }
@@ -206,10 +215,11 @@ pub fn parse_units_header(text: &str, origin: &str) -> Result<StatedUnits> {
                     "length" => header.length = Some(value.parse().map_err(bad)?),
                     "angle" => header.angle = Some(value.parse().map_err(bad)?),
                     "joint_length" => header.joint_length = Some(value.parse().map_err(bad)?),
+                    "rotation" => header.rotation = Some(value.parse().map_err(bad)?),
                     other => {
                         return Err(fail(format!(
                             "unknown key '{}' in the units comment; the keys are length, \
-                             angle and joint_length",
+                             angle, joint_length and rotation",
                             crate::limits::cut(other)
                         )))
                     }
@@ -292,10 +302,19 @@ pub fn resolve_units(
         &place,
     )?
     .unwrap_or(length);
+    let rotation = pick(
+        flags.rotation,
+        header.rotation,
+        AngleUnit::symbol,
+        ("the rotation unit", "rotation"),
+        &place,
+    )?
+    .unwrap_or(angle);
     Ok(MeasurementUnits {
         length,
         angle,
         joint_length,
+        rotation,
     })
 }
 

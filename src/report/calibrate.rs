@@ -643,6 +643,7 @@ pub fn calibration_markdown(
         );
     }
     out.push('\n');
+    starts_markdown(&mut out, &summary.parameters);
     if !summary.changed_joints.is_empty() {
         let _ = writeln!(
             out,
@@ -691,6 +692,26 @@ fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
         );
     }
     out.push_str(".\n\n");
+}
+
+/// The parameters whose fit started away from the URDF value (the closed-form fit of the
+/// measured frames), listed apart from Table 2's nominal column.
+fn starts_markdown(out: &mut String, parameters: &[ParameterEstimate]) {
+    let moved: Vec<String> = parameters
+        .iter()
+        .filter(|p| (p.start - p.nominal).abs() > 1e-9)
+        .map(|p| {
+            let unit = if p.unit == "rad" { "deg" } else { "mm" };
+            format!("{} {} {:.4} {unit}", p.owner, p.kind, display(p, p.start))
+        })
+        .collect();
+    if !moved.is_empty() {
+        let _ = writeln!(
+            out,
+            "Closed-form start (initial guess of the measured frames, not the URDF; the nominal column is the URDF's value): {}.\n",
+            moved.join(", ")
+        );
+    }
 }
 
 /// The verdict and its reasons, as the report's first section.

@@ -181,6 +181,42 @@ impl KinematicTree {
         })
     }
 
+    /// Adds link `name` on a fixed joint `<name>_joint` at the origin of link `parent` (a
+    /// marker point measured on that link, whose offset is then calibrated as a tool); the
+    /// ordering invariants hold because the new link and joint come last.
+    pub fn add_marker_link(&mut self, name: &str, parent: LinkId) -> Result<LinkId> {
+        let joint_name = format!("{name}_joint");
+        if self.link_id(name).is_ok() || self.joint_id(&joint_name).is_ok() {
+            return Err(Error::InvalidRobot {
+                origin: self.name.clone(),
+                message: format!(
+                    "a link '{name}' or joint '{joint_name}' exists already; name the measured point differently"
+                ),
+            });
+        }
+        let link = LinkId(self.links.len());
+        let joint = JointId(self.joints.len());
+        self.links[parent.0].child_joints.push(joint);
+        self.links.push(Link {
+            name: name.to_owned(),
+            parent_joint: Some(joint),
+            child_joints: Vec::new(),
+            inertial: None,
+            geometry: LinkGeometry::default(),
+        });
+        self.joints.push(Joint {
+            name: joint_name,
+            kind: JointKind::Fixed,
+            parent,
+            child: link,
+            parent_from_joint: Pose::identity(),
+            axis: Vec3::z_axis(),
+            limits: None,
+            actuation: Actuation::None,
+        });
+        Ok(link)
+    }
+
     /// The robot's name.
     pub fn name(&self) -> &str {
         &self.name

@@ -8,12 +8,14 @@
 //! changed joint's origin is `parent_pose⁻¹ · child_pose`. The measurement frame
 //! ([`McpcModel::world_from_base`]) is not part of a URDF and is not exported.
 
-use super::export_options::{added_links_xml, AddedToolLink, DroppedOffset, ExportOptions};
+use super::export_options::{
+    added_links_xml, AddedReason, AddedToolLink, DroppedOffset, ExportOptions,
+};
 use super::xml::{position, scan, unescape, Element};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::math::{pose, rpy_from_rotation, Pose, Rotation, Vec3};
-use crate::tree::{JointKind, KinematicTree};
+use crate::tree::{JointKind, KinematicTree, LinkId};
 
 /// A joint origin change smaller than this (m, and rad as twice the relative quaternion's
 /// vector part) is left out: the joint keeps its text exactly. A picometre is far below
@@ -86,15 +88,38 @@ pub fn export_urdf_with(
 ) -> Result<ExportReport> {
     let mut dropped = Vec::new();
     let mut added_links = Vec::new();
-    let placements = calibrated_placements(tree, model, options, &mut dropped, &mut added_links)?;
     let document = Document::new(original, origin)?;
+    // Links of the tree that the text does not declare: marker links added at load time
+    // (fixed leaves on a link of the text). Any other link counts as in the text, so that a
+    // text the tree was not loaded from fails on its first joint.
+    let in_text: Vec<bool> = tree
+        .links()
+        .iter()
+        .map(|l| {
+            let marker = l.child_joints.is_empty()
+                && l.parent_joint.is_some_and(|j| {
+                    let joint = tree.joint(j);
+                    joint.kind == JointKind::Fixed
+                        && document.has_link(&tree.link(joint.parent).name)
+                });
+            document.has_link(&l.name) || !marker
+        })
+        .collect();
+    let placements = calibrated_placements(
+        tree,
+        model,
+        options,
+        &in_text,
+        &mut dropped,
+        &mut added_links,
+    )?;
     for added in &added_links {
-        if tree.link_id(&added.link).is_ok() {
+        if document.has_link(&added.link) {
             return Err(Error::InvalidRobot {
                 origin: origin.to_owned(),
                 message: format!(
-                    "the robot already has a link '{}', which the export would add below tool '{}'; remove that link (and its fixed joint) from the URDF, or rename it, and export again",
-                    added.link, added.tool
+                    "the robot already has a link '{}', which the export would add below link '{}'; remove that link (and its fixed joint) from the URDF, or rename it, and export again",
+                    added.link, added.parent
                 ),
             });
         }
@@ -161,11 +186,33 @@ fn rotation_gap(a: &Rotation, b: &Rotation) -> f64 {
     2.0 * (a.inverse() * b).quaternion().imag().norm()
 }
 
+/// A calibrated tool frame that goes into a link the export adds (docs/export.md).
+struct PendingLink {
+    tool: String,
+    link: String,
+    parent: LinkId,
+    reason: AddedReason,
+    base_from_link: Pose,
+}
+
+/// Whether link `link` is a fixed leaf child of link `parent`: a marker link a previous export
+/// added, whose joint origin may be rewritten.
+fn is_fixed_leaf_below(tree: &KinematicTree, link: LinkId, parent: LinkId) -> bool {
+    let l = tree.link(link);
+    l.child_joints.is_empty()
+        && l.parent_joint.is_some_and(|j| {
+            let joint = tree.joint(j);
+            joint.kind == JointKind::Fixed && joint.parent == parent
+        })
+}
+
 /// The new placement of every joint whose origin or axis changes (`None`: keep the text).
+/// `in_text[l]`: whether link `l` is declared in the URDF text (not a marker added at load).
 fn calibrated_placements(
     tree: &KinematicTree,
     model: &McpcModel,
     options: &ExportOptions,
+    in_text: &[bool],
     dropped: &mut Vec<DroppedOffset>,
     added_links: &mut Vec<AddedToolLink>,
 ) -> Result<Vec<Option<Placement>>> {
@@ -185,12 +232,12 @@ fn calibrated_placements(
         let child = tree.joint(frame.joint).child;
         target[child.0] = Some(base_from * frame.frame_from_link);
     }
+    let mut pending: Vec<PendingLink> = Vec::new();
     for tool in model.tools() {
         let previous = tool
             .parent
             .map_or_else(Pose::identity, |p| base_from_frame[p]);
         let last_from_tool = tool.constant_transform();
-        target[tool.link.0] = Some(previous * last_from_tool);
         let link = tree.link(tool.link);
         let Some(joint_id) = link.parent_joint else {
             return Err(Error::InvalidRobot {
@@ -202,6 +249,40 @@ fn calibrated_placements(
             });
         };
         let joint = tree.joint(joint_id);
+        if !in_text[tool.link.0] {
+            // A measured point added at load time: the text gets the link.
+            pending.push(PendingLink {
+                tool: link.name.clone(),
+                link: link.name.clone(),
+                parent: joint.parent,
+                reason: AddedReason::Point,
+                base_from_link: previous * last_from_tool,
+            });
+            continue;
+        }
+        let has_children = link
+            .child_joints
+            .iter()
+            .any(|&j| in_text[tree.joint(j).child.0]);
+        if has_children {
+            // The measured frame must not drag the links below the tool along: the tool link
+            // keeps its nominal place on the calibrated chain, a marker link takes the frame.
+            let name = format!("{}_marker", link.name);
+            match tree.link_id(&name) {
+                Ok(existing) if is_fixed_leaf_below(tree, existing, tool.link) => {
+                    target[existing.0] = Some(previous * last_from_tool);
+                }
+                _ => pending.push(PendingLink {
+                    tool: link.name.clone(),
+                    link: name,
+                    parent: tool.link,
+                    reason: AddedReason::Marker,
+                    base_from_link: previous * last_from_tool,
+                }),
+            }
+            continue;
+        }
+        target[tool.link.0] = Some(previous * last_from_tool);
         if !joint.kind.is_movable() {
             continue;
         }
@@ -232,11 +313,12 @@ fn calibrated_placements(
                     tolerance_mm: tolerance * 1e3,
                 });
             } else if options.add_tool_links {
-                added_links.push(AddedToolLink {
+                pending.push(PendingLink {
                     tool: link.name.clone(),
                     link: format!("{}_calibrated", link.name),
-                    offset_mm: off_axis * 1e3,
-                    tool_from_calibrated: link_pose.inverse() * last_from_tool,
+                    parent: tool.link,
+                    reason: AddedReason::OffAxis,
+                    base_from_link: previous * last_from_tool,
                 });
             } else {
                 return Err(Error::InvalidRobot {
@@ -257,14 +339,47 @@ fn calibrated_placements(
         new_axis[joint_id.0] = Some(link_pose.rotation.inverse() * Vec3::z());
     }
 
-    // The exported poses, joint by joint, so that an origin left unchanged (below the
-    // tolerance) is accounted for by the joints after it instead of accumulating.
+    let (placements, exported) = placements_of(tree, &target, &new_axis, in_text);
+    for link in pending {
+        let parent_from_link = exported[link.parent.0].inverse() * link.base_from_link;
+        let at_parent = parent_from_link.translation.vector.norm() <= UNCHANGED_TOLERANCE
+            && rotation_gap(&parent_from_link.rotation, &Rotation::identity())
+                <= UNCHANGED_TOLERANCE;
+        if link.reason == AddedReason::Marker && at_parent {
+            // The measured frame is the tool link itself (a nominal model): nothing to add.
+            continue;
+        }
+        added_links.push(AddedToolLink {
+            // For an off-axis tool: the dropped offset, a pure translation off the axis.
+            offset_mm: parent_from_link.translation.vector.norm() * 1e3,
+            tool: link.tool,
+            link: link.link,
+            parent: tree.link(link.parent).name.clone(),
+            reason: link.reason,
+            xyz: parent_from_link.translation.vector.into(),
+            rpy: rpy_from_rotation(&parent_from_link.rotation),
+            parent_from_link,
+        });
+    }
+    Ok(placements)
+}
+
+/// The placements that reach the `target` poses, and the exported pose of every link: joint
+/// by joint, so that an origin left unchanged (below the tolerance) is accounted for by the
+/// joints after it instead of accumulating. Joints of links not in the text stay untouched.
+fn placements_of(
+    tree: &KinematicTree,
+    target: &[Option<Pose>],
+    new_axis: &[Option<Vec3>],
+    in_text: &[bool],
+) -> (Vec<Option<Placement>>, Vec<Pose>) {
     let mut exported: Vec<Pose> = Vec::with_capacity(tree.links().len());
     exported.push(Pose::identity());
     let mut placements = Vec::with_capacity(tree.joints().len());
     for (index, joint) in tree.joints().iter().enumerate() {
         let parent = exported[joint.parent.0];
-        let Some(child) = target[joint.child.0] else {
+        let child = target[joint.child.0].filter(|_| in_text[joint.child.0]);
+        let Some(child) = child else {
             exported.push(parent * joint.parent_from_joint);
             placements.push(None);
             continue;
@@ -293,7 +408,7 @@ fn calibrated_placements(
             placements.push(None);
         }
     }
-    Ok(placements)
+    (placements, exported)
 }
 
 /// Shortest text that reads back as exactly these numbers.
@@ -347,6 +462,16 @@ impl<'a> Document<'a> {
                 ),
             }),
         }
+    }
+
+    /// Whether a `<link name="…">` directly under the root declares link `name`.
+    fn has_link(&self, name: &str) -> bool {
+        self.elements.iter().any(|e| {
+            e.name == "link"
+                && e.parent.is_some_and(|p| self.elements[p].parent.is_none())
+                && e.attribute("name")
+                    .is_some_and(|a| unescape(&self.text[a.value.clone()]) == name)
+        })
     }
 
     /// The one child element `tag` of element `parent`, if any.

@@ -107,18 +107,42 @@ pub struct DroppedOffset {
     pub tolerance_mm: f64,
 }
 
-/// A fixed link the export added below a tool link, at the exact calibrated tool frame.
+/// Why the export added a link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AddedReason {
+    /// The calibrated tool origin lies off the axis of the joint that moves the tool link
+    /// ([`ExportOptions::add_tool_links`]): `<tool>_calibrated`.
+    OffAxis,
+    /// The tool link has child links, which must not move with the measured frame: the
+    /// measured (marker) frame goes into a new link `<tool>_marker` instead.
+    Marker,
+    /// A measured point (a marker link added at load time, not in the URDF text).
+    Point,
+}
+
+/// A fixed link the export added below a link of the URDF, at an exact calibrated tool frame.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct AddedToolLink {
-    /// The tool link (moved onto its joint's axis, orientation kept).
+    /// The model's tool link whose calibrated frame the added link carries (for
+    /// [`AddedReason::Point`] the added link itself).
     pub tool: String,
-    /// The added link, `<tool>_calibrated`; its fixed joint is `<tool>_calibrated_joint`.
+    /// The added link; its fixed joint is `<link>_joint`.
     pub link: String,
-    /// How far the calibrated tool origin lies off the joint axis (mm).
+    /// The URDF link it hangs from.
+    pub parent: String,
+    /// Why it was added.
+    pub reason: AddedReason,
+    /// [`AddedReason::OffAxis`]: how far the calibrated tool origin lies off the joint axis
+    /// (mm); otherwise the distance of the added link from its parent link's origin (mm).
     pub offset_mm: f64,
-    /// The added link's pose in the tool link frame (a pure translation).
+    /// The added link's pose in its parent link frame.
     #[serde(skip)]
-    pub tool_from_calibrated: Pose,
+    pub parent_from_link: Pose,
+    /// Its origin in the parent link frame, as in the URDF (m).
+    pub xyz: [f64; 3],
+    /// Its roll, pitch, yaw in the parent link frame, as in the URDF (rad).
+    pub rpy: [f64; 3],
 }
 
 /// The XML of the links in `added`, to go right before `</robot>`, each with a comment that
@@ -132,21 +156,38 @@ pub(super) fn added_links_xml(added: &[AddedToolLink], indent: &str) -> String {
     };
     let mut out = String::new();
     for link in added {
-        let t = link.tool_from_calibrated.translation.vector;
+        let (t, r) = (link.xyz, link.rpy);
+        let why = match link.reason {
+            AddedReason::OffAxis => format!(
+                "the calibrated frame of the tool, whose origin lies {:.4} mm off the axis of the joint that moves the tool link (a URDF joint cannot express that)",
+                link.offset_mm
+            ),
+            AddedReason::Marker => format!(
+                "the calibrated measured (marker) frame of tool '{}', kept apart so that the links below the tool stay where the robot's description puts them",
+                link.tool
+            ),
+            AddedReason::Point => {
+                "a measured point (marker) on the link, at its calibrated position".to_owned()
+            }
+        };
+        // `--` may not appear inside an XML comment.
+        let why = why.replace("--", "- -");
         out += &format!(
-            "{indent}<!-- Added by treecal export: the calibrated frame of the tool, whose origin lies {offset:.4} mm off the axis of the joint that moves the tool link (a URDF joint cannot express that). -->\n\
+            "{indent}<!-- Added by treecal export: {why}. -->\n\
              {indent}<link name=\"{name}\"/>\n\
              {indent}<joint name=\"{name}_joint\" type=\"fixed\">\n\
-             {indent}  <parent link=\"{tool}\"/>\n\
+             {indent}  <parent link=\"{parent}\"/>\n\
              {indent}  <child link=\"{name}\"/>\n\
-             {indent}  <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>\n\
+             {indent}  <origin xyz=\"{} {} {}\" rpy=\"{} {} {}\"/>\n\
              {indent}</joint>\n",
-            t.x,
-            t.y,
-            t.z,
-            tool = escape(&link.tool),
+            t[0],
+            t[1],
+            t[2],
+            r[0],
+            r[1],
+            r[2],
+            parent = escape(&link.parent),
             name = escape(&link.link),
-            offset = link.offset_mm,
         );
     }
     out

@@ -15,7 +15,7 @@ mod tolerant;
 mod xml;
 
 pub use export::{export_urdf, export_urdf_with, ExportReport, JointChange};
-pub use export_options::{AddedToolLink, DroppedOffset, ExportOptions};
+pub use export_options::{AddedReason, AddedToolLink, DroppedOffset, ExportOptions};
 pub use from_mcpc::urdf_from_mcpc_table;
 
 pub use import::{load_urdf, parse_urdf, UrdfImport};

@@ -227,6 +227,15 @@ pub(super) fn outputs(
         markdown.push_str(&crate::report::sessions_markdown(sessions));
     }
     let mut params = to_yaml(&parameter_file(tree.name(), run))?;
+    // The links the export added (marker frames, measured points): `treecal export` rebuilds
+    // the measured points from this list.
+    if let Some(added) = export
+        .as_ref()
+        .map(|e| &e.added_links)
+        .filter(|a| !a.is_empty())
+    {
+        params.push_str(&to_yaml(&serde_json::json!({ "added_links": added }))?);
+    }
     let json_error = |e: serde_json::Error| Error::InvalidData {
         origin: "report.json".into(),
         message: e.to_string(),

@@ -9,7 +9,7 @@ use super::cross_validation::{
 use super::export::export_notes;
 use super::model_choice::{prepare, run_model, ModelChoice, ModelLevel, ModelSpec};
 use super::note::Note;
-use super::source::{measured_branches, LoadedRobot};
+use super::source::{add_measured_points, measured_branches, LoadedRobot, MeasuredPoints};
 use crate::calibration::{
     hold_out_indices, identified_stiffness, identify_stiffness, CalibrationInput, CalibrationRun,
     Finding, IdentificationOptions, MeasurementFrame, Plan, StiffnessOptions,
@@ -52,6 +52,8 @@ pub(super) struct Loaded {
     pub branches: Branches,
     pub nominal: McpcModel,
     pub frame: MeasurementFrame,
+    /// The measured points added to the robot as marker links.
+    pub points: MeasuredPoints,
 }
 
 impl Loaded {
@@ -62,15 +64,21 @@ impl Loaded {
             MeasurementFrameChoice::Base => MeasurementFrame::Base,
             MeasurementFrameChoice::File(path) => MeasurementFrame::Known(read_registration(path)?),
         };
-        let robot = config.robot.load()?;
-        let branches =
-            measured_branches(&robot.import, config.tools.as_deref(), &config.measurements)?;
+        let mut robot = config.robot.load()?;
+        let points = add_measured_points(
+            &mut robot.import,
+            config.tools.as_deref(),
+            &config.measurements,
+        )?;
+        let tools = points.tools.as_deref().or(config.tools.as_deref());
+        let branches = measured_branches(&robot.import, tools, &config.measurements)?;
         let nominal = McpcModel::from_tree(robot.tree(), &branches)?;
         Ok(Self {
             robot,
             branches,
             nominal,
             frame,
+            points,
         })
     }
 }
@@ -97,11 +105,18 @@ pub(super) fn read_data(
         joint_length_unit: config.joint_length_unit,
         ignore_columns: config.ignore_columns.clone(),
         strict_limits: config.strict,
+        tool: config
+            .tools
+            .as_ref()
+            .filter(|t| t.len() == 1)
+            .map(|t| t[0].trim().to_owned()),
     };
+    notes.extend(loaded.points.note());
     let tree = loaded.robot.tree();
     let mut read = |source: &super::source::MeasurementSource| {
         let set = source.read(tree, &loaded.nominal, &options)?;
         notes.extend(set.warnings.iter().map(Note::warning));
+        notes.extend(set.notes.iter().map(Note::info));
         Ok::<_, Error>((set.measurements, set.ids))
     };
     let (all, all_ids) = read(&config.measurements)?;

@@ -3,7 +3,8 @@
 
 use super::checks::sigmas;
 use super::source::{
-    branches, measured_branches, MeasurementSource, PlanSource, RobotSource, StiffnessSource,
+    add_measured_points, branches, measured_branches, MeasurementSource, PlanSource, RobotSource,
+    StiffnessSource,
 };
 use super::Note;
 use crate::calibration::{
@@ -151,12 +152,18 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
     let mut notes = Vec::new();
     let robot = config.robot.load()?;
     notes.extend(robot.notes());
-    let import = robot.import;
-    let tree = &import.tree;
+    let mut import = robot.import;
     let branches = match &config.measurements {
-        Some(source) => measured_branches(&import, config.tools.as_deref(), source)?,
+        Some(source) => {
+            // Measured points become marker links, as in `calibrate`.
+            let points = add_measured_points(&mut import, config.tools.as_deref(), source)?;
+            notes.extend(points.note());
+            let tools = points.tools.as_deref().or(config.tools.as_deref());
+            measured_branches(&import, tools, source)?
+        }
         None => branches(&import, config.tools.as_deref())?,
     };
+    let tree = &import.tree;
     let model = McpcModel::from_tree(tree, &branches)?;
     let requested = requested_plan(&config.plan)?;
     let rows = rows(
@@ -376,9 +383,15 @@ fn measurement_rows(
         joint_length_unit: config.joint_length_unit,
         ignore_columns: config.ignore_columns.clone(),
         strict_limits: false,
+        tool: config
+            .tools
+            .as_ref()
+            .filter(|t| t.len() == 1)
+            .map(|t| t[0].trim().to_owned()),
     };
     let set = source.read(tree, model, &options)?;
     notes.extend(set.warnings.iter().map(Note::warning));
+    notes.extend(set.notes.iter().map(Note::info));
     let rows: Vec<PoseRow> = set
         .measurements
         .iter()

@@ -4,9 +4,9 @@ use super::note::Note;
 use super::source::{branches, RobotSource};
 use crate::calibration::Finding;
 use crate::error::Result;
-use crate::io::{read_parameters, write_atomically};
+use crate::io::{read_parameter_file_robot, read_parameters, write_atomically};
 use crate::kinematics::McpcModel;
-use crate::urdf::{export_urdf_with, ExportOptions, ExportReport};
+use crate::urdf::{export_urdf_with, AddedReason, ExportOptions, ExportReport};
 use std::path::{Path, PathBuf};
 
 /// At most this many parameters missing from the file are named one by one.
@@ -39,10 +39,22 @@ pub struct Export {
 /// Sets the file's parameters on the robot's MCPC model and rewrites the joint origins (and
 /// axes where needed) that change; every other byte of the URDF is kept.
 pub fn export(config: &ExportConfig) -> Result<Export> {
-    let robot = config.robot.load()?;
+    let mut robot = config.robot.load()?;
     let mut notes = robot.notes();
+    // Measured points the calibration added as marker links: the model needs them again.
+    let file_robot = read_parameter_file_robot(&config.parameters)?;
+    for (link, parent) in &file_robot.points {
+        if robot.tree().link_id(link).is_err() {
+            let parent = robot.tree().link_id(parent)?;
+            robot.import.tree.add_marker_link(link, parent)?;
+        }
+    }
+    let tools = match &config.tools {
+        None if !file_robot.points.is_empty() => Some(file_robot.tools.clone()),
+        tools => tools.clone(),
+    };
     let tree = robot.tree();
-    let branches = branches(&robot.import, config.tools.as_deref())?;
+    let branches = branches(&robot.import, tools.as_deref())?;
     let mut model = McpcModel::from_tree(tree, &branches)?;
     let parameters = read_parameters(&config.parameters, tree, &model)?;
     // A file for another branch selection misses every parameter: name a few, count the rest.
@@ -103,11 +115,19 @@ pub fn export_notes(report: &ExportReport) -> Vec<Finding> {
             d.tool, d.joint, d.offset_mm, d.tolerance_mm
         )
     });
-    let added = report.added_links.iter().map(|a| {
-        format!(
+    let added = report.added_links.iter().map(|a| match a.reason {
+        AddedReason::OffAxis => format!(
             "added link '{}' below tool '{}' at the exact calibrated tool frame ({:.4} mm off the joint axis, which the tool link itself cannot be)",
             a.link, a.tool, a.offset_mm
-        )
+        ),
+        AddedReason::Marker => format!(
+            "added link '{}' below tool '{}' at the calibrated measured (marker) frame, {:.1} mm from the tool link's origin: '{}' has child links, which keep their place on the calibrated arm; use '{}' for the measured frame",
+            a.link, a.tool, a.offset_mm, a.tool, a.link
+        ),
+        AddedReason::Point => format!(
+            "added link '{}' below '{}' at the calibrated position of the measured point ({:.1} mm from the link's origin)",
+            a.link, a.parent, a.offset_mm
+        ),
     });
     dropped
         .chain(added)

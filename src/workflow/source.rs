@@ -5,8 +5,8 @@ use super::note::Note;
 use crate::calibration::Plan;
 use crate::error::{Error, Result};
 use crate::io::{
-    parse_stiffness, read_measured_tool_names, read_measurements, read_plan, read_stiffness,
-    MeasurementReadOptions, MeasurementSet, MeasurementTable,
+    parse_stiffness, read_measured_targets, read_measured_tool_names, read_measurements, read_plan,
+    read_stiffness, MeasurementReadOptions, MeasurementSet, MeasurementTable,
 };
 use crate::kinematics::{McpcModel, Stiffness};
 use crate::tree::{detect_branches, Branches, KinematicTree};
@@ -137,11 +137,136 @@ pub fn measured_branches(
                     MeasurementSource::Csv(path) => format!("{}: tool column", path.display()),
                     MeasurementSource::Table(table) => table.place_of_tool(name),
                 },
-                message: format!("{e}; the tool column names the measured tool links"),
+                message: format!(
+                    "{e}; the tool column names the measured tool links (points on one body: name the body's link with --tools)"
+                ),
             })
         })
         .collect::<Result<Vec<_>>>()?;
     detect_branches(tree, Some(&ids))
+}
+
+/// The measured points the robot's URDF lacks, added to its tree as marker links (a fixed
+/// leaf link each, at its parent link's origin, whose offset is calibrated as a tool).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct MeasuredPoints {
+    /// `(marker link, parent link)` of every link added, in order of first appearance.
+    pub added: Vec<(String, String)>,
+    /// The tools of the model when points were added: the `--tools` with each body whose
+    /// points are measured replaced by its marker links, else the measured links. `None`: no
+    /// points added, the tools are chosen as before.
+    pub tools: Option<Vec<String>>,
+}
+
+impl MeasuredPoints {
+    /// The note naming the added marker links, if any.
+    pub fn note(&self) -> Option<Note> {
+        if self.added.is_empty() {
+            return None;
+        }
+        let listed: Vec<String> = self
+            .added
+            .iter()
+            .map(|(link, parent)| format!("'{link}' on '{parent}'"))
+            .collect();
+        Some(Note::info(format!(
+            "{} measured point(s) read as marker links, each a tool with its own calibrated offset on its link: {}; calibrated.urdf gets these links, params.yaml lists them",
+            listed.len(),
+            listed.join(", ")
+        )))
+    }
+}
+
+/// Adds the points the measurements name (a `point` column: link `<tool>_<point>`; or, when
+/// `--tools` names one link and no `tool` value is a link of the robot, every `tool` value a
+/// point on that link) to `import`'s tree as marker links. A link of that name that is already
+/// a fixed leaf below the tool (a markers URDF, or a previous export) is used as it is.
+pub fn add_measured_points(
+    import: &mut UrdfImport,
+    tools: Option<&[String]>,
+    measurements: &MeasurementSource,
+) -> Result<MeasuredPoints> {
+    let pairs = measurements.targets()?;
+    let tree = &mut import.tree;
+    let body = tools
+        .filter(|t| t.len() == 1)
+        .map(|t| t[0].trim().to_owned());
+    let any_link = pairs.iter().any(|(tool, point)| {
+        point.is_none() && tool.as_ref().is_some_and(|t| tree.link_id(t).is_ok())
+    });
+    let origin = measurements.origin();
+    let mut points = MeasuredPoints::default();
+    let mut measured: Vec<String> = Vec::new();
+    for (tool, point) in pairs {
+        let Some(tool) = tool.or_else(|| body.clone()) else {
+            return Err(Error::InvalidData {
+                origin,
+                message: "the measurements have no 'tool' column; add one naming the measured tool link of each row, or name the one measured tool (the body the points are on) with --tools".into(),
+            });
+        };
+        let (name, parent) = match (&point, &body) {
+            (Some(point), _) => (
+                crate::io::measured_link_name(&tool, Some(point)),
+                tool.clone(),
+            ),
+            (None, Some(body)) if !any_link && tree.link_id(&tool).is_err() => {
+                (tool.clone(), body.clone())
+            }
+            (None, _) => {
+                measured.push(tool);
+                continue;
+            }
+        };
+        let parent_id = tree.link_id(&parent).map_err(|e| Error::InvalidData {
+            origin: origin.clone(),
+            message: format!("{e}; the points of the measurements are on link '{parent}'"),
+        })?;
+        match tree.link_id(&name) {
+            Ok(existing) => {
+                let link = tree.link(existing);
+                let fixed_leaf = link.child_joints.is_empty()
+                    && link.parent_joint.is_some_and(|j| {
+                        let joint = tree.joint(j);
+                        joint.parent == parent_id && !joint.kind.is_movable()
+                    });
+                if !fixed_leaf {
+                    return Err(Error::InvalidData {
+                        origin: origin.clone(),
+                        message: format!(
+                            "the measured point '{name}' would be a marker link on '{parent}', but the robot has a link '{name}' that is not a fixed leaf link below '{parent}'; rename the point"
+                        ),
+                    });
+                }
+            }
+            Err(_) => {
+                tree.add_marker_link(&name, parent_id)?;
+                points.added.push((name.clone(), parent.clone()));
+            }
+        }
+        measured.push(name);
+    }
+    if points.added.is_empty() {
+        return Ok(points);
+    }
+    let parent_of = |link: &str| points.added.iter().find(|(l, _)| l == link).map(|(_, p)| p);
+    points.tools = Some(match tools {
+        Some(tools) => {
+            let mut chosen: Vec<String> = Vec::new();
+            for tool in tools.iter().map(|t| t.trim()) {
+                let markers = measured
+                    .iter()
+                    .filter(|m| parent_of(m).is_some_and(|p| p == tool));
+                let mut markers = markers.cloned().peekable();
+                if markers.peek().is_none() || measured.iter().any(|m| m == tool) {
+                    chosen.push(tool.to_owned());
+                }
+                chosen.extend(markers);
+            }
+            chosen
+        }
+        None => measured,
+    });
+    Ok(points)
 }
 
 /// Measurements: a CSV file (docs/file-formats.md) or arrays.
@@ -174,6 +299,19 @@ impl MeasurementSource {
         match self {
             MeasurementSource::Csv(path) => Some(path),
             MeasurementSource::Table(_) => None,
+        }
+    }
+
+    /// The distinct `(tool, point)` pairs the rows name, in order of first appearance
+    /// ([`crate::io::measured_targets`]).
+    pub fn targets(&self) -> Result<Vec<(Option<String>, Option<String>)>> {
+        match self {
+            MeasurementSource::Csv(path) => read_measured_targets(path),
+            MeasurementSource::Table(table) => Ok(table
+                .tool_names()?
+                .into_iter()
+                .map(|name| (Some(name), None))
+                .collect()),
         }
     }
 

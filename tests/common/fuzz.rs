@@ -111,6 +111,7 @@ pub fn measurements_csv(data: &[u8]) {
         joint_length_unit: None,
         ignore_columns: vec!["time".into()],
         strict_limits: first & 4 != 0,
+        tool: None,
     };
     let _ = parse_measurements(text, "fuzz.csv", tree, model, &options);
 }

@@ -156,7 +156,8 @@ pub fn example_robot(relative: &str) -> Option<PathBuf> {
 /// `robots/humanoid` with each palm (`l_hand`, `r_hand`) as the child link of its wrist roll
 /// joint, as on real humanoids: the `*_wrist_roll_link` links and the fixed `*_hand_joint`s are
 /// removed, and the wrist roll joints get oblique origins (and, on the right, an oblique axis),
-/// so the palm frames are neither aligned with nor offset along the axis in a trivial way.
+/// so the palm frames are neither aligned with nor offset along the axis in a trivial way. The
+/// fingers are removed, so the palms are leaf links.
 pub fn humanoid_with_palms_on_wrists() -> String {
     let mut text = std::fs::read_to_string(robot("humanoid/humanoid.urdf")).unwrap();
     for (side, rpy, axis) in [
@@ -186,6 +187,20 @@ pub fn humanoid_with_palms_on_wrists() -> String {
         );
         assert!(text.contains(&old), "{old}");
         text = text.replace(&old, &new);
+        // The fingers go: a palm with child links keeps its place and gets a marker link on
+        // export (tests/export.rs, `tool_with_children_*`); these palms are leaves.
+        for finger in ["left", "right"] {
+            remove(
+                &mut text,
+                &format!("<joint name=\"{side}_finger_{finger}\""),
+                "</joint>",
+            );
+            remove(
+                &mut text,
+                &format!("<link name=\"{side}_finger_{finger}_link\">"),
+                "</link>",
+            );
+        }
     }
     text
 }
