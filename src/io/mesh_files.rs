@@ -47,7 +47,7 @@ pub fn mesh_file_loader(
 /// the file cannot be read or parsed or holds no vertices.
 ///
 /// The file is read through the bounded reader ([`crate::io::bounded`]: regular files only, at
-/// most [`MAX_MESH_BYTES`]). COLLADA goes to treecal's own reader ([`super::collada`]), STL and
+/// most [`MAX_MESH_BYTES`]). COLLADA goes to treecal's own reader (`src/io/collada.rs`), STL and
 /// OBJ to `mesh-loader`, which opens no other file: an OBJ's `mtllib` (materials, not needed
 /// for a hull) is never read, so it cannot name a FIFO that blocks the command.
 pub fn read_mesh_vertices(path: &Path) -> MeshLookup {

@@ -34,7 +34,7 @@ struct UnitsEntry {
 
 /// Parses a registration: `world_from_base`, the pose of the robot's root link frame in the
 /// measurement frame (metres, radians); `origin` names the file in messages. The size and
-/// depth are limited and unknown keys are errors ([`super::yaml`]); `xyz` must be within
+/// depth are limited and unknown keys are errors (`src/io/yaml.rs`); `xyz` must be within
 /// [`crate::limits::MAX_LENGTH`] and `rpy` within [`crate::limits::MAX_ANGLE`], checked here
 /// with the file and line.
 pub fn parse_registration(text: &str, origin: &str) -> Result<Pose> {
