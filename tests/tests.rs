@@ -12,6 +12,7 @@ mod flexibility;
 mod frame;
 mod from_mcpc;
 mod hardening;
+mod hardening_outputs;
 mod identifiability;
 mod identification;
 mod jacobian;

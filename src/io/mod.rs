@@ -5,6 +5,7 @@ pub mod mcpc_table;
 pub mod measurement_table;
 pub mod measurements_csv;
 pub mod mesh_files;
+pub mod output_lock;
 pub mod params;
 pub mod plan;
 pub mod poses_csv;
@@ -25,6 +26,7 @@ pub use measurements_csv::{
     MeasurementWriteOptions, ObservationKind,
 };
 pub use mesh_files::{mesh_file_loader, package_dirs, read_mesh_vertices, resolve_mesh};
+pub use output_lock::OutputLock;
 pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use plan::{parse_plan, read_plan};
 pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
@@ -34,7 +36,9 @@ pub use stiffness_write::stiffness_to_yaml;
 pub use units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
-pub use write::{check_output_folder, replace_folder, write_atomically};
+pub use write::{
+    check_output_dir, check_output_file, check_output_folder, replace_folder, write_atomically,
+};
 
 use crate::error::{Error, Result};
 
