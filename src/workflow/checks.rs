@@ -61,8 +61,9 @@ pub fn check_outputs(outputs: &[Output<'_>], inputs: &[&Path]) -> Result<()> {
                     input.display()
                 ),
                 Output::Folder(_) if input_path.starts_with(&target) => format!(
-                    "the output folder holds the input file {}, which writing the outputs \
-                     could replace or delete: choose another output folder, or move the input",
+                    "the output folder holds the input file {}; writing the outputs would \
+                     replace the input or delete it: choose another output folder, or move \
+                     the input",
                     input.display()
                 ),
                 _ => continue,
