@@ -98,6 +98,9 @@ fn a_closed_pipe_ends_every_printing_command_quietly() {
         );
         assert_eq!(code, Some(0), "{args:?}: exit code\n{stderr}");
     }
+    // simulate states its collision check in summary.md's header.
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(summary.contains("self-collision check: meshes ("), "{summary}");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -188,6 +191,25 @@ fn a_robot_whose_shapes_all_load_plans_with_the_full_check_stated() {
         !run.stderr.contains("collision") && !run.stderr.contains("mesh"),
         "no false alarm: {run}"
     );
+}
+
+#[test]
+fn an_unreadable_mesh_is_named_without_an_unformatted_placeholder() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "probe.xyz", "not a mesh at all");
+    let text = std::fs::read_to_string(robot("humanoid/humanoid.urdf")).unwrap();
+    let text = text.replacen(
+        "</robot>",
+        r#"<link name="mesh_probe"><collision><geometry><mesh filename="probe.xyz"/></geometry></collision></link>
+<joint name="mesh_probe_joint" type="fixed"><parent link="r_foot"/><child link="mesh_probe"/></joint>
+</robot>"#,
+        1,
+    );
+    let urdf = write(dir.path(), "robot.urdf", &text);
+    let out = dir.path().join("poses.csv");
+    let run = treecal(&plan_args(path_str(&urdf), path_str(&out), None));
+    assert_error(&run, &["probe.xyz", "unreadable"], "plan with a non-mesh file");
+    assert!(!run.stderr.contains("{path"), "{run}");
 }
 
 #[test]

@@ -13,10 +13,12 @@ from conftest import EXAMPLE_CSV, ROBONAUT, STIFFNESS
 
 @pytest.fixture(scope="module")
 def kept_inputs(tmp_path_factory):
-    """A calibration whose robot and stiffness live in the folder the user then writes to."""
+    """A calibration whose robot is a file the user then writes to, and whose stiffness file
+    sits (under an output's name) in the folder the user then writes to."""
     folder = tmp_path_factory.mktemp("work")
     robot = folder / "robot.urdf"
-    stiffness = folder / "stiffness.yaml"
+    (folder / "out").mkdir()
+    stiffness = folder / "out" / "stiffness.yaml"
     shutil.copy(ROBONAUT, robot)
     shutil.copy(STIFFNESS, stiffness)
     cal = treecal.calibrate(robot, EXAMPLE_CSV, stiffness=stiffness)
@@ -28,8 +30,13 @@ def test_write_refuses_a_folder_holding_an_input(kept_inputs):
     cal, folder, robot, stiffness = kept_inputs
     before = stiffness.read_bytes()
     with pytest.raises(treecal.TreecalError, match="holds the input file.*stiffness.yaml"):
-        cal.write(folder)
+        cal.write(folder / "out")
     assert stiffness.read_bytes() == before
+    with pytest.raises(treecal.TreecalError, match="holds the input file.*robot.urdf"):
+        cal.write(folder)
+    # Elsewhere it writes (no false alarm).
+    cal.write(folder / "elsewhere")
+    assert (folder / "elsewhere" / "report.md").read_text() == cal.markdown
 
 
 def test_write_urdf_refuses_the_input_robot(kept_inputs):
