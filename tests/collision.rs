@@ -705,7 +705,11 @@ fn plan_names_the_collision_meshes_it_cannot_find() {
     let csv = std::fs::read_to_string(&out).unwrap();
     assert!(
         csv.starts_with("# self-collision check: primitives-only (")
-            && csv.lines().next().unwrap().contains("69 collision meshes NOT checked"),
+            && csv
+                .lines()
+                .next()
+                .unwrap()
+                .contains("69 collision meshes NOT checked"),
         "{csv}"
     );
 }

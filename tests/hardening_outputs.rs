@@ -98,9 +98,27 @@ fn a_closed_pipe_ends_every_printing_command_quietly() {
         );
         assert_eq!(code, Some(0), "{args:?}: exit code\n{stderr}");
     }
+    // Any other failure to print is still an error (a full disk behind a redirection).
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full");
+    if let Ok(full) = full {
+        let output = Command::new(env!("CARGO_BIN_EXE_treecal"))
+            .arg("inspect")
+            .stdout(Stdio::from(full))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.starts_with("treecal: error: standard output:"),
+            "{stderr}"
+        );
+    }
     // simulate states its collision check in summary.md's header.
     let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
-    assert!(summary.contains("self-collision check: meshes ("), "{summary}");
+    assert!(
+        summary.contains("self-collision check: meshes ("),
+        "{summary}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -208,7 +226,11 @@ fn an_unreadable_mesh_is_named_without_an_unformatted_placeholder() {
     let urdf = write(dir.path(), "robot.urdf", &text);
     let out = dir.path().join("poses.csv");
     let run = treecal(&plan_args(path_str(&urdf), path_str(&out), None));
-    assert_error(&run, &["probe.xyz", "unreadable"], "plan with a non-mesh file");
+    assert_error(
+        &run,
+        &["probe.xyz", "unreadable"],
+        "plan with a non-mesh file",
+    );
     assert!(!run.stderr.contains("{path"), "{run}");
 }
 
@@ -473,6 +495,13 @@ fn rows_whose_stage_no_stage_uses_are_named_and_an_error_when_strict() {
         })
         .collect();
     let csv = write(dir.path(), "m.csv", &(lines.join("\n") + "\n"));
+    // `check` analyses the stages of the same plan: it names them too.
+    let run = treecal(&["check", "--measurements", path_str(&csv)]);
+    assert_success(&run, "check");
+    assert!(
+        run.stderr.contains("2 rows labelled 'arm'") && run.stderr.contains("used by no stage"),
+        "{run}"
+    );
     let out = dir.path().join("out");
     let run = treecal(&[
         "calibrate",
