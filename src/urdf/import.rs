@@ -480,10 +480,10 @@ impl Importer<'_> {
                 multiplier *= m;
                 // Each factor is bounded, their product is not: a long chain can overflow.
                 let composed = magnitude_problem(multiplier, Quantity::Factor)
-                    .map(|p| format!("multiplier {p}"))
+                    .map(|p| format!("multiplier: {p}"))
                     .or_else(|| {
                         magnitude_problem(offset, Quantity::JointLimit)
-                            .map(|p| format!("offset {p}"))
+                            .map(|p| format!("offset: {p}"))
                     });
                 if let Some(problem) = composed {
                     return Err(self.invalid(
