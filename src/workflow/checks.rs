@@ -131,19 +131,19 @@ pub fn unused_stage_rows(
                 None => ("without a stage label".into(), String::new()),
             };
             format!(
-                "{} rows {what} (rows {}{more}){hint}",
+                "{} rows {what} (rows {}{more}{hint})",
                 rows.len(),
                 shown.join(", ")
             )
         })
         .collect();
     Some(format!(
-        "{} are used by no stage of the plan (its stages use {}) and are left out; fix the \
+        "rows used by no stage of the plan (its stages use {}) are left out: {}; fix the \
          labels or the plan's `measurements:`",
-        parts.join("; "),
         used.iter()
             .map(|l| format!("'{l}'"))
             .collect::<Vec<_>>()
-            .join(", ")
+            .join(", "),
+        parts.join("; ")
     ))
 }
