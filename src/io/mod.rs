@@ -1,5 +1,8 @@
 //! Reading and writing data files (YAML, CSV): the only users of serde_yaml and csv.
 
+pub mod bounded;
+mod collada;
+mod csv_scan;
 pub mod joints_csv;
 pub mod mcpc_table;
 pub mod measurement_table;
@@ -14,7 +17,9 @@ pub mod stiffness;
 pub mod stiffness_write;
 pub mod units;
 pub mod write;
+mod yaml;
 
+pub use bounded::{read_bytes, read_text};
 pub use joints_csv::{
     append_poses, configurations, joint_value, parse_csv, ColumnMapping, CsvTable,
 };
@@ -25,7 +30,9 @@ pub use measurements_csv::{
     read_measured_tool_names, read_measurements, MeasurementReadOptions, MeasurementSet,
     MeasurementWriteOptions, ObservationKind,
 };
-pub use mesh_files::{mesh_file_loader, package_dirs, read_mesh_vertices, resolve_mesh};
+pub use mesh_files::{
+    mesh_file_loader, mesh_vertices, package_dirs, read_mesh_vertices, resolve_mesh,
+};
 pub use output_lock::OutputLock;
 pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use plan::{parse_plan, read_plan};

@@ -1,12 +1,15 @@
 //! Human- and machine-readable reports.
 
+pub mod artifact;
 pub mod calibrate;
 pub mod check;
 pub mod inspect;
 pub mod outliers;
 pub mod plot;
+pub mod sessions;
 pub mod simulate;
 pub mod stiffness;
+pub mod strata;
 
 pub use calibrate::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file, ArmReport,
@@ -15,5 +18,6 @@ pub use calibrate::{
 pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use inspect::{inspect, InspectReport};
 pub use outliers::{outlier_rows, OutlierRow, RobustSummary};
+pub use sessions::{sessions_markdown, sessions_summary, SessionsSummary};
 pub use simulate::{simulation_results, SimulationResults, RESULTS_SCHEMA};
 pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};

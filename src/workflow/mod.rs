@@ -4,14 +4,17 @@
 //! See docs/workflows.md.
 
 pub mod calibrate;
+pub mod calibrate_artifact;
 mod calibrate_outputs;
 mod calibrate_steps;
 pub mod check;
 pub mod checker;
 pub mod checks;
+pub mod cross_validation;
 pub mod export;
 pub mod fk;
 pub mod model;
+pub mod model_choice;
 pub mod note;
 pub mod plan;
 pub mod progress;
