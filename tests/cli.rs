@@ -255,6 +255,7 @@ const POSE_COLUMNS: [&str; 12] = [
 fn read_csv(text: &str) -> (Vec<String>, Vec<Vec<String>>) {
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
+        .comment(Some(b'#'))
         .from_reader(text.as_bytes());
     let header = reader
         .headers()

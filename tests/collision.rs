@@ -649,8 +649,10 @@ fn example_robot_data_collision_meshes_all_load() {
 }
 
 /// Robonaut 2's description names 69 COLLADA collision meshes that are not shipped with it:
-/// `plan` says in one line how many were not found and names them; with `--package-path`
-/// pointing at a folder that holds one of them (the test cube as `Body.dae`), that one loads.
+/// `plan` stops with one error that says how many were not found, names them and the flags;
+/// with `--package-path` pointing at a folder that holds one of them (the test cube as
+/// `Body.dae`), that one loads and the others are still named; `--collision-check
+/// primitives-only` plans without them and says so in the pose file.
 #[test]
 fn plan_names_the_collision_meshes_it_cannot_find() {
     use crate::common::cli::*;
@@ -674,26 +676,42 @@ fn plan_names_the_collision_meshes_it_cannot_find() {
     };
     let first = args(&[]);
     let run = treecal(&first.iter().map(String::as_str).collect::<Vec<_>>());
-    assert_success(&run, "plan");
-    let warnings: Vec<&str> = run
-        .stderr
-        .lines()
-        .filter(|l| l.contains("collision meshes"))
-        .collect();
-    assert_eq!(warnings.len(), 1, "{run}");
-    assert!(
-        warnings[0].contains("files not found")
-            && warnings[0].contains("package://r2_description/meshes/r2_upperbody/Backpack.dae"),
-        "{run}"
+    assert_error(
+        &run,
+        &[
+            "69 of 69 collision meshes cannot be used",
+            "files not found",
+            "package://r2_description/meshes/r2_upperbody/Backpack.dae",
+            "--package-path",
+            "--collision-check primitives-only",
+        ],
+        "plan",
     );
+    assert!(!out.exists());
     let meshes = dir.path().join("r2_description/meshes/r2_upperbody");
     std::fs::create_dir_all(&meshes).unwrap();
     std::fs::copy(repo().join("tests/data/cube.dae"), meshes.join("Body.dae")).unwrap();
     let second = args(&["--package-path", path_str(dir.path())]);
     let run = treecal(&second.iter().map(String::as_str).collect::<Vec<_>>());
-    assert_success(&run, "plan --package-path");
+    assert_error(
+        &run,
+        &["68 of 69", "r2_upperbody/Backpack.dae"],
+        "plan --package-path",
+    );
     assert!(!run.stderr.contains("r2_upperbody/Body.dae"), "{run}");
-    assert!(run.stderr.contains("r2_upperbody/Backpack.dae"), "{run}");
+    let third = args(&["--collision-check", "primitives-only"]);
+    let run = treecal(&third.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_success(&run, "plan --collision-check primitives-only");
+    let csv = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        csv.starts_with("# self-collision check: primitives-only (")
+            && csv
+                .lines()
+                .next()
+                .unwrap()
+                .contains("69 collision meshes NOT checked"),
+        "{csv}"
+    );
 }
 
 /// Romeo's COLLADA meshes overlap by design between neighbouring wrist links (elbow yaw and

@@ -68,9 +68,15 @@ impl PyCalibration {
             .collect()
     }
 
-    /// Writes every output file into `out` (like `treecal calibrate --out`).
+    /// Writes every output file into `out` (like `treecal calibrate --out`); refuses a folder
+    /// holding an input.
     fn write(&self, py: Python<'_>, out: PathBuf) -> PyResult<()> {
         py.detach(|| self.inner.write(&out)).map_err(to_py)
+    }
+
+    /// Writes calibrated.urdf to `path` (atomically); refuses an input's path.
+    fn write_urdf(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.inner.write_urdf(&path)).map_err(to_py)
     }
 }
 

@@ -22,9 +22,66 @@ pyo3::create_exception!(
      calibration that cannot run. The message is the CLI's `treecal: error:` text."
 );
 
-/// The Python exception carrying `error`'s message.
+/// The Python exception carrying `error`'s message, with the CLI flags it names turned into
+/// this package's keyword arguments.
 pub(crate) fn to_py(error: treecal::Error) -> PyErr {
-    TreecalError::new_err(error.to_string())
+    TreecalError::new_err(python_names(&error.to_string()))
+}
+
+/// The library's messages name the CLI's flags; Python users set the same things with these
+/// keyword arguments (of `calibrate`, `fk`, `Measurements` and `Calibration.write`).
+const KEYWORDS: &[(&str, &str)] = &[
+    ("add-tool-links", "add_tool_links"),
+    ("angle-unit", "angle_unit"),
+    ("gravity-frame", "gravity_frame"),
+    ("identify-stiffness", "identify_stiffness"),
+    ("ignore-columns", "ignore_columns"),
+    ("joint-length-unit", "joint_length_unit"),
+    ("joints", "joints"),
+    ("length-unit", "length_unit"),
+    ("measurement-frame", "measurement_frame"),
+    ("measurements", "measurements"),
+    ("out", "out_dir"),
+    ("plan", "plan"),
+    ("plan-file", "plan"),
+    ("position-sigma", "position_sigma"),
+    ("robot", "robot"),
+    ("robust", "robust"),
+    ("rotation-sigma", "rotation_sigma"),
+    ("seed", "seed"),
+    ("stiffness", "stiffness"),
+    ("stiffness-prior", "stiffness_prior"),
+    ("strict", "strict"),
+    ("tip", "tip"),
+    ("tools", "tools"),
+    ("validation", "validation"),
+];
+
+/// `message` with each `--flag` of [`KEYWORDS`] replaced by its keyword argument (other flags,
+/// of commands the binding does not offer, are left as they are).
+fn python_names(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message;
+    while let Some(start) = rest.find("--") {
+        out.push_str(&rest[..start]);
+        let after = &rest[start + 2..];
+        let end = after
+            .find(|c: char| !(c.is_ascii_lowercase() || c == '-'))
+            .unwrap_or(after.len());
+        let flag = after[..end].trim_end_matches('-');
+        match KEYWORDS.iter().find(|(f, _)| *f == flag) {
+            Some((_, keyword)) if !flag.is_empty() => {
+                out.push_str(keyword);
+                rest = &after[flag.len()..];
+            }
+            _ => {
+                out.push_str("--");
+                rest = after;
+            }
+        }
+    }
+    out.push_str(rest);
+    out
 }
 
 /// A `TreecalError` with a message of the binding's own (bad argument values).

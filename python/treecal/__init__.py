@@ -10,7 +10,6 @@ from __future__ import annotations
 import collections.abc
 import json
 import os
-from pathlib import Path
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -34,11 +33,73 @@ PathLike = Union[str, "os.PathLike[str]"]
 _OBSERVATION_WIDTH = {"positions": 3, "poses": 7, "targets": 9}
 
 
+_SEED_MAX = 2**64 - 1
+
+
+def _path(value: Any, name: str) -> str:
+    """A path argument as a string (str or os.PathLike of str)."""
+    try:
+        path = os.fspath(value)
+    except TypeError:
+        raise TreecalError(f"{name}: expected a path (str or os.PathLike), got {type(value).__name__}") from None
+    if not isinstance(path, str):
+        raise TreecalError(f"{name}: expected a text path, got {type(path).__name__}")
+    return path
+
+
 def _robot_path(robot: Optional[PathLike]) -> Optional[str]:
     """The URDF path as a string, or None for the built-in Robonaut."""
     if robot is None:
         return None
-    return os.fspath(robot)
+    return _path(robot, "robot")
+
+
+def _text(value: Any, name: str) -> str:
+    """A str argument (no silent str() of other types: a typo'd object must not become text)."""
+    if not isinstance(value, str):
+        raise TreecalError(f"{name}: expected a str, got {type(value).__name__}")
+    return value
+
+
+def _optional_text(value: Any, name: str) -> Optional[str]:
+    return None if value is None else _text(value, name)
+
+
+def _float(value: Any, name: str) -> float:
+    """A real number argument (bool is refused: True is not a sigma)."""
+    if isinstance(value, bool):
+        raise TreecalError(f"{name}: expected a number, got bool")
+    try:
+        return float(value)
+    except (TypeError, ValueError, OverflowError) as error:
+        raise TreecalError(f"{name}: expected a number ({error})") from None
+
+
+def _seed(value: Any) -> int:
+    """The seed: an integer from 0 to 2**64 - 1."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TreecalError(f"seed: expected an integer, got {type(value).__name__}")
+    if not 0 <= int(value) <= _SEED_MAX:
+        raise TreecalError(f"seed: {value} is outside 0 … 2**64 - 1")
+    return int(value)
+
+
+def _flag(value: Any, name: str) -> bool:
+    """A bool argument (0 and 1 accepted; "no" is not False)."""
+    if isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer)) and value in (0, 1)):
+        return bool(value)
+    raise TreecalError(f"{name}: expected True or False, got {value!r}")
+
+
+def _native(call: Any, **arguments: Any) -> Any:
+    """Calls the extension; an argument it cannot convert is a TreecalError, never a
+    TypeError or OverflowError from inside."""
+    try:
+        return call(**arguments)
+    except TreecalError:
+        raise
+    except (TypeError, OverflowError, ValueError) as error:
+        raise TreecalError(f"invalid argument: {error}") from None
 
 
 def _matrix(values: Any, name: str, width: Optional[int] = None) -> np.ndarray:
@@ -59,12 +120,27 @@ def _matrix(values: Any, name: str, width: Optional[int] = None) -> np.ndarray:
 
 def _strings(values: Any, name: str, rows: Optional[int] = None) -> List[str]:
     """A list of str (one per row when `rows` is given)."""
-    if isinstance(values, str):
+    if isinstance(values, (str, bytes)):
         raise TreecalError(f"{name}: expected a sequence of strings, got one string")
-    result = [str(v) for v in values]
+    try:
+        result = [str(v) for v in values]
+    except TypeError:
+        raise TreecalError(f"{name}: expected a sequence of strings, got {type(values).__name__}") from None
     if rows is not None and len(result) != rows:
         raise TreecalError(f"{name}: {len(result)} entries for {rows} rows")
     return result
+
+
+def _unique(names: List[str], name: str) -> None:
+    """Each joint named once: a repeated name would take one column's values silently."""
+    seen: Dict[str, int] = {}
+    for index, joint in enumerate(names):
+        key = joint.strip()
+        if key in seen:
+            raise TreecalError(
+                f"{name}: joint '{key}' is named twice (entries {seen[key] + 1} and {index + 1}); name each joint once"
+            )
+        seen[key] = index
 
 
 def fk(
@@ -87,19 +163,30 @@ def fk(
         if joint_names is not None:
             raise TreecalError("fk: joint_names is for an array of joints; a dict names its joints itself")
         names = [str(k) for k in joints.keys()]
-        rows = _matrix([[float(v) for v in joints.values()]], "joints")
+        rows = _matrix([[_float(v, f"joints['{k}']") for k, v in joints.items()]], "joints")
     else:
         if joint_names is None:
             raise TreecalError("fk: joint_names is required when joints is an array")
         names = _strings(joint_names, "joint_names")
-        array = np.asarray(joints, dtype=np.float64)
+        _unique(names, "joint_names")
+        try:
+            array = np.asarray(joints, dtype=np.float64)
+        except (TypeError, ValueError) as error:
+            raise TreecalError(f"joints: not an array of numbers ({error})") from None
         single = array.ndim == 1
         rows = _matrix(array[None, :] if single else array, "joints")
         if rows.shape[1] != len(names):
             raise TreecalError(
                 f"fk: joints has {rows.shape[1]} columns but joint_names names {len(names)}"
             )
-    flat = _treecal.fk(_robot_path(robot), str(tip), names, rows.tolist(), angle_unit)
+    flat = _native(
+        _treecal.fk,
+        robot=_robot_path(robot),
+        tip=_text(tip, "tip"),
+        joint_names=names,
+        joints=rows.tolist(),
+        angle_unit=_text(angle_unit, "angle_unit"),
+    )
     poses = np.asarray(flat, dtype=np.float64).reshape(-1, 4, 4)
     return poses[0] if single else poses
 
@@ -145,15 +232,16 @@ class Measurements:
         self.observations = _matrix(observed, f"{origin}: {self.kind}", _OBSERVATION_WIDTH[self.kind])
         rows = self.observations.shape[0]
         self.joint_names = _strings(joint_names, f"{origin}: joint_names")
+        _unique(self.joint_names, f"{origin}: joint_names")
         self.joints = _matrix(joints, f"{origin}: joints", len(self.joint_names))
         if self.joints.shape[0] != rows:
             raise TreecalError(f"{origin}: joints has {self.joints.shape[0]} rows but {self.kind} has {rows}")
         self.tools = _strings(tools, f"{origin}: tools", rows)
         self.ids = None if ids is None else _strings(ids, f"{origin}: ids", rows)
         self.stages = None if stages is None else _strings(stages, f"{origin}: stages", rows)
-        self.length_unit = length_unit
-        self.angle_unit = angle_unit
-        self.origin = origin
+        self.length_unit = _optional_text(length_unit, "length_unit")
+        self.angle_unit = _optional_text(angle_unit, "angle_unit")
+        self.origin = _text(origin, "origin")
 
     def __len__(self) -> int:
         return int(self.observations.shape[0])
@@ -187,7 +275,7 @@ def _measurement_source(value: Optional[MeasurementsLike], name: str) -> Any:
     if isinstance(value, Measurements):
         return value._payload()
     if isinstance(value, (str, os.PathLike)):
-        return os.fspath(value)
+        return _path(value, name)
     raise TreecalError(f"{name}: expected a CSV path or treecal.Measurements, got {type(value).__name__}")
 
 
@@ -234,11 +322,11 @@ class Calibration:
             raise TreecalError(
                 f"no calibrated URDF: the verdict is {self.verdict}" + (f" ({why})" if why else "")
             )
-        Path(path).write_text(self.urdf, encoding="utf-8")
+        self._inner.write_urdf(_path(path, "path"))
 
     def write(self, out_dir: PathLike) -> None:
         """Writes every output file into `out_dir` (created), like ``treecal calibrate --out``."""
-        self._inner.write(os.fspath(out_dir))
+        self._inner.write(_path(out_dir, "out_dir"))
 
     def __repr__(self) -> str:
         return f"Calibration(verdict={self.verdict!r}, {len(self.parameters)} parameters)"
@@ -282,26 +370,27 @@ def calibrate(
     """
     if measurements is None:
         raise TreecalError("calibrate: measurements= is required (a CSV path or treecal.Measurements)")
-    inner = _treecal.calibrate(
+    inner = _native(
+        _treecal.calibrate,
         robot=_robot_path(robot),
         measurements=_measurement_source(measurements, "measurements"),
         validation=_measurement_source(validation, "validation"),
-        length_unit=length_unit,
-        angle_unit=angle_unit,
-        joint_length_unit=joint_length_unit,
-        stiffness=None if stiffness is None else os.fspath(stiffness),
+        length_unit=_optional_text(length_unit, "length_unit"),
+        angle_unit=_optional_text(angle_unit, "angle_unit"),
+        joint_length_unit=_optional_text(joint_length_unit, "joint_length_unit"),
+        stiffness=None if stiffness is None else _path(stiffness, "stiffness"),
         tools=None if tools is None else _strings(tools, "tools"),
-        plan=None if plan is None else os.fspath(plan),
-        seed=int(seed),
-        robust=str(robust),
-        identify_stiffness=bool(identify_stiffness),
-        stiffness_prior=None if stiffness_prior is None else float(stiffness_prior),
-        measurement_frame=os.fspath(measurement_frame),
-        gravity_frame=str(gravity_frame),
-        position_sigma=None if position_sigma is None else float(position_sigma),
-        rotation_sigma=None if rotation_sigma is None else float(rotation_sigma),
+        plan=None if plan is None else _path(plan, "plan"),
+        seed=_seed(seed),
+        robust=_text(robust, "robust"),
+        identify_stiffness=_flag(identify_stiffness, "identify_stiffness"),
+        stiffness_prior=None if stiffness_prior is None else _float(stiffness_prior, "stiffness_prior"),
+        measurement_frame=_path(measurement_frame, "measurement_frame"),
+        gravity_frame=_text(gravity_frame, "gravity_frame"),
+        position_sigma=None if position_sigma is None else _float(position_sigma, "position_sigma"),
+        rotation_sigma=None if rotation_sigma is None else _float(rotation_sigma, "rotation_sigma"),
         ignore_columns=_strings(ignore_columns, "ignore_columns"),
-        strict=bool(strict),
-        add_tool_links=bool(add_tool_links),
+        strict=_flag(strict, "strict"),
+        add_tool_links=_flag(add_tool_links, "add_tool_links"),
     )
     return Calibration(inner)

@@ -9,6 +9,7 @@ pub mod measurement_table;
 pub mod measurements_csv;
 pub mod mesh_files;
 pub mod observations;
+pub mod output_lock;
 pub mod params;
 pub mod plan;
 pub mod poses_csv;
@@ -34,6 +35,7 @@ pub use measurements_csv::{
 pub use mesh_files::{
     mesh_file_loader, mesh_vertices, package_dirs, read_mesh_vertices, resolve_mesh,
 };
+pub use output_lock::OutputLock;
 pub use params::{
     parse_parameters, read_parameter_file_robot, read_parameters, ParameterFileRobot,
     ParameterValues,
@@ -46,7 +48,9 @@ pub use stiffness_write::stiffness_to_yaml;
 pub use units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
-pub use write::{check_output_folder, replace_folder, write_atomically};
+pub use write::{
+    check_output_dir, check_output_file, check_output_folder, replace_folder, write_atomically,
+};
 
 use crate::error::{Error, Result};
 

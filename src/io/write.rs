@@ -1,6 +1,7 @@
 //! Writing output files so that a failure never leaves a half-written file behind, and output
 //! folders as a set (all files of one run, nothing stale from an earlier one).
 
+use super::output_lock::{aside, lock_output, recover, swap_in};
 use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::Path;
@@ -36,9 +37,10 @@ pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<()> {
     Ok(())
 }
 
-/// Checks, before anything is computed, that `folder` can receive a new set of outputs: it is
-/// absent, or a folder holding only files that `ours` recognises by name (a previous output of
-/// the same command), and the folder that will hold it is writable.
+/// Checks, before anything is computed, that `folder` can receive a new set of outputs: it has
+/// a name (not `.`, `..` or `/`: the folder is replaced by renaming), is absent or a folder
+/// holding only files that `ours` recognises by name (a previous output of the same command),
+/// no other run is writing it, and the folder that will hold it is writable.
 pub fn check_output_folder(folder: &Path, ours: &dyn Fn(&str) -> bool) -> Result<()> {
     let refuse = |message: String| Error::InvalidData {
         origin: folder.display().to_string(),
@@ -48,6 +50,7 @@ pub fn check_output_folder(folder: &Path, ours: &dyn Fn(&str) -> bool) -> Result
         path: path.to_owned(),
         source,
     };
+    let name = folder_name(folder)?;
     if folder.exists() {
         if !folder.is_dir() {
             return Err(refuse(
@@ -73,8 +76,52 @@ pub fn check_output_folder(folder: &Path, ours: &dyn Fn(&str) -> bool) -> Result
             )));
         }
     }
-    // The nearest existing ancestor must let us create the temporary folder.
-    let mut ancestor = parent_of(folder);
+    let parent = parent_of(folder);
+    if parent.is_dir() {
+        // Only a probe: the lock is taken again for the swap.
+        drop(lock_output(&parent, &name)?);
+    }
+    check_writable_from(&parent_of(folder))
+}
+
+/// Checks, before anything is computed, that files can be written into the folder `folder`:
+/// it is not a file, and it or the nearest existing folder above it is writable.
+pub fn check_output_dir(folder: &Path) -> Result<()> {
+    if folder.exists() && !folder.is_dir() {
+        return Err(Error::InvalidData {
+            origin: folder.display().to_string(),
+            message: "is a file, not a folder; give a folder".into(),
+        });
+    }
+    check_writable_from(folder)
+}
+
+/// Checks, before anything is computed, that the file `path` can be written: it names a file
+/// (not `.`, `..`, `/` or an existing folder) and the nearest existing folder above it is
+/// writable.
+pub fn check_output_file(path: &Path) -> Result<()> {
+    let refuse = |message: &str| Error::InvalidData {
+        origin: path.display().to_string(),
+        message: message.into(),
+    };
+    if path.is_dir() {
+        return Err(refuse("is a folder; give a file name to write"));
+    }
+    match path.file_name() {
+        Some(_) if !path.ends_with("..") => {}
+        _ => return Err(refuse("names no file; give a file name to write")),
+    }
+    check_writable_from(&parent_of(path))
+}
+
+/// `start`, or the nearest existing folder above it, lets us create entries (probed with a
+/// hidden folder, removed at once).
+fn check_writable_from(start: &Path) -> Result<()> {
+    let io = |path: &Path, source| Error::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let mut ancestor = start.to_owned();
     while !ancestor.exists() {
         match ancestor.parent() {
             Some(p) if !p.as_os_str().is_empty() => ancestor = p.to_owned(),
@@ -84,32 +131,51 @@ pub fn check_output_folder(folder: &Path, ours: &dyn Fn(&str) -> bool) -> Result
             }
         }
     }
+    if !ancestor.is_dir() {
+        return Err(Error::InvalidData {
+            origin: start.display().to_string(),
+            message: format!("{} is a file, not a folder", ancestor.display()),
+        });
+    }
     let probe = ancestor.join(format!(".treecal-probe-{}", std::process::id()));
     std::fs::create_dir(&probe).map_err(|e| io(&ancestor, e))?;
     std::fs::remove_dir(&probe).map_err(|e| io(&probe, e))?;
     Ok(())
 }
 
-/// Writes `files` (name, contents) as the whole contents of `folder`, all or nothing: they are
-/// written into a temporary folder beside it, which then replaces `folder` (renamed over it;
-/// the previous folder is removed after the swap). A failure leaves the previous folder as it
-/// was and no temporary folder behind. Call [`check_output_folder`] first: this does not
-/// check what the old folder holds.
+/// The name of the output folder `folder`; an error for `.`, `..` and `/`, which cannot be
+/// replaced by renaming.
+fn folder_name(folder: &Path) -> Result<String> {
+    match folder.file_name() {
+        Some(name) if !folder.ends_with("..") => Ok(name.to_string_lossy().into_owned()),
+        _ => Err(Error::InvalidData {
+            origin: folder.display().to_string(),
+            message: "names no folder that can be replaced; give --out a named folder, e.g. \
+                      out/calibrate"
+                .into(),
+        }),
+    }
+}
+
+/// Writes `files` (name, contents) as the whole contents of `folder`, all or nothing, safe
+/// against a crash and a second run: under a lock beside `folder` (a second run gets an
+/// error), after recovering what a killed run left, the files are written into a staging
+/// folder beside it, which is then swapped in (atomically where the system can exchange two
+/// folders; otherwise by two renames that the next run completes if killed between them);
+/// the previous content is removed last. A failure leaves the previous folder as it was and
+/// no staging folder behind. Call [`check_output_folder`] first: this does not check what the
+/// old folder holds.
 pub fn replace_folder(folder: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
     let io = |path: &Path, source| Error::Io {
         path: path.to_owned(),
         source,
     };
+    let name = folder_name(folder)?;
     let parent = parent_of(folder);
     std::fs::create_dir_all(&parent).map_err(|e| io(&parent, e))?;
-    let name = folder
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let id = std::process::id();
-    let staging = parent.join(format!(".{name}.new-{id}"));
-    let previous = parent.join(format!(".{name}.old-{id}"));
-    let _ = std::fs::remove_dir_all(&staging);
+    let _lock = lock_output(&parent, &name)?;
+    recover(&parent, &name)?;
+    let staging = aside(&parent, &name, "new");
     let written = (|| -> std::io::Result<()> {
         std::fs::create_dir(&staging)?;
         for (file, contents) in files {
@@ -123,24 +189,21 @@ pub fn replace_folder(folder: &Path, files: &[(String, Vec<u8>)]) -> Result<()> 
         let _ = std::fs::remove_dir_all(&staging);
         return Err(io(folder, source));
     }
-    let had_previous = folder.exists();
-    if had_previous {
-        if let Err(source) = std::fs::rename(folder, &previous) {
+    if !folder.exists() {
+        if let Err(source) = std::fs::rename(&staging, folder) {
             let _ = std::fs::remove_dir_all(&staging);
             return Err(io(folder, source));
         }
+        return Ok(());
     }
-    if let Err(source) = std::fs::rename(&staging, folder) {
-        if had_previous {
-            let _ = std::fs::rename(&previous, folder);
+    let previous = match swap_in(&staging, folder, &aside(&parent, &name, "old")) {
+        Ok(previous) => previous,
+        Err(source) => {
+            let _ = std::fs::remove_dir_all(&staging);
+            return Err(io(folder, source));
         }
-        let _ = std::fs::remove_dir_all(&staging);
-        return Err(io(folder, source));
-    }
-    if had_previous {
-        std::fs::remove_dir_all(&previous).map_err(|e| io(&previous, e))?;
-    }
-    Ok(())
+    };
+    std::fs::remove_dir_all(&previous).map_err(|e| io(&previous, e))
 }
 
 /// The folder holding `path` (`.` for a bare name).

@@ -25,6 +25,31 @@ use parry3d_f64::math::{Pose as ShapePose, Rotation as ShapeRotation, Vector as 
 use parry3d_f64::query::{self, ClosestPoints};
 use parry3d_f64::shape::SharedShape;
 
+/// Which `<collision>` shapes the self-collision check of `plan` and `simulate` uses
+/// (`--collision-check`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum CollisionCheck {
+    /// Primitives and meshes; a mesh that cannot be found or read is an error, as poses would
+    /// otherwise go unchecked against its link.
+    #[default]
+    Meshes,
+    /// Primitives (box, cylinder, capsule, sphere) only; mesh shapes are left out.
+    PrimitivesOnly,
+    /// No self-collision check at all.
+    Off,
+}
+
+impl CollisionCheck {
+    /// The flag value: `meshes`, `primitives-only` or `off`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Meshes => "meshes",
+            Self::PrimitivesOnly => "primitives-only",
+            Self::Off => "off",
+        }
+    }
+}
+
 /// Settings of the [`CollisionChecker`].
 #[derive(Debug, Clone, Default)]
 pub struct CollisionOptions {
@@ -211,6 +236,25 @@ impl CollisionChecker {
             unreadable_meshes,
             loaded_meshes,
         })
+    }
+
+    /// A checker that checks nothing: every configuration is collision-free
+    /// ([`CollisionCheck::Off`]).
+    pub fn disabled(tree: &KinematicTree) -> Self {
+        Self {
+            link_count: tree.links().len(),
+            links: Vec::new(),
+            pairs: Vec::new(),
+            margin: 0.0,
+            skipped_meshes: Vec::new(),
+            unreadable_meshes: Vec::new(),
+            loaded_meshes: 0,
+        }
+    }
+
+    /// Number of `<collision>` shapes checked (primitives and loaded meshes).
+    pub fn shape_count(&self) -> usize {
+        self.links.iter().map(|l| l.shapes.len()).sum()
     }
 
     /// Number of link pairs checked (pairs of non-adjacent links that both have shapes).

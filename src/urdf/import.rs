@@ -4,6 +4,7 @@
 //! name the element and, where it can be found, the line.
 
 use crate::error::{Error, Result};
+use crate::limits::{magnitude_problem, Quantity};
 use crate::math::{pose, rotation_from_rpy, Mat3, Pose, Vec3};
 use crate::tree::{
     Actuation, DofId, Inertial, Joint, JointId, JointKind, KinematicTree, Limits, Link,
@@ -477,6 +478,25 @@ impl Importer<'_> {
                 // value = multiplier·(m·q_master + o) + offset
                 offset += multiplier * o;
                 multiplier *= m;
+                // Each factor is bounded, their product is not: a long chain can overflow.
+                let composed = magnitude_problem(multiplier, Quantity::Factor)
+                    .map(|p| format!("multiplier: {p}"))
+                    .or_else(|| {
+                        magnitude_problem(offset, Quantity::JointLimit)
+                            .map(|p| format!("offset: {p}"))
+                    });
+                if let Some(problem) = composed {
+                    return Err(self.invalid(
+                        "joint",
+                        &name,
+                        format!(
+                            "the <mimic> chain {} → {} composes to a {problem}; shorten the chain \
+                             or reduce its multipliers",
+                            visited.join(" → "),
+                            mimic.joint
+                        ),
+                    ));
+                }
                 let master = *position.get(mimic.joint.as_str()).ok_or_else(|| {
                     self.invalid(
                         "joint",

@@ -6,14 +6,15 @@
 
 use super::calibrate_outputs::outputs;
 use super::calibrate_steps::{check_config, export_calibrated, identify, read_data, Loaded};
+use super::checks::{check_outputs, Output};
 use super::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use super::note::Note;
 use super::source::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
 use crate::calibration::{
     ParameterEstimate, RobustLoss, Verdict, DEFAULT_POSITION_SIGMA, DEFAULT_ROTATION_SIGMA,
 };
-use crate::error::Result;
-use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit};
+use crate::error::{Error, Result};
+use crate::io::{check_output_folder, replace_folder, write_atomically, AngleUnit, LengthUnit};
 use std::path::{Path, PathBuf};
 
 /// The files [`Calibration::write`] writes besides the SVG plots.
@@ -118,6 +119,35 @@ pub struct CalibrateConfig {
     pub cv: Option<usize>,
 }
 
+impl CalibrateConfig {
+    /// Every file the calibration reads (robot, measurements, validation, stiffness, plan,
+    /// registration); no output may replace one.
+    pub fn inputs(&self) -> Vec<&Path> {
+        let frame = match &self.measurement_frame {
+            MeasurementFrameChoice::File(path) => Some(path.as_path()),
+            _ => None,
+        };
+        [
+            self.robot.path(),
+            self.measurements.path(),
+            self.validation.as_ref().and_then(MeasurementSource::path),
+            self.stiffness.as_ref().and_then(StiffnessSource::path),
+            self.plan.path(),
+            frame,
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+
+    /// Checks, before calibrating, that the folder `out` can receive the outputs and holds
+    /// no input ([`check_outputs`], [`check_output_folder`]).
+    pub fn check_output(&self, out: &Path) -> Result<()> {
+        check_outputs(&[Output::Folder(out)], &self.inputs())?;
+        check_output_folder(out, &is_output_file)
+    }
+}
+
 impl Default for CalibrateConfig {
     fn default() -> Self {
         Self {
@@ -174,6 +204,9 @@ pub struct Calibration {
     pub urdf: Option<String>,
     /// Every output file: `(name, bytes)`.
     pub files: Vec<(String, Vec<u8>)>,
+    /// The input files it was computed from ([`CalibrateConfig::inputs`]): the writers refuse
+    /// to replace or delete them.
+    pub inputs: Vec<PathBuf>,
 }
 
 /// Calibrates: reads the inputs, identifies the parameters (and the stiffness if asked),
@@ -201,6 +234,7 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
         report_markdown: outputs.markdown,
         urdf: outputs.urdf,
         files: outputs.files,
+        inputs: config.inputs().into_iter().map(Path::to_owned).collect(),
     })
 }
 
@@ -210,10 +244,43 @@ impl Calibration {
         self.verdict.usable()
     }
 
-    /// Replaces the folder `out` with the output files; refuses a folder holding files that
-    /// are not a previous calibration output.
+    /// Replaces the folder `out` with the output files; refuses a folder holding an input or
+    /// files that are not a previous calibration output.
     pub fn write(&self, out: &Path) -> Result<()> {
+        check_outputs(&[Output::Folder(out)], &self.input_paths())?;
         check_output_folder(out, &is_output_file)?;
         replace_folder(out, &self.files)
+    }
+
+    /// Writes the calibrated URDF to `path` (atomically); an error when there is none (a
+    /// failed verdict) or `path` is an input.
+    pub fn write_urdf(&self, path: &Path) -> Result<()> {
+        let Some(urdf) = &self.urdf else {
+            let why: Vec<&str> = self
+                .verdict
+                .reasons
+                .iter()
+                .filter(|r| r.status == crate::calibration::Status::Failed)
+                .map(|r| r.message.as_str())
+                .collect();
+            return Err(Error::InvalidData {
+                origin: "calibration".into(),
+                message: format!(
+                    "no calibrated URDF: the verdict is {}{}",
+                    self.verdict.status,
+                    if why.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({})", why.join("; "))
+                    }
+                ),
+            });
+        };
+        check_outputs(&[Output::File(path)], &self.input_paths())?;
+        write_atomically(path, urdf.as_bytes())
+    }
+
+    fn input_paths(&self) -> Vec<&Path> {
+        self.inputs.iter().map(PathBuf::as_path).collect()
     }
 }

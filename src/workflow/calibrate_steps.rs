@@ -2,6 +2,7 @@
 //! identifying and exporting (rendering is in `calibrate_outputs`).
 
 use super::calibrate::{CalibrateConfig, GravityFrame, MeasurementFrameChoice};
+use super::checks::unused_stage_rows;
 use super::cross_validation::{
     candidates, cross_validate, markdown as cross_validation_markdown, CrossValidation,
     CrossValidationInput, DEFAULT_FOLDS,
@@ -181,6 +182,19 @@ pub(super) fn identify(
         .any(|m| m.stage.as_deref() == Some("torso"));
     let (plan, plan_name, plan_note) = config.plan.resolve(labelled)?;
     notes.extend(plan_note);
+    // A warning, not an error, by default: a plan may use some stages of a file on purpose
+    // (the arms only, from a file that also holds torso rows).
+    let labels: Vec<Option<&str>> = data
+        .measurements
+        .iter()
+        .map(|m| m.stage.as_deref())
+        .collect();
+    if let Some(message) = unused_stage_rows(&plan, &labels, &data.ids[0]) {
+        if config.strict {
+            return Err(invalid(&config.measurements.origin(), message));
+        }
+        notes.push(Note::warning(message + " (with --strict this is an error)"));
+    }
     // With stiffness identification and no file, the library defaults are the prior.
     let stiffness = match &config.stiffness {
         Some(source) => Some(source.read(tree, &loaded.nominal)?),

@@ -1,7 +1,7 @@
 //! `check`: how well a pose set determines the parameters, per calibration stage — singular
 //! values, rank, condition number, O1–O5 and the combinations the poses cannot determine.
 
-use super::checks::sigmas;
+use super::checks::{sigmas, unused_stage_rows};
 use super::source::{
     add_measured_points, branches, measured_branches, MeasurementSource, PlanSource, RobotSource,
     StiffnessSource,
@@ -183,6 +183,11 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
     let mut stages = Vec::new();
     if !rows.has_stage && plan.stages.iter().any(|s| s.measurements.is_some()) {
         notes.push(Note::info("the poses have no `stage` column; every row is analysed in the arms stage, and the torso stage needs rows labelled torso (arms locked)"));
+    }
+    if rows.has_stage {
+        let labels: Vec<Option<&str>> = rows.rows.iter().map(|r| r.stage.as_deref()).collect();
+        let ids: Vec<String> = (1..=labels.len()).map(|row| row.to_string()).collect();
+        notes.extend(unused_stage_rows(&plan, &labels, &ids).map(Note::warning));
     }
     for stage in &plan.stages {
         let selected = stage_rows(&rows, stage.measurements.as_deref());

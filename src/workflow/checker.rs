@@ -3,42 +3,98 @@
 use super::source::RobotSource;
 use super::Note;
 use crate::io::{mesh_file_loader, package_dirs};
-use crate::sim::collision::{CollisionChecker, CollisionOptions};
+use crate::sim::collision::{CollisionCheck, CollisionChecker, CollisionOptions};
 use crate::sim::sampling::{sample_configurations, SamplingOptions};
 use crate::tree::KinematicTree;
-use crate::Result;
+use crate::{Error, Result};
 use rand::SeedableRng;
 use std::path::{Path, PathBuf};
 
 /// How many random configurations decide that a link pair always collides.
 const ALWAYS_COLLIDING_SAMPLES: usize = 100;
 
-/// The self-collision checker of `robot`, its STL, OBJ and COLLADA meshes resolved next to the
-/// URDF or, for `package://` names, in `package_paths` and then `ROS_PACKAGE_PATH`. Meshes left
-/// out, and link pairs that collide everywhere (and are therefore not checked), go to `notes`.
+/// The self-collision checker of `robot` for `check`: with [`CollisionCheck::Meshes`] its
+/// STL, OBJ and COLLADA meshes are resolved next to the URDF or, for `package://` names, in
+/// `package_paths` and then `ROS_PACKAGE_PATH`, and a mesh that cannot be used is an error
+/// naming the files and the flags; with `PrimitivesOnly` meshes are left out, with `Off`
+/// nothing is checked (both said in `notes`). Link pairs that collide everywhere (and are
+/// therefore not checked) go to `notes`.
 pub fn collision_checker(
     robot: &RobotSource,
     tree: &KinematicTree,
     package_paths: &[PathBuf],
+    check: CollisionCheck,
     notes: &mut Vec<Note>,
 ) -> Result<CollisionChecker> {
-    let directory = robot
-        .path()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf)
-        .unwrap_or_default();
-    let search = std::env::var("ROS_PACKAGE_PATH").unwrap_or_default();
-    let mut directories = package_paths.to_vec();
-    directories.extend(package_dirs(&search));
-    let loader = mesh_file_loader(directory, directories);
-    let mut checker = CollisionChecker::with_meshes(tree, &CollisionOptions::default(), &loader)?;
-    if let Some(line) = skipped_meshes(&checker) {
-        notes.push(Note::warning(line));
-    }
+    let mut checker = match check {
+        CollisionCheck::Off => {
+            notes.push(Note::warning(
+                "--collision-check off: configurations are not checked for self-collision",
+            ));
+            return Ok(CollisionChecker::disabled(tree));
+        }
+        CollisionCheck::PrimitivesOnly => {
+            let checker = CollisionChecker::with_options(tree, &CollisionOptions::default())?;
+            if checker.skipped_meshes() > 0 {
+                notes.push(Note::warning(format!(
+                    "--collision-check primitives-only: {} collision meshes are not checked, \
+                     only the primitive shapes",
+                    checker.skipped_meshes()
+                )));
+            }
+            checker
+        }
+        CollisionCheck::Meshes => {
+            let directory = robot
+                .path()
+                .and_then(Path::parent)
+                .map(Path::to_path_buf)
+                .unwrap_or_default();
+            let search = std::env::var("ROS_PACKAGE_PATH").unwrap_or_default();
+            let mut directories = package_paths.to_vec();
+            directories.extend(package_dirs(&search));
+            let loader = mesh_file_loader(directory, directories);
+            let checker =
+                CollisionChecker::with_meshes(tree, &CollisionOptions::default(), &loader)?;
+            if let Some(line) = skipped_meshes(&checker) {
+                return Err(Error::InvalidRobot {
+                    origin: robot
+                        .path()
+                        .map_or_else(|| tree.name().to_owned(), |p| p.display().to_string()),
+                    message: format!(
+                        "{line}. Configurations would not be checked for self-collision against \
+                         these links: make the meshes available (--package-path DIR names a \
+                         folder holding their package), or choose a weaker check explicitly \
+                         with --collision-check primitives-only or --collision-check off \
+                         (stated in the output)"
+                    ),
+                });
+            }
+            checker
+        }
+    };
     if checker.loaded_meshes() > 0 {
         ignore_always_colliding(&mut checker, tree, notes);
     }
     Ok(checker)
+}
+
+/// What the outputs say about the self-collision check, e.g. `meshes (12 shapes, 8 of them
+/// meshes)`.
+pub fn collision_statement(check: CollisionCheck, checker: &CollisionChecker) -> String {
+    match check {
+        CollisionCheck::Meshes => format!(
+            "meshes ({} collision shapes, {} of them meshes)",
+            checker.shape_count(),
+            checker.loaded_meshes()
+        ),
+        CollisionCheck::PrimitivesOnly => format!(
+            "primitives-only ({} primitive shapes; {} collision meshes NOT checked)",
+            checker.shape_count(),
+            checker.skipped_meshes()
+        ),
+        CollisionCheck::Off => "off (configurations NOT checked for self-collision)".into(),
+    }
 }
 
 /// Meshes of neighbouring links often overlap by design; such pairs would reject every
@@ -94,7 +150,7 @@ fn skipped_meshes(checker: &CollisionChecker) -> Option<String> {
     missing.dedup();
     let mut unread: Vec<String> = unreadable
         .iter()
-        .map(|(name, reason)| format!("{name} ({reason})"))
+        .map(|(name, reason)| format!("{name} ({})", reason_text(reason, name)))
         .collect();
     unread.sort_unstable();
     unread.dedup();
@@ -114,9 +170,15 @@ fn skipped_meshes(checker: &CollisionChecker) -> Option<String> {
         ));
     }
     Some(format!(
-        "{} of {} collision meshes are not checked; {}",
+        "{} of {} collision meshes cannot be used; {}",
         skipped.len(),
         skipped.len() + checker.loaded_meshes(),
         parts.join("; ")
     ))
+}
+
+/// `reason` with the `{path:?}` that mesh-loader 0.1 leaves unformatted in some messages
+/// ("unsupported or unrecognized file type {path:?}") replaced by the file's name.
+fn reason_text(reason: &str, name: &str) -> String {
+    reason.replace("{path:?}", &format!("'{name}'"))
 }

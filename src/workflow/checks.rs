@@ -1,5 +1,6 @@
 //! Checks shared by the workflows: counts and ranges of settings (bounds from
-//! [`crate::limits`], named by their command-line flags), and outputs that would overwrite an input.
+//! [`crate::limits`], named by their command-line flags), and outputs that cannot be written or
+//! would overwrite an input.
 
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -24,60 +25,52 @@ pub fn sigmas(position: f64, rotation: f64) -> Result<()> {
     Ok(())
 }
 
-/// Refuses to write `output` when it is one of `inputs` (the same file, also through symbolic links): the
-/// write would replace the input, which the user most likely did not mean.
-pub fn refuse_overwrite(output: &Path, inputs: &[&Path]) -> Result<()> {
-    let Some(target) = resolved(output) else {
-        return Ok(());
-    };
-    for input in inputs {
-        if resolved(input).is_some_and(|i| i == target) {
-            return Err(Error::InvalidData {
-                origin: output.display().to_string(),
-                message: format!(
+/// Something a command writes.
+#[derive(Debug, Clone, Copy)]
+pub enum Output<'a> {
+    /// A file, written atomically.
+    File(&'a Path),
+    /// A folder the command writes its files into, or replaces as a whole.
+    Folder(&'a Path),
+}
+
+/// Checks a command's outputs before anything is computed (a run must not fail at its end
+/// over an output it could have refused at once): each can be written (a file: not a folder
+/// nor `.`; a folder: not a file; the nearest existing folder writable), and none is one of
+/// `inputs` or, for a folder, holds one anywhere below it (the output would replace or
+/// delete the input), compared as absolute paths without symbolic links. Every command and
+/// binding passes all of its input files here.
+pub fn check_outputs(outputs: &[Output<'_>], inputs: &[&Path]) -> Result<()> {
+    for output in outputs {
+        match *output {
+            Output::File(path) => crate::io::check_output_file(path)?,
+            Output::Folder(path) => crate::io::check_output_dir(path)?,
+        }
+        let (Output::File(path) | Output::Folder(path)) = *output;
+        let Some(target) = resolved(path) else {
+            continue;
+        };
+        for input in inputs {
+            let Some(input_path) = resolved(input) else {
+                continue;
+            };
+            let message = match output {
+                Output::File(_) if input_path == target => format!(
                     "the output is the input file {}; writing it would replace the input: \
                      choose another output path",
                     input.display()
                 ),
-            });
-        }
-    }
-    Ok(())
-}
-
-/// [`refuse_overwrite`] for every file a command writes into `directory`: the `names` given,
-/// and any file ending in `extension`.
-pub fn refuse_overwrite_in(
-    directory: &Path,
-    names: &[&str],
-    extension: &str,
-    inputs: &[&Path],
-) -> Result<()> {
-    for name in names {
-        refuse_overwrite(&directory.join(name), inputs)?;
-    }
-    for input in inputs {
-        let written_kind = input.extension().is_some_and(|e| e == extension);
-        let inside = input
-            .parent()
-            .map(|p| {
-                if p.as_os_str().is_empty() {
-                    Path::new(".")
-                } else {
-                    p
-                }
-            })
-            .and_then(resolved)
-            .zip(resolved(directory))
-            .is_some_and(|(parent, directory)| parent == directory);
-        if written_kind && inside {
-            return Err(Error::InvalidData {
-                origin: directory.display().to_string(),
-                message: format!(
-                    "the output folder holds the input file {}, and .{extension} files in it \
-                     are overwritten: choose another output folder",
+                Output::Folder(_) if input_path.starts_with(&target) => format!(
+                    "the output folder holds the input file {}; writing the outputs would \
+                     replace the input or delete it: choose another output folder, or move \
+                     the input",
                     input.display()
                 ),
+                _ => continue,
+            };
+            return Err(Error::InvalidData {
+                origin: path.display().to_string(),
+                message,
             });
         }
     }
@@ -96,4 +89,61 @@ fn resolved(path: &Path) -> Option<PathBuf> {
         _ => Path::new("."),
     };
     parent.canonicalize().ok().map(|p| p.join(name))
+}
+
+/// The rows (their `stage` labels, named by `ids`) that no stage of `plan` uses: the label (or
+/// the lack of one) matches no stage while every stage selects by label. One message naming
+/// each label and its first rows; `None` when every row is used.
+pub fn unused_stage_rows(
+    plan: &crate::calibration::Plan,
+    labels: &[Option<&str>],
+    ids: &[String],
+) -> Option<String> {
+    let used: Vec<&str> = plan
+        .stages
+        .iter()
+        .map(|s| s.measurements.as_deref())
+        .collect::<Option<Vec<_>>>()?;
+    let mut unused: Vec<(Option<&str>, Vec<&str>)> = Vec::new();
+    for (index, &label) in labels.iter().enumerate() {
+        if label.is_some_and(|l| used.contains(&l)) {
+            continue;
+        }
+        let id = ids.get(index).map_or("?", String::as_str);
+        match unused.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, rows)) => rows.push(id),
+            None => unused.push((label, vec![id])),
+        }
+    }
+    if unused.is_empty() {
+        return None;
+    }
+    let parts: Vec<String> = unused
+        .iter()
+        .map(|(label, rows)| {
+            let shown: Vec<&str> = rows.iter().take(5).copied().collect();
+            let more = if rows.len() > 5 { ", …" } else { "" };
+            let (what, hint) = match label {
+                Some(label) => (
+                    format!("labelled '{label}'"),
+                    crate::error::did_you_mean(label, used.iter().copied()),
+                ),
+                None => ("without a stage label".into(), String::new()),
+            };
+            format!(
+                "{} rows {what} (rows {}{more}{hint})",
+                rows.len(),
+                shown.join(", ")
+            )
+        })
+        .collect();
+    Some(format!(
+        "rows used by no stage of the plan (its stages use {}) are left out: {}; fix the \
+         labels or the plan's `measurements:`",
+        used.iter()
+            .map(|l| format!("'{l}'"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        parts.join("; ")
+    ))
 }

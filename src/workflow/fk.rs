@@ -25,8 +25,8 @@ pub struct FkConfig {
     pub angle_unit: AngleUnit,
 }
 
-/// `root_from_tip` of every configuration. An unknown joint name, a mimic or fixed joint, a
-/// row of the wrong length or a non-finite value is an error naming it.
+/// `root_from_tip` of every configuration. An unknown or repeated joint name, a mimic or fixed
+/// joint, a row of the wrong length or a non-finite value is an error naming it.
 pub fn fk(config: &FkConfig) -> Result<Vec<Pose>> {
     let robot = config.robot.load()?;
     let tree = robot.tree();
@@ -36,6 +36,20 @@ pub fn fk(config: &FkConfig) -> Result<Vec<Pose>> {
         .iter()
         .map(|name| independent_dof(tree, name))
         .collect::<Result<Vec<_>>>()?;
+    // A joint named twice would take the later column's value without a word.
+    for (index, &dof) in dofs.iter().enumerate() {
+        if let Some(first) = dofs[..index].iter().position(|&d| d == dof) {
+            return Err(Error::InvalidData {
+                origin: "joint_names".into(),
+                message: format!(
+                    "joint '{}' is named twice (columns {} and {}); name each joint once",
+                    config.joint_names[index].trim(),
+                    first + 1,
+                    index + 1
+                ),
+            });
+        }
+    }
     let scale = config.angle_unit.in_radians();
     let mut rows = Vec::with_capacity(config.joints.len());
     for (row, values) in config.joints.iter().enumerate() {

@@ -4,8 +4,8 @@
 //! `plan` and `check` report the same O1 for the same poses.
 
 use super::check::stage_analysis;
-use super::checker::collision_checker;
-use super::checks::{count, refuse_overwrite, sigmas};
+use super::checker::{collision_checker, collision_statement};
+use super::checks::{check_outputs, count, sigmas, Output};
 use super::source::{branches, RobotSource};
 use super::{no_progress, Note, Progress, ProgressFn};
 use crate::calibration::identifiability::DEFAULT_CONDITION_LIMIT;
@@ -17,6 +17,7 @@ use crate::io::{planned_poses_to_csv, write_atomically};
 use crate::limits;
 use crate::math::Vec3;
 use crate::measurement::TARGET_SPACING;
+use crate::sim::collision::CollisionCheck;
 use crate::sim::noise::{NoiseModel, Targets};
 use crate::sim::planning::{plan_poses, PlanReport, PlannedPose, PlanningOptions, PlanningStage};
 use crate::tree::{Branches, KinematicTree};
@@ -45,6 +46,8 @@ pub struct PlanConfig {
     pub robot: RobotSource,
     /// Folders searched for `package://` collision meshes, before `ROS_PACKAGE_PATH`.
     pub package_paths: Vec<PathBuf>,
+    /// Which collision shapes the poses are checked against (stated in the CSV's header).
+    pub collision_check: CollisionCheck,
     /// Tool links ending the arms [default: detected].
     pub tools: Option<Vec<String>>,
     /// Configurations to choose (for `Staged`: the arms set).
@@ -76,6 +79,7 @@ impl Default for PlanConfig {
         Self {
             robot: RobotSource::BuiltIn,
             package_paths: Vec::new(),
+            collision_check: CollisionCheck::Meshes,
             tools: None,
             poses: 20,
             torso_poses: 10,
@@ -130,9 +134,12 @@ impl PosePlan {
     }
 }
 
-/// Refuses an output that would replace the robot: call before [`plan`].
+/// Refuses an output that cannot be written or would replace the robot: call before [`plan`].
 pub fn check_output(config: &PlanConfig, out: &Path) -> Result<()> {
-    refuse_overwrite(out, &config.robot.path().into_iter().collect::<Vec<_>>())
+    check_outputs(
+        &[Output::File(out)],
+        &config.robot.path().into_iter().collect::<Vec<_>>(),
+    )
 }
 
 /// Plans the poses; writes nothing.
@@ -150,7 +157,14 @@ pub fn plan_with_progress(config: &PlanConfig, progress: ProgressFn<'_>) -> Resu
     let tree = &import.tree;
     let branches = branches(&import, config.tools.as_deref())?;
     let model = McpcModel::from_tree(tree, &branches)?;
-    let checker = collision_checker(&config.robot, tree, &config.package_paths, &mut notes)?;
+    let checker = collision_checker(
+        &config.robot,
+        tree,
+        &config.package_paths,
+        config.collision_check,
+        &mut notes,
+    )?;
+    let collisions = collision_statement(config.collision_check, &checker);
     let base = PlanningOptions {
         poses: config.poses,
         candidates: config.candidates,
@@ -190,7 +204,7 @@ pub fn plan_with_progress(config: &PlanConfig, progress: ProgressFn<'_>) -> Resu
             report,
         });
     }
-    finish(notes, sets, config.criterion, tree, &model)
+    finish(notes, sets, config.criterion, &collisions, tree, &model)
 }
 
 /// The outcome: the CSV, the summary text, the JSON, and each set's warnings as notes.
@@ -198,6 +212,7 @@ fn finish(
     mut notes: Vec<Note>,
     sets: Vec<PlannedSet>,
     criterion: Criterion,
+    collisions: &str,
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<PosePlan> {
@@ -205,8 +220,12 @@ fn finish(
         .iter()
         .map(|s| (s.label.as_deref(), s.report.poses.as_slice()))
         .collect();
-    let csv = planned_poses_to_csv(tree, model, &labelled)?;
-    let mut text = String::new();
+    // `check` and `calibrate` skip `#` lines: the header travels with the poses.
+    let csv = format!(
+        "# self-collision check: {collisions}\n{}",
+        planned_poses_to_csv(tree, model, &labelled)?
+    );
+    let mut text = format!("self-collision check: {collisions}\n");
     for set in &sets {
         let label = set.label.as_deref().unwrap_or("all");
         let _ = writeln!(text, "{}", summary_line(label, set, criterion));
@@ -218,6 +237,7 @@ fn finish(
     let json = serde_json::json!({
         "robot": tree.name(),
         "criterion": criterion.to_string(),
+        "collision_check": collisions,
         "sets": sets.iter().map(|s| set_json(s, criterion)).collect::<Vec<_>>(),
     });
     Ok(PosePlan {

@@ -2,8 +2,8 @@
 //! measured by a noisy tracker, calibrated without and with flexibility compensation, judged on
 //! the identification and on separate validation configurations, over seeded trials.
 
-use super::checker::collision_checker;
-use super::checks::{count, refuse_overwrite, refuse_overwrite_in};
+use super::checker::{collision_checker, collision_statement};
+use super::checks::{check_outputs as check_paths, count, Output};
 use super::source::{branches, PlanSource, RobotSource, StiffnessSource};
 use super::{no_progress, Note, Progress, ProgressFn};
 use crate::calibration::{Plan, RobustLoss, StiffnessOptions};
@@ -15,6 +15,7 @@ use crate::kinematics::{FlexibilityModel, Stiffness};
 use crate::limits;
 use crate::report::plot::arm_error_plots;
 use crate::report::simulate::simulation_markdown;
+use crate::sim::collision::CollisionCheck;
 use crate::sim::experiment::{SimulationOptions, TrialReport};
 use crate::sim::monte_carlo::{run_trials, summarise, SimulationSummary};
 use crate::sim::noise::{NoiseModel, Targets};
@@ -51,6 +52,8 @@ pub struct SimulateConfig {
     pub robot: RobotSource,
     /// Folders searched for `package://` collision meshes, before `ROS_PACKAGE_PATH`.
     pub package_paths: Vec<PathBuf>,
+    /// Which collision shapes the configurations are checked against (stated in summary.md).
+    pub collision_check: CollisionCheck,
     /// The stiffness [default: the built-in Robonaut's; required with another robot].
     pub stiffness: Option<StiffnessSource>,
     /// Tool links ending the arms [default: detected].
@@ -105,6 +108,7 @@ impl Default for SimulateConfig {
         Self {
             robot: RobotSource::BuiltIn,
             package_paths: Vec::new(),
+            collision_check: CollisionCheck::Meshes,
             stiffness: None,
             tools: None,
             poses: 20,
@@ -173,7 +177,14 @@ pub fn simulate_with_progress(
     let stiffness = stiffness(config, tree, &nominal)?;
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
     let model_flexibility = truth_flexibility.scaled(1.0 / config.model_stiffness_scale)?;
-    let checker = collision_checker(&config.robot, tree, &config.package_paths, &mut notes)?;
+    let checker = collision_checker(
+        &config.robot,
+        tree,
+        &config.package_paths,
+        config.collision_check,
+        &mut notes,
+    )?;
+    let collisions = collision_statement(config.collision_check, &checker);
     let options = options(config, noise)?;
     let setup = crate::sim::experiment::Setup {
         tree,
@@ -197,7 +208,11 @@ pub fn simulate_with_progress(
     if let Some(first) = reports.first() {
         notes.extend(first.notes.iter().map(Note::info));
     }
-    let markdown = simulation_markdown(&header(config, tree, &options), &reports, &summary);
+    let markdown = simulation_markdown(
+        &header(config, tree, &options, &collisions),
+        &reports,
+        &summary,
+    );
     let labelled = crate::report::simulation_results(tree.name(), config.seed, &reports, &summary);
     let results = serde_json::to_value(&labelled).map_err(|e| crate::Error::InvalidData {
         origin: "results.json".into(),
@@ -239,8 +254,8 @@ impl Simulation {
     }
 }
 
-/// Refuses outputs that would replace an input (`out` the folder, `measurements` the CSV of
-/// trial 1): call before [`simulate`], which can take minutes.
+/// Refuses outputs that cannot be written or would replace an input (`out` the folder,
+/// `measurements` the CSV of trial 1): call before [`simulate`], which can take minutes.
 pub fn check_outputs(
     config: &SimulateConfig,
     out: &Path,
@@ -251,11 +266,11 @@ pub fn check_outputs(
         .path()
         .into_iter()
         .chain(config.stiffness.as_ref().and_then(StiffnessSource::path))
+        .chain(config.plan.path())
         .collect();
-    if let Some(path) = measurements {
-        refuse_overwrite(path, &inputs)?;
-    }
-    refuse_overwrite_in(out, &["summary.md", "results.json"], "svg", &inputs)
+    let mut outputs = vec![Output::Folder(out)];
+    outputs.extend(measurements.map(Output::File));
+    check_paths(&outputs, &inputs)
 }
 
 fn invalid(flag: &str, message: String) -> Error {
@@ -425,7 +440,12 @@ fn options(config: &SimulateConfig, noise: NoiseModel) -> Result<SimulationOptio
 }
 
 /// The paragraph under summary.md's title: every setting that shaped the numbers.
-fn header(config: &SimulateConfig, tree: &KinematicTree, options: &SimulationOptions) -> String {
+fn header(
+    config: &SimulateConfig,
+    tree: &KinematicTree,
+    options: &SimulationOptions,
+    collisions: &str,
+) -> String {
     let poses_from = match config.poses_from {
         PosesFrom::Random => "random".to_owned(),
         PosesFrom::Planned => format!("planned from {} candidates", config.candidates),
@@ -445,7 +465,7 @@ fn header(config: &SimulateConfig, tree: &KinematicTree, options: &SimulationOpt
         String::new()
     };
     let header = format!(
-        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({poses_from}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {plan} plan; model stiffness × {}; robust loss {}{blunders}.",
+        "Robot '{}', {} trial(s), seed {}; {} arm + {} torso configurations ({poses_from}), {} validation; errors ±{} rad, ±{} m; noise {}; {} target(s) per tool; {plan} plan; model stiffness × {}; robust loss {}{blunders}; self-collision check: {collisions}.",
         tree.name(),
         config.trials,
         config.seed,

@@ -4,9 +4,6 @@
 use crate::cli::{
     CalibrateArgs, GravityFrame, JointErrorArg, MeasurementFrame, ModelArg, PlanArg, PlanChoice,
 };
-use std::path::Path;
-use treecal::io::check_output_folder;
-use treecal::workflow::calibrate::{is_output_file, OUTPUT_FILES};
 use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, PlanSource, RobotSource,
@@ -16,27 +13,16 @@ use treecal::{Error, Result};
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
     let config = config(&args);
-    let inputs: Vec<&Path> = [
-        args.robot.as_deref(),
-        Some(args.measurements.as_path()),
-        args.validation.as_deref(),
-        args.stiffness.as_deref(),
-        config.plan.path(),
-    ]
-    .into_iter()
-    .flatten()
-    .collect();
-    crate::checks::refuse_overwrite_in(&args.out, &OUTPUT_FILES, "svg", &inputs)?;
-    // The output folder is replaced as a whole at the end: refuse a folder that is not a
-    // previous output before computing anything.
-    check_output_folder(&args.out, &is_output_file)?;
+    // The output folder is replaced as a whole at the end: refuse one that holds an input or
+    // is not a previous output before computing anything.
+    config.check_output(&args.out)?;
     let calibration = calibrate(&config)?;
     for note in &calibration.notes {
-        eprintln!("treecal: {note}");
+        crate::output::note(note);
     }
     calibration.write(&args.out)?;
-    print!("{}", calibration.report_markdown);
-    eprintln!("treecal: wrote {}", args.out.display());
+    crate::output::print(&calibration.report_markdown)?;
+    crate::output::note(format_args!("wrote {}", args.out.display()));
     if !calibration.usable() {
         return Err(Error::InvalidData {
             origin: "calibration".into(),

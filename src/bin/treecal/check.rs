@@ -40,13 +40,13 @@ pub fn run(args: CheckArgs) -> Result<()> {
     let format = args.format;
     let outcome = check(&config(args))?;
     for note in &outcome.notes {
-        eprintln!("treecal: {note}");
+        crate::output::note(note);
     }
     let text = match format {
         Format::Text => outcome.text,
         Format::Yaml => outcome.to_yaml()?,
         Format::Json => outcome.to_json()?,
     };
-    print!("{text}");
+    crate::output::print(&text)?;
     Ok(())
 }

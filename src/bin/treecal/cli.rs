@@ -206,6 +206,10 @@ pub struct SimulateArgs {
     /// a package folder itself; repeatable, searched in order before ROS_PACKAGE_PATH.
     #[arg(long = "package-path", value_name = "DIR")]
     pub package_path: Vec<PathBuf>,
+    /// Which collision shapes configurations are checked against: `meshes` (a mesh that
+    /// cannot be found or read is an error), `primitives-only` or `off`; stated in the output.
+    #[arg(long, value_enum, default_value_t = CollisionCheckChoice::Meshes)]
+    pub collision_check: CollisionCheckChoice,
     /// Stiffness YAML (gravity, payloads, joint and link stiffness) [default: the built-in
     /// Robonaut's; required with --robot].
     #[arg(long)]
@@ -291,6 +295,26 @@ pub struct SimulateArgs {
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CollisionCheckChoice {
+    /// Primitives and meshes; a mesh that cannot be found or read is an error.
+    Meshes,
+    /// Primitive shapes only (box, cylinder, capsule, sphere); meshes are not checked.
+    PrimitivesOnly,
+    /// No self-collision check.
+    Off,
+}
+
+impl From<CollisionCheckChoice> for treecal::sim::collision::CollisionCheck {
+    fn from(choice: CollisionCheckChoice) -> Self {
+        match choice {
+            CollisionCheckChoice::Meshes => Self::Meshes,
+            CollisionCheckChoice::PrimitivesOnly => Self::PrimitivesOnly,
+            CollisionCheckChoice::Off => Self::Off,
+        }
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum PosesFrom {
     /// Uniform random collision-free configurations.
     Random,
@@ -333,6 +357,10 @@ pub struct PlanArgs {
     /// a package folder itself; repeatable, searched in order before ROS_PACKAGE_PATH.
     #[arg(long = "package-path", value_name = "DIR")]
     pub package_path: Vec<PathBuf>,
+    /// Which collision shapes configurations are checked against: `meshes` (a mesh that
+    /// cannot be found or read is an error), `primitives-only` or `off`; stated in the output.
+    #[arg(long, value_enum, default_value_t = CollisionCheckChoice::Meshes)]
+    pub collision_check: CollisionCheckChoice,
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,

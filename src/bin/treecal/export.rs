@@ -11,7 +11,7 @@ pub fn run(args: ExportArgs) -> Result<()> {
         .chain([&args.params])
         .map(|p| p.as_path())
         .collect();
-    crate::checks::refuse_overwrite(&args.output, &inputs)?;
+    crate::checks::check_outputs(&[crate::checks::Output::File(&args.output)], &inputs)?;
     let exported = export(&ExportConfig {
         robot: RobotSource::from_path(args.robot.clone()),
         parameters: args.params.clone(),
@@ -19,13 +19,13 @@ pub fn run(args: ExportArgs) -> Result<()> {
         add_tool_links: args.add_tool_links,
     })?;
     for note in &exported.notes {
-        eprintln!("treecal: {note}");
+        crate::output::note(note);
     }
     exported.write(&args.output)?;
-    eprintln!(
-        "treecal: wrote {} ({})",
+    crate::output::note(format_args!(
+        "wrote {} ({})",
         args.output.display(),
         exported.summary()
-    );
+    ));
     Ok(())
 }

@@ -13,7 +13,7 @@ pub fn run(args: FkArgs) -> Result<()> {
             .chain([&args.joints])
             .map(|p| p.as_path())
             .collect();
-        crate::checks::refuse_overwrite(output, &inputs)?;
+        crate::checks::check_outputs(&[crate::checks::Output::File(output)], &inputs)?;
     }
     let table = fk_csv(&FkCsvConfig {
         robot: RobotSource::from_path(robot),
@@ -25,12 +25,12 @@ pub fn run(args: FkArgs) -> Result<()> {
         },
     })?;
     for note in &table.notes {
-        eprintln!("treecal: {note}");
+        crate::output::note(note);
     }
     match &args.output {
         Some(path) => write_atomically(path, table.csv.as_bytes()),
         None => {
-            print!("{}", table.csv);
+            crate::output::print(&table.csv)?;
             Ok(())
         }
     }

@@ -5,9 +5,9 @@ use treecal::io::write_atomically;
 use treecal::Result;
 
 pub fn run(args: FromMcpcArgs) -> Result<()> {
-    crate::checks::refuse_overwrite(&args.output, &[&args.table])?;
+    crate::checks::check_outputs(&[crate::checks::Output::File(&args.output)], &[&args.table])?;
     let urdf = treecal::workflow::from_mcpc(&args.table)?;
     write_atomically(&args.output, urdf.as_bytes())?;
-    eprintln!("treecal: wrote {}", args.output.display());
+    crate::output::note(format_args!("wrote {}", args.output.display()));
     Ok(())
 }

@@ -11,7 +11,7 @@ pub fn run(args: InspectArgs) -> Result<()> {
         tools: args.tools.clone(),
     })?;
     for note in &inspection.notes {
-        eprintln!("treecal: {note}");
+        crate::output::note(note);
     }
     let report = &inspection.report;
     let text = match args.format {
@@ -19,6 +19,6 @@ pub fn run(args: InspectArgs) -> Result<()> {
         Format::Yaml => to_yaml(report)?,
         Format::Json => to_json(report)?,
     };
-    print!("{text}");
+    crate::output::print(&text)?;
     Ok(())
 }

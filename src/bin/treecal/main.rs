@@ -11,6 +11,7 @@ mod export;
 mod fk;
 mod from_mcpc;
 mod inspect;
+mod output;
 mod plan;
 mod progress;
 mod simulate;
@@ -35,7 +36,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("treecal: error: {error}");
+            output::note(format_args!("error: {error}"));
             ExitCode::FAILURE
         }
     }

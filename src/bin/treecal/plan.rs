@@ -11,6 +11,7 @@ fn config(args: PlanArgs) -> PlanConfig {
     PlanConfig {
         robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
         package_paths: args.package_path,
+        collision_check: args.collision_check.into(),
         tools: args.tools,
         poses: args.poses as usize,
         torso_poses: args.torso_poses as usize,
@@ -44,10 +45,10 @@ pub fn run(args: PlanArgs) -> Result<()> {
     display.finish();
     let outcome = outcome?;
     outcome.write(&out)?;
-    print!("{}", outcome.text);
+    crate::output::print(&outcome.text)?;
     for note in &outcome.notes {
-        eprintln!("treecal: {note}");
+        crate::output::note(note);
     }
-    eprintln!("treecal: wrote {}", out.display());
+    crate::output::note(format_args!("wrote {}", out.display()));
     Ok(())
 }

@@ -68,14 +68,14 @@ impl Display {
         let since_start = now.duration_since(self.start) >= LINE_INTERVAL;
         if progress.done >= progress.total || (due && since_start) {
             let stage = progress.stage.map(|s| format!("{s}: ")).unwrap_or_default();
-            eprintln!(
-                "treecal: {}: {stage}{}/{} {} ({} s)",
+            crate::output::note(format_args!(
+                "{}: {stage}{}/{} {} ({} s)",
                 self.job,
                 progress.done,
                 progress.total,
                 progress.unit,
                 now.duration_since(self.start).as_secs()
-            );
+            ));
             state.last_line = Some(now);
         }
     }

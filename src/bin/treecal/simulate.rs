@@ -11,6 +11,7 @@ fn config(args: SimulateArgs) -> SimulateConfig {
     SimulateConfig {
         robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
         package_paths: args.package_path,
+        collision_check: args.collision_check.into(),
         stiffness: args.stiffness.map(StiffnessSource::File),
         tools: args.tools,
         poses: args.poses as usize,
@@ -58,13 +59,13 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     display.finish();
     let outcome = outcome?;
     for note in &outcome.notes {
-        eprintln!("treecal: {note}");
+        crate::output::note(note);
     }
     outcome.write(&out)?;
     if let (Some(path), Some(csv)) = (&measurements, &outcome.measurements_csv) {
         write_atomically(path, csv.as_bytes())?;
     }
-    print!("{}", outcome.markdown);
-    eprintln!("treecal: wrote {}", out.display());
+    crate::output::print(&outcome.markdown)?;
+    crate::output::note(format_args!("wrote {}", out.display()));
     Ok(())
 }

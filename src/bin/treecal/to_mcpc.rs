@@ -7,24 +7,25 @@ use treecal::Result;
 
 pub fn run(args: ToMcpcArgs) -> Result<()> {
     let robot = crate::cli::robot_path(&args.robot, &args.robot_file);
-    if let (Some(output), Some(robot)) = (&args.output, &robot) {
-        crate::checks::refuse_overwrite(output, &[robot])?;
+    if let Some(output) = &args.output {
+        let inputs: Vec<&std::path::Path> = robot.iter().map(|p| p.as_path()).collect();
+        crate::checks::check_outputs(&[crate::checks::Output::File(output)], &inputs)?;
     }
     let table = to_mcpc(&ModelConfig {
         robot: RobotSource::from_path(robot),
         tools: args.tools.clone(),
     })?;
     for note in &table.notes {
-        eprintln!("treecal: {note}");
+        crate::output::note(note);
     }
     match &args.output {
         Some(path) => {
             write_atomically(path, table.yaml.as_bytes())?;
-            eprintln!("treecal: wrote {}", path.display());
+            crate::output::note(format_args!("wrote {}", path.display()));
             Ok(())
         }
         None => {
-            print!("{}", table.yaml);
+            crate::output::print(&table.yaml)?;
             Ok(())
         }
     }
