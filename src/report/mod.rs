@@ -4,6 +4,7 @@ pub mod calibrate;
 pub mod check;
 pub mod inspect;
 pub mod outliers;
+pub mod pairing;
 pub mod plot;
 pub mod simulate;
 pub mod stiffness;
@@ -15,5 +16,6 @@ pub use calibrate::{
 pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use inspect::{inspect, InspectReport};
 pub use outliers::{outlier_rows, OutlierRow, RobustSummary};
+pub use pairing::{pairing_markdown, PairingReport};
 pub use simulate::{simulation_results, SimulationResults, RESULTS_SCHEMA};
 pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};

@@ -11,6 +11,7 @@ mod export;
 mod fk;
 mod from_mcpc;
 mod inspect;
+mod pair;
 mod plan;
 mod progress;
 mod simulate;
@@ -31,6 +32,7 @@ fn main() -> ExitCode {
         cli::Command::Export(a) => export::run(a),
         cli::Command::Check(a) => check::run(a),
         cli::Command::Plan(a) => plan::run(a),
+        cli::Command::Pair(a) => pair::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
