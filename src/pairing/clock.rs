@@ -402,4 +402,31 @@ mod tests {
             "{e:?}"
         );
     }
+
+    #[test]
+    fn a_noisy_match_is_doubtful_but_found() {
+        let events = [
+            (3.0, 1.2),
+            (7.5, 2.0),
+            (11.0, 0.8),
+            (16.2, 1.7),
+            (21.0, 1.1),
+        ];
+        let (ja, jv) = bumps(&events, 100.0, 0.0, 25.0, 0.0);
+        let (ta, mut tv) = bumps(&events, 120.0, -3.0, 20.0, 3.217);
+        // Deterministic uniform noise of standard deviation 0.33 (the bumps' is about 0.3).
+        let mut state = 12345u64;
+        for v in &mut tv {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            *v += ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 1.15;
+        }
+        let e = estimate_clock_offset(&ja, &jv, &ta, &tv, &ClockOptions::default());
+        assert!(
+            matches!(&e.verdict, ClockVerdict::Doubtful(why) if why.contains("correlate only")),
+            "{e:?}"
+        );
+        assert!((e.offset - 3.217).abs() < 1.0 / 120.0, "{e:?}");
+    }
 }

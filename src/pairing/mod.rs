@@ -3,12 +3,13 @@
 //! into one measurement each. SI units, times in seconds; no files here (readers: `crate::io`).
 //! See docs/file-formats.md ("Joint-state and tracker logs") and docs/workflows.md.
 
+mod average;
 pub mod clock;
 pub mod plateaus;
 pub mod speed;
 
 pub use clock::{estimate_clock_offset, ClockEstimate, ClockOptions, ClockVerdict};
-pub use plateaus::{find_plateaus, Plateau, PlateauOptions, PlateauStatus};
+pub use plateaus::{find_plateaus, Plateau, PlateauOptions, PlateauSearch, PlateauStatus};
 pub use speed::windowed_speeds;
 
 use crate::math::{Rotation, Vec3};

@@ -3,10 +3,10 @@
 //! Runs of still samples are cut at dropped samples longer than `max_gap`, and trimmed by
 //! `margin` at both ends, so that no sample taken while moving is averaged.
 
+use super::average::measure;
 use super::speed::{windowed_speeds, SpeedNorm};
 use super::{JointSeries, TrackerSeries};
 use crate::math::{Rotation, Vec3};
-use nalgebra::{Quaternion, UnitQuaternion};
 
 /// Thresholds of stillness and of an acceptable plateau (SI units).
 #[derive(Debug, Clone, PartialEq)]
@@ -252,18 +252,37 @@ fn lonely_run_reason(
             options.min_duration
         );
     }
-    let seen = tracker
+    let inside: Vec<f64> = tracker
         .times
         .iter()
-        .filter(|t| (run.0..=run.1).contains(*t))
-        .count();
-    if seen == 0 {
+        .copied()
+        .filter(|t| (run.0..=run.1).contains(t))
+        .collect();
+    if inside.is_empty() {
         return "no tracker samples while the joints were still (the target was hidden, or the logs do not overlap here)".into();
     }
+    // The time the tracker saw the target (gaps longer than max_gap do not count).
+    let seen: f64 = inside
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|&dt| dt <= options.max_gap)
+        .sum();
     let still: f64 = tracker_runs
         .iter()
         .map(|&(s, e)| (e.min(run.1) - s.max(run.0)).max(0.0))
         .sum();
+    let mostly_still = still + 2.0 * options.margin >= 0.8 * seen;
+    if mostly_still && seen < options.min_duration + 2.0 * options.margin {
+        return format!(
+            "the tracker saw the target for only {seen:.2} s of the joints' {duration:.2} s (the target was hidden, or the tracker log starts or ends here)"
+        );
+    }
+    if mostly_still {
+        return format!(
+            "the target was still for {still:.2} s of the joints' {duration:.2} s but in no part for {:.2} s: its speed crossed the threshold in between (tracker noise? raise --still-marker-speed)",
+            options.min_duration
+        );
+    }
     format!(
         "the target moved (or was lost) while the joints were still: still for {still:.2} s of the joints' {duration:.2} s, in no part for {:.2} s; was the tracker or the target bumped?",
         options.min_duration
@@ -315,88 +334,6 @@ fn check(p: &Plateau, joints: &JointSeries, options: &PlateauOptions) -> Plateau
         return PlateauStatus::Kept;
     };
     PlateauStatus::Rejected(reason)
-}
-
-/// The statistics of the samples of both logs within `interval`.
-fn measure(
-    interval: (f64, f64),
-    joints: &JointSeries,
-    tracker: &TrackerSeries,
-    status: PlateauStatus,
-) -> Plateau {
-    let inside = |t: &f64| (interval.0..=interval.1).contains(t);
-    let joint_rows: Vec<&Vec<f64>> = joints
-        .times
-        .iter()
-        .zip(&joints.values)
-        .filter(|(t, _)| inside(t))
-        .map(|(_, v)| v)
-        .collect();
-    let width = joints.values.first().map_or(0, Vec::len);
-    let (joint_mean, joint_std): (Vec<f64>, Vec<f64>) = (0..width)
-        .map(|d| mean_std(joint_rows.iter().map(|row| row[d])))
-        .unzip();
-    let indices: Vec<usize> = (0..tracker.times.len())
-        .filter(|&i| inside(&tracker.times[i]))
-        .collect();
-    let (position, position_spread) = match indices.len() {
-        0 => (None, None),
-        n => {
-            let mean = indices.iter().map(|&i| tracker.positions[i]).sum::<Vec3>() / n as f64;
-            let square = indices
-                .iter()
-                .map(|&i| (tracker.positions[i] - mean).norm_squared())
-                .sum::<f64>();
-            (Some(mean), Some((square / n as f64).sqrt()))
-        }
-    };
-    let (orientation, rotation_spread) = tracker
-        .orientations
-        .as_ref()
-        .and_then(|all| mean_rotation(indices.iter().map(|&i| all[i])))
-        .map_or((None, None), |(r, s)| (Some(r), Some(s)));
-    Plateau {
-        start: interval.0,
-        end: interval.1,
-        joint_mean,
-        joint_std,
-        joint_samples: joint_rows.len(),
-        position,
-        position_spread,
-        orientation,
-        rotation_spread,
-        tracker_samples: indices.len(),
-        status,
-    }
-}
-
-/// Mean and (population) standard deviation; NaN for none.
-fn mean_std(values: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
-    let n = values.clone().count() as f64;
-    let mean = values.clone().sum::<f64>() / n;
-    let variance = values.map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
-    (mean, variance.sqrt())
-}
-
-/// The normalised sign-aligned mean of rotations close to each other, and the RMS angle of
-/// the rotations from it (rad); `None` for none.
-fn mean_rotation(rotations: impl Iterator<Item = Rotation> + Clone) -> Option<(Rotation, f64)> {
-    let first = rotations.clone().next()?;
-    let sum = rotations
-        .clone()
-        .fold(Quaternion::new(0.0, 0.0, 0.0, 0.0), |acc, r| {
-            let q = *r.quaternion();
-            if q.dot(first.quaternion()) < 0.0 {
-                acc - q
-            } else {
-                acc + q
-            }
-        });
-    let mean = UnitQuaternion::try_new(sum, 1e-12)?;
-    let (n, square) = rotations.fold((0usize, 0.0), |(n, s), r| {
-        (n + 1, s + r.angle_to(&mean).powi(2))
-    });
-    Some((mean, (square / n as f64).sqrt()))
 }
 
 #[cfg(test)]
