@@ -171,6 +171,23 @@ fn damaged_bags_are_errors_naming_the_file() {
         error.contains("bag.mcap: message 1") && error.contains("2 names but 1 positions"),
         "{error}"
     );
+    // Damaged bytes anywhere: an error or a log, never a panic.
+    let mut state = 3u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 33) as usize
+    };
+    for _ in 0..300 {
+        let mut damaged = bytes.clone();
+        for _ in 0..1 + next() % 3 {
+            let at = next() % damaged.len();
+            damaged[at] = next() as u8;
+        }
+        std::fs::write(&cut, &damaged).unwrap();
+        let _ = treecal::io::read_joint_log(&cut, &options);
+    }
     let missing = treecal::io::JointLogOptions {
         topic: Some("/joint_state".into()),
         ..options

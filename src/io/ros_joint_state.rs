@@ -195,4 +195,25 @@ mod tests {
             .unwrap_err()
             .contains("encapsulation"));
     }
+
+    #[test]
+    fn mutated_messages_never_panic() {
+        let data = message(&["a", "joint_b", "c"], &[0.25, -1.5, 3.0]);
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as usize
+        };
+        for _ in 0..5000 {
+            let mut bad = data.clone();
+            for _ in 0..1 + next() % 4 {
+                let at = next() % bad.len();
+                bad[at] = next() as u8;
+            }
+            let end = bad.len() - next() % 8;
+            let _ = decode_joint_state(&bad[..end]);
+        }
+    }
 }
