@@ -25,9 +25,20 @@ pub fn moving(tree: &KinematicTree, tool: &str) -> (Vec<usize>, Vec<String>) {
         .unzip()
 }
 
-/// Writes both logs of `tool` into `dir` and returns the config pairing them.
+/// Writes both logs of `tool` into `dir` and returns the config pairing them (Robonaut).
 pub fn logs(dir: &Path, tool: &str, motion: &Motion, recording: &Recording) -> PairConfig {
-    let tree = robonaut();
+    logs_on(RobotSource::BuiltIn, dir, tool, motion, recording)
+}
+
+/// [`logs`] for any robot.
+pub fn logs_on(
+    robot: RobotSource,
+    dir: &Path,
+    tool: &str,
+    motion: &Motion,
+    recording: &Recording,
+) -> PairConfig {
+    let tree = robot.load().unwrap().import.tree;
     let (dofs, names) = moving(&tree, tool);
     let joints = dir.join(format!("{tool}_joints.csv"));
     let tracker = dir.join(format!("{tool}_tracker.csv"));
@@ -38,6 +49,7 @@ pub fn logs(dir: &Path, tool: &str, motion: &Motion, recording: &Recording) -> P
     )
     .unwrap();
     PairConfig {
+        robot,
         tool: tool.into(),
         joints,
         tracker,
@@ -48,10 +60,15 @@ pub fn logs(dir: &Path, tool: &str, motion: &Motion, recording: &Recording) -> P
 /// Every kept plateau lies (with the offset's error as margin) inside one true hold, its
 /// joint values are that hold's, and every hold the tracker saw whole is kept.
 #[track_caller]
-fn assert_only_holds_paired(pairing: &Pairing, motion: &Motion, recording: &Recording, tool: &str) {
+fn assert_only_holds_paired(
+    tree: &KinematicTree,
+    pairing: &Pairing,
+    motion: &Motion,
+    recording: &Recording,
+    tool: &str,
+) {
     let error = (pairing.offset - recording.offset()).abs();
-    let tree = robonaut();
-    let (dofs, _) = moving(&tree, tool);
+    let (dofs, _) = moving(tree, tool);
     let mut kept = 0;
     for (id, plateau) in &pairing.plateaus {
         if id.is_none() {
@@ -78,7 +95,8 @@ fn assert_only_holds_paired(pairing: &Pairing, motion: &Motion, recording: &Reco
         let expected = recording.tracker_from_base
             * tree
                 .link_pose(tree.link_id(tool).unwrap(), &hold.q)
-                .unwrap();
+                .unwrap()
+            * nalgebra::Translation3::from(recording.marker_offset);
         let position = plateau.position.unwrap();
         assert!(
             (position - expected.translation.vector).norm() < 2e-5,
@@ -134,7 +152,7 @@ fn a_known_offset_is_recovered_and_only_holds_are_paired() {
         "{:?}",
         pairing.notes
     );
-    assert_only_holds_paired(&pairing, &motion, &recording, "left_tool");
+    assert_only_holds_paired(&tree, &pairing, &motion, &recording, "left_tool");
     assert!(
         pairing.report.contains("| left_tool-1 |"),
         "{}",
@@ -150,6 +168,8 @@ fn a_known_offset_is_recovered_and_only_holds_are_paired() {
 }
 
 #[test]
+/// A single marker 6 cm off the tool origin (its lever arm changes the speed profile the
+/// clock estimate compares with the tool origin's), more dropped rows, a tracker clock ahead.
 fn positions_only_and_another_seed_pair_too() {
     let dir = tempfile::tempdir().unwrap();
     let tree = robonaut();
@@ -161,16 +181,48 @@ fn positions_only_and_another_seed_pair_too() {
         joint_zero: 0.0,
         drop: 0.08,
         seed: 12,
+        marker_offset: treecal::math::Vec3::new(0.03, -0.02, 0.05),
         ..Recording::default()
     };
     let pairing = pair(&logs(dir.path(), "right_tool", &motion, &recording)).unwrap();
+    eprintln!(
+        "lever arm: offset error {:.3} ms",
+        (pairing.offset - recording.offset()) * 1e3
+    );
     assert!((pairing.offset - recording.offset()).abs() < 1.0 / recording.tracker_rate);
-    assert_only_holds_paired(&pairing, &motion, &recording, "right_tool");
+    assert_only_holds_paired(&tree, &pairing, &motion, &recording, "right_tool");
     assert!(
         pairing.csv.lines().nth(2).unwrap().ends_with(",x,y,z"),
         "{}",
         pairing.csv
     );
+}
+
+/// A lifting column (prismatic, metres) under the arms: its joint values, speeds and spreads
+/// are lengths, written in the joint log's length unit.
+#[test]
+fn a_prismatic_torso_pairs() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = crate::common::robot("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let robot = RobotSource::File(path);
+    let tree = robot.load().unwrap().import.tree;
+    let (dofs, names) = moving(&tree, "left_tool");
+    assert_eq!(names[0], "torso_lift");
+    let motion = Motion::new(&tree, &dofs, 10, false, 17);
+    let recording = Recording {
+        seed: 18,
+        ..Recording::default()
+    };
+    let pairing = pair(&logs_on(
+        robot,
+        dir.path(),
+        "left_tool",
+        &motion,
+        &recording,
+    ))
+    .unwrap();
+    assert!((pairing.offset - recording.offset()).abs() < 1.0 / recording.tracker_rate);
+    assert_only_holds_paired(&tree, &pairing, &motion, &recording, "left_tool");
 }
 
 #[test]
@@ -189,7 +241,7 @@ fn repetitive_motion_is_refused_unless_the_offset_is_given() {
     config.clock_offset = Some(recording.offset());
     let pairing = pair(&config).unwrap();
     assert!(pairing.estimate.is_none());
-    assert_only_holds_paired(&pairing, &motion, &recording, "left_tool");
+    assert_only_holds_paired(&tree, &pairing, &motion, &recording, "left_tool");
 }
 
 #[test]

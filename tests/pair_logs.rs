@@ -37,10 +37,14 @@ impl Motion {
         seed: u64,
     ) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let limits = tree.dof_limits();
         let random_q = |rng: &mut ChaCha8Rng| {
             let mut q = vec![0.0; tree.dof_count()];
             for &d in moving {
-                q[d] = rng.random_range(-0.8..0.8);
+                let (lower, upper) = limits[d]
+                    .as_ref()
+                    .map_or((-0.8, 0.8), |l| (l.lower.max(-0.8), l.upper.min(0.8)));
+                q[d] = rng.random_range(lower..upper);
             }
             q
         };
@@ -133,8 +137,10 @@ pub struct Recording {
     pub tracker_zero: f64,
     pub joint_rate: f64,
     pub tracker_rate: f64,
-    /// Tracker's view of the robot base, and the target on the tool.
+    /// Tracker's view of the robot base.
     pub tracker_from_base: Pose,
+    /// The target (or rigid body origin) in the tool frame.
+    pub marker_offset: Vec3,
     /// Fraction of tracker rows dropped at random, plus one occlusion of 0.4 s.
     pub drop: f64,
     /// The tracker records from this true time to `duration - tracker_stop`.
@@ -152,6 +158,7 @@ impl Default for Recording {
             joint_rate: 100.0,
             tracker_rate: 120.0,
             tracker_from_base: Pose::new(Vec3::new(2.1, -0.9, 0.7), Vec3::new(0.1, -0.08, 2.3)),
+            marker_offset: Vec3::zeros(),
             drop: 0.03,
             tracker_start: 2.0,
             tracker_stop: 1.0,
@@ -223,7 +230,9 @@ impl Recording {
                 out += &format!("{time}{}\n", ",".repeat(columns - 1));
                 continue;
             }
-            let pose = self.tracker_from_base * tree.link_pose(tool, &motion.q(t)).unwrap();
+            let pose = self.tracker_from_base
+                * tree.link_pose(tool, &motion.q(t)).unwrap()
+                * nalgebra::Translation3::from(self.marker_offset);
             let mut noise = || -> f64 { StandardNormal.sample(&mut rng) };
             let p = pose.translation.vector * 1e3 + Vec3::new(noise(), noise(), noise()) * 0.03;
             out += &format!("{time},{:.4},{:.4},{:.4}", p.x, p.y, p.z);
