@@ -138,7 +138,7 @@ pub fn pair(config: &PairConfig) -> Result<Pairing> {
     if rows.is_empty() {
         return Err(Error::InvalidData {
             origin: format!("{} and {}", log.origin, tracker_log.origin),
-            message: format!("no plateau where both logs are still was kept ({} rejected); see the reasons:\n{report}", plateaus.len()),
+            message: no_plateau_message(&plateaus, search.brief),
         });
     }
     let csv = write_csv(&log, &tracker_log, &columns, &rows, offset)?;
@@ -161,6 +161,28 @@ struct JointColumn {
     prismatic: bool,
     /// Whether it moves the tool (is watched for stillness).
     moves_tool: bool,
+}
+
+/// Why nothing was paired: the first reasons, counted.
+fn no_plateau_message(plateaus: &[(Option<String>, Plateau)], brief: usize) -> String {
+    let reasons: Vec<String> = plateaus
+        .iter()
+        .filter_map(|(_, p)| match &p.status {
+            PlateauStatus::Rejected(why) => Some(format!("at {:.3} s: {why}", p.start)),
+            PlateauStatus::Kept => None,
+        })
+        .collect();
+    let mut message = format!(
+        "no plateau where both logs are still for long enough was found ({} rejected, {brief} brief still moments); the thresholds are in docs/workflows.md (pair)",
+        reasons.len()
+    );
+    for reason in reasons.iter().take(3) {
+        message.push_str(&format!("; {reason}"));
+    }
+    if reasons.len() > 3 {
+        message.push_str(&format!("; … and {} more", reasons.len() - 3));
+    }
+    message
 }
 
 /// The joint log's columns treecal uses.
