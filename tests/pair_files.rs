@@ -124,6 +124,20 @@ fn a_ros2_bag_pairs_like_the_csv() {
         "{:?}",
         from_bag.notes
     );
+    // Two publishers on one topic (torso and arm controllers): each message gives some joints.
+    let split: Vec<_> = messages
+        .iter()
+        .flat_map(|(t, names, values)| {
+            [
+                (*t, names[..2].to_vec(), values[..2].to_vec()),
+                (t + 0.002, names[2..].to_vec(), values[2..].to_vec()),
+            ]
+        })
+        .collect();
+    write_bag(&config.joints, &split);
+    let from_split = pair(&config).unwrap();
+    assert!((from_split.offset - recording.offset()).abs() < 1.0 / recording.tracker_rate);
+    assert_eq!(from_split.kept(), from_csv.kept());
     // Nanosecond stamps against 1e-6 s CSV times: the same rows to far below the noise.
     let rows = |csv: &str| {
         csv.lines()

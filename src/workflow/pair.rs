@@ -260,6 +260,9 @@ fn joint_columns(
     Ok(JointColumns { used })
 }
 
+/// How long (s) a watched joint's last value stands in for a sample that does not give it.
+const HOLD_LAST: f64 = 0.1;
+
 /// Every used joint of every sample, SI, NaN where absent: for averaging over a plateau.
 struct AllJoints {
     times: Vec<f64>,
@@ -310,6 +313,7 @@ fn joint_series(
         values: Vec::with_capacity(log.times.len()),
     };
     let mut dropped = 0;
+    let mut last: Vec<Option<(f64, f64)>> = vec![None; series.names.len()];
     for (i, raw) in log.values.iter().enumerate() {
         let mut row = Vec::with_capacity(columns.used.len());
         for c in &columns.used {
@@ -326,13 +330,26 @@ fn joint_series(
             }
             row.push(value);
         }
-        let watched: Vec<f64> = columns
+        // A watched joint this sample does not give (another publisher's message) holds its
+        // last value if that is at most HOLD_LAST seconds old.
+        let t = log.times[i];
+        let mut watched = Vec::with_capacity(last.len());
+        for (k, value) in columns
             .used
             .iter()
             .zip(&row)
             .filter(|(c, _)| c.moves_tool)
             .map(|(_, v)| *v)
-            .collect();
+            .enumerate()
+        {
+            if !value.is_nan() {
+                last[k] = Some((t, value));
+            }
+            watched.push(match last[k] {
+                Some((at, held)) if value.is_nan() && t - at <= HOLD_LAST => held,
+                _ => value,
+            });
+        }
         if watched.iter().any(|v| v.is_nan()) {
             dropped += 1;
         } else {
