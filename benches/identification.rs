@@ -50,6 +50,7 @@ fn problem(tree: &KinematicTree, nominal: &McpcModel, configurations: usize) -> 
                 q: q.clone(),
                 observation: Observation::Pose(pose),
                 stage: None,
+                session: None,
             });
         }
     }
@@ -91,6 +92,7 @@ fn stiffness_problem(
                 q: q.clone(),
                 observation: Observation::Pose(pose),
                 stage: None,
+                session: None,
             });
         }
     }

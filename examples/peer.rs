@@ -70,6 +70,7 @@ fn measurements(nominal: &McpcModel, configurations: &[Vec<f64>]) -> Vec<Measure
                 q: q.clone(),
                 observation: Observation::Pose(pose),
                 stage: None,
+                session: None,
             });
         }
     }

@@ -47,6 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 q: q.clone(),
                 observation: observe(pose, Targets::Three, &noise, &mut rng),
                 stage: None,
+                session: None,
             });
         }
     }

@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")"
 repo=..
 corpus=corpus
-mkdir -p "$corpus"/{urdf,measurements_csv,joints_csv,mcpc_table,stiffness,params,plan}
+mkdir -p "$corpus"/{urdf,measurements_csv,joints_csv,mcpc_table,stiffness,params,plan,stl,obj,collada,registration,export}
 cp "$repo"/robots/*/*.urdf "$corpus/urdf/"
 prefix=$(python3 -c 'import sys; print(sys.prefix)' 2>/dev/null || true)
 root=$( [ -n "$prefix" ] && find "$prefix" -path '*/share/example-robot-data/robots' -type d 2>/dev/null | head -1 || true)
@@ -22,6 +22,21 @@ cp "$repo"/robots/robonaut/table*.yaml "$corpus/mcpc_table/"
 cp "$repo"/robots/robonaut/stiffness.yaml "$corpus/stiffness/"
 printf 'parameters:\n  - name: left_joint1 alpha\n    calibrated: 1.5712\n  - name: left_tool z\n    calibrated: 0.1451\n' > "$corpus/params/p1.yaml"
 printf 'stages:\n  - name: torso\n    parameters: coupled\n    measurements: torso\n  - name: arms\n    parameters: arms\n    measurements: arms\n' > "$corpus/plan/p1.yaml"
+# Meshes: the test cube, and the smaller STL/OBJ/COLLADA meshes of example-robot-data.
+cp "$repo"/tests/data/cube.dae "$corpus/collada/"
+printf 'solid cube\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid cube\n' > "$corpus/stl/ascii.stl"
+printf 'mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n' > "$corpus/obj/tri.obj"
+if [ -n "$root" ]; then
+  for ext in stl obj dae; do
+    target=$ext; [ "$ext" = dae ] && target=collada
+    find "$root" -iname "*.$ext" -size -40k | sort | head -12 | while read -r f; do
+      cp "$f" "$corpus/$target/erd_$(basename "$f")"
+    done || true
+  done
+fi
+printf 'units: {length: mm, angle: deg}\nxyz: [2300.0, -150.0, 420.0]\nrpy: [0.0, 0.0, 90.0]\n' > "$corpus/registration/r1.yaml"
+printf 'units: {length: m, angle: rad}\nxyz: [1, 2, 3]\nrpy: [0.1, 0.2, 0.3]  # comment\n' > "$corpus/registration/r2.yaml"
+cp "$corpus/params/p1.yaml" "$corpus/export/p1.yaml"
 # The examples of docs/file-formats.md, sorted by their first line.
 python3 - "$repo/docs/file-formats.md" "$corpus" <<'PY'
 import re, sys

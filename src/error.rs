@@ -96,6 +96,17 @@ pub(crate) fn did_you_mean<'a>(
     }
 }
 
+/// The candidate closest to `name` (fewest edits; the first of equals), `None` if there are
+/// none.
+pub(crate) fn closest<'a>(
+    name: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> Option<&'a str> {
+    candidates
+        .into_iter()
+        .min_by_key(|c| edit_distance(name, c))
+}
+
 fn edit_distance(a: &str, b: &str) -> usize {
     let b: Vec<char> = b.chars().collect();
     let mut previous: Vec<usize> = (0..=b.len()).collect();

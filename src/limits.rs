@@ -8,8 +8,6 @@
 //! robot or measurement, and named here with its reason.
 
 use crate::error::{Error, Result};
-use std::io::Read;
-use std::path::Path;
 
 /// Largest length (m): link offsets, positions, targets, prismatic joint values, geometry.
 /// 10 km: a robot or a tracker set-up is metres (millimetres read as metres still pass), and
@@ -62,6 +60,23 @@ pub const MAX_NAME_CHARS: usize = 1_000;
 pub const MAX_CANDIDATES: usize = 100_000;
 /// Most configurations, validation poses or trials asked for on the command line.
 pub const MAX_POSES: usize = 100_000;
+/// Largest field of a CSV file (bytes), checked while the text is scanned, before any record
+/// is built: a joint value, name or label is a few dozen bytes.
+pub const MAX_CSV_FIELD_BYTES: usize = 64 << 10;
+/// Most stages of a calibration plan: each stage is a whole calibration (the paper's plan has
+/// two).
+pub const MAX_PLAN_STAGES: usize = 32;
+/// Largest mesh file (bytes): STL, OBJ, COLLADA. ROS collision meshes are under 10 MB.
+pub const MAX_MESH_BYTES: u64 = 128 << 20;
+/// Most vertices one mesh file may place (a COLLADA file's instances included); a convex hull
+/// of more is no better.
+pub const MAX_MESH_VERTICES: usize = 10_000_000;
+/// Deepest element nesting of a COLLADA file; exporters nest a few dozen levels at most.
+pub const MAX_XML_DEPTH: usize = 256;
+/// Most XML nodes (elements, attributes' holders, text) of a COLLADA file.
+pub const MAX_XML_NODES: u32 = 4_000_000;
+/// Longest value quoted in a message (characters); longer ones are cut with "…".
+pub const MAX_QUOTED_CHARS: usize = 80;
 
 /// What a number measures, which decides its bound.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -136,12 +151,21 @@ pub fn magnitude_problem(value: f64, quantity: Quantity) -> Option<String> {
     })
 }
 
-/// A number for a message: in exponent notation when very large or small.
+/// A number for a message: in exponent notation when very large or small (never 309 digits).
 pub fn shown(value: f64) -> String {
     if value != 0.0 && value.is_finite() && !(1e-4..1e6).contains(&value.abs()) {
         format!("{value:e}")
     } else {
         format!("{value}")
+    }
+}
+
+/// A value quoted in a message, cut to [`MAX_QUOTED_CHARS`] characters and "…" (a 100 MB
+/// field must not become a 100 MB message).
+pub fn cut(text: &str) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(MAX_QUOTED_CHARS) {
+        None => std::borrow::Cow::Borrowed(text),
+        Some((end, _)) => std::borrow::Cow::Owned(format!("{}…", &text[..end])),
     }
 }
 
@@ -203,39 +227,9 @@ pub fn name_problem(name: &str) -> Option<String> {
     })
 }
 
-/// Reads a UTF-8 text file of at most `max_bytes`, refusing larger ones before reading them.
-pub fn read_text(path: &Path, max_bytes: u64) -> Result<String> {
-    let io = |source| Error::Io {
-        path: path.to_owned(),
-        source,
-    };
-    let file = std::fs::File::open(path).map_err(io)?;
-    let too_big = |size: u64| Error::InvalidData {
-        origin: path.display().to_string(),
-        message: format!(
-            "the file has {size} bytes, more than the limit of {max_bytes} for this kind of \
-             file (docs/file-formats.md, \"Limits\")"
-        ),
-    };
-    let size = file.metadata().map_err(io)?.len();
-    if size > max_bytes {
-        return Err(too_big(size));
-    }
-    // The size can change (or be unknown, for a pipe) between the check and the read.
-    let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0));
-    file.take(max_bytes + 1)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
-    if bytes.len() as u64 > max_bytes {
-        return Err(too_big(bytes.len() as u64));
-    }
-    String::from_utf8(bytes).map_err(|e| {
-        io(std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("not UTF-8 text ({e})"),
-        ))
-    })
-}
+/// Reads a UTF-8 text file of at most `max_bytes`: [`crate::io::bounded::read_text`], the one
+/// bounded reader (regular files only, size checked before reading).
+pub use crate::io::bounded::read_text;
 
 /// Fails if `text` is longer than `max_bytes` (for text given as a string, not a file).
 pub fn check_text_size(text: &str, max_bytes: u64, origin: &str) -> Result<()> {

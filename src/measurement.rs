@@ -39,6 +39,10 @@ pub struct Measurement {
     /// The payload (kg) the robot carried at every tool when this row was measured (the
     /// measurement CSV's `payload_kg` column); `None`: the stiffness file's payloads.
     pub payload: Option<f64>,
+    /// The measurement session (the CSV's `session` column): rows of one session share one
+    /// measurement frame, each session has its own (`calibration::sessions`); `None`: the
+    /// unnamed session.
+    pub session: Option<String>,
 }
 
 /// Spacing of the targets A→B and A→C that [`targets_on`] places on a tool (m).

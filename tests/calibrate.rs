@@ -143,6 +143,7 @@ impl Tracker<'_> {
                     q: q.clone(),
                     observation: observe(pose, Targets::Three, &self.noise, rng),
                     stage: stage.map(str::to_owned),
+                    session: None,
                 });
             }
         }
@@ -481,6 +482,7 @@ fn noisy_poses(
                 q: q.clone(),
                 observation: Observation::Pose(measured),
                 stage: None,
+                session: None,
             });
         }
     }

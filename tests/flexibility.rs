@@ -922,18 +922,18 @@ fn stiffness_file_errors_name_file_line_and_fix() {
     assert_error(
         "links:\n  default:\n    ea_n: 4.0e7\n    # a comment\n    ei_q_nm2: 1.0\n",
         "stiffness.yaml:5:5",
-        &["unknown field `ei_q_nm2`"],
+        &["unknown key 'ei_q_nm2'"],
     );
     // Unknown keys and wrong types.
     assert_error(
         &replace("ei_y_nm2: 3.0e4", "ei_x_nm2: 3.0e4"),
         "stiffness.yaml:12:",
-        &["unknown field `ei_x_nm2`", "ei_y_nm2"],
+        &["unknown key 'ei_x_nm2'", "ei_y_nm2"],
     );
     assert_error(
         &replace("self_weight: true", "self_weigth: true"),
         "stiffness.yaml:2:",
-        &["unknown field `self_weigth`"],
+        &["unknown key 'self_weigth'"],
     );
     assert_error(
         &replace("{mass_kg: 20}", "{mass_kg: heavy}"),

@@ -45,6 +45,7 @@ fn measured(tree_path: &str, seed: u64, world_from_base: &Pose) -> (McpcModel, V
                     &mut rng,
                 ),
                 stage: None,
+                session: None,
             });
         }
     }

@@ -402,17 +402,17 @@ fn misspelt_key_is_rejected_with_its_line() {
     assert_table_rejected(
         "alpah.yaml",
         &GOOD_TABLE.replacen("alpha: -90", "alpah: -90", 1),
-        &["{file}:7:", "unknown field `alpah`", "`alpha`"],
+        &["{file}:7:", "unknown key 'alpah'", "'alpha'"],
     );
     assert_table_rejected(
         "branch_key.yaml",
         &GOOD_TABLE.replace("    rows:", "    rowz:"),
-        &["unknown field `rowz`"],
+        &["unknown key 'rowz'"],
     );
     assert_table_rejected(
         "top_key.yaml",
         &format!("{GOOD_TABLE}joint_limit: [-1, 1]\n"),
-        &["unknown field `joint_limit`"],
+        &["unknown key 'joint_limit'"],
     );
 }
 

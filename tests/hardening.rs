@@ -108,6 +108,7 @@ fn overflow_in_the_fit_is_an_error_not_a_hang() {
             q: q.clone(),
             observation: Observation::Position(Vec3::repeat(1e200)),
             stage: None,
+            session: None,
         })
         .collect();
     let free: Vec<usize> = (0..model.parameter_count()).collect();
@@ -134,6 +135,7 @@ fn overflow_in_the_fit_is_an_error_not_a_hang() {
         q,
         observation: Observation::Position(pose + Vec3::repeat(1e-3)),
         stage: None,
+        session: None,
     }];
     let options = IdentificationOptions {
         position_sigma: 1e-300,

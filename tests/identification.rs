@@ -68,6 +68,7 @@ pub fn measure(
                 q: q.clone(),
                 observation,
                 stage: None,
+                session: None,
             });
         }
     }
@@ -287,6 +288,7 @@ fn torso_measurements(
                 q: q.clone(),
                 observation: Observation::Pose(pose),
                 stage: Some("torso".into()),
+                session: None,
             });
         }
     }
@@ -540,6 +542,7 @@ fn measure_deflected(
                 q: q.clone(),
                 observation: Observation::Pose(pose),
                 stage: stage.map(String::from),
+                session: None,
             });
         }
     }

@@ -43,6 +43,7 @@ fn simulated(tree: &KinematicTree, model: &McpcModel, seed: u64, poses: bool) ->
                     Observation::Position(pose.translation.vector)
                 },
                 stage: (i % 3 != 0).then(|| ["torso", "arms"][i % 2].to_owned()),
+                session: None,
             }
         })
         .collect()

@@ -48,6 +48,7 @@ fn observed(
             q: q.to_vec(),
             observation: Observation::Pose(pose),
             stage: None,
+            session: None,
             payload,
         })
         .collect()

@@ -150,6 +150,7 @@ fn measure(
                 q: q.clone(),
                 observation: Observation::Pose(observe(&(world_from_base * pose), rng)),
                 stage: None,
+                session: None,
             });
         }
     }

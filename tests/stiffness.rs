@@ -116,6 +116,7 @@ fn measure(
                 q: q.clone(),
                 observation: Observation::Pose(pose),
                 stage: None,
+                session: None,
             });
             payloads.push(*payload);
         }

@@ -73,6 +73,7 @@ fn measure(
                 q: q.clone(),
                 observation,
                 stage: None,
+                session: None,
             });
         }
     }

@@ -126,6 +126,7 @@ pub fn calibrate(
         stiffness_prior: stiffness_prior.unwrap_or(defaults.stiffness_prior),
         gravity_frame: gravity(gravity_frame)?,
         add_tool_links,
+        ..defaults
     };
     let inner = py
         .detach(|| treecal::workflow::calibrate(&config))

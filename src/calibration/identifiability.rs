@@ -488,6 +488,7 @@ pub fn analyse(
                     q: r.q.clone(),
                     observation: Observation::Position(Vector3::zeros()),
                     stage: r.stage.clone(),
+                    session: None,
                 })
                 .collect();
             let (stage_model, stage_data, locked_tools) =
@@ -647,7 +648,9 @@ fn locked_names(tree: &KinematicTree, stage_model: &McpcModel) -> Vec<String> {
                 let lock = tools[..=*t].iter().filter(|o| o.link == link).count();
                 format!("{} (lock {lock}) {}", tree.link(link).name, kind.name())
             }
-            ParameterOwner::Frame(_) => stage_model.parameter_name(tree, index),
+            ParameterOwner::Frame(_) | ParameterOwner::Measurement => {
+                stage_model.parameter_name(tree, index)
+            }
         })
         .collect()
 }

@@ -237,6 +237,7 @@ fn fit_tools(current: &McpcModel, measurements: &[Measurement]) -> Result<McpcMo
         *tool = McpcTool::from_relative_pose(tool.link, tool.parent, twist, &relative);
     }
     let mut fitted = McpcModel::new(current.frames().to_vec(), tools)?;
+    fitted.adopt_extra_parameters(current);
     fitted.set_world_from_base(&current.world_from_base());
     Ok(fitted)
 }

@@ -12,6 +12,8 @@
 //! - [`stiffness`]: compliance scale factors identified jointly with the MCPC parameters
 //!   (`--identify-stiffness`), and what a set of measurements can determine of them.
 //! - [`robust`]: robust estimation (Huber or Cauchy by IRLS): blunders named and left out.
+//! - [`sessions`]: one measurement frame per measurement session (a nuisance block per
+//!   session), fitted with the geometry; validation in the training frame and re-registered.
 //! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
 //!   validation) that feed the verdict.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
@@ -22,8 +24,10 @@ pub mod identifiability;
 pub mod initial_guess;
 mod normal_equations;
 pub mod plan;
+pub mod prior;
 pub mod robust;
 pub mod run;
+pub mod sessions;
 pub mod solver;
 pub mod stiffness;
 pub mod verdict;
@@ -39,10 +43,15 @@ pub use initial_guess::{fit_rigid_transform, fit_similarity_scale, initial_guess
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
 };
+pub use prior::Prior;
 pub use robust::{calibrate_robust, RobustLoss, RobustReport};
 pub use run::{
     assembled_covariance, hold_out, hold_out_indices, run_calibration, ArmResiduals,
     CalibrationInput, CalibrationRun, ErrorSummary, ParameterEstimate,
+};
+pub use sessions::{
+    calibrate_sessions, SessionCalibration, SessionFrame, SessionValidation, Sessions,
+    SessionsReport,
 };
 pub use solver::{
     identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,

@@ -213,6 +213,8 @@ pub(super) struct Problem<'a> {
     pub free: &'a [usize],
     /// Row weights (σ's).
     pub options: &'a IdentificationOptions,
+    /// The prior's rows over the free parameters, if any.
+    pub prior: Option<&'a super::prior::PriorRows>,
 }
 
 /// The products of one chunk.
@@ -289,6 +291,9 @@ pub(super) fn accumulate(
         }
     }
     let mut total = total.unwrap_or_else(|| NormalEquations::zeros(problem.free.len(), products));
+    if let Some(prior) = problem.prior {
+        add_prior(&mut total, model, problem.free, prior);
+    }
     let columns = total.gradient.len().max(problem.free.len());
     if let Some(factor) = total.factor.as_mut() {
         if factor.nrows() < columns {
@@ -296,6 +301,38 @@ pub(super) fn accumulate(
         }
     }
     Ok(total)
+}
+
+/// Adds the prior rows `√w·(θ₀ − θ)` (Jacobian `√w` on their own column) to the products.
+fn add_prior(
+    total: &mut NormalEquations,
+    model: &McpcModel,
+    free: &[usize],
+    prior: &super::prior::PriorRows,
+) {
+    let values = model.parameters();
+    let with_normal = total.normal.nrows() == free.len() && !free.is_empty();
+    let mut rows = Vec::new();
+    for (k, &p) in free.iter().enumerate() {
+        let weight = prior.weights[k];
+        if weight <= 0.0 {
+            continue;
+        }
+        let difference = prior.centers[k] - values[p];
+        total.cost += 0.5 * weight * difference * difference;
+        if with_normal {
+            total.normal[(k, k)] += weight;
+            total.gradient[k] += weight * difference;
+        }
+        rows.push((k, weight.sqrt()));
+    }
+    if let Some(factor) = total.factor.as_mut() {
+        let mut extra = DMatrix::zeros(rows.len(), free.len());
+        for (row, (k, value)) in rows.into_iter().enumerate() {
+            extra[(row, k)] = value;
+        }
+        *factor = stacked_triangle(factor, &extra);
+    }
 }
 
 #[cfg(test)]
@@ -347,6 +384,7 @@ mod tests {
                     q: q.clone(),
                     observation,
                     stage: None,
+                    session: None,
                 });
             }
         }
@@ -371,6 +409,7 @@ mod tests {
                 predictor: &Rigid,
                 free: &free,
                 options: &options,
+                prior: None,
             };
             let (stacked, streamed) =
                 streamed_and_stacked(model, &problem, Products::NormalAndFactor);
@@ -410,6 +449,7 @@ mod tests {
             predictor: &Rigid,
             free: &free,
             options: &options,
+            prior: None,
         };
         streamed_and_stacked(model, &problem, Products::Normal);
     }
@@ -469,6 +509,7 @@ mod tests {
             predictor: &Rigid,
             free: &free,
             options: &options,
+            prior: None,
         };
         let on = |threads: usize| {
             rayon::ThreadPoolBuilder::new()

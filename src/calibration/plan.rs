@@ -28,6 +28,7 @@ pub enum ParameterSet {
 
 /// One stage of a plan.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Stage {
     /// Name shown in reports.
     pub name: String,
@@ -40,6 +41,7 @@ pub struct Stage {
 
 /// An ordered list of stages.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Plan {
     /// The stages, run in order, each starting from the previous one's result.
     pub stages: Vec<Stage>,
@@ -285,9 +287,22 @@ pub fn calibrate(
                             None => locked_arm_model(&current, &coupled_frames, data, &stage.name)?,
                         };
                         let kept = position_only_orientations(&stage_model, &stage_data);
+                        // The torso frames' parameters are the first of both models.
+                        let shared: usize = stage_model
+                            .frames()
+                            .iter()
+                            .map(|f| f.kind.parameter_count())
+                            .sum();
                         let free: Vec<usize> = (0..stage_model.parameter_count())
                             .filter(|p| !kept.contains(p))
+                            .filter(|p| !(*p < shared && options.frozen.contains(p)))
                             .collect();
+                        let reduced = IdentificationOptions {
+                            prior: options.prior.as_ref().map(|prior| {
+                                prior.for_reduced_model(shared, stage_model.parameter_count())
+                            }),
+                            ..stage_options[index].clone()
+                        };
                         let identification = identify(
                             &stage_model,
                             &stage_data,
@@ -295,7 +310,7 @@ pub fn calibrate(
                             // The reduced model is rigid; its deflections come as offsets.
                             &Rigid,
                             &free,
-                            &stage_options[index],
+                            &reduced,
                         )?;
                         // Copy the torso frames back into the full model.
                         let before = current.parameters();
@@ -337,7 +352,7 @@ pub fn calibrate(
                     let free: Vec<usize> =
                         stage_parameters(&current, &coupled_frames, stage.parameters)
                             .into_iter()
-                            .filter(|p| !kept.contains(p))
+                            .filter(|p| !kept.contains(p) && !options.frozen.contains(p))
                             .collect();
                     let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
                         .as_ref()
@@ -563,14 +578,14 @@ const ANDERSON_DEPTH: usize = 3;
 /// `G(xₖ) − ΔG·γ` with `γ` the least-squares fit of the latest residual `fₖ = G(xₖ) − xₖ` by
 /// the last residual differences `ΔF`. Falls back to the plain step `G(xₖ)` whenever the
 /// residual grew, so it is never worse than repeating the plan.
-struct Anderson {
+pub(super) struct Anderson {
     depth: usize,
     /// `(G(x), f)` of the latest cycles, oldest first.
     history: Vec<(DVector<f64>, DVector<f64>)>,
 }
 
 impl Anderson {
-    fn new(depth: usize) -> Self {
+    pub(super) fn new(depth: usize) -> Self {
         Self {
             depth,
             history: Vec::new(),
@@ -578,7 +593,7 @@ impl Anderson {
     }
 
     /// The start of the next cycle, given this cycle's start `x` and result `g = G(x)`.
-    fn next(&mut self, x: &[f64], g: &[f64]) -> Vec<f64> {
+    pub(super) fn next(&mut self, x: &[f64], g: &[f64]) -> Vec<f64> {
         let g = DVector::from_column_slice(g);
         let f = &g - DVector::from_column_slice(x);
         if self

@@ -439,6 +439,7 @@ mod tests {
                 Observation::Pose(Pose::identity())
             },
             stage: None,
+            session: None,
         };
         let residual = |norm: f64| Residual {
             position: 0.0,

@@ -5,7 +5,11 @@ pub use super::frame::MeasurementFrame;
 use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame, FrameDecision};
 use super::initial_guess::InitialGuess;
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
-use super::robust::{self, calibrate_robust, DataSet, Outlier, RobustLoss, RobustReport};
+use super::robust::{self, DataSet, Outlier, RobustLoss, RobustReport};
+use super::sessions::{
+    calibrate_sessions, finish_sessions, session_findings, validation_in_training_frames,
+    SessionCalibration, Sessions, SessionsReport,
+};
 use super::solver::{Deflected, IdentificationOptions};
 use super::verdict::Finding;
 use crate::error::{Error, Result};
@@ -154,6 +158,10 @@ pub struct CalibrationRun {
     /// The measurements named as outliers, identification then validation: left out of the
     /// fit and of the error statistics (`identification`, `validation`).
     pub outliers: Vec<Outlier>,
+    /// The measurement sessions, when the data name any (`session` column): each training
+    /// session's frame, and each validation session's figures in the training frame and
+    /// re-registered.
+    pub sessions: Option<SessionsReport>,
 }
 
 /// Splits off a seeded fifth of the configurations for validation: whole configurations
@@ -228,8 +236,12 @@ pub fn run_calibration(
     validation: &[Measurement],
 ) -> Result<CalibrationRun> {
     check_length_scale(input.nominal, measurements)?;
-    let (guess, frame, frame_finding) =
-        choose_measurement_frame(input.nominal, measurements, input.measurement_frame)?;
+    // The measurement frame is the first session's; the others are fitted with the geometry.
+    let (guess, frame, frame_finding) = choose_measurement_frame(
+        input.nominal,
+        &Sessions::of(measurements).first_session(measurements),
+        input.measurement_frame,
+    )?;
     let fitted_frame = frame.chosen == ChosenFrame::Fitted;
     let compensation = match input.flexibility {
         Some(flexibility) => Compensation::Exact(Deflected {
@@ -239,7 +251,12 @@ pub fn run_calibration(
         None => Compensation::None,
     };
     let mut guess = guess;
-    let (mut report, mut robust) = calibrate_robust(
+    let SessionCalibration {
+        mut report,
+        mut robust,
+        measurements: in_first_frame,
+        sessions,
+    } = calibrate_sessions(
         input.branches,
         &guess.model,
         measurements,
@@ -247,6 +264,10 @@ pub fn run_calibration(
         input.plan,
         input.options,
     )?;
+    let (given_measurements, given_validation) = (measurements, validation);
+    // From here on every row is in the first session's frame (validation: the training frame).
+    let measurements = &in_first_frame[..];
+    let validation = &validation_in_training_frames(validation, Some(&sessions))[..];
     let mut frame_refinement = None;
     if let (true, Some(flexibility)) = (fitted_frame, input.flexibility) {
         // The frame is refined with the robust weights found, the outliers left out.
@@ -325,7 +346,16 @@ pub fn run_calibration(
                 .sqrt()
         })
         .filter(|rms| rms.is_finite());
+    let sessions = finish_sessions(
+        sessions,
+        &report.model,
+        given_measurements,
+        given_validation,
+        compensation,
+        input.options,
+    )?;
     let mut findings = vec![frame_finding];
+    findings.extend(sessions.iter().flat_map(session_findings));
     findings.extend(report.notes.iter().cloned());
     findings.extend(outlier_finding(
         &robust,
@@ -346,6 +376,7 @@ pub fn run_calibration(
         findings,
         robust,
         outliers,
+        sessions,
     };
     let found = super::checks::assess(&run, input.tree);
     run.findings.extend(found);
@@ -486,6 +517,7 @@ fn estimates(
                 ParameterOwner::Tool(t) => {
                     input.tree.link(report.model.tools()[*t].link).name.clone()
                 }
+                ParameterOwner::Measurement => "measurement_frame".into(),
             };
             ParameterEstimate {
                 name: report.model.parameter_name(input.tree, i),

@@ -293,6 +293,11 @@ pub struct IdentificationOptions {
     /// measurements by their residuals (default Huber); [`identify`] itself only applies
     /// `observation_weights`.
     pub robust: super::robust::RobustLoss,
+    /// Parameters (flat indices into the full model) that a plan never frees: the model
+    /// level's and `--freeze`'s ([`super::plan::calibrate`]); [`identify`] frees what it is told.
+    pub frozen: Vec<usize>,
+    /// A Gaussian prior on the parameters (rows in the normal equations; `None`: no prior).
+    pub prior: Option<super::prior::Prior>,
 }
 
 impl IdentificationOptions {
@@ -321,6 +326,8 @@ impl Default for IdentificationOptions {
             cost_tolerance: 1e-8,
             observation_weights: Vec::new(),
             robust: super::robust::RobustLoss::default(),
+            frozen: Vec::new(),
+            prior: None,
         }
     }
 }
@@ -569,6 +576,7 @@ pub fn identify(
     options: &IdentificationOptions,
 ) -> Result<IdentificationReport> {
     validate(model, measurements, offsets, free, options)?;
+    let prior_rows = prior_rows(model, measurements, offsets, predictor, free, options)?;
     let mut current = model.clone();
     let mut parameters = current.parameters();
     // JᵀWJ and JᵀWr streamed over the configurations (`normal_equations`), with the triangle
@@ -579,6 +587,7 @@ pub fn identify(
         predictor,
         free,
         options,
+        prior: prior_rows.as_ref(),
     };
     let mut lin = accumulate(&current, &problem, Products::Normal)?;
     let mut cost = lin.cost;
@@ -740,7 +749,8 @@ pub fn identify(
             .zip(&options.observation_weights)
             .filter(|(_, &w)| w == 0.0)
             .map(|(m, _)| m.observation.rows())
-            .sum::<usize>();
+            .sum::<usize>()
+        + prior_rows.as_ref().map_or(0, |p| p.count());
     let residual_scale = if rows > rank {
         (2.0 * cost / (rows - rank) as f64).sqrt()
     } else {
@@ -799,6 +809,42 @@ pub fn identify(
         residual_rms_position,
         residual_rms_rotation,
     })
+}
+
+/// The prior's rows over `free`, if the options have a prior; with `follow_residual_scale`,
+/// weighted by the residual scale σ̂ (when above 1) of the same fit without the prior, so that
+/// the prior weighs against the data as if the declared noise were right.
+fn prior_rows(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+) -> Result<Option<super::prior::PriorRows>> {
+    let Some(prior) = &options.prior else {
+        return Ok(None);
+    };
+    let rows = prior.rows(free, 1.0);
+    if rows.count() == 0 {
+        return Ok(None);
+    }
+    let scale = if prior.follow_residual_scale {
+        let plain = IdentificationOptions {
+            prior: None,
+            ..options.clone()
+        };
+        let report = identify(model, measurements, offsets, predictor, free, &plain)?;
+        let scale = report.residual_scale;
+        if scale.is_finite() {
+            scale.max(1.0)
+        } else {
+            1.0
+        }
+    } else {
+        1.0
+    };
+    Ok(Some(prior.rows(free, scale)))
 }
 
 /// The column-scaled Jacobian's singular values and right singular vectors, and the scaled

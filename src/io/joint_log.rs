@@ -1,10 +1,11 @@
 //! Joint-state logs (`treecal pair --joints`): a CSV with a time column and one column per
 //! joint, or a ROS 2 bag in MCAP holding `sensor_msgs/msg/JointState` (`joint_log_mcap`).
 
+use super::bounded::read_text;
 use super::joints_csv::parse_csv;
 use super::units::{parse_units_header, resolve_units, AngleUnit, LengthUnit, StatedUnits};
 use crate::error::{Error, Result};
-use crate::limits::{read_text, MAX_CSV_BYTES};
+use crate::limits::MAX_CSV_BYTES;
 use std::path::Path;
 
 /// Largest time stamp (s, either sign): a Unix time in seconds is about 2·10⁹.

@@ -23,6 +23,8 @@ pub struct CsvTable {
 /// [`MAX_CSV_ROWS`] and [`MAX_CSV_COLUMNS`]. Linear in the size of the text.
 pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
     check_text_size(text, MAX_CSV_BYTES, origin)?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    super::csv_scan::check_csv_shape(text, origin)?;
     // csv-core ends `#` comments (and fields) at `\n` only: a file with lone `\r` line
     // breaks would be one comment or one row. Those breaks become `\n` (lines keep their
     // numbers: a lone `\r` counts as a line break below too).
@@ -221,12 +223,12 @@ pub fn configurations(
             let place = || format!("{origin}:{line}:{}", table.headers[column]);
             let value: f64 = text.parse().map_err(|_| Error::InvalidData {
                 origin: place(),
-                message: format!("'{text}' is not a number"),
+                message: format!("'{}' is not a number", limits::cut(text)),
             })?;
             if !value.is_finite() {
                 return Err(Error::InvalidData {
                     origin: place(),
-                    message: format!("'{text}' is not a finite number"),
+                    message: format!("'{}' is not a finite number", limits::cut(text)),
                 });
             }
             q[dof] = joint_value(tree, dof, value, angle_scale, place)?;

@@ -84,16 +84,9 @@ pub fn read_mcpc_table(path: &Path) -> Result<McpcTable> {
 
 /// Parses an MCPC table; `origin` names the source in messages.
 pub fn parse_mcpc_table(text: &str, origin: &str) -> Result<McpcTable> {
-    crate::limits::check_yaml_depth(text, origin)?;
-    let file: File = serde_yaml::from_str(text).map_err(|e| {
-        let place = e
-            .location()
-            .map(|l| format!("{origin}:{}:{}", l.line(), l.column()))
-            .unwrap_or_else(|| origin.to_owned());
-        Error::InvalidTable {
-            origin: place,
-            message: e.to_string(),
-        }
+    let file: File = super::yaml::parse_yaml(text, origin, "").map_err(|e| match e {
+        Error::InvalidData { origin, message } => Error::InvalidTable { origin, message },
+        other => other,
     })?;
     let bad = |message: String| Error::InvalidTable {
         origin: origin.to_owned(),

@@ -7,9 +7,8 @@ use super::units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
 use crate::error::{did_you_mean, Error, Result};
-use crate::kinematics::flexibility::stiffness::mass_problem;
 use crate::kinematics::McpcModel;
-use crate::limits::{self, Quantity};
+use crate::limits::{self, magnitude_problem, Quantity};
 use crate::math::{Pose, Vec3};
 use crate::measurement::{
     frame_from_targets, targets_on, targets_problem, Measurement, Observation,
@@ -100,6 +99,10 @@ const RESERVED: [&str; 19] = [
 /// The optional column of the payload at every tool (kg) a row was measured with.
 pub const PAYLOAD_COLUMN: &str = "payload_kg";
 
+/// The optional column naming the measurement session of a row: one measurement frame per
+/// session (`calibration::sessions`).
+pub const SESSION_COLUMN: &str = "session";
+
 /// The three accepted observation layouts, for messages.
 const LAYOUTS: &str = "x,y,z (a position); x,y,z,qw,qx,qy,qz (a pose); or \
                        ax,ay,az,bx,by,bz,cx,cy,cz (three targets A, B, C)";
@@ -110,6 +113,8 @@ struct Columns {
     stage: Option<usize>,
     /// `payload_kg`: the payload at every tool for this row (kg).
     payload: Option<usize>,
+    /// `session`: the measurement session of this row.
+    session: Option<usize>,
     tool: usize,
     /// `(column, dof)` of independent joints.
     joints: Vec<(usize, usize)>,
@@ -295,13 +300,17 @@ pub(super) fn measurements_from_table(
             .stage
             .map(|column| fields[column].clone())
             .filter(|s| !s.is_empty());
+        let session = columns
+            .session
+            .map(|column| fields[column].clone())
+            .filter(|s| !s.is_empty());
         let payload = match columns.payload {
             Some(column) if !fields[column].is_empty() => {
                 let mass = number(&fields[column], "kg").map_err(|m| invalid(column, m))?;
-                if let Some(why) = mass_problem(mass) {
+                if let Some(why) = magnitude_problem(mass, Quantity::Mass) {
                     return Err(invalid(
                         column,
-                        format!("the payload {why}; give the mass at the tool in kg, or leave it empty for the stiffness file's"),
+                        format!("the payload: {why}; give the mass at the tool in kg, or leave it empty for the stiffness file's"),
                     ));
                 }
                 Some(mass)
@@ -316,7 +325,8 @@ pub(super) fn measurements_from_table(
                 invalid(
                     columns.tool,
                     format!(
-                        "'{tool_name}' is not a tool of the model{}; the tools are {}",
+                        "'{}' is not a tool of the model{}; the tools are {}",
+                        crate::limits::cut(tool_name),
                         did_you_mean(tool_name, tool_names.iter().copied()),
                         quoted_list(&tool_names)
                     ),
@@ -445,6 +455,7 @@ pub(super) fn measurements_from_table(
             q,
             observation,
             stage,
+            session,
         });
         set.ids.push(id);
         set.lines.push(line);
@@ -664,9 +675,13 @@ fn number(text: &str, unit: &str) -> std::result::Result<f64, String> {
     match text.parse::<f64>() {
         Ok(value) if value.is_finite() => Ok(value),
         Ok(_) => Err(format!(
-            "'{text}' is not a finite number; give a number{unit}"
+            "'{}' is not a finite number; give a number{unit}",
+            crate::limits::cut(text)
         )),
-        Err(_) => Err(format!("'{text}' is not a number; give a number{unit}")),
+        Err(_) => Err(format!(
+            "'{}' is not a number; give a number{unit}",
+            crate::limits::cut(text)
+        )),
     }
 }
 
@@ -692,6 +707,7 @@ fn classify(
     let mut id = None;
     let mut stage = None;
     let mut payload = None;
+    let mut session = None;
     let mut tool = None;
     let mut joints = Vec::new();
     let mut observed: HashMap<&str, usize> = HashMap::new();
@@ -703,6 +719,7 @@ fn classify(
             "id" => id = Some(column),
             "stage" => stage = Some(column),
             PAYLOAD_COLUMN => payload = Some(column),
+            SESSION_COLUMN => session = Some(column),
             "tool" => tool = Some(column),
             other if RESERVED.contains(&other) => {
                 observed.insert(other, column);
@@ -739,8 +756,9 @@ fn classify(
                     return Err(Error::InvalidData {
                         origin: at(other),
                         message: format!(
-                            "column '{other}' matches no joint of '{}' and no measurement \
+                            "column '{}' matches no joint of '{}' and no measurement \
                              column{}; rename it, or list it among the ignored columns",
+                            crate::limits::cut(other),
                             tree.name(),
                             did_you_mean(other, candidates)
                         ),
@@ -795,6 +813,7 @@ fn classify(
         id,
         stage,
         payload,
+        session,
         tool,
         joints,
         observation,
@@ -869,6 +888,11 @@ pub fn measurements_to_csv_with(
     if payloads {
         header.push(PAYLOAD_COLUMN.into());
     }
+    // The session column only when some row names its session.
+    let sessions = measurements.iter().any(|m| m.session.is_some());
+    if sessions {
+        header.push(SESSION_COLUMN.into());
+    }
     let length = options.length_unit.in_metres();
     let joint_scales: Vec<f64> = tree
         .dofs()
@@ -920,6 +944,9 @@ pub fn measurements_to_csv_with(
         }
         if payloads {
             row.push(m.payload.map(text).unwrap_or_default());
+        }
+        if sessions {
+            row.push(m.session.clone().unwrap_or_default());
         }
         rows.push(row);
     }

@@ -2,6 +2,7 @@
 //! `mesh-loader` crate (openrr's, the parser urdf-viz uses; its only home in treecal). The
 //! collision checker gets vertices ([`MeshLookup`]) and builds the convex hulls.
 
+use crate::limits::{MAX_MESH_BYTES, MAX_MESH_VERTICES};
 use crate::math::Vec3;
 use crate::sim::mesh::MeshLookup;
 use std::path::{Path, PathBuf};
@@ -44,28 +45,72 @@ pub fn mesh_file_loader(
 /// The vertices (m) of every mesh in an STL (binary or ASCII), OBJ or COLLADA file, the format
 /// told by the extension or else the contents; [`MeshLookup::Unreadable`] with the reason when
 /// the file cannot be read or parsed or holds no vertices.
+///
+/// The file is read through the bounded reader ([`crate::io::bounded`]: regular files only, at
+/// most [`MAX_MESH_BYTES`]). COLLADA goes to treecal's own reader ([`super::collada`]), STL and
+/// OBJ to `mesh-loader`, which opens no other file: an OBJ's `mtllib` (materials, not needed
+/// for a hull) is never read, so it cannot name a FIFO that blocks the command.
 pub fn read_mesh_vertices(path: &Path) -> MeshLookup {
-    let bytes = match std::fs::read(path) {
+    let bytes = match super::bounded::read_bytes(path, MAX_MESH_BYTES) {
         Ok(bytes) => bytes,
         Err(error) => return MeshLookup::Unreadable(error.to_string()),
     };
-    let scene = match mesh_loader::Loader::default().load_from_slice(&bytes, path) {
-        Ok(scene) => scene,
-        Err(error) => return MeshLookup::Unreadable(error.to_string()),
+    match mesh_vertices(&bytes, path) {
+        Ok(vertices) => MeshLookup::Vertices(vertices),
+        Err(reason) => MeshLookup::Unreadable(reason),
+    }
+}
+
+/// The vertices of mesh file contents `bytes` (`path` tells the format by its extension, else
+/// the contents do), or why there are none.
+pub fn mesh_vertices(bytes: &[u8], path: &Path) -> std::result::Result<Vec<Vec3>, String> {
+    let vertices = if is_collada(bytes, path) {
+        let text = std::str::from_utf8(bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes))
+            .map_err(|e| format!("a COLLADA file must be UTF-8 text ({e})"))?;
+        super::collada::collada_vertices(text)?
+    } else {
+        let no_other_files = |_: &Path| -> std::io::Result<Vec<u8>> {
+            Err(std::io::Error::other("treecal reads no material files"))
+        };
+        let scene = mesh_loader::Loader::default()
+            .load_from_slice_with_reader(bytes, path, no_other_files)
+            .map_err(|e| crate::limits::cut(&e.to_string()).into_owned())?;
+        let count: usize = scene.meshes.iter().map(|m| m.vertices.len()).sum();
+        if count > MAX_MESH_VERTICES {
+            return Err(format!(
+                "the file has {count} vertices, more than the limit of {MAX_MESH_VERTICES} \
+                 (docs/file-formats.md, \"Limits\")"
+            ));
+        }
+        scene
+            .meshes
+            .iter()
+            .flat_map(|mesh| mesh.vertices.iter())
+            .map(|v| Vec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
+            .collect()
     };
-    let vertices: Vec<Vec3> = scene
-        .meshes
-        .iter()
-        .flat_map(|mesh| mesh.vertices.iter())
-        .map(|v| Vec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
-        .collect();
     if vertices.is_empty() {
-        return MeshLookup::Unreadable("the file holds no mesh vertices".into());
+        return Err("the file holds no mesh vertices".into());
     }
     if vertices.iter().any(|v| !v.iter().all(|c| c.is_finite())) {
-        return MeshLookup::Unreadable("a vertex is not a finite number".into());
+        return Err("a vertex is not a finite number".into());
     }
-    MeshLookup::Vertices(vertices)
+    Ok(vertices)
+}
+
+/// COLLADA by the extension `.dae`, or (without a known extension) by `<COLLADA` before any
+/// `solid` in the first 1024 bytes, as `mesh-loader` tells formats apart.
+fn is_collada(bytes: &[u8], path: &Path) -> bool {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some(e) if e.eq_ignore_ascii_case("dae") => true,
+        Some(e) if e.eq_ignore_ascii_case("stl") || e.eq_ignore_ascii_case("obj") => false,
+        _ => {
+            let head = &bytes[..bytes.len().min(1024)];
+            let solid = head.windows(5).position(|w| w == b"solid");
+            let collada = head.windows(8).position(|w| w == b"<COLLADA");
+            collada.is_some_and(|c| solid.is_none_or(|s| c < s))
+        }
+    }
 }
 
 /// The directories of a `ROS_PACKAGE_PATH`-style list (`:`-separated on Unix, `;` on Windows).

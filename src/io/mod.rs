@@ -1,6 +1,9 @@
 //! Reading and writing data files (YAML, CSV, MCAP): the only users of serde_yaml, csv and
 //! mcap.
 
+pub mod bounded;
+mod collada;
+mod csv_scan;
 pub mod joint_log;
 pub mod joint_log_mcap;
 pub mod joints_csv;
@@ -19,7 +22,9 @@ pub mod stiffness_write;
 pub mod tracker_log;
 pub mod units;
 pub mod write;
+mod yaml;
 
+pub use bounded::{read_bytes, read_text};
 pub use joint_log::{parse_joint_log_csv, read_joint_log, JointLog, JointLogOptions};
 pub use joints_csv::{
     append_poses, configurations, joint_value, parse_csv, ColumnMapping, CsvTable,
@@ -31,7 +36,9 @@ pub use measurements_csv::{
     read_measured_tool_names, read_measurements, MeasurementReadOptions, MeasurementSet,
     MeasurementWriteOptions, ObservationKind,
 };
-pub use mesh_files::{mesh_file_loader, package_dirs, read_mesh_vertices, resolve_mesh};
+pub use mesh_files::{
+    mesh_file_loader, mesh_vertices, package_dirs, read_mesh_vertices, resolve_mesh,
+};
 pub use paired_csv::{paired_measurements_to_csv, PairedRow};
 pub use params::{parse_parameters, read_parameters, ParameterValues};
 pub use plan::{parse_plan, read_plan};

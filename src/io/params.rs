@@ -8,8 +8,10 @@
 //!     calibrated: 0.1451
 //! ```
 //!
-//! Any other keys (of the file or of an entry) are ignored, so the report the calibration
-//! writes (nominal values, changes, standard deviations, units for display) reads as is.
+//! The other keys the calibration writes (of the file: `robot`, `units`,
+//! `measurement_frame`, `stiffness`; of an entry: `owner`, `kind`, `unit`, `nominal`,
+//! `change`, `identifiable`) are read and ignored, so its `params.yaml` reads as is; any other
+//! key is an error naming the closest valid one.
 //! Unknown names are errors; parameters the file does not list keep their nominal value,
 //! with a warning. See `docs/file-formats.md`.
 
@@ -17,21 +19,44 @@ use crate::error::{did_you_mean, Error, Result};
 use crate::kinematics::McpcModel;
 use crate::limits::{magnitude_problem, Quantity};
 use crate::tree::KinematicTree;
+use serde::de::IgnoredAny;
 use std::collections::HashMap;
 use std::path::Path;
 
 #[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 struct File {
     parameters: Vec<Entry>,
+    #[serde(default, rename = "robot")]
+    _robot: Option<IgnoredAny>,
+    #[serde(default, rename = "units")]
+    _units: Option<IgnoredAny>,
+    #[serde(default, rename = "measurement_frame")]
+    _measurement_frame: Option<IgnoredAny>,
+    #[serde(default, rename = "stiffness")]
+    _stiffness: Option<IgnoredAny>,
 }
 
 #[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 struct Entry {
     name: String,
     calibrated: f64,
     /// The calibration's standard deviation (SI), as `params.yaml` gives it.
     #[serde(default)]
     std_dev: Option<f64>,
+    #[serde(default, rename = "owner")]
+    _owner: Option<IgnoredAny>,
+    #[serde(default, rename = "kind")]
+    _kind: Option<IgnoredAny>,
+    #[serde(default, rename = "unit")]
+    _unit: Option<IgnoredAny>,
+    #[serde(default, rename = "nominal")]
+    _nominal: Option<IgnoredAny>,
+    #[serde(default, rename = "change")]
+    _change: Option<IgnoredAny>,
+    #[serde(default, rename = "identifiable")]
+    _identifiable: Option<IgnoredAny>,
 }
 
 /// The parameter vector a parameter file gives, and what the user should know about it.
@@ -63,16 +88,11 @@ pub fn parse_parameters(
     tree: &KinematicTree,
     model: &McpcModel,
 ) -> Result<ParameterValues> {
-    crate::limits::check_yaml_depth(text, origin)?;
-    let file: File = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
-        origin: match e.location() {
-            Some(l) => format!("{origin}:{}:{}", l.line(), l.column()),
-            None => origin.to_owned(),
-        },
-        message: format!(
-            "{e}; expected `parameters:` with a list of `name:` and `calibrated:` (SI units)"
-        ),
-    })?;
+    let file: File = super::yaml::parse_yaml(
+        text,
+        origin,
+        "; expected `parameters:` with a list of `name:` and `calibrated:` (SI units)",
+    )?;
     // serde_yaml keeps no positions of values, so a bad name is found in the text again.
     let at = |name: &str| match text.find(name) {
         Some(offset) => {

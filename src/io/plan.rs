@@ -10,26 +10,29 @@
 //!     measurements: arms
 //! ```
 
+use super::yaml::parse_yaml;
 use crate::calibration::Plan;
 use crate::error::{Error, Result};
+use crate::limits::{check_count, MAX_PLAN_STAGES};
 use std::path::Path;
 
 /// Parses a plan; `origin` names the file in messages.
+///
+/// Unknown keys are errors naming the closest valid one (a misspelt `measurements` would
+/// otherwise make a stage use every row), and a plan has at most [`MAX_PLAN_STAGES`] stages.
 pub fn parse_plan(text: &str, origin: &str) -> Result<Plan> {
-    crate::limits::check_yaml_depth(text, origin)?;
-    let plan: Plan = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
-        origin: match e.location() {
-            Some(l) => format!("{origin}:{}:{}", l.line(), l.column()),
-            None => origin.to_owned(),
-        },
-        message: format!("not a calibration plan ({e}); see docs/file-formats.md for the layout"),
-    })?;
+    let plan: Plan = parse_yaml(
+        text,
+        origin,
+        "; not a calibration plan: see docs/file-formats.md for the layout",
+    )?;
     if plan.stages.is_empty() {
         return Err(Error::InvalidData {
             origin: origin.to_owned(),
             message: "the plan has no stages".into(),
         });
     }
+    check_count(plan.stages.len(), MAX_PLAN_STAGES, origin, "stages")?;
     Ok(plan)
 }
 

@@ -57,8 +57,9 @@ pub fn pose_rows(
                     return Err(Error::InvalidData {
                         origin: format!("{origin}:{line}:stage"),
                         message: format!(
-                            "'{text}' is not a stage; use torso (arms locked) or arms, or leave it empty"
-                        ),
+                        "'{}' is not a stage; use torso (arms locked) or arms, or leave it empty",
+                        crate::limits::cut(text)
+                    ),
                     })
                 }
             },

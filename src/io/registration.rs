@@ -9,7 +9,9 @@
 //! ```
 
 use super::units::{AngleUnit, LengthUnit};
+use super::yaml::parse_yaml;
 use crate::error::{Error, Result};
+use crate::limits::{magnitude_problem, Quantity};
 use crate::math::Pose;
 use nalgebra::{Translation3, UnitQuaternion};
 use serde::Deserialize;
@@ -31,19 +33,17 @@ struct UnitsEntry {
 }
 
 /// Parses a registration: `world_from_base`, the pose of the robot's root link frame in the
-/// measurement frame (metres, radians); `origin` names the file in messages.
+/// measurement frame (metres, radians); `origin` names the file in messages. The size and
+/// depth are limited and unknown keys are errors ([`super::yaml`]); `xyz` must be within
+/// [`crate::limits::MAX_LENGTH`] and `rpy` within [`crate::limits::MAX_ANGLE`], checked here
+/// with the file and line.
 pub fn parse_registration(text: &str, origin: &str) -> Result<Pose> {
-    let file: RegistrationFile = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
-        origin: match e.location() {
-            Some(l) => format!("{origin}:{}:{}", l.line(), l.column()),
-            None => origin.to_owned(),
-        },
-        message: format!(
-            "not a registration ({e}); give `units: {{length: mm, angle: deg}}`, `xyz: [x, y, z]` \
-             and `rpy: [roll, pitch, yaw]`: the robot base in the tracker frame (see \
-             docs/file-formats.md)"
-        ),
-    })?;
+    let file: RegistrationFile = parse_yaml(
+        text,
+        origin,
+        "; give `units: {length: mm, angle: deg}`, `xyz: [x, y, z]` and `rpy: [roll, pitch, \
+         yaw]`: the robot base in the tracker frame (see docs/file-formats.md)",
+    )?;
     let unit_error = |key: &str, e: Error| match e {
         Error::InvalidData { message, .. } => Error::InvalidData {
             origin: format!("{origin}: units.{key}"),
@@ -61,26 +61,56 @@ pub fn parse_registration(text: &str, origin: &str) -> Result<Pose> {
         .angle
         .parse()
         .map_err(|e| unit_error("angle", e))?;
-    if file.xyz.iter().chain(&file.rpy).any(|v| !v.is_finite()) {
-        return Err(Error::InvalidData {
-            origin: origin.to_owned(),
-            message: "xyz and rpy must be finite numbers".into(),
-        });
-    }
-    let [x, y, z] = file.xyz.map(|v| v * length.in_metres());
-    let [roll, pitch, yaw] = file.rpy.map(|v| v * angle.in_radians());
+    let xyz = checked(
+        text,
+        origin,
+        "xyz",
+        file.xyz,
+        length.in_metres(),
+        Quantity::Length,
+    )?;
+    let rpy = checked(
+        text,
+        origin,
+        "rpy",
+        file.rpy,
+        angle.in_radians(),
+        Quantity::Angle,
+    )?;
     Ok(Pose::from_parts(
-        Translation3::new(x, y, z),
-        UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+        Translation3::new(xyz[0], xyz[1], xyz[2]),
+        UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
     ))
 }
 
-/// Reads a registration file; see [`parse_registration`].
+/// `values` times `scale` (to SI), each a sane `quantity`, else an error at the line of `key`.
+fn checked(
+    text: &str,
+    origin: &str,
+    key: &str,
+    values: [f64; 3],
+    scale: f64,
+    quantity: Quantity,
+) -> Result<[f64; 3]> {
+    for (index, value) in values.iter().enumerate() {
+        if let Some(problem) = magnitude_problem(value * scale, quantity) {
+            let line = text
+                .lines()
+                .position(|l| l.trim_start().starts_with(&format!("{key}:")))
+                .map_or(String::new(), |n| format!(":{}", n + 1));
+            return Err(Error::InvalidData {
+                origin: format!("{origin}{line}"),
+                message: format!("{key}[{index}] (in SI units): {problem}"),
+            });
+        }
+    }
+    Ok(values.map(|v| v * scale))
+}
+
+/// Reads a registration file (through the bounded reader, at most
+/// [`crate::limits::MAX_YAML_BYTES`]); see [`parse_registration`].
 pub fn read_registration(path: &Path) -> Result<Pose> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = super::bounded::read_text(path, crate::limits::MAX_YAML_BYTES)?;
     parse_registration(&text, &path.display().to_string())
 }
 
@@ -115,5 +145,22 @@ mod tests {
             bad.contains("units.length") && bad.contains("use m or mm"),
             "{bad}"
         );
+        let far = parse_registration(
+            "units: {length: mm, angle: deg}\nxyz: [1e300, 0, 0]\nrpy: [0, 0, 0]\n",
+            "r.yaml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            far.starts_with("r.yaml:2: xyz[0] (in SI units): 1e297 is beyond the limit"),
+            "{far}"
+        );
+        let typo = parse_registration(
+            "units: {length: mm, angle: deg}\nxyz: [0, 0, 0]\nrpyy: [0, 0, 0]\n",
+            "r.yaml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(typo.contains("the closest valid key is 'rpy'"), "{typo}");
     }
 }

@@ -332,7 +332,7 @@ fn yaml_error(text: &str, origin: &str, error: &serde_yaml::Error) -> Error {
     let Some(location) = error.location() else {
         return Error::InvalidData {
             origin: origin.to_owned(),
-            message,
+            message: super::yaml::readable_message(&message),
         };
     };
     let suffix = format!(" at line {} column {}", location.line(), location.column());
@@ -359,7 +359,7 @@ fn yaml_error(text: &str, origin: &str, error: &serde_yaml::Error) -> Error {
     });
     Error::InvalidData {
         origin: format!("{origin}:{line}:{column}"),
-        message,
+        message: super::yaml::readable_message(&message),
     }
 }
 

@@ -2,11 +2,12 @@
 //! target's position `x,y,z`, optionally a rigid body's orientation `qw,qx,qy,qz`. Other
 //! column names (a vendor's export) are mapped with [`TrackerColumns`].
 
+use super::bounded::read_text;
 use super::joint_log::{number, MAX_TIME};
 use super::joints_csv::parse_csv;
 use super::units::{parse_units_header, resolve_units, LengthUnit, StatedUnits};
 use crate::error::{Error, Result};
-use crate::limits::{self, read_text, Quantity, MAX_CSV_BYTES};
+use crate::limits::{self, Quantity, MAX_CSV_BYTES};
 use crate::math::{Rotation, Vec3};
 use nalgebra::Quaternion;
 use std::path::Path;

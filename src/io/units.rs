@@ -40,7 +40,10 @@ impl FromStr for LengthUnit {
             "mm" => Ok(LengthUnit::Millimetre),
             other => Err(Error::InvalidData {
                 origin: "--length-unit".into(),
-                message: format!("'{other}' is not a length unit; use m or mm"),
+                message: format!(
+                    "'{}' is not a length unit; use m or mm",
+                    crate::limits::cut(other)
+                ),
             }),
         }
     }
@@ -83,7 +86,10 @@ impl FromStr for AngleUnit {
             "deg" => Ok(AngleUnit::Degree),
             other => Err(Error::InvalidData {
                 origin: "--angle-unit".into(),
-                message: format!("'{other}' is not an angle unit; use rad or deg"),
+                message: format!(
+                    "'{}' is not an angle unit; use rad or deg",
+                    crate::limits::cut(other)
+                ),
             }),
         }
     }
@@ -162,7 +168,8 @@ fn lines_any_break(text: &str) -> impl Iterator<Item = &str> {
 pub fn parse_units_header(text: &str, origin: &str) -> Result<StatedUnits> {
     let mut header = StatedUnits::default();
     for (index, raw) in lines_any_break(text).enumerate() {
-        let line = raw.trim();
+        // A byte-order mark (spreadsheet programs write one) must not hide the comment.
+        let line = raw.trim_start_matches('\u{feff}').trim();
         if line.is_empty() {
             continue;
         }
@@ -175,12 +182,20 @@ pub fn parse_units_header(text: &str, origin: &str) -> Result<StatedUnits> {
             message,
         };
         let comment = comment.trim();
+        let states_units = comment.starts_with("units:") || old_form(comment).is_some();
+        if let (true, Some(first)) = (states_units, header.line) {
+            return Err(fail(format!(
+                "a second units comment (the first is on line {first}); keep one, so that \
+                 the file states its units once"
+            )));
+        }
         if let Some(rest) = comment.strip_prefix("units:") {
             for item in rest.split_whitespace() {
                 let (key, value) = item.split_once('=').ok_or_else(|| {
                     fail(format!(
-                        "'{item}' in the units comment is not key=value; write e.g. \
-                         `# units: length=mm angle=deg`"
+                        "'{}' in the units comment is not key=value; write e.g. \
+                         `# units: length=mm angle=deg`",
+                        crate::limits::cut(item)
                     ))
                 })?;
                 let bad = |e: Error| match e {
@@ -193,8 +208,9 @@ pub fn parse_units_header(text: &str, origin: &str) -> Result<StatedUnits> {
                     "joint_length" => header.joint_length = Some(value.parse().map_err(bad)?),
                     other => {
                         return Err(fail(format!(
-                            "unknown key '{other}' in the units comment; the keys are length, \
-                             angle and joint_length"
+                            "unknown key '{}' in the units comment; the keys are length, \
+                             angle and joint_length",
+                            crate::limits::cut(other)
                         )))
                     }
                 }

@@ -43,6 +43,8 @@ pub struct ChainFrames {
     pub tools: Vec<Transform>,
     /// The joint values with their sines and cosines.
     pub(crate) motions: JointMotions,
+    /// Per frame, `∂θ/∂(joint-error term)` (empty without joint errors).
+    pub(crate) joint_error_factors: Vec<[f64; 4]>,
 }
 
 thread_local! {
@@ -63,6 +65,7 @@ impl McpcModel {
     pub fn chain_frames_into(&self, q: &[f64], chain: &mut ChainFrames) {
         self.size_chain(chain);
         chain.motions.fill(self, q);
+        self.joint_error_factors(q, &mut chain.joint_error_factors);
         for frame in 0..self.frames().len() {
             self.set_chain_frame(frame, chain);
         }
@@ -158,6 +161,13 @@ impl McpcModel {
                 translation(tool_axes.column(k).into_owned()),
             );
         }
+        self.fill_extension_columns(
+            tool,
+            &tip,
+            &chain.frames,
+            &chain.joint_error_factors,
+            jacobian.as_mut_slice(),
+        );
     }
 
     /// Tool poses and identification Jacobians of every tool on a given chain.
@@ -193,6 +203,7 @@ impl McpcModel {
     ) -> Pose {
         self.size_chain(chain);
         chain.motions.fill(self, q);
+        self.joint_error_factors(q, &mut chain.joint_error_factors);
         for &frame in self.tool_chain(tool) {
             self.set_chain_frame(frame, chain);
         }

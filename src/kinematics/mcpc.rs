@@ -205,6 +205,10 @@ pub struct McpcModel {
     tool_axes: Vec<[Vec3; 3]>,
     /// Where the base (root link) frame is in the measurement (world) frame; identity unless set.
     world_from_base: Transform,
+    /// Joint-angle errors (`joint_errors`), after the tools in the flat vector.
+    pub(crate) joint_errors: super::joint_errors::JointErrors,
+    /// The measurement frame as parameters, last in the flat vector.
+    pub(crate) frame_parameters: Option<super::joint_errors::FrameParameters>,
 }
 
 /// Which parameter of a frame or tool.
@@ -223,15 +227,20 @@ pub enum ParameterKind {
     Y,
     /// z (m, tools only).
     Z,
+    /// Joint zero offset δ (rad; `docs/identification.md`, joint-angle errors).
+    Offset,
+    /// Coefficient `a` of the joint-angle error `a·sin q` (rad).
+    Sine,
+    /// Coefficient `b` of the joint-angle error `b·cos q` (rad).
+    Cosine,
+    /// Backlash: half the dead band, signed by the gravity torque (rad).
+    Backlash,
 }
 
 impl ParameterKind {
     /// Whether the parameter is an angle (else a length).
     pub fn is_angle(self) -> bool {
-        matches!(
-            self,
-            ParameterKind::Alpha | ParameterKind::Beta | ParameterKind::Gamma
-        )
+        !matches!(self, ParameterKind::X | ParameterKind::Y | ParameterKind::Z)
     }
 
     /// Short name: alpha, beta, gamma, x, y, z.
@@ -243,6 +252,10 @@ impl ParameterKind {
             ParameterKind::X => "x",
             ParameterKind::Y => "y",
             ParameterKind::Z => "z",
+            ParameterKind::Offset => "offset",
+            ParameterKind::Sine => "sine",
+            ParameterKind::Cosine => "cosine",
+            ParameterKind::Backlash => "backlash",
         }
     }
 }
@@ -254,6 +267,8 @@ pub enum ParameterOwner {
     Frame(usize),
     /// A tool, by index in [`McpcModel::tools`].
     Tool(usize),
+    /// The measurement frame ([`McpcModel::with_frame_parameters`]): α, β, γ, x, y, z.
+    Measurement,
 }
 
 const REVOLUTE_PARAMETERS: [ParameterKind; 4] = [
@@ -323,6 +338,8 @@ impl McpcModel {
             frame_offsets,
             tool_offsets,
             world_from_base: Transform::identity(),
+            joint_errors: Default::default(),
+            frame_parameters: None,
         };
         model.refresh();
         Ok(model)
@@ -415,6 +432,18 @@ impl McpcModel {
             .map(|f| f.kind.parameter_count())
             .sum::<usize>()
             + 6 * self.tools.len()
+            + self
+                .joint_errors
+                .slots
+                .iter()
+                .flatten()
+                .filter(|v| v.is_some())
+                .count()
+            + if self.frame_parameters.is_some() {
+                6
+            } else {
+                0
+            }
     }
 
     /// What each entry of the flat parameter vector is: frames in order, then tools.
@@ -434,6 +463,20 @@ impl McpcModel {
                     .map(|k| (ParameterOwner::Tool(index), *k)),
             );
         }
+        for (index, slot) in self.joint_errors.slots.iter().enumerate() {
+            for (value, kind) in slot.iter().zip(super::joint_errors::JOINT_ERROR_KINDS) {
+                if value.is_some() {
+                    layout.push((ParameterOwner::Frame(index), kind));
+                }
+            }
+        }
+        if self.frame_parameters.is_some() {
+            layout.extend(
+                TOOL_PARAMETERS
+                    .iter()
+                    .map(|k| (ParameterOwner::Measurement, *k)),
+            );
+        }
         layout
     }
 
@@ -445,6 +488,9 @@ impl McpcModel {
             }
             Some((ParameterOwner::Tool(t), kind)) => {
                 format!("{} {}", tree.link(self.tools[*t].link).name, kind.name())
+            }
+            Some((ParameterOwner::Measurement, kind)) => {
+                format!("measurement_frame {}", kind.name())
             }
             None => format!("parameter {index}"),
         }
@@ -469,6 +515,12 @@ impl McpcModel {
                     ParameterKind::X => f.x,
                     ParameterKind::Y => f.y,
                     ParameterKind::Gamma | ParameterKind::Z => 0.0,
+                    kind => self
+                        .joint_error_values(i)
+                        .get(joint_error_slot(kind))
+                        .copied()
+                        .flatten()
+                        .unwrap_or(0.0),
                 }
             }
             ParameterOwner::Tool(i) => {
@@ -480,8 +532,13 @@ impl McpcModel {
                     ParameterKind::X => t.x,
                     ParameterKind::Y => t.y,
                     ParameterKind::Z => t.z,
+                    _ => 0.0,
                 }
             }
+            ParameterOwner::Measurement => self
+                .frame_parameters
+                .as_ref()
+                .map_or(0.0, |f| f.values[frame_slot(kind)]),
         }
     }
 
@@ -508,6 +565,7 @@ impl McpcModel {
             *self.slot(owner, kind) = *value;
         }
         self.refresh();
+        self.refresh_world();
         Ok(())
     }
 
@@ -541,8 +599,36 @@ impl McpcModel {
                 self.tool_axes[i] = axes;
                 self.tool_constants[i] = constant;
             }
+            ParameterOwner::Measurement => self.refresh_world(),
         }
         Ok(())
+    }
+
+    /// [`Self::world_from_base`] from the measurement-frame parameters, if they exist.
+    fn refresh_world(&mut self) {
+        if let Some(parameters) = &self.frame_parameters {
+            self.world_from_base = parameters.effective();
+        }
+    }
+
+    /// Folds joint offset `delta` of revolute frame `frame` into the constants after it
+    /// ([`Self::with_offsets_absorbed`]).
+    pub(crate) fn absorb_offset(&mut self, frame: usize, delta: f64) {
+        if self.frames[frame].kind != FrameKind::Revolute {
+            return;
+        }
+        for child in self.frames.iter_mut().filter(|f| f.parent == Some(frame)) {
+            child.phi += delta;
+        }
+        for tool in self.tools.iter_mut().filter(|t| t.parent == Some(frame)) {
+            tool.phi += delta;
+        }
+        let link = self.frames[frame].frame_from_link;
+        self.frames[frame].frame_from_link = pose(Vec3::zeros(), rot_z(delta)) * link;
+        if let Some(slot) = self.joint_errors.slots.get_mut(frame) {
+            slot[0] = slot[0].map(|_| 0.0);
+        }
+        self.refresh();
     }
 
     /// The field holding parameter `kind` of `owner`.
@@ -554,8 +640,25 @@ impl McpcModel {
                     ParameterKind::Alpha => &mut f.alpha,
                     ParameterKind::Beta => &mut f.beta,
                     ParameterKind::X => &mut f.x,
-                    _ => &mut f.y,
+                    ParameterKind::Y | ParameterKind::Gamma | ParameterKind::Z => &mut f.y,
+                    kind => {
+                        let slots = &mut self.joint_errors.slots;
+                        if slots.len() <= i {
+                            slots.resize(i + 1, [None; 4]);
+                        }
+                        slots[i][joint_error_slot(kind)].get_or_insert(0.0)
+                    }
                 }
+            }
+            ParameterOwner::Measurement => {
+                let reference = self.world_from_base;
+                let parameters =
+                    self.frame_parameters
+                        .get_or_insert(super::joint_errors::FrameParameters {
+                            values: [0.0; 6],
+                            reference,
+                        });
+                &mut parameters.values[frame_slot(kind)]
             }
             ParameterOwner::Tool(i) => {
                 let t = &mut self.tools[i];
@@ -566,14 +669,27 @@ impl McpcModel {
                     ParameterKind::X => &mut t.x,
                     ParameterKind::Y => &mut t.y,
                     ParameterKind::Z => &mut t.z,
+                    _ => &mut t.gamma,
                 }
             }
         }
     }
 
-    /// The joint value of frame `frame` at configuration `q`.
+    /// The joint value of frame `frame` at configuration `q`, with the joint-angle errors of
+    /// the model if it has any (`kinematics::joint_errors`).
     #[inline]
     pub fn joint_value(&self, frame: usize, q: &[f64]) -> f64 {
+        let raw = self.raw_joint_value(frame, q);
+        if self.joint_errors.is_active() {
+            raw + self.joint_error(frame, raw, q)
+        } else {
+            raw
+        }
+    }
+
+    /// The joint value of frame `frame` at configuration `q` as commanded (no joint errors).
+    #[inline]
+    pub fn raw_joint_value(&self, frame: usize, q: &[f64]) -> f64 {
         match self.frames[frame].actuation {
             Actuation::Independent(dof) => q[dof.0],
             Actuation::Mimic {
@@ -595,6 +711,11 @@ impl McpcModel {
     /// Sets [`Self::world_from_base`].
     pub fn set_world_from_base(&mut self, world_from_base: &Pose) {
         self.world_from_base = Transform::from_pose(world_from_base);
+        if let Some(parameters) = self.frame_parameters.as_mut() {
+            // The parameters are relative to the frame set here.
+            parameters.reference = self.world_from_base;
+            parameters.values = [0.0; 6];
+        }
     }
 
     /// [`Self::world_from_base`] in the fast form.
@@ -632,6 +753,28 @@ impl McpcModel {
     #[inline]
     pub fn tool_constant(&self, tool: usize) -> &Transform {
         &self.tool_constants[tool]
+    }
+}
+
+/// The index of a joint-error kind in [`super::joint_errors::JOINT_ERROR_KINDS`].
+fn joint_error_slot(kind: ParameterKind) -> usize {
+    match kind {
+        ParameterKind::Offset => 0,
+        ParameterKind::Sine => 1,
+        ParameterKind::Cosine => 2,
+        _ => 3,
+    }
+}
+
+/// The index of a measurement-frame parameter (α, β, γ, x, y, z).
+fn frame_slot(kind: ParameterKind) -> usize {
+    match kind {
+        ParameterKind::Alpha => 0,
+        ParameterKind::Beta => 1,
+        ParameterKind::Gamma => 2,
+        ParameterKind::X => 3,
+        ParameterKind::Y => 4,
+        _ => 5,
     }
 }
 

@@ -3,12 +3,14 @@
 pub mod flexibility;
 mod forward;
 mod jacobian;
+pub mod joint_errors;
 pub mod mcpc;
 pub mod table;
 
 pub use flexibility::{FlexibilityModel, Stiffness};
 pub use forward::ForwardFrames;
 pub use jacobian::{ChainFrames, ToolJacobian};
+pub use joint_errors::{GravitySigns, JointErrorTerms};
 pub use mcpc::{
     FrameKind, McpcFrame, McpcModel, McpcTool, ParameterKind, ParameterOwner, SINGULARITY_THRESHOLD,
 };

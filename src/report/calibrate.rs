@@ -120,6 +120,9 @@ pub struct CalibrationSummary {
     /// The stiffness identification (`--identify-stiffness`), if it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stiffness: Option<StiffnessSummary>,
+    /// The measurement sessions, when the data name any (`session` column).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sessions: Option<super::sessions::SessionsSummary>,
 }
 
 /// The errors of one arm's tool on one data set (identification or validation).
@@ -316,6 +319,7 @@ pub fn calibration_summary(
         // The caller knows the rows' ids and the tool names: see `outlier_rows`.
         outliers: Vec::new(),
         stiffness: None,
+        sessions: run.sessions.as_ref().map(super::sessions::sessions_summary),
     }
 }
 

@@ -6,6 +6,7 @@ pub mod inspect;
 pub mod outliers;
 pub mod pairing;
 pub mod plot;
+pub mod sessions;
 pub mod simulate;
 pub mod stiffness;
 
@@ -17,5 +18,6 @@ pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use inspect::{inspect, InspectReport};
 pub use outliers::{outlier_rows, OutlierRow, RobustSummary};
 pub use pairing::{pairing_markdown, PairingReport};
+pub use sessions::{sessions_markdown, sessions_summary, SessionsSummary};
 pub use simulate::{simulation_results, SimulationResults, RESULTS_SCHEMA};
 pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};

@@ -79,6 +79,7 @@ mod tests {
                     Observation::Position(Vec3::zeros())
                 },
                 stage: None,
+                session: None,
             })
             .collect();
         let mut data = clean.clone();

@@ -302,6 +302,7 @@ pub fn run_trial(
                         q: q.clone(),
                         observation: observe(pose, options.targets, &options.noise, rng),
                         stage: Some(stage.into()),
+                        session: None,
                     });
                 }
             }

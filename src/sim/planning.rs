@@ -381,6 +381,7 @@ fn jacobian_blocks(
                         q: q.clone(),
                         observation: Observation::Position(Vec3::zeros()),
                         stage: None,
+                        session: None,
                     })
                 })
                 .collect();

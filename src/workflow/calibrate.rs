@@ -6,6 +6,7 @@
 
 use super::calibrate_outputs::outputs;
 use super::calibrate_steps::{check_config, export_calibrated, identify, read_data, Loaded};
+use super::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use super::note::Note;
 use super::source::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
 use crate::calibration::{
@@ -16,12 +17,13 @@ use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit};
 use std::path::{Path, PathBuf};
 
 /// The files [`Calibration::write`] writes besides the SVG plots.
-pub const OUTPUT_FILES: [&str; 5] = [
+pub const OUTPUT_FILES: [&str; 6] = [
     "calibrated.urdf",
     "params.yaml",
     "report.md",
     "report.json",
     "stiffness.yaml",
+    "joint_errors.yaml",
 ];
 
 /// Whether a file name is one `calibrate` writes (a previous output may be replaced).
@@ -97,6 +99,21 @@ pub struct CalibrateConfig {
     pub gravity_frame: GravityFrame,
     /// Add `<tool>_calibrated` links where a tool origin cannot be exported (docs/export.md).
     pub add_tool_links: bool,
+    /// Which parameters describe the robot (`--model`).
+    pub model: ModelChoice,
+    /// First-harmonic joint-angle errors as parameters (`--joint-errors harmonics`).
+    pub harmonics: bool,
+    /// Backlash as parameters (`--joint-errors backlash`).
+    pub backlash: bool,
+    /// The default Gaussian prior on the nominal values (`--prior`).
+    pub prior: bool,
+    /// Keep only the corrections of at least this many standard deviations (`--significant`).
+    pub significant: Option<f64>,
+    /// `--freeze` and `--free` patterns.
+    pub patterns: ParameterPatterns,
+    /// Cross-validate the model candidates over this many folds (`--cv`); `--model auto`
+    /// uses [`super::cross_validation::DEFAULT_FOLDS`] without it.
+    pub cv: Option<usize>,
 }
 
 impl Default for CalibrateConfig {
@@ -122,6 +139,13 @@ impl Default for CalibrateConfig {
             stiffness_prior: 0.5,
             gravity_frame: GravityFrame::Measurement,
             add_tool_links: false,
+            model: ModelChoice::Level(ModelLevel::Geometry),
+            harmonics: false,
+            backlash: false,
+            prior: false,
+            significant: None,
+            patterns: ParameterPatterns::default(),
+            cv: None,
         }
     }
 }
@@ -159,7 +183,13 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
     let data = read_data(config, &loaded, &mut notes)?;
     let (mut result, identified) = identify(config, &loaded, &data, &mut notes)?;
     let export = export_calibrated(config, &loaded, &mut result.run);
-    let outputs = outputs(config, &loaded, &data, &mut result, export, identified)?;
+    let mut outputs = outputs(config, &loaded, &data, &mut result, export, identified)?;
+    super::calibrate_steps::add_model_choice(
+        loaded.robot.tree(),
+        &result,
+        &mut outputs,
+        &mut notes,
+    )?;
     notes.extend(outputs.verdict.reasons.iter().map(Note::from));
     Ok(Calibration {
         verdict: outputs.verdict,

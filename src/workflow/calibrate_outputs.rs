@@ -138,6 +138,9 @@ pub(super) fn outputs(
     let run = &result.run;
     let tree = loaded.robot.tree();
     let mut markdown = calibration_markdown(&summary, &result.options);
+    if let Some(sessions) = &summary.sessions {
+        markdown.push_str(&crate::report::sessions_markdown(sessions));
+    }
     let mut params = to_yaml(&parameter_file(tree.name(), run))?;
     let json_error = |e: serde_json::Error| Error::InvalidData {
         origin: "report.json".into(),

@@ -2,12 +2,17 @@
 //! identifying and exporting (rendering is in `calibrate_outputs`).
 
 use super::calibrate::{CalibrateConfig, GravityFrame, MeasurementFrameChoice};
+use super::cross_validation::{
+    candidates, cross_validate, markdown as cross_validation_markdown, CrossValidation,
+    CrossValidationInput, DEFAULT_FOLDS,
+};
 use super::export::export_notes;
+use super::model_choice::{prepare, run_model, ModelChoice, ModelLevel, ModelSpec};
 use super::note::Note;
 use super::source::{measured_branches, LoadedRobot};
 use crate::calibration::{
-    hold_out_indices, identified_stiffness, identify_stiffness, run_calibration, CalibrationInput,
-    CalibrationRun, Finding, IdentificationOptions, MeasurementFrame, StiffnessOptions,
+    hold_out_indices, identified_stiffness, identify_stiffness, CalibrationInput, CalibrationRun,
+    Finding, IdentificationOptions, MeasurementFrame, StiffnessOptions,
 };
 use crate::error::{Error, Result};
 use crate::io::{read_registration, MeasurementReadOptions};
@@ -132,6 +137,10 @@ pub(super) struct Identified {
     pub run: CalibrationRun,
     pub plan_name: String,
     pub options: IdentificationOptions,
+    /// The model calibrated.
+    pub spec: ModelSpec,
+    /// The cross-validation table (`--cv`, `--model auto`).
+    pub cross_validation: Option<CrossValidation>,
 }
 
 /// With `--identify-stiffness`: the report's summary and the identified stiffness.
@@ -174,16 +183,42 @@ pub(super) fn identify(
         robust: config.robust,
         ..IdentificationOptions::default()
     };
+    let (spec, cross_validation) = choose_model(
+        config,
+        loaded,
+        flexibility.as_ref(),
+        &plan,
+        &options,
+        &data.measurements,
+    )?;
+    notes.extend(cross_validation.as_ref().map(|cv| {
+        Note::info(format!(
+            "model: '{}' ({})",
+            spec.name(),
+            if config.model == ModelChoice::Auto {
+                cv.reason.clone()
+            } else {
+                "as asked; --model auto would choose by the cross-validation in report.md".into()
+            }
+        ))
+    }));
+    let prepared = prepare(&spec, tree, &loaded.nominal, &options, &config.patterns)?;
+    let options = prepared.options;
     let input = CalibrationInput {
         tree,
         branches: &loaded.branches,
-        nominal: &loaded.nominal,
-        flexibility: flexibility.as_ref(),
+        nominal: &prepared.nominal,
+        flexibility: flexibility.as_ref().filter(|_| spec.compensate),
         plan: &plan,
         options: &options,
         measurement_frame: loaded.frame,
     };
-    let mut run = run_calibration(&input, &data.measurements, &data.validation)?;
+    let mut run = run_model(
+        &input,
+        spec.significant,
+        &data.measurements,
+        &data.validation,
+    )?;
     let mut identified = None;
     if let (Some(prior), Some(stiffness), true) =
         (&flexibility, &stiffness, config.identify_stiffness)
@@ -193,11 +228,16 @@ pub(super) fn identify(
             ..StiffnessOptions::default()
         };
         let free: Vec<usize> = (0..run.report.model.parameter_count()).collect();
+        // Every session's rows in the first session's frame, by the frames the run fitted.
+        let in_first_frame = crate::calibration::sessions::validation_in_training_frames(
+            &data.measurements,
+            run.sessions.as_ref(),
+        );
         let report = identify_stiffness(
             tree,
             &run.report.model,
             prior,
-            &data.measurements,
+            &in_first_frame,
             None,
             &free,
             &options,
@@ -207,7 +247,12 @@ pub(super) fn identify(
             flexibility: Some(&report.flexibility),
             ..input
         };
-        run = run_calibration(&again, &data.measurements, &data.validation)?;
+        run = run_model(
+            &again,
+            spec.significant,
+            &data.measurements,
+            &data.validation,
+        )?;
         run.findings
             .extend(crate::calibration::checks::stiffness_below_zero(&report));
         let file = identified_stiffness(stiffness, tree, &loaded.nominal, &report.estimates);
@@ -217,8 +262,145 @@ pub(super) fn identify(
         run,
         plan_name,
         options,
+        spec,
+        cross_validation,
     };
     Ok((identified_run, identified))
+}
+
+/// The model to calibrate: the asked level, or the cross-validation's choice; and the
+/// cross-validation table when asked (`--cv`) or needed (`--model auto`).
+fn choose_model(
+    config: &CalibrateConfig,
+    loaded: &Loaded,
+    flexibility: Option<&FlexibilityModel>,
+    plan: &crate::calibration::Plan,
+    options: &IdentificationOptions,
+    measurements: &[Measurement],
+) -> Result<(ModelSpec, Option<CrossValidation>)> {
+    let asked = |level| ModelSpec {
+        level,
+        harmonics: config.harmonics,
+        backlash: config.backlash,
+        prior: config.prior,
+        significant: config.significant,
+        compensate: true,
+    };
+    let folds = match (config.model, config.cv) {
+        (_, Some(k)) => k,
+        (ModelChoice::Auto, None) => DEFAULT_FOLDS,
+        (ModelChoice::Level(level), None) => return Ok((asked(level), None)),
+    };
+    if folds < 2 {
+        return Err(invalid("--cv", format!("{folds} folds: give at least 2")));
+    }
+    let tree = loaded.robot.tree();
+    let input = CrossValidationInput {
+        tree,
+        branches: &loaded.branches,
+        nominal: &loaded.nominal,
+        flexibility,
+        plan,
+        options,
+        measurement_frame: loaded.frame,
+        patterns: &config.patterns,
+    };
+    let mut list = candidates(tree, &loaded.nominal, flexibility.is_some());
+    if let ModelChoice::Level(level) = config.model {
+        let mine = asked(level);
+        if !list.contains(&mine) {
+            list.insert(0, mine);
+        }
+    }
+    let cv = cross_validate(&input, &list, measurements, folds, config.seed)?;
+    let spec = match (config.model, cv.chosen) {
+        (ModelChoice::Level(level), _) => asked(level),
+        (ModelChoice::Auto, Some(i)) => cv.rows[i].spec,
+        (ModelChoice::Auto, None) => asked(ModelLevel::Geometry),
+    };
+    Ok((spec, Some(cv)))
+}
+
+/// Adds the cross-validation table to report.md and report.json (`"model_choice"`), and the
+/// model calibrated (`"model"`).
+pub(super) fn add_model_choice(
+    tree: &crate::tree::KinematicTree,
+    result: &Identified,
+    outputs: &mut super::calibrate_outputs::Outputs,
+    notes: &mut Vec<Note>,
+) -> Result<()> {
+    if let Some(text) = joint_errors_yaml(tree, &result.run.report.model) {
+        let message = "calibrated.urdf cannot carry the identified joint-angle errors (harmonics, backlash): they are in joint_errors.yaml (docs/file-formats.md), to be added to the commanded joint angles; the validation figures include them";
+        notes.push(Note::warning(message));
+        outputs
+            .markdown
+            .push_str(&format!("\n## Joint-angle errors\n\n{message}.\n"));
+        outputs
+            .files
+            .push(("joint_errors.yaml".into(), text.into_bytes()));
+    }
+    if let serde_json::Value::Object(map) = &mut outputs.report {
+        map.insert(
+            "model".into(),
+            serde_json::json!({ "name": result.spec.name(), "spec": result.spec }),
+        );
+        if let Some(cv) = &result.cross_validation {
+            map.insert(
+                "model_choice".into(),
+                serde_json::to_value(cv).map_err(|e| invalid("report.json", e.to_string()))?,
+            );
+        }
+    }
+    if let Some(cv) = &result.cross_validation {
+        outputs.markdown.push_str(&cross_validation_markdown(cv));
+        for row in &cv.rows {
+            notes.push(Note::info(format!(
+                "cv: {:<45} {:>3} parameters  held-out RMS {}",
+                row.model,
+                row.parameters,
+                row.rms_mm
+                    .map_or("failed".to_string(), |v| format!("{v:.3} mm"))
+            )));
+        }
+    }
+    let json = serde_json::to_string_pretty(&outputs.report)
+        .map_err(|e| invalid("report.json", e.to_string()))?;
+    for (name, bytes) in outputs.files.iter_mut() {
+        match name.as_str() {
+            "report.md" => *bytes = outputs.markdown.clone().into_bytes(),
+            "report.json" => *bytes = format!("{json}\n").into_bytes(),
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// joint_errors.yaml: the harmonic and backlash terms of `model` (none: `None`).
+fn joint_errors_yaml(tree: &crate::tree::KinematicTree, model: &McpcModel) -> Option<String> {
+    let terms = model.joint_error_terms();
+    if !(terms.harmonics || terms.backlash) {
+        return None;
+    }
+    let mut text = String::from(
+        "# Joint-angle errors identified by treecal calibrate (docs/file-formats.md); a URDF cannot carry them.\n# The joint turns by theta = q + sine*sin(q) + cosine*cos(q) + backlash*sign(tau), q the commanded angle,\n# tau the gravity torque about the joint axis (URDF inertials, gravity along -z of the root link).\n# Joint zero offsets are in calibrated.urdf already.\nunits: {angle: rad}\njoints:\n",
+    );
+    for (frame, f) in model.frames().iter().enumerate() {
+        let [_, sine, cosine, backlash] = model.joint_error_values(frame);
+        let mut parts = Vec::new();
+        for (name, value) in [("sine", sine), ("cosine", cosine), ("backlash", backlash)] {
+            if let Some(value) = value {
+                parts.push(format!("{name}: {value:.9}"));
+            }
+        }
+        if !parts.is_empty() {
+            text.push_str(&format!(
+                "  {}: {{{}}}\n",
+                tree.joint(f.joint).name,
+                parts.join(", ")
+            ));
+        }
+    }
+    Some(text)
 }
 
 /// The calibrated URDF; what the export dropped or added, or why it failed, goes among the
@@ -237,7 +419,8 @@ pub(super) fn export_calibrated(
         &robot.text,
         &robot.origin,
         tree,
-        &run.report.model,
+        // Joint offsets are carried by the URDF's joint origins.
+        &run.report.model.with_offsets_absorbed(),
         &options,
     ) {
         Ok(export) => {

@@ -515,6 +515,7 @@ fn compliance_check(
                 q: row.q.clone(),
                 observation: observation.clone(),
                 stage: row.stage.clone(),
+                session: None,
             });
             payloads.push(*load);
         }

@@ -4,18 +4,21 @@
 
 use std::sync::OnceLock;
 use treecal::io::{
-    configurations, mcpc_table_to_yaml, parse_csv, parse_mcpc_table, parse_measurements,
-    parse_parameters, parse_plan, parse_stiffness, pose_rows, AngleUnit, LengthUnit,
-    MeasurementReadOptions,
+    configurations, mcpc_table_to_yaml, mesh_vertices, parse_csv, parse_mcpc_table,
+    parse_measurements, parse_parameters, parse_plan, parse_registration, parse_stiffness,
+    pose_rows, AngleUnit, LengthUnit, MeasurementReadOptions,
 };
 use treecal::kinematics::FlexibilityModel;
 use treecal::{
-    detect_branches, parse_urdf, urdf_from_mcpc_table, KinematicTree, McpcModel, McpcTable,
+    detect_branches, export_urdf, parse_urdf, urdf_from_mcpc_table, KinematicTree, McpcModel,
+    McpcTable,
 };
+
+const ROBONAUT_URDF: &str = include_str!("../../robots/robonaut/robonaut.urdf");
 
 /// The fuzz targets, by name (the folder names under `fuzz/fuzz_targets` and
 /// `tests/data/fuzz`).
-pub const TARGETS: [&str; 7] = [
+pub const TARGETS: [&str; 12] = [
     "urdf",
     "measurements_csv",
     "joints_csv",
@@ -23,6 +26,11 @@ pub const TARGETS: [&str; 7] = [
     "stiffness",
     "params",
     "plan",
+    "stl",
+    "obj",
+    "collada",
+    "registration",
+    "export",
 ];
 
 /// Runs the entry of target `name` on `data`.
@@ -35,6 +43,11 @@ pub fn run(name: &str, data: &[u8]) {
         "stiffness" => stiffness(data),
         "params" => params(data),
         "plan" => plan(data),
+        "stl" => mesh(data, "fuzz.stl"),
+        "obj" => mesh(data, "fuzz.obj"),
+        "collada" => mesh(data, "fuzz.dae"),
+        "registration" => registration(data),
+        "export" => export(data),
         other => panic!("no fuzz target '{other}'"),
     }
 }
@@ -43,8 +56,7 @@ pub fn run(name: &str, data: &[u8]) {
 fn robonaut() -> &'static (KinematicTree, McpcModel) {
     static ROBOT: OnceLock<(KinematicTree, McpcModel)> = OnceLock::new();
     ROBOT.get_or_init(|| {
-        let text = include_str!("../../robots/robonaut/robonaut.urdf");
-        let tree = parse_urdf(text, "robonaut.urdf")
+        let tree = parse_urdf(ROBONAUT_URDF, "robonaut.urdf")
             .expect("robonaut loads")
             .tree;
         let branches = detect_branches(&tree, None).expect("robonaut has branches");
@@ -150,4 +162,33 @@ pub fn params(data: &[u8]) {
 pub fn plan(data: &[u8]) {
     let Some(text) = text(data) else { return };
     let _ = parse_plan(text, "fuzz.yaml");
+}
+
+/// A collision mesh file (`name`'s extension picks STL, OBJ or COLLADA), as `plan` and
+/// `simulate` read it.
+pub fn mesh(data: &[u8], name: &str) {
+    let _ = mesh_vertices(data, std::path::Path::new(name));
+}
+
+/// A registration file (`calibrate --measurement-frame FILE`).
+pub fn registration(data: &[u8]) {
+    let Some(text) = text(data) else { return };
+    let _ = parse_registration(text, "fuzz.yaml");
+}
+
+/// The output writer: a parameter file for the Robonaut, the calibrated URDF `export` writes
+/// from it, and that URDF read back.
+pub fn export(data: &[u8]) {
+    let Some(text) = text(data) else { return };
+    let (tree, model) = robonaut();
+    let Ok(values) = parse_parameters(text, "fuzz.yaml", tree, model) else {
+        return;
+    };
+    let mut calibrated = model.clone();
+    if calibrated.set_parameters(&values.values).is_err() {
+        return;
+    }
+    if let Ok(report) = export_urdf(ROBONAUT_URDF, "robonaut.urdf", tree, &calibrated) {
+        let _ = parse_urdf(&report.urdf, "exported.urdf");
+    }
 }

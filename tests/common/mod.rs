@@ -4,6 +4,7 @@
 
 pub mod cli;
 pub mod fuzz;
+pub mod second_robot;
 
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};

@@ -1,10 +1,13 @@
 //! `treecal calibrate`: flags → [`CalibrateConfig`] → [`treecal::workflow::calibrate`] →
 //! notes on stderr, report.md on stdout, the files in `--out`.
 
-use crate::cli::{CalibrateArgs, GravityFrame, MeasurementFrame, PlanArg, PlanChoice};
+use crate::cli::{
+    CalibrateArgs, GravityFrame, JointErrorArg, MeasurementFrame, ModelArg, PlanArg, PlanChoice,
+};
 use std::path::Path;
 use treecal::io::check_output_folder;
 use treecal::workflow::calibrate::{is_output_file, OUTPUT_FILES};
+use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, PlanSource, RobotSource,
     StiffnessSource,
@@ -82,5 +85,19 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
             GravityFrame::Base => treecal::workflow::GravityFrame::Base,
         },
         add_tool_links: args.add_tool_links,
+        model: match args.model {
+            ModelArg::Offsets => ModelChoice::Level(ModelLevel::Offsets),
+            ModelArg::Geometry => ModelChoice::Level(ModelLevel::Geometry),
+            ModelArg::Auto => ModelChoice::Auto,
+        },
+        harmonics: args.joint_errors.contains(&JointErrorArg::Harmonics),
+        backlash: args.joint_errors.contains(&JointErrorArg::Backlash),
+        prior: args.prior,
+        significant: args.significant,
+        patterns: ParameterPatterns {
+            freeze: args.freeze.clone(),
+            free: args.free.clone(),
+        },
+        cv: args.cv,
     }
 }

@@ -491,6 +491,26 @@ pub struct CheckArgs {
     pub stiffness_prior: f64,
 }
 
+/// `--model`.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ModelArg {
+    /// Joint zero offsets, the tools and the measurement frame.
+    Offsets,
+    /// The full MCPC geometry.
+    Geometry,
+    /// Chosen by cross-validation.
+    Auto,
+}
+
+/// `--joint-errors`.
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum JointErrorArg {
+    /// First-harmonic errors.
+    Harmonics,
+    /// Backlash signed by gravity.
+    Backlash,
+}
+
 /// Arguments of `treecal calibrate`.
 #[derive(Args)]
 #[command(
@@ -506,6 +526,37 @@ pub struct CalibrateArgs {
     /// instead of failing (docs/export.md).
     #[arg(long)]
     pub add_tool_links: bool,
+    /// Which parameters describe the robot: `offsets` (joint zero offsets, the tools and the
+    /// measurement frame), `geometry` (the full MCPC model), `auto` (the candidate with the
+    /// lowest cross-validated held-out error; docs/identification.md).
+    #[arg(long, value_enum, default_value = "geometry")]
+    pub model: ModelArg,
+    /// Joint-angle errors as extra parameters, comma-separated: `harmonics` (a·sin q + b·cos q
+    /// per joint), `backlash` (half the dead band, signed by the gravity torque; needs the
+    /// URDF's inertials).
+    #[arg(long, value_enum, value_delimiter = ',', value_name = "TERM,TERM")]
+    pub joint_errors: Vec<JointErrorArg>,
+    /// A Gaussian prior on the nominal values (σ: frame angles 0.2°, lengths 2 mm, joint
+    /// offsets 1°, harmonics and backlash 0.2°; tools and frame free), weighed at the fit's
+    /// residual scale.
+    #[arg(long)]
+    pub prior: bool,
+    /// Keep only the geometric corrections of at least K standard deviations (the others
+    /// frozen at nominal, the rest refitted).
+    #[arg(long, value_name = "K")]
+    pub significant: Option<f64>,
+    /// Never free the parameters whose name matches PATTERN (glob on the names of params.yaml,
+    /// e.g. 'arm_7_joint *'); repeatable.
+    #[arg(long, value_name = "PATTERN")]
+    pub freeze: Vec<String>,
+    /// Free the parameters matching PATTERN even when the model or --freeze would not;
+    /// repeatable.
+    #[arg(long, value_name = "PATTERN")]
+    pub free: Vec<String>,
+    /// Cross-validate the model candidates over K folds of the postures (report.md,
+    /// report.json `model_choice`); --model auto uses 5 without it.
+    #[arg(long, value_name = "K")]
+    pub cv: Option<usize>,
     /// Measurement CSV (one row per tool observation).
     #[arg(long, value_name = "M.csv")]
     pub measurements: PathBuf,

@@ -159,6 +159,11 @@ impl FlexibilityModel {
                 frames,
                 tool_previous,
                 tools,
+                joint_error_factors: {
+                    let mut factors = Vec::new();
+                    model.joint_error_factors(q, &mut factors);
+                    factors
+                },
                 ..ChainFrames::default()
             },
             deflected,

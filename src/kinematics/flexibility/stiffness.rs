@@ -183,7 +183,10 @@ pub(crate) fn stiffness_problem(value: f64) -> Option<String> {
 /// What is wrong with a mass, if anything: it must be finite and ≥ 0.
 pub(crate) fn mass_problem(value: f64) -> Option<String> {
     if !value.is_finite() || value < 0.0 {
-        Some(format!("is {value}; must be a finite number ≥ 0 (kg)"))
+        Some(format!(
+            "is {}; must be a finite number ≥ 0 (kg)",
+            crate::limits::shown(value)
+        ))
     } else {
         None
     }

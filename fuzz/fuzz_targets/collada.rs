@@ -1,0 +1,8 @@
+#![no_main]
+//! Fuzz target `collada`: see tests/common/fuzz.rs (shared with the replay test) and README.md.
+
+#[path = "../../tests/common/fuzz.rs"]
+#[allow(dead_code)]
+mod entries;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| entries::mesh(data, "fuzz.dae"));

@@ -1,0 +1,691 @@
+//! Measurement sessions: one measurement frame per session (the CSV's `session` column).
+//!
+//! A tracker or a motion-capture system that is moved, re-levelled or re-calibrated between two
+//! days measures the same robot in another frame. The first session's frame is the
+//! measurement frame of today's fit (closed-form start, absorbed by the MCPC parameters); every
+//! other session `s` gets a **per-session nuisance block**: the six parameters of the pose
+//! `session_from_first` of its frame in the first session's frame, so that its rows are
+//! predicted as `session_from_first · prediction`. The blocks are fitted jointly with the
+//! geometry: the least-squares problem over (geometry, blocks) is solved by alternating the
+//! calibration (the rows of every session mapped into the first session's frame) with the
+//! closed-form-started Gauss–Newton fit of each block at the calibrated geometry, accelerated
+//! by Anderson extrapolation; its fixed point is the joint minimum. Later measurement kinds
+//! (a plane or a board seen in each session) add their own block per session to the same
+//! alternation. See `docs/calibration.md`, "Sessions".
+//!
+//! Validation rows of a session seen in training use that session's frame (the "training
+//! frame"); rows of a new session use the first session's frame, and are also **re-registered**
+//! (their block's six parameters refitted with the calibrated geometry fixed): both figures
+//! are reported ([`SessionValidation`]).
+
+use super::plan::{Anderson, CalibrationReport, Compensation, Plan};
+use super::robust::{calibrate_robust, RobustReport};
+use super::solver::{IdentificationOptions, Predictor, Rigid};
+use super::verdict::Finding;
+use crate::error::Result;
+use crate::kinematics::McpcModel;
+use crate::math::{pose, Pose, Vec3};
+use crate::measurement::{Measurement, Observation};
+use crate::tree::Branches;
+use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector6};
+
+/// Parameters of one session's frame block (translation and rotation).
+pub const FRAME_BLOCK_PARAMETERS: usize = 6;
+
+/// Most alternations of calibration and frame fits.
+pub const MAX_ROUNDS: usize = 40;
+
+/// The alternation stops when no session frame moved by more than this in a round (m, and
+/// rad times [`ROTATION_LENGTH`]).
+pub const ROUND_TOLERANCE: f64 = 1e-9;
+
+/// The length (m) that turns a rotation (rad) into a comparable displacement: a robot's reach.
+pub const ROTATION_LENGTH: f64 = 1.0;
+
+/// The sessions of a data set, in order of first appearance (the first is the reference).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sessions {
+    /// Session names (`None`: rows without a session label).
+    pub names: Vec<Option<String>>,
+    /// Per measurement, the index of its session in `names`.
+    pub of: Vec<usize>,
+}
+
+impl Sessions {
+    /// The sessions of `measurements`.
+    pub fn of(measurements: &[Measurement]) -> Self {
+        let mut names: Vec<Option<String>> = Vec::new();
+        let of = measurements
+            .iter()
+            .map(|m| match names.iter().position(|n| *n == m.session) {
+                Some(index) => index,
+                None => {
+                    names.push(m.session.clone());
+                    names.len() - 1
+                }
+            })
+            .collect();
+        Self { names, of }
+    }
+
+    /// The number of rows of session `index`.
+    pub fn rows(&self, index: usize) -> usize {
+        self.of.iter().filter(|&&s| s == index).count()
+    }
+
+    /// The rows of the first session (all rows when there is one session).
+    pub fn first_session(&self, measurements: &[Measurement]) -> Vec<Measurement> {
+        measurements
+            .iter()
+            .zip(&self.of)
+            .filter(|(_, &s)| s == 0)
+            .map(|(m, _)| m.clone())
+            .collect()
+    }
+}
+
+/// A session's name for messages: quoted, or `(unnamed)`.
+pub fn session_label(name: &Option<String>) -> String {
+    match name {
+        Some(name) => format!("'{name}'"),
+        None => "(unnamed)".into(),
+    }
+}
+
+/// One session's measurement frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionFrame {
+    /// The session (`None`: rows without a label).
+    pub name: Option<String>,
+    /// Its rows.
+    pub rows: usize,
+    /// Its frame in the first session's: measured ≈ `session_from_first · predicted`
+    /// (identity for the first session).
+    pub session_from_first: Pose,
+    /// How many of the block's six directions its rows determine (6 for the first session).
+    pub determined: usize,
+}
+
+/// The sessions of a calibration and of its validation data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionsReport {
+    /// Every training session's frame, the first (the reference) first.
+    pub frames: Vec<SessionFrame>,
+    /// Alternations of calibration and frame fits (0 with one training session).
+    pub rounds: usize,
+    /// Whether the frames settled within [`MAX_ROUNDS`].
+    pub converged: bool,
+    /// Per validation session, the held-out figures.
+    pub validation: Vec<SessionValidation>,
+}
+
+/// A validation session's held-out position errors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionValidation {
+    /// The session.
+    pub name: Option<String>,
+    /// Its validation rows.
+    pub rows: usize,
+    /// Whether the session is one of the training sessions: then its training frame is its
+    /// own fitted frame; otherwise the first session's.
+    pub seen_in_training: bool,
+    /// RMS position error (m) in the training frame.
+    pub training_frame_rms: f64,
+    /// RMS position error (m) re-registered: the session's frame refitted to its validation
+    /// rows with the calibrated geometry fixed.
+    pub reregistered_rms: f64,
+    /// Parameters refitted for the re-registration ([`FRAME_BLOCK_PARAMETERS`]).
+    pub refitted_parameters: usize,
+    /// The re-registered frame in the first session's frame.
+    pub session_from_first: Pose,
+}
+
+/// A calibration with one frame per session.
+#[derive(Debug, Clone)]
+pub struct SessionCalibration {
+    /// The plan's outcome.
+    pub report: CalibrationReport,
+    /// The robust estimation of the last calibration.
+    pub robust: RobustReport,
+    /// The measurements mapped into the first session's frame (the data the report fits).
+    pub measurements: Vec<Measurement>,
+    /// The session frames (one, the identity, with one session: nothing to fit).
+    pub sessions: SessionsReport,
+}
+
+/// `measurement` in the first session's frame, given its session's `session_from_first`.
+pub fn in_first_frame(measurement: &Measurement, session_from_first: &Pose) -> Measurement {
+    let first_from_session = session_from_first.inverse();
+    let observation = match &measurement.observation {
+        Observation::Pose(p) => Observation::Pose(first_from_session * p),
+        Observation::Position(p) => {
+            Observation::Position(first_from_session.transform_point(&(*p).into()).coords)
+        }
+    };
+    Measurement {
+        observation,
+        ..measurement.clone()
+    }
+}
+
+/// The tool poses the calibration's model predicts (deflected under compensation).
+pub fn predictions(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    compensation: Compensation<'_>,
+) -> Result<Vec<Pose>> {
+    measurements
+        .iter()
+        .map(|m| {
+            let poses = match compensation {
+                Compensation::None => Rigid.predict_at(model, &m.q, m.payload)?,
+                Compensation::Linear(source) | Compensation::Exact(source) => {
+                    source.predict_at(model, &m.q, m.payload)?
+                }
+            };
+            Ok(poses[m.tool])
+        })
+        .collect()
+}
+
+/// Fits one session's frame block: `session_from_first` minimising
+/// `Σ wᵢ·‖Wᵢ·(measuredᵢ ⊖ T·predictedᵢ)‖²` (rows divided by their σ's, `weights` per row, empty:
+/// all 1), from a closed-form (Kabsch) start on the positions, by Gauss–Newton over the six
+/// parameters with a minimum-norm step (directions the rows cannot see stay where the start
+/// put them). Returns the frame and how many directions the rows determine.
+pub fn fit_session_frame(
+    predicted: &[Pose],
+    measured: &[&Measurement],
+    weights: &[f64],
+    options: &IdentificationOptions,
+) -> (Pose, usize) {
+    let weight = |i: usize| weights.get(i).copied().unwrap_or(1.0);
+    let used: Vec<usize> = (0..measured.len()).filter(|&i| weight(i) > 0.0).collect();
+    let points = |i: &usize| predicted[*i].translation.vector;
+    let from: Vec<Vec3> = used.iter().map(points).collect();
+    let to: Vec<Vec3> = used
+        .iter()
+        .map(|&i| super::initial_guess::measured_position(measured[i]))
+        .collect();
+    let mut frame = super::initial_guess::fit_rigid_transform(&from, &to)
+        .unwrap_or_else(|| mean_translation(&from, &to));
+    let centre = to.iter().sum::<Vec3>() / to.len().max(1) as f64;
+    let sigma = [options.position_sigma, options.rotation_sigma];
+    let cost_at = |frame: &Pose| -> f64 {
+        used.iter()
+            .map(|&i| weight(i) * weighted_error(measured[i], &(frame * predicted[i]), sigma).1)
+            .sum()
+    };
+    let mut cost = cost_at(&frame);
+    let mut determined = 0;
+    for _ in 0..20 {
+        let mut normal = Matrix6::zeros();
+        let mut gradient = Vector6::zeros();
+        for &i in &used {
+            let predicted = frame * predicted[i];
+            let (error, _) = weighted_error(measured[i], &predicted, sigma);
+            let jacobian = block_jacobian(&predicted, &centre, measured[i], sigma);
+            normal += weight(i) * jacobian.transpose() * jacobian;
+            gradient += weight(i) * jacobian.transpose() * error;
+        }
+        let svd = normal.svd(true, true);
+        let largest = svd.singular_values.max();
+        determined = svd
+            .singular_values
+            .iter()
+            .filter(|&&s| s > 1e-10 * largest && s > 0.0)
+            .count();
+        let Ok(step) = svd.solve(&gradient, 1e-10 * largest) else {
+            break;
+        };
+        let trial = moved(&frame, &centre, &step);
+        let trial_cost = cost_at(&trial);
+        // Also stops on a NaN cost.
+        if trial_cost.partial_cmp(&cost) != Some(std::cmp::Ordering::Less) {
+            break;
+        }
+        let done = cost - trial_cost <= 1e-14 * cost || step.norm() < 1e-14;
+        frame = trial;
+        cost = trial_cost;
+        if done {
+            break;
+        }
+    }
+    (frame, determined)
+}
+
+/// A pure translation between the point sets' means (too few points for a rotation).
+fn mean_translation(from: &[Vec3], to: &[Vec3]) -> Pose {
+    let n = from.len().max(1) as f64;
+    let shift = (to.iter().sum::<Vec3>() - from.iter().sum::<Vec3>()) / n;
+    pose(shift, UnitQuaternion::identity())
+}
+
+/// `measured ⊖ predicted` divided by the σ's (rows of a position: 3, the rest 0) and its
+/// squared norm.
+fn weighted_error(
+    measured: &Measurement,
+    predicted: &Pose,
+    sigma: [f64; 2],
+) -> (Vector6<f64>, f64) {
+    let mut error = match &measured.observation {
+        Observation::Pose(p) => crate::math::pose_error(p, predicted),
+        Observation::Position(p) => {
+            let d = p - predicted.translation.vector;
+            Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
+        }
+    };
+    for k in 0..6 {
+        error[k] /= sigma[k / 3];
+    }
+    (error, error.norm_squared())
+}
+
+/// The derivative of the predicted pose (position; rotation for poses) with respect to the
+/// block's parameters `δ = (δt, δω)` of `T ← Trans(c + δt)·Rot(δω)·Trans(−c)·T`, rows divided
+/// by the σ's: `∂p = δt + δω × (p − c)`, `∂ω = δω`.
+fn block_jacobian(
+    predicted: &Pose,
+    centre: &Vec3,
+    measured: &Measurement,
+    sigma: [f64; 2],
+) -> Matrix6<f64> {
+    let arm = predicted.translation.vector - centre;
+    let mut jacobian = Matrix6::zeros();
+    jacobian
+        .fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(Matrix3::identity() / sigma[0]));
+    jacobian
+        .fixed_view_mut::<3, 3>(0, 3)
+        .copy_from(&(-arm.cross_matrix() / sigma[0]));
+    if let Observation::Pose(_) = measured.observation {
+        jacobian
+            .fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&(Matrix3::identity() / sigma[1]));
+    }
+    jacobian
+}
+
+/// `Trans(c + δt)·Rot(δω)·Trans(−c)·frame`: the block moved by `step` about `centre`.
+fn moved(frame: &Pose, centre: &Vec3, step: &Vector6<f64>) -> Pose {
+    let rotation = UnitQuaternion::from_scaled_axis(step.fixed_rows::<3>(3).into_owned());
+    let translation = centre + step.fixed_rows::<3>(0) - rotation * centre;
+    pose(translation, rotation) * frame
+}
+
+/// A frame as six numbers (translation, rotation vector) for the extrapolation.
+fn coordinates(frame: &Pose) -> [f64; 6] {
+    let t = frame.translation.vector;
+    let r = frame.rotation.scaled_axis();
+    [t.x, t.y, t.z, r.x, r.y, r.z]
+}
+
+fn from_coordinates(c: &[f64]) -> Pose {
+    pose(
+        Vec3::new(c[0], c[1], c[2]),
+        UnitQuaternion::from_scaled_axis(Vec3::new(c[3], c[4], c[5])),
+    )
+}
+
+/// Every session's measurements mapped into the first session's frame.
+fn mapped(measurements: &[Measurement], sessions: &Sessions, frames: &[Pose]) -> Vec<Measurement> {
+    measurements
+        .iter()
+        .zip(&sessions.of)
+        .map(|(m, &s)| {
+            if s == 0 {
+                m.clone()
+            } else {
+                in_first_frame(m, &frames[s])
+            }
+        })
+        .collect()
+}
+
+/// Each session's frame (the first: identity) fitted at `model`, with the robust `weights`
+/// (empty: all 1); and how many directions each is determined in.
+fn fit_frames(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    sessions: &Sessions,
+    compensation: Compensation<'_>,
+    weights: &[f64],
+    options: &IdentificationOptions,
+) -> Result<Vec<(Pose, usize)>> {
+    let predicted = predictions(model, measurements, compensation)?;
+    Ok((0..sessions.names.len())
+        .map(|s| {
+            if s == 0 {
+                return (Pose::identity(), FRAME_BLOCK_PARAMETERS);
+            }
+            let rows: Vec<usize> = (0..measurements.len())
+                .filter(|&i| sessions.of[i] == s)
+                .collect();
+            let own_weights: Vec<f64> = if weights.is_empty() {
+                Vec::new()
+            } else {
+                rows.iter().map(|&i| weights[i]).collect()
+            };
+            fit_session_frame(
+                &rows.iter().map(|&i| predicted[i]).collect::<Vec<_>>(),
+                &rows.iter().map(|&i| &measurements[i]).collect::<Vec<_>>(),
+                &own_weights,
+                options,
+            )
+        })
+        .collect())
+}
+
+/// Calibrates with one measurement frame per session (see the module documentation), from
+/// `start` (its measurement frame is the first session's). With one session this is
+/// [`calibrate_robust`] on the data as given.
+pub fn calibrate_sessions(
+    branches: &Branches,
+    start: &McpcModel,
+    measurements: &[Measurement],
+    compensation: Compensation<'_>,
+    plan: &Plan,
+    options: &IdentificationOptions,
+) -> Result<SessionCalibration> {
+    let sessions = Sessions::of(measurements);
+    if sessions.names.len() < 2 {
+        let (report, robust) =
+            calibrate_robust(branches, start, measurements, compensation, plan, options)?;
+        return Ok(SessionCalibration {
+            report,
+            robust,
+            measurements: measurements.to_vec(),
+            sessions: SessionsReport {
+                frames: vec![SessionFrame {
+                    name: sessions.names.first().cloned().flatten(),
+                    rows: measurements.len(),
+                    session_from_first: Pose::identity(),
+                    determined: FRAME_BLOCK_PARAMETERS,
+                }],
+                rounds: 0,
+                converged: true,
+                validation: Vec::new(),
+            },
+        });
+    }
+    let mut fitted = fit_frames(start, measurements, &sessions, compensation, &[], options)?;
+    let mut model = start.clone();
+    let mut acceleration = Anderson::new(3);
+    let mut rounds = 0;
+    let converged;
+    let flat = |frames: &[(Pose, usize)]| -> Vec<f64> {
+        frames.iter().flat_map(|(f, _)| coordinates(f)).collect()
+    };
+    let (report, robust, data) = loop {
+        rounds += 1;
+        let frames: Vec<Pose> = fitted.iter().map(|(f, _)| *f).collect();
+        let data = mapped(measurements, &sessions, &frames);
+        let (report, robust) =
+            calibrate_robust(branches, &model, &data, compensation, plan, options)?;
+        model = report.model.clone();
+        let next = fit_frames(
+            &model,
+            measurements,
+            &sessions,
+            compensation,
+            &robust.fit_weights(),
+            options,
+        )?;
+        let (before, after) = (flat(&fitted), flat(&next));
+        let change = before
+            .chunks(3)
+            .zip(after.chunks(3))
+            .enumerate()
+            .map(|(k, (a, b))| {
+                let scale = if k % 2 == 0 { 1.0 } else { ROTATION_LENGTH };
+                scale
+                    * a.iter()
+                        .zip(b)
+                        .map(|(x, y)| (x - y).abs())
+                        .fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
+        if change <= ROUND_TOLERANCE || rounds >= MAX_ROUNDS {
+            converged = change <= ROUND_TOLERANCE;
+            // The frames the data were mapped with, and what the last fit determined.
+            for (frame, (_, determined)) in fitted.iter_mut().zip(&next) {
+                frame.1 = *determined;
+            }
+            break (report, robust, data);
+        }
+        let extrapolated = acceleration.next(&before, &after);
+        fitted = extrapolated
+            .chunks(6)
+            .zip(&next)
+            .map(|(c, (_, determined))| (from_coordinates(c), *determined))
+            .collect();
+    };
+    let frames = fitted
+        .iter()
+        .enumerate()
+        .map(|(s, (frame, determined))| SessionFrame {
+            name: sessions.names[s].clone(),
+            rows: sessions.rows(s),
+            session_from_first: *frame,
+            determined: *determined,
+        })
+        .collect();
+    Ok(SessionCalibration {
+        report,
+        robust,
+        measurements: data,
+        sessions: SessionsReport {
+            frames,
+            rounds,
+            converged,
+            validation: Vec::new(),
+        },
+    })
+}
+
+/// Rows in their training frames: a session seen in training mapped into the first
+/// session's frame by its fitted frame, a new one (and every row without sessions) as given,
+/// i.e. taken to be in the first session's frame. Maps validation rows, and the training rows
+/// themselves (for a later fit on the same data, e.g. the stiffness identification).
+pub fn validation_in_training_frames(
+    validation: &[Measurement],
+    sessions: Option<&SessionsReport>,
+) -> Vec<Measurement> {
+    validation
+        .iter()
+        .map(|m| match training_frame(m, sessions) {
+            Some(frame) => in_first_frame(m, &frame),
+            None => m.clone(),
+        })
+        .collect()
+}
+
+/// The fitted frame of the training session `m` belongs to, if it is one (not the first).
+fn training_frame(m: &Measurement, sessions: Option<&SessionsReport>) -> Option<Pose> {
+    sessions?
+        .frames
+        .iter()
+        .skip(1)
+        .find(|f| f.name == m.session)
+        .map(|f| f.session_from_first)
+}
+
+/// Per validation session (in order of first appearance): the RMS position error in the
+/// training frame and re-registered (its frame's [`FRAME_BLOCK_PARAMETERS`] refitted to its
+/// rows, geometry fixed), every row counted. `validation` as given (each session in its own
+/// frame).
+pub fn validate_sessions(
+    model: &McpcModel,
+    validation: &[Measurement],
+    compensation: Compensation<'_>,
+    sessions: &SessionsReport,
+    options: &IdentificationOptions,
+) -> Result<Vec<SessionValidation>> {
+    let groups = Sessions::of(validation);
+    let predicted = predictions(model, validation, compensation)?;
+    let rms = |rows: &[usize], frame: &Pose| -> f64 {
+        let sum: f64 = rows
+            .iter()
+            .map(|&i| {
+                let at = frame * predicted[i];
+                (super::initial_guess::measured_position(&validation[i]) - at.translation.vector)
+                    .norm_squared()
+            })
+            .sum();
+        (sum / rows.len().max(1) as f64).sqrt()
+    };
+    Ok(groups
+        .names
+        .iter()
+        .enumerate()
+        .map(|(s, name)| {
+            let rows: Vec<usize> = (0..validation.len())
+                .filter(|&i| groups.of[i] == s)
+                .collect();
+            let seen = sessions.frames.iter().any(|f| f.name == *name);
+            let training =
+                training_frame(&validation[rows[0]], Some(sessions)).unwrap_or_else(Pose::identity);
+            let (refitted, _) = fit_session_frame(
+                &rows.iter().map(|&i| predicted[i]).collect::<Vec<_>>(),
+                &rows.iter().map(|&i| &validation[i]).collect::<Vec<_>>(),
+                &[],
+                options,
+            );
+            SessionValidation {
+                name: name.clone(),
+                rows: rows.len(),
+                seen_in_training: seen,
+                training_frame_rms: rms(&rows, &training),
+                reregistered_rms: rms(&rows, &refitted),
+                refitted_parameters: FRAME_BLOCK_PARAMETERS,
+                session_from_first: refitted,
+            }
+        })
+        .collect())
+}
+
+/// A frame's offset from the first session's, in words: translation (mm) and rotation (deg).
+fn offset_words(frame: &Pose) -> String {
+    format!(
+        "{:.2} mm, {:.3}°",
+        frame.translation.vector.norm() * 1e3,
+        frame.rotation.angle().to_degrees()
+    )
+}
+
+/// The findings of a calibration with sessions: a note naming every session with its rows
+/// and its frame relative to the first; a warning for a frame its rows cannot determine or
+/// an alternation that did not settle; a note with the validation sessions' two figures.
+pub fn session_findings(report: &SessionsReport) -> Vec<Finding> {
+    let mut findings = Vec::new();
+    let listed: Vec<String> = report
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(s, f)| {
+            if s == 0 {
+                format!(
+                    "{} {} rows (the reference frame)",
+                    session_label(&f.name),
+                    f.rows
+                )
+            } else {
+                format!(
+                    "{} {} rows (frame {} from the first)",
+                    session_label(&f.name),
+                    f.rows,
+                    offset_words(&f.session_from_first)
+                )
+            }
+        })
+        .collect();
+    findings.push(Finding::note(
+        "sessions",
+        format!(
+            "{} measurement session(s), one measurement frame each ({} parameters per session \
+             after the first, fitted with the geometry in {} round(s)): {}",
+            report.frames.len(),
+            FRAME_BLOCK_PARAMETERS,
+            report.rounds,
+            listed.join("; ")
+        ),
+    ));
+    if !report.converged {
+        findings.push(Finding::warning(
+            "sessions",
+            format!(
+                "the session frames did not settle within {MAX_ROUNDS} rounds of calibration \
+                 and frame fits; the geometry may still carry part of a session's frame"
+            ),
+        ));
+    }
+    for f in report
+        .frames
+        .iter()
+        .filter(|f| f.determined < FRAME_BLOCK_PARAMETERS)
+    {
+        findings.push(Finding::warning(
+            "sessions",
+            format!(
+                "session {} ({} rows) determines only {} of its frame's {} directions; the \
+                 others stay at the closed-form start: measure at least three well-spread \
+                 positions (or one pose) per session",
+                session_label(&f.name),
+                f.rows,
+                f.determined,
+                FRAME_BLOCK_PARAMETERS
+            ),
+        ));
+    }
+    if !report.validation.is_empty() {
+        let listed: Vec<String> = report
+            .validation
+            .iter()
+            .map(|v| {
+                format!(
+                    "{} {} rows ({}): training frame {:.2} mm RMS, re-registered ({} frame \
+                     parameters refitted, geometry fixed) {:.2} mm",
+                    session_label(&v.name),
+                    v.rows,
+                    if v.seen_in_training {
+                        "seen in training: its own fitted frame"
+                    } else {
+                        "new: the first session's frame"
+                    },
+                    v.training_frame_rms * 1e3,
+                    v.refitted_parameters,
+                    v.reregistered_rms * 1e3
+                )
+            })
+            .collect();
+        findings.push(Finding::note(
+            "validation-sessions",
+            format!(
+                "validation by session (the headline figures use the training frame): {}",
+                listed.join("; ")
+            ),
+        ));
+    }
+    findings
+}
+
+/// `report` with the validation sessions' figures at the calibrated `model`, when any row of
+/// either set names a session (`None` otherwise: the data know no sessions).
+pub fn finish_sessions(
+    mut report: SessionsReport,
+    model: &McpcModel,
+    training: &[Measurement],
+    validation: &[Measurement],
+    compensation: Compensation<'_>,
+    options: &IdentificationOptions,
+) -> Result<Option<SessionsReport>> {
+    let labelled = training
+        .iter()
+        .chain(validation)
+        .any(|m| m.session.is_some());
+    if !labelled {
+        return Ok(None);
+    }
+    report.validation = validate_sessions(model, validation, compensation, &report, options)?;
+    Ok(Some(report))
+}

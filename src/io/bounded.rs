@@ -1,0 +1,106 @@
+//! The one reader of every file treecal opens (URDF, CSV, YAML, meshes): regular files only,
+//! each kind with its size limit ([`crate::limits`]), checked before anything is allocated or
+//! parsed.
+//!
+//! A FIFO, a device such as `/dev/zero` or a folder is refused with an error naming the file
+//! (a FIFO would block the command until someone writes to it, `/dev/zero` would be read until
+//! memory runs out); a file larger than its limit is refused from its size alone, and a file
+//! that grows while it is read is cut off one byte past the limit.
+
+use crate::error::{Error, Result};
+use std::io::Read;
+use std::path::Path;
+
+/// The bytes of the regular file `path`, at most `max_bytes` of them (else an error naming
+/// the file, its size and the limit).
+pub fn read_bytes(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
+    let io = |source| Error::Io {
+        path: path.to_owned(),
+        source,
+    };
+    // Checked before opening: opening a FIFO for reading blocks until a writer appears.
+    ensure_regular(path, &std::fs::metadata(path).map_err(io)?)?;
+    let file = std::fs::File::open(path).map_err(io)?;
+    // And again on what was opened, in case the name was replaced in between.
+    let metadata = file.metadata().map_err(io)?;
+    ensure_regular(path, &metadata)?;
+    let too_big = |size: u64| Error::InvalidData {
+        origin: path.display().to_string(),
+        message: format!(
+            "the file has {size} bytes, more than the limit of {max_bytes} for this kind of \
+             file (docs/file-formats.md, \"Limits\")"
+        ),
+    };
+    let size = metadata.len();
+    if size > max_bytes {
+        return Err(too_big(size));
+    }
+    // The size can change between the check and the read.
+    let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0));
+    file.take(max_bytes + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_big(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// The UTF-8 text of the regular file `path`, at most `max_bytes` long; see [`read_bytes`].
+/// A leading UTF-8 byte-order mark is dropped (spreadsheet programs write one), so that it
+/// hides no first-line comment or key.
+pub fn read_text(path: &Path, max_bytes: u64) -> Result<String> {
+    let bytes = read_bytes(path, max_bytes)?;
+    let mut text = String::from_utf8(bytes).map_err(|e| Error::Io {
+        path: path.to_owned(),
+        source: std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text ({e})"),
+        ),
+    })?;
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
+}
+
+fn ensure_regular(path: &Path, metadata: &std::fs::Metadata) -> Result<()> {
+    if metadata.is_file() {
+        return Ok(());
+    }
+    let what = if metadata.is_dir() {
+        "a folder"
+    } else {
+        "not a regular file (a pipe, socket or device)"
+    };
+    Err(Error::InvalidData {
+        origin: path.display().to_string(),
+        message: format!("is {what}; treecal reads only regular files: give a file's path"),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refuses_devices_folders_and_large_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let folder = read_text(dir.path(), 100).unwrap_err().to_string();
+        assert!(folder.contains("is a folder"), "{folder}");
+        if Path::new("/dev/zero").exists() {
+            let zero = read_bytes(Path::new("/dev/zero"), 100)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                zero.starts_with("/dev/zero: is not a regular file"),
+                "{zero}"
+            );
+        }
+        let file = dir.path().join("f.yaml");
+        std::fs::write(&file, "\u{feff}# units: length=mm\nabc").unwrap();
+        assert_eq!(read_text(&file, 100).unwrap(), "# units: length=mm\nabc");
+        let big = read_text(&file, 10).unwrap_err().to_string();
+        assert!(big.contains("more than the limit of 10"), "{big}");
+    }
+}

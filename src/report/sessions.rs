@@ -1,0 +1,196 @@
+//! The measurement sessions of a calibration in report.json (`"sessions"`) and report.md
+//! ("## Sessions"): every training session with its rows and its frame relative to the first,
+//! and every validation session's held-out RMS in the training frame and re-registered.
+
+use crate::calibration::sessions::{session_label, SessionsReport};
+use crate::math::Pose;
+use serde::Serialize;
+use std::fmt::Write as _;
+
+/// The sessions block of report.json.
+#[derive(Debug, Clone, Serialize)]
+pub struct SessionsSummary {
+    /// Parameters of each session's frame after the first (6).
+    pub parameters_per_session: usize,
+    /// Alternations of calibration and frame fits.
+    pub rounds: usize,
+    /// Whether the frames settled.
+    pub converged: bool,
+    /// Training sessions, the first (the reference frame) first.
+    pub training: Vec<SessionRow>,
+    /// Validation sessions.
+    pub validation: Vec<ValidationSessionRow>,
+}
+
+/// A training session.
+#[derive(Debug, Clone, Serialize)]
+pub struct SessionRow {
+    /// Its name (`null`: rows without a session label).
+    pub name: Option<String>,
+    /// Its rows.
+    pub rows: usize,
+    /// Its frame in the first session's frame (`xyz` m, `rpy` rad): measured ≈ frame ·
+    /// predicted.
+    pub session_from_first: FrameXyzRpy,
+    /// Translation of that frame (mm).
+    pub offset_mm: f64,
+    /// Rotation angle of that frame (deg).
+    pub offset_deg: f64,
+    /// Directions of the frame its rows determine (of 6).
+    pub determined: usize,
+}
+
+/// A validation session's figures.
+#[derive(Debug, Clone, Serialize)]
+pub struct ValidationSessionRow {
+    /// Its name.
+    pub name: Option<String>,
+    /// Its validation rows (all counted).
+    pub rows: usize,
+    /// `training` (a training session: its fitted frame) or `new` (the first session's
+    /// frame).
+    pub training_frame: &'static str,
+    /// RMS position error in the training frame (mm).
+    pub training_frame_rms_mm: f64,
+    /// RMS position error with the session's frame refitted, geometry fixed (mm).
+    pub reregistered_rms_mm: f64,
+    /// Parameters refitted for the re-registration.
+    pub refitted_parameters: usize,
+    /// The re-registered frame in the first session's frame.
+    pub reregistered_frame: FrameXyzRpy,
+    /// Its translation (mm) and rotation angle (deg).
+    pub reregistered_offset_mm: f64,
+    /// Its rotation angle (deg).
+    pub reregistered_offset_deg: f64,
+}
+
+/// A frame as `xyz` (m) and `rpy` (rad).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct FrameXyzRpy {
+    /// Translation (m).
+    pub xyz: [f64; 3],
+    /// Roll, pitch, yaw (rad).
+    pub rpy: [f64; 3],
+}
+
+impl FrameXyzRpy {
+    fn of(pose: &Pose) -> Self {
+        let t = pose.translation.vector;
+        Self {
+            xyz: [t.x, t.y, t.z],
+            rpy: crate::math::rpy_from_rotation(&pose.rotation),
+        }
+    }
+}
+
+/// The report.json block of `report`.
+pub fn sessions_summary(report: &SessionsReport) -> SessionsSummary {
+    SessionsSummary {
+        parameters_per_session: crate::calibration::sessions::FRAME_BLOCK_PARAMETERS,
+        rounds: report.rounds,
+        converged: report.converged,
+        training: report
+            .frames
+            .iter()
+            .map(|f| SessionRow {
+                name: f.name.clone(),
+                rows: f.rows,
+                session_from_first: FrameXyzRpy::of(&f.session_from_first),
+                offset_mm: f.session_from_first.translation.vector.norm() * 1e3,
+                offset_deg: f.session_from_first.rotation.angle().to_degrees(),
+                determined: f.determined,
+            })
+            .collect(),
+        validation: report
+            .validation
+            .iter()
+            .map(|v| ValidationSessionRow {
+                name: v.name.clone(),
+                rows: v.rows,
+                training_frame: if v.seen_in_training {
+                    "training"
+                } else {
+                    "new"
+                },
+                training_frame_rms_mm: v.training_frame_rms * 1e3,
+                reregistered_rms_mm: v.reregistered_rms * 1e3,
+                refitted_parameters: v.refitted_parameters,
+                reregistered_frame: FrameXyzRpy::of(&v.session_from_first),
+                reregistered_offset_mm: v.session_from_first.translation.vector.norm() * 1e3,
+                reregistered_offset_deg: v.session_from_first.rotation.angle().to_degrees(),
+            })
+            .collect(),
+    }
+}
+
+/// "## Sessions": the training sessions' frames and the validation sessions' two figures.
+pub fn sessions_markdown(summary: &SessionsSummary) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "\n## Sessions\n");
+    let _ = writeln!(
+        out,
+        "One measurement frame per session: the first session's is the measurement frame above; \
+         every other session's frame ({} parameters) is fitted jointly with the geometry \
+         ({} round(s){}).\n",
+        summary.parameters_per_session,
+        summary.rounds,
+        if summary.converged {
+            ""
+        } else {
+            ", not settled"
+        }
+    );
+    let _ = writeln!(
+        out,
+        "| training session | rows | frame from the first (mm) | (deg) | directions determined |"
+    );
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|");
+    for s in &summary.training {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.2} | {:.3} | {}/6 |",
+            session_label(&s.name),
+            s.rows,
+            s.offset_mm,
+            s.offset_deg,
+            s.determined
+        );
+    }
+    if summary.validation.is_empty() {
+        return out;
+    }
+    let _ = writeln!(
+        out,
+        "\nValidation by session, every row counted. *Training frame*: a session seen in training \
+         uses its fitted frame, a new one the first session's (the headline validation figures). \
+         *Re-registered*: the session's frame refitted to its own validation rows ({} parameters, \
+         geometry fixed), which removes what a moved tracker adds.\n",
+        summary
+            .validation
+            .first()
+            .map_or(6, |v| v.refitted_parameters)
+    );
+    let _ = writeln!(
+        out,
+        "| validation session | rows | training frame | RMS, training frame (mm) | RMS, re-registered (mm) | re-registered frame from the first (mm, deg) |"
+    );
+    let _ = writeln!(out, "|---|---:|---|---:|---:|---:|");
+    for v in &summary.validation {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {:.3} | {:.3} | {:.2}, {:.3} |",
+            session_label(&v.name),
+            v.rows,
+            if v.training_frame == "training" {
+                "its own (seen in training)"
+            } else {
+                "the first session's (new)"
+            },
+            v.training_frame_rms_mm,
+            v.reregistered_rms_mm,
+            v.reregistered_offset_mm,
+            v.reregistered_offset_deg
+        );
+    }
+    out
+}

@@ -1,0 +1,326 @@
+//! The model the data support: which parameters a calibration frees (`--model`, `--freeze`,
+//! `--free`, `--prior`, `--joint-errors`), and the cross-validation that compares model
+//! levels (`--cv K`) and lets `--model auto` choose. See `docs/identification.md`.
+
+use crate::calibration::{
+    run_calibration, CalibrationInput, CalibrationRun, IdentificationOptions, Prior,
+};
+use crate::error::{Error, Result};
+use crate::kinematics::{GravitySigns, JointErrorTerms, McpcModel, ParameterOwner};
+use crate::measurement::{Measurement, Observation};
+use crate::tree::KinematicTree;
+
+/// Which parameters describe the robot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelLevel {
+    /// Joint zero offsets, the tools and the measurement frame; the MCPC geometry stays
+    /// nominal.
+    Offsets,
+    /// The full MCPC geometry (every frame and tool parameter).
+    #[default]
+    Geometry,
+}
+
+/// `--model`: a level, or the one cross-validation prefers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ModelChoice {
+    /// One level.
+    Level(ModelLevel),
+    /// The candidate with the lowest cross-validated error ([`candidates`]).
+    #[default]
+    Auto,
+}
+
+/// One model: a level, joint-angle error terms, the prior, and whether only the corrections
+/// of at least `k` standard deviations are kept.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct ModelSpec {
+    /// The level.
+    pub level: ModelLevel,
+    /// Harmonic and backlash terms on top of the level (its offsets are the level's).
+    pub harmonics: bool,
+    /// Backlash terms.
+    pub backlash: bool,
+    /// The default Gaussian prior on the nominal values ([`Prior::default_for`]).
+    pub prior: bool,
+    /// Keep only the MCPC corrections of at least this many standard deviations (the others
+    /// frozen at nominal and the rest refitted).
+    pub significant: Option<f64>,
+    /// With the stiffness in play: compensate the deflections (else rigid).
+    pub compensate: bool,
+}
+
+impl ModelSpec {
+    /// A short name, e.g. `geometry+prior+harmonics`.
+    pub fn name(&self) -> String {
+        let mut name = match self.level {
+            ModelLevel::Offsets => "offsets".to_string(),
+            ModelLevel::Geometry => "geometry".to_string(),
+        };
+        for (on, part) in [
+            (self.prior, "+prior"),
+            (self.harmonics, "+harmonics"),
+            (self.backlash, "+backlash"),
+        ] {
+            if on {
+                name.push_str(part);
+            }
+        }
+        if let Some(k) = self.significant {
+            name.push_str(&format!(" (corrections ≥ {k}σ)"));
+        }
+        name
+    }
+
+    fn terms(&self) -> JointErrorTerms {
+        JointErrorTerms {
+            offsets: self.level == ModelLevel::Offsets,
+            harmonics: self.harmonics,
+            backlash: self.backlash,
+        }
+    }
+}
+
+/// The user's parameter patterns: `--freeze` globs (never freed) and `--free` globs (freed
+/// even when the level or `--freeze` would not), on [`McpcModel::parameter_name`].
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ParameterPatterns {
+    /// Frozen parameter patterns.
+    pub freeze: Vec<String>,
+    /// Freed parameter patterns (win over `freeze`).
+    pub free: Vec<String>,
+}
+
+/// A model ready to calibrate: the nominal model with its extra parameters, and the options
+/// with the frozen parameters and the prior.
+#[derive(Debug, Clone)]
+pub struct PreparedModel {
+    /// The nominal model (joint-error and frame parameters appended as the level needs).
+    pub nominal: McpcModel,
+    /// The identification options.
+    pub options: IdentificationOptions,
+}
+
+/// The nominal model and options of `spec`.
+pub fn prepare(
+    spec: &ModelSpec,
+    tree: &KinematicTree,
+    nominal: &McpcModel,
+    options: &IdentificationOptions,
+    patterns: &ParameterPatterns,
+) -> Result<PreparedModel> {
+    let terms = spec.terms();
+    let gravity = if terms.backlash {
+        Some(GravitySigns::new(tree, nominal)?)
+    } else {
+        None
+    };
+    let mut model = nominal.with_joint_errors(terms, gravity)?;
+    if spec.level == ModelLevel::Offsets {
+        model = model.with_frame_parameters();
+    }
+    let layout = model.parameter_layout();
+    let names: Vec<String> = (0..layout.len())
+        .map(|i| model.parameter_name(tree, i))
+        .collect();
+    for pattern in patterns.freeze.iter().chain(&patterns.free) {
+        if !names.iter().any(|n| glob_match(pattern, n)) {
+            return Err(Error::InvalidData {
+                origin: "--freeze/--free".into(),
+                message: format!(
+                    "'{pattern}' matches no parameter; names are like '{}' (see params.yaml)",
+                    names.first().cloned().unwrap_or_default()
+                ),
+            });
+        }
+    }
+    let frozen: Vec<usize> = layout
+        .iter()
+        .enumerate()
+        .filter(|(i, (owner, kind))| {
+            let by_level = spec.level == ModelLevel::Offsets
+                && matches!(owner, ParameterOwner::Frame(_))
+                && !matches!(
+                    kind,
+                    crate::kinematics::ParameterKind::Offset
+                        | crate::kinematics::ParameterKind::Sine
+                        | crate::kinematics::ParameterKind::Cosine
+                        | crate::kinematics::ParameterKind::Backlash
+                );
+            let by_user = patterns.freeze.iter().any(|p| glob_match(p, &names[*i]));
+            let freed = patterns.free.iter().any(|p| glob_match(p, &names[*i]));
+            (by_level || by_user) && !freed
+        })
+        .map(|(i, _)| i)
+        .collect();
+    let prior = spec
+        .prior
+        .then(|| Prior::default_for(&model, &model.parameters()));
+    Ok(PreparedModel {
+        nominal: model,
+        options: IdentificationOptions {
+            frozen,
+            prior,
+            ..options.clone()
+        },
+    })
+}
+
+/// Runs the calibration of a prepared model; with `significant`, freezes the MCPC corrections
+/// smaller than `k` standard deviations (and the undetermined ones) at nominal and runs again.
+pub fn run_model(
+    input: &CalibrationInput<'_>,
+    significant: Option<f64>,
+    measurements: &[Measurement],
+    validation: &[Measurement],
+) -> Result<CalibrationRun> {
+    let run = with_fitted_frame(run_calibration(input, measurements, validation)?);
+    let Some(k) = significant else {
+        return Ok(run);
+    };
+    let layout = input.nominal.parameter_layout();
+    let mut frozen = input.options.frozen.clone();
+    for (i, estimate) in run.parameters.iter().enumerate() {
+        let small = match estimate.std_dev {
+            Some(sd) => estimate.change.abs() < k * sd,
+            None => true,
+        };
+        if small && matches!(layout[i].0, ParameterOwner::Frame(_)) && !frozen.contains(&i) {
+            frozen.push(i);
+        }
+    }
+    let options = IdentificationOptions {
+        frozen,
+        ..input.options.clone()
+    };
+    let again = CalibrationInput {
+        options: &options,
+        ..*input
+    };
+    Ok(with_fitted_frame(run_calibration(
+        &again,
+        measurements,
+        validation,
+    )?))
+}
+
+/// With the measurement frame as parameters, the frame the reports and the registration give
+/// is the fitted one, not the closed-form start.
+fn with_fitted_frame(mut run: CalibrationRun) -> CalibrationRun {
+    if run.report.model.has_frame_parameters() {
+        run.guess.world_from_base = run.report.model.world_from_base();
+    }
+    run
+}
+
+/// Whether `name` matches the glob `pattern` (`*`: any run of characters, `?`: one).
+pub fn glob_match(pattern: &str, name: &str) -> bool {
+    let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
+    let (mut pi, mut ni, mut star, mut mark) = (0, 0, None, 0);
+    while ni < n.len() {
+        if pi < p.len() && (p[pi] == '?' || p[pi] == n[ni]) {
+            pi += 1;
+            ni += 1;
+        } else if pi < p.len() && p[pi] == '*' {
+            star = Some(pi);
+            mark = ni;
+            pi += 1;
+        } else if let Some(s) = star {
+            pi = s + 1;
+            mark += 1;
+            ni = mark;
+        } else {
+            return false;
+        }
+    }
+    p[pi..].iter().all(|c| *c == '*')
+}
+
+/// Groups of measurement indices that share a posture: configurations within
+/// [`POSTURE_TOLERANCE`] (rad or m, every joint) of each other, joined transitively, so a
+/// repeated posture (another tool, another session) always falls into one fold.
+pub fn posture_groups(measurements: &[Measurement]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut representative: Vec<Vec<&[f64]>> = Vec::new();
+    for (index, m) in measurements.iter().enumerate() {
+        let close = |q: &[f64]| {
+            q.len() == m.q.len()
+                && q.iter()
+                    .zip(&m.q)
+                    .all(|(a, b)| (a - b).abs() <= POSTURE_TOLERANCE)
+        };
+        let matching: Vec<usize> = (0..groups.len())
+            .filter(|&g| representative[g].iter().any(|q| close(q)))
+            .collect();
+        match matching.split_first() {
+            None => {
+                groups.push(vec![index]);
+                representative.push(vec![&m.q]);
+            }
+            Some((&first, rest)) => {
+                // Join every group this posture links (transitively one posture).
+                for &g in rest.iter().rev() {
+                    let moved = groups.remove(g);
+                    let qs = representative.remove(g);
+                    groups[first].extend(moved);
+                    representative[first].extend(qs);
+                }
+                groups[first].push(index);
+                representative[first].push(&m.q);
+            }
+        }
+    }
+    for group in &mut groups {
+        group.sort_unstable();
+    }
+    groups
+}
+
+/// Two configurations closer than this in every joint (rad or m) are one posture: 0.01 rad
+/// (0.57°) is far above encoder repeatability and far below the spacing of planned postures.
+pub const POSTURE_TOLERANCE: f64 = 0.01;
+
+/// `k` folds of measurement indices over the posture groups, assigned in a seeded shuffled
+/// order so each fold holds about the same number of postures.
+pub fn grouped_folds(measurements: &[Measurement], k: usize, seed: u64) -> Vec<Vec<usize>> {
+    use rand::seq::SliceRandom;
+    use rand::SeedableRng;
+    let mut groups = posture_groups(measurements);
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
+    groups.shuffle(&mut rng);
+    let mut folds = vec![Vec::new(); k.max(1)];
+    for (g, group) in groups.into_iter().enumerate() {
+        folds[g % k.max(1)].extend(group);
+    }
+    for fold in &mut folds {
+        fold.sort_unstable();
+    }
+    folds
+}
+
+/// Position error (m) of each measurement at the model of `run` (the deflected prediction
+/// under compensation); with full poses the tool frame's origin.
+pub fn position_errors(
+    input: &CalibrationInput<'_>,
+    run: &CalibrationRun,
+    data: &[Measurement],
+) -> Result<Vec<f64>> {
+    data.iter()
+        .map(|m| {
+            let poses = match input.flexibility {
+                Some(flexibility) => flexibility.for_payload(m.payload)?.deflected_tool_poses(
+                    input.tree,
+                    &run.report.model,
+                    &m.q,
+                )?,
+                None => run.report.model.tool_poses(&m.q),
+            };
+            let predicted = poses[m.tool].translation.vector;
+            Ok(match &m.observation {
+                Observation::Pose(p) => (p.translation.vector - predicted).norm(),
+                Observation::Position(p) => (p - predicted).norm(),
+            })
+        })
+        .collect()
+}

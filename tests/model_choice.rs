@@ -1,0 +1,420 @@
+//! The model the data support, with simulated truth: each level recovers its own truth
+//! (offsets with the measurement frame, harmonics and backlash on the full geometry), the
+//! prior pulls what the data cannot see to nominal with the right covariance, the grouped
+//! folds never split a posture, and the cross-validation prefers the level the data were
+//! simulated with.
+
+use crate::common::*;
+use rand::RngExt;
+use treecal::calibration::{
+    calibrate, Compensation, IdentificationOptions, MeasurementFrame, Plan, Prior,
+};
+use treecal::kinematics::{GravitySigns, JointErrorTerms, McpcModel};
+use treecal::measurement::{Measurement, Observation};
+use treecal::tree::{detect_branches, KinematicTree};
+use treecal::workflow::cross_validation::{candidates, cross_validate, CrossValidationInput};
+use treecal::workflow::model_choice::{
+    glob_match, grouped_folds, posture_groups, prepare, ModelLevel, ModelSpec, ParameterPatterns,
+};
+
+fn humanoid() -> (KinematicTree, treecal::Branches, McpcModel) {
+    let tree = treecal::load_urdf(&robot("humanoid/humanoid.urdf"))
+        .unwrap()
+        .tree;
+    let branches = detect_branches(&tree, None).unwrap();
+    let model = McpcModel::from_tree(&tree, &branches).unwrap();
+    (tree, branches, model)
+}
+
+/// Full-pose measurements of every tool of `truth` at `count` random configurations, with
+/// Gaussian position noise `noise` (m) and `noise` rad of rotation noise.
+fn measure(
+    tree: &KinematicTree,
+    truth: &McpcModel,
+    count: usize,
+    noise: f64,
+    seed: u64,
+) -> Vec<Measurement> {
+    let mut rng = rng(seed);
+    let mut data = Vec::new();
+    for _ in 0..count {
+        let q = random_configuration(tree, &mut rng);
+        for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
+            let mut jitter = || rng.random_range(-1.0..1.0) * noise * 3f64.sqrt();
+            let shift = nalgebra::Vector3::new(jitter(), jitter(), jitter());
+            let turn = nalgebra::Vector3::new(jitter(), jitter(), jitter());
+            let noisy = treecal::math::Pose::from_parts(
+                (pose.translation.vector + shift).into(),
+                nalgebra::UnitQuaternion::from_scaled_axis(turn) * pose.rotation,
+            );
+            data.push(Measurement {
+                payload: None,
+                tool,
+                q: q.clone(),
+                observation: Observation::Pose(noisy),
+                stage: None,
+                session: None,
+            });
+        }
+    }
+    data
+}
+
+/// A copy of `model` with every free parameter moved by up to `size` (rad or m).
+fn perturbed(model: &McpcModel, size: f64, seed: u64) -> McpcModel {
+    let mut rng = rng(seed);
+    let values: Vec<f64> = model
+        .parameters()
+        .iter()
+        .map(|v| v + rng.random_range(-size..size))
+        .collect();
+    let mut truth = model.clone();
+    truth.set_parameters(&values).unwrap();
+    truth
+}
+
+fn spec(level: ModelLevel, harmonics: bool, backlash: bool) -> ModelSpec {
+    ModelSpec {
+        level,
+        harmonics,
+        backlash,
+        ..ModelSpec::default()
+    }
+}
+
+#[test]
+fn offsets_level_recovers_joint_offsets_and_the_measurement_frame() {
+    let (tree, branches, nominal) = humanoid();
+    let prepared = prepare(
+        &spec(ModelLevel::Offsets, false, false),
+        &tree,
+        &nominal,
+        &IdentificationOptions::default(),
+        &ParameterPatterns::default(),
+    )
+    .unwrap();
+    // Truth: offsets, tools and the frame moved; the MCPC frames nominal.
+    let mut truth = perturbed(&prepared.nominal, 0.02, 1);
+    let mut values = truth.parameters();
+    for &p in &prepared.options.frozen {
+        values[p] = prepared.nominal.parameters()[p];
+    }
+    truth.set_parameters(&values).unwrap();
+    let data = measure(&tree, &truth, 25, 0.0, 2);
+    let report = calibrate(
+        &branches,
+        &prepared.nominal,
+        &data,
+        Compensation::None,
+        &Plan::simultaneous(),
+        &prepared.options,
+    )
+    .unwrap();
+    check_recovery(&tree, &report, &truth, 1e-8);
+}
+
+/// Every parameter the data determine is the truth's, and at new configurations the tools
+/// are where the truth puts them (the last joint's offset, for one, is also a turn of the
+/// tool: the combination is determined, not each part).
+fn check_recovery(
+    tree: &KinematicTree,
+    report: &treecal::calibration::CalibrationReport,
+    truth: &McpcModel,
+    tolerance: f64,
+) {
+    let found = report.model.parameters();
+    let identification = &report.stages[0].identification;
+    let mut checked = 0;
+    for (k, &p) in identification.free.iter().enumerate() {
+        if identification.identifiable[k] {
+            checked += 1;
+            let (a, b) = (found[p], truth.parameters()[p]);
+            assert!(
+                (a - b).abs() < tolerance,
+                "{}: {a} vs {b}",
+                truth.parameter_name(tree, p)
+            );
+        }
+    }
+    assert!(checked > identification.free.len() / 2);
+    for m in measure(tree, truth, 5, 0.0, 99) {
+        let Observation::Pose(pose) = m.observation else {
+            unreachable!()
+        };
+        assert_pose_eq(
+            &report.model.tool_pose(m.tool, &m.q),
+            &pose,
+            tolerance,
+            "validation",
+        );
+    }
+}
+
+#[test]
+fn harmonics_and_backlash_are_recovered_with_the_geometry() {
+    let (tree, branches, nominal) = humanoid();
+    let gravity = GravitySigns::new(&tree, &nominal).unwrap();
+    let terms = JointErrorTerms {
+        offsets: false,
+        harmonics: true,
+        backlash: true,
+    };
+    let model = nominal.with_joint_errors(terms, Some(gravity)).unwrap();
+    let truth = perturbed(&model, 0.01, 3);
+    let data = measure(&tree, &truth, 60, 0.0, 4);
+    let report = calibrate(
+        &branches,
+        &model,
+        &data,
+        Compensation::None,
+        &Plan::simultaneous(),
+        &IdentificationOptions::default(),
+    )
+    .unwrap();
+    let names: Vec<String> = (0..model.parameter_count())
+        .map(|i| model.parameter_name(&tree, i))
+        .collect();
+    let checked = names
+        .iter()
+        .filter(|n| n.ends_with("backlash") || n.ends_with("sine"))
+        .count();
+    assert!(checked >= 2 * model.frames().len() - 2, "{names:?}");
+    check_recovery(&tree, &report, &truth, 1e-7);
+    // Backlash is seen (not every joint: a vertical axis carries no gravity torque).
+    let identification = &report.stages[0].identification;
+    let seen = identification
+        .free
+        .iter()
+        .zip(&identification.identifiable)
+        .filter(|(&p, &ok)| ok && names[p].ends_with("backlash"))
+        .count();
+    assert!(
+        seen >= model.frames().len() / 2,
+        "{seen} backlash terms determined"
+    );
+}
+
+#[test]
+fn the_prior_keeps_unseen_parameters_nominal_and_enters_the_covariance() {
+    let (tree, branches, nominal) = humanoid();
+    // Positions only at few configurations: rank-deficient without the prior.
+    let truth = perturbed(&nominal, 0.003, 5);
+    let data: Vec<Measurement> = measure(&tree, &truth, 6, 0.0, 6)
+        .into_iter()
+        .map(|m| Measurement {
+            observation: match m.observation {
+                Observation::Pose(p) => Observation::Position(p.translation.vector),
+                other => other,
+            },
+            ..m
+        })
+        .collect();
+    let mut prior = Prior::default_for(&nominal, &nominal.parameters());
+    // A prior on the tools too, so that every parameter has one.
+    prior.sigma = prior.sigma.iter().map(|s| s.min(0.01)).collect();
+    let options = IdentificationOptions {
+        prior: Some(prior.clone()),
+        ..Default::default()
+    };
+    let free: Vec<usize> = (0..nominal.parameter_count()).collect();
+    let with = treecal::calibration::identify(
+        &nominal,
+        &data,
+        None,
+        &treecal::calibration::Rigid,
+        &free,
+        &options,
+    )
+    .unwrap();
+    assert_eq!(
+        with.rank,
+        free.len(),
+        "the prior makes every parameter determined"
+    );
+    // The covariance is σ̂²·(JᵀWJ + Λ)⁻¹ at the solution, Λ = diag(1/σ_prior²).
+    let mut solved = nominal.clone();
+    solved.set_parameters(&with.parameters).unwrap();
+    let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
+    let rows: usize = data.iter().map(|m| m.observation.rows()).sum();
+    let mut jacobian = nalgebra::DMatrix::zeros(rows, free.len());
+    let mut row = 0;
+    for m in &data {
+        let tool = solved.tool_jacobian(m.tool, &m.q);
+        for k in 0..m.observation.rows() {
+            for c in 0..free.len() {
+                jacobian[(row + k, c)] = tool.jacobian[(k, c)] * weights[k / 3];
+            }
+        }
+        row += m.observation.rows();
+    }
+    let mut normal = jacobian.tr_mul(&jacobian);
+    for (c, s) in prior.sigma.iter().enumerate() {
+        normal[(c, c)] += 1.0 / (s * s);
+    }
+    let expected = normal.try_inverse().unwrap() * with.residual_scale.powi(2);
+    let covariance = with.covariance.clone().unwrap();
+    let largest = expected.amax();
+    assert!(
+        (&covariance - &expected).amax() < 1e-6 * largest,
+        "covariance differs by {}",
+        (&covariance - &expected).amax()
+    );
+    // Without the prior the minimum-norm step leaves unseen combinations at nominal too, but
+    // the prior also pulls the seen-but-weak ones: every parameter stays within a few prior
+    // σ of nominal, and the tool points are still fitted.
+    for (i, (a, b)) in with.parameters.iter().zip(nominal.parameters()).enumerate() {
+        assert!(
+            (a - b).abs() < 5.0 * prior.sigma[i],
+            "{}: moved {} (σ {})",
+            nominal.parameter_name(&tree, i),
+            a - b,
+            prior.sigma[i]
+        );
+    }
+    assert!(with.residual_rms_position < 5e-3);
+    let _ = branches;
+}
+
+#[test]
+fn a_grouped_fold_never_splits_a_posture() {
+    let (tree, _, nominal) = humanoid();
+    let mut data = measure(&tree, &nominal, 12, 0.0, 7);
+    // The same postures measured again a little off (another session), in another order.
+    let again: Vec<Measurement> = data
+        .iter()
+        .rev()
+        .map(|m| Measurement {
+            q: m.q.iter().map(|v| v + 0.002).collect(),
+            ..m.clone()
+        })
+        .collect();
+    data.extend(again);
+    let groups = posture_groups(&data);
+    assert_eq!(groups.len(), 12);
+    let folds = grouped_folds(&data, 5, 3);
+    let mut seen = vec![0; data.len()];
+    for fold in &folds {
+        for &i in fold {
+            seen[i] += 1;
+        }
+        for group in &groups {
+            let inside = group.iter().filter(|i| fold.contains(i)).count();
+            assert!(
+                inside == 0 || inside == group.len(),
+                "fold splits {group:?}"
+            );
+        }
+    }
+    assert!(seen.iter().all(|&n| n == 1));
+}
+
+#[test]
+fn freeze_and_free_patterns_follow_the_parameter_names() {
+    assert!(glob_match("arm_7_joint *", "arm_7_joint alpha"));
+    assert!(!glob_match("arm_7_joint *", "arm_6_joint alpha"));
+    assert!(glob_match("*_joint ?", "left_joint x"));
+    let (tree, _, nominal) = humanoid();
+    let name = nominal.parameter_name(&tree, 0);
+    let joint = name.split(' ').next().unwrap().to_string();
+    let patterns = ParameterPatterns {
+        freeze: vec![format!("{joint} *")],
+        free: vec![format!("{joint} x")],
+    };
+    let prepared = prepare(
+        &ModelSpec::default(),
+        &tree,
+        &nominal,
+        &IdentificationOptions::default(),
+        &patterns,
+    )
+    .unwrap();
+    let frozen: Vec<String> = prepared
+        .options
+        .frozen
+        .iter()
+        .map(|&i| nominal.parameter_name(&tree, i))
+        .collect();
+    assert_eq!(frozen.len(), 3, "{frozen:?}");
+    assert!(!frozen.contains(&format!("{joint} x")));
+    let wrong = ParameterPatterns {
+        freeze: vec!["no_such_joint *".into()],
+        free: Vec::new(),
+    };
+    let error = prepare(
+        &ModelSpec::default(),
+        &tree,
+        &nominal,
+        &IdentificationOptions::default(),
+        &wrong,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(error.contains("matches no parameter"), "{error}");
+}
+
+/// Data simulated with harmonic joint errors: the cross-validation prefers a candidate with
+/// harmonics; data simulated with the plain geometry: one without.
+#[test]
+fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
+    let (tree, branches, nominal) = humanoid();
+    let options = IdentificationOptions {
+        position_sigma: 1e-4,
+        rotation_sigma: 1e-4,
+        ..Default::default()
+    };
+    let plan = Plan::simultaneous();
+    let patterns = ParameterPatterns::default();
+    let input = CrossValidationInput {
+        tree: &tree,
+        branches: &branches,
+        nominal: &nominal,
+        flexibility: None,
+        plan: &plan,
+        options: &options,
+        measurement_frame: MeasurementFrame::Base,
+        patterns: &patterns,
+    };
+    let list = vec![
+        spec(ModelLevel::Offsets, false, false),
+        spec(ModelLevel::Geometry, false, false),
+        spec(ModelLevel::Geometry, true, false),
+    ];
+    assert!(candidates(&tree, &nominal, false).len() >= list.len());
+    let harmonic = nominal
+        .with_joint_errors(
+            JointErrorTerms {
+                harmonics: true,
+                ..Default::default()
+            },
+            None,
+        )
+        .unwrap();
+    let mut rng = rng(11);
+    let mut values = harmonic.parameters();
+    let geometry = nominal.parameter_count();
+    for v in values.iter_mut().take(geometry) {
+        *v += rng.random_range(-0.005..0.005);
+    }
+    for v in values.iter_mut().skip(geometry) {
+        *v += rng.random_range(-0.01..0.01);
+    }
+    let mut truth = harmonic.clone();
+    truth.set_parameters(&values).unwrap();
+    let data = measure(&tree, &truth, 40, 5e-5, 12);
+    let cv = cross_validate(&input, &list, &data, 4, 1).unwrap();
+    assert_eq!(cv.chosen, Some(2), "{cv:#?}");
+    let mut plain = nominal.clone();
+    plain.set_parameters(&values[..geometry]).unwrap();
+    let data = measure(&tree, &plain, 40, 5e-5, 13);
+    let cv = cross_validate(&input, &list, &data, 4, 1).unwrap();
+    let chosen = cv.chosen.unwrap();
+    assert_eq!(cv.rows[chosen].spec.level, ModelLevel::Geometry, "{cv:#?}");
+    assert!(
+        !cv.rows[chosen].spec.harmonics || {
+            // Harmonics may tie on data without them; they must not be clearly better.
+            let rms = |i: usize| cv.rows[i].rms_mm.unwrap();
+            rms(2) > 0.9 * rms(1)
+        }
+    );
+    assert!(cv.rows[0].rms_mm.unwrap() > 2.0 * cv.rows[1].rms_mm.unwrap());
+}

@@ -1,0 +1,313 @@
+//! Measurement sessions (issue 28, item 6): one measurement frame per session, fitted with the
+//! geometry; validation in the training frame and re-registered. On the simulated second robot
+//! (`common::second_robot`).
+
+use crate::common::second_robot::{second_robot, SecondRobot, SESSIONS};
+use treecal::calibration::sessions::{fit_session_frame, Sessions};
+use treecal::calibration::{
+    run_calibration, CalibrationInput, CalibrationRun, IdentificationOptions, MeasurementFrame,
+    Plan, Status,
+};
+use treecal::kinematics::FlexibilityModel;
+use treecal::math::{pose, Pose, Vec3};
+use treecal::measurement::{Measurement, Observation};
+use treecal::Branches;
+
+/// Calibrates the second robot from `training` (with the true stiffness when `stiffness`),
+/// validating on `validation`.
+fn calibrate(
+    robot: &SecondRobot,
+    training: &[Measurement],
+    validation: &[Measurement],
+    stiffness: bool,
+) -> CalibrationRun {
+    let tool = robot
+        .tree
+        .link_id(crate::common::second_robot::TOOL)
+        .unwrap();
+    let branches: Branches = treecal::detect_branches(&robot.tree, Some(&[tool])).unwrap();
+    let text = std::fs::read_to_string(&robot.stiffness).unwrap();
+    let parsed =
+        treecal::io::parse_stiffness(&text, "stiffness", &robot.tree, &robot.nominal).unwrap();
+    let flexibility = FlexibilityModel::new(&robot.tree, &robot.nominal, &parsed)
+        .unwrap()
+        .with_gravity_in_measurement_frame();
+    let options = IdentificationOptions {
+        position_sigma: crate::common::second_robot::NOISE[0],
+        rotation_sigma: crate::common::second_robot::NOISE[1],
+        ..Default::default()
+    };
+    let plan = Plan::simultaneous();
+    let input = CalibrationInput {
+        tree: &robot.tree,
+        branches: &branches,
+        nominal: &robot.nominal,
+        flexibility: stiffness.then_some(&flexibility),
+        plan: &plan,
+        options: &options,
+        measurement_frame: MeasurementFrame::Auto,
+    };
+    run_calibration(&input, training, validation).unwrap()
+}
+
+/// RMS validation position error after calibration over every arm (mm).
+fn validation_rms(run: &CalibrationRun) -> f64 {
+    let errors: Vec<f64> = run
+        .validation
+        .iter()
+        .flat_map(|a| a.position_mm[1].iter().copied())
+        .collect();
+    (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt()
+}
+
+/// Translation (m) and rotation (rad) between two frames.
+fn distance(a: &Pose, b: &Pose) -> (f64, f64) {
+    let d = a.inverse() * b;
+    (d.translation.vector.norm(), d.rotation.angle())
+}
+
+/// The data: 48 poses and two position-only sessions, frames moved by 8 mm and 0.5°; the
+/// sessions fitted with the geometry recover both moved frames (to a fraction of a
+/// millimetre) and reach the validation noise floor, while one frame for every row leaves
+/// millimetres. With the true stiffness, so that only the frames differ between the fits.
+#[test]
+fn sessions_recover_the_moved_frames_and_one_frame_does_notably_worse() {
+    let robot = second_robot(28);
+    assert_eq!(Sessions::of(&robot.measurements).names.len(), 3);
+    for (truth, limits) in robot
+        .session_from_first
+        .iter()
+        .skip(1)
+        .zip([[7e-3, 9e-3]; 2])
+    {
+        let (t, r) = distance(&Pose::identity(), truth);
+        assert!(t > limits[0] && t < limits[1], "moved {t} m");
+        assert!(
+            (r.to_degrees() - 0.475).abs() < 0.03,
+            "turned {}°",
+            r.to_degrees()
+        );
+    }
+    let (kept, held) = robot.split(3);
+    let validation = robot.rows(&held, true);
+    let with = calibrate(&robot, &robot.rows(&kept, true), &validation, true);
+    let without = calibrate(
+        &robot,
+        &robot.rows(&kept, false),
+        &robot.rows(&held, false),
+        true,
+    );
+    let sessions = with.sessions.as_ref().expect("the sessions are reported");
+    assert!(sessions.converged, "{sessions:?}");
+    assert_eq!(sessions.frames.len(), 3);
+    for (frame, truth) in sessions.frames.iter().zip(&robot.session_from_first) {
+        let (t, r) = distance(&frame.session_from_first, truth);
+        assert!(t < 0.5e-3, "{:?}: {} mm off", frame.name, t * 1e3);
+        assert!(
+            r.to_degrees() < 0.03,
+            "{:?}: {}° off",
+            frame.name,
+            r.to_degrees()
+        );
+        assert_eq!(frame.determined, 6);
+    }
+    assert!(without.sessions.is_none());
+    let (good, bad) = (validation_rms(&with), validation_rms(&without));
+    eprintln!("validation RMS: sessions {good:.3} mm, one frame {bad:.3} mm");
+    assert!(good < 0.6, "sessions: {good} mm");
+    assert!(
+        bad > 2.0 * good && bad > good + 0.5,
+        "one frame {bad} mm vs {good} mm"
+    );
+    // Rigid (no stiffness: the series-elastic joints leave millimetres): the sessions still
+    // settle and still beat one frame for every row.
+    let rigid = calibrate(&robot, &robot.rows(&kept, true), &validation, false);
+    let rigid_one = calibrate(
+        &robot,
+        &robot.rows(&kept, false),
+        &robot.rows(&held, false),
+        false,
+    );
+    assert!(rigid.sessions.as_ref().unwrap().converged);
+    let (good, bad) = (validation_rms(&rigid), validation_rms(&rigid_one));
+    eprintln!("rigid validation RMS: sessions {good:.3} mm, one frame {bad:.3} mm");
+    assert!(good < bad, "rigid: sessions {good} mm, one frame {bad} mm");
+    // The blunder is named, not silently absorbed.
+    assert!(with
+        .outliers
+        .iter()
+        .any(|o| o.index == kept.iter().position(|&i| i == robot.blunder).unwrap()));
+    // The sessions are named with their rows and frames; nothing is wrong with them.
+    let note = with.findings.iter().find(|f| f.code == "sessions").unwrap();
+    assert_eq!(note.status, Status::Ok, "{}", note.message);
+    for name in SESSIONS {
+        assert!(note.message.contains(name), "{}", note.message);
+    }
+}
+
+/// A held-out session the training never saw: the training frame (the first session's) carries
+/// its moved frame into the figure, the re-registration (six frame parameters refitted, the
+/// geometry fixed) removes it; the pose session's held-out rows use their own training frame.
+#[test]
+fn a_new_session_is_reported_in_the_training_frame_and_re_registered() {
+    let robot = second_robot(29);
+    let (kept, held) = robot.split(4);
+    let day3: Vec<usize> = (0..robot.measurements.len())
+        .filter(|&i| robot.measurements[i].session.as_deref() == Some(SESSIONS[2]))
+        .collect();
+    let training: Vec<usize> = kept.into_iter().filter(|i| !day3.contains(i)).collect();
+    let validation: Vec<usize> = held.into_iter().chain(day3).collect();
+    let run = calibrate(
+        &robot,
+        &robot.rows(&training, true),
+        &robot.rows(&validation, true),
+        true,
+    );
+    let sessions = run.sessions.as_ref().unwrap();
+    assert_eq!(sessions.frames.len(), 2);
+    let [first, new] = &sessions.validation[..] else {
+        panic!("{:?}", sessions.validation);
+    };
+    assert_eq!(first.name.as_deref(), Some(SESSIONS[0]));
+    assert!(first.seen_in_training);
+    assert!(first.training_frame_rms < 0.6e-3, "{first:?}");
+    assert_eq!(new.name.as_deref(), Some(SESSIONS[2]));
+    assert!(!new.seen_in_training);
+    assert_eq!(new.refitted_parameters, 6);
+    assert!(new.training_frame_rms > 4e-3, "{new:?}");
+    assert!(new.reregistered_rms < 0.6e-3, "{new:?}");
+    // The frame's origin is two metres from the robot, where a hundredth of a degree is a
+    // third of a millimetre: compare the frames where the session measured.
+    let validation_rows = robot.rows(&validation, true);
+    for m in validation_rows
+        .iter()
+        .filter(|m| m.session.as_deref() == Some(SESSIONS[2]))
+    {
+        let Observation::Position(p) = m.observation else {
+            panic!("day 3 has positions");
+        };
+        let first = robot.session_from_first[2].inverse() * nalgebra::Point3::from(p);
+        let moved = (new.session_from_first * first - robot.session_from_first[2] * first).norm();
+        assert!(moved < 0.5e-3, "{moved} m");
+    }
+    let note = run
+        .findings
+        .iter()
+        .find(|f| f.code == "validation-sessions")
+        .unwrap();
+    assert!(note.message.contains("re-registered"), "{}", note.message);
+}
+
+/// One labelled session: nothing to fit, no warning, the same result as without the label.
+#[test]
+fn one_session_changes_nothing() {
+    let robot = second_robot(30);
+    let pose_rows: Vec<usize> = (0..48).collect();
+    let (kept, held): (Vec<usize>, Vec<usize>) = pose_rows.iter().partition(|&&i| i % 4 != 0);
+    let labelled = calibrate(
+        &robot,
+        &robot.rows(&kept, true),
+        &robot.rows(&held, true),
+        false,
+    );
+    let plain = calibrate(
+        &robot,
+        &robot.rows(&kept, false),
+        &robot.rows(&held, false),
+        false,
+    );
+    assert_eq!(
+        labelled.report.model.parameters(),
+        plain.report.model.parameters()
+    );
+    let sessions = labelled.sessions.as_ref().unwrap();
+    assert_eq!(sessions.frames.len(), 1);
+    assert_eq!(sessions.rounds, 0);
+    assert!(labelled
+        .findings
+        .iter()
+        .filter(|f| f.code.contains("session"))
+        .all(|f| f.status == Status::Ok));
+}
+
+/// The frame block's fit recovers a known frame exactly from noiseless poses and positions,
+/// and says how many directions two positions leave determined.
+#[test]
+fn a_session_frame_is_recovered_from_poses_and_from_positions() {
+    let truth = pose(
+        Vec3::new(0.004, -0.007, 0.003),
+        nalgebra::UnitQuaternion::from_euler_angles(0.004, -0.006, 0.009),
+    );
+    let predicted: Vec<Pose> = (0..6)
+        .map(|k| {
+            let k = k as f64;
+            pose(
+                Vec3::new(0.3 * k.cos(), 0.2 * k.sin(), 0.1 * k),
+                nalgebra::UnitQuaternion::from_euler_angles(0.3 * k, -0.2, 0.1 * k),
+            )
+        })
+        .collect();
+    let measure = |poses: bool| -> Vec<Measurement> {
+        predicted
+            .iter()
+            .map(|p| Measurement {
+                tool: 0,
+                q: Vec::new(),
+                observation: if poses {
+                    Observation::Pose(truth * p)
+                } else {
+                    Observation::Position((truth * p).translation.vector)
+                },
+                stage: None,
+                payload: None,
+                session: Some("s".into()),
+            })
+            .collect()
+    };
+    let options = IdentificationOptions::default();
+    for poses in [true, false] {
+        let measured = measure(poses);
+        let refs: Vec<&Measurement> = measured.iter().collect();
+        let (fitted, determined) = fit_session_frame(&predicted, &refs, &[], &options);
+        let (t, r) = distance(&fitted, &truth);
+        assert!(t < 1e-12 && r < 1e-12, "poses {poses}: {t}, {r}");
+        assert_eq!(determined, 6);
+    }
+    let measured = measure(false);
+    let refs: Vec<&Measurement> = measured.iter().take(2).collect();
+    let (_, determined) = fit_session_frame(&predicted[..2], &refs, &[], &options);
+    assert_eq!(
+        determined, 5,
+        "two points leave the turn about their line free"
+    );
+}
+
+/// The `session` column is read and written.
+#[test]
+fn the_session_column_round_trips_through_the_csv() {
+    let robot = second_robot(31);
+    let dir = tempfile::tempdir().unwrap();
+    let rows: Vec<usize> = (40..60).collect();
+    let paths = robot.write_csv(&rows, true, dir.path(), "data");
+    assert_eq!(paths.len(), 2);
+    let mut read = Vec::new();
+    for path in &paths {
+        let text = std::fs::read_to_string(path).unwrap();
+        assert!(text.lines().next().unwrap().ends_with(",session"), "{text}");
+        let set = treecal::io::parse_measurements(
+            &text,
+            "data",
+            &robot.tree,
+            &robot.nominal,
+            &Default::default(),
+        )
+        .unwrap();
+        read.extend(set.measurements);
+    }
+    let sessions: Vec<Option<String>> = read.iter().map(|m| m.session.clone()).collect();
+    let expected: Vec<Option<String>> = rows
+        .iter()
+        .map(|&i| robot.measurements[i].session.clone())
+        .collect();
+    assert_eq!(sessions, expected);
+}
