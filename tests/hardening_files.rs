@@ -456,3 +456,22 @@ fn measurement_messages_at_read_time() {
     let fine = format!("{}\n{},payload_kg\n{},2.5\n", lines[0], lines[1], lines[2]);
     assert!(read(&fine).is_ok());
 }
+
+/// No message prints a number with hundreds of digits (Rust's `{}` of 1e300 does).
+#[test]
+fn huge_numbers_show_in_exponent_notation() {
+    let (tree, model) = robonaut_model();
+    for text in [
+        "payloads:\n  left_tool: {mass_kg: 1e300}\n",
+        "joints:\n  default: {bending_nm_per_rad: -1e300}\n",
+        "links:\n  default: {ea_n: -1e300}\n",
+    ] {
+        let error = treecal::io::parse_stiffness(text, "s.yaml", &tree, &model)
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("1e300") && error.len() < 300, "{error}");
+    }
+    let plan = "stages:\n  - name: 1e300\n    parameters: 1e300\n";
+    let error = parse_plan(plan, "p.yaml").unwrap_err().to_string();
+    assert!(error.len() < 400, "{error}");
+}

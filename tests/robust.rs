@@ -190,7 +190,8 @@ fn the_example_names_a_bumped_row_and_keeps_its_result() {
     assert_eq!(clean["parameters"], off["parameters"]);
     assert_eq!(clean["validation"], off["validation"]);
     assert_eq!(clean["outliers"], Value::Array(Vec::new()));
-    assert!(!clean_text.contains("as outliers"), "{clean_text}");
+    assert!(!clean_text.contains("are outliers"), "{clean_text}");
+    assert!(!clean_text.contains("down-weighted by"), "{clean_text}");
     assert!(clean_text.contains("No measurement is an outlier."));
     let (cauchy, _) = calibrate(dir.path(), "cauchy", &example(), &["--robust", "cauchy"]);
     let (max, _) = shift(&clean, &cauchy);
@@ -213,7 +214,8 @@ fn the_example_names_a_bumped_row_and_keeps_its_result() {
         .collect();
     assert_eq!(warnings.len(), 1, "{text}");
     assert!(
-        warnings[0].contains("1 of 52 identification and 0 of 8 validation measurements were down-weighted as outliers")
+        warnings[0]
+            .contains("1 of 52 identification and 0 of 8 validation measurements are outliers")
             && warnings[0].ends_with("rows: 21"),
         "{text}"
     );
@@ -229,10 +231,10 @@ fn the_example_names_a_bumped_row_and_keeps_its_result() {
     assert!(max > 20.0, "least squares moved only {max} std devs");
 }
 
-/// A blunder in the validation data is named (set `validation`) and left out of the
-/// validation statistics, not fitted: the identification result is unchanged.
+/// A blunder in the validation data is named (set `validation`) and marked, never fitted (the
+/// identification result is unchanged) and never dropped: it stays in every validation figure.
 #[test]
-fn a_validation_blunder_is_named_and_left_out_of_the_statistics() {
+fn a_validation_blunder_is_named_marked_and_still_counted() {
     let dir = tempfile::tempdir().unwrap();
     let validation = example();
     let (clean, _) = calibrate(
@@ -263,5 +265,69 @@ fn a_validation_blunder_is_named_and_left_out_of_the_statistics() {
             .map(|a| a["observations"].as_u64().unwrap())
             .sum()
     };
-    assert_eq!(count(&judged) + 1, count(&clean));
+    assert_eq!(count(&judged), count(&clean));
+    let rows: Vec<&Value> = judged["validation"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|a| a["rows"].as_array().unwrap())
+        .collect();
+    let marked: Vec<&Value> = rows
+        .iter()
+        .copied()
+        .filter(|r| r["outlier"] == true)
+        .collect();
+    assert_eq!(marked.len(), 1, "{marked:?}");
+    assert_eq!(marked[0]["id"], "40");
+    // The bumped C target turns the measured frame: the orientation figures carry it.
+    let worst = |v: &Value| -> f64 {
+        v["validation"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|a| a["after"]["max_orientation_deg"].as_f64().unwrap())
+            .fold(0.0, f64::max)
+    };
+    let bumped = marked[0]["orientation_deg"]["after"].as_f64().unwrap();
+    assert_eq!(worst(&judged), bumped);
+    assert!(
+        bumped > 10.0 * worst(&clean),
+        "{bumped} vs {}",
+        worst(&clean)
+    );
+    let strata = &judged["validation_strata"]["strata"];
+    assert_eq!(strata[0]["stratum"], "all");
+    assert_eq!(strata[0]["observations"].as_u64(), Some(count(&judged)));
+}
+
+/// A row the Huber loss down-weights without making it an outlier (weight between 0.5 and 1)
+/// is never silent: one stderr warning counts and names it with its weight, report.md lists
+/// it and report.json gives its weight. Clean data name none (above).
+#[test]
+fn a_down_weighted_row_is_named_with_its_weight() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = bumped_example(dir.path(), "21", "ax", 0.6);
+    let (report, text) = calibrate(dir.path(), "light", &bad, &[]);
+    assert_eq!(report["outliers"], Value::Array(Vec::new()), "{text}");
+    let row = report["identification"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|a| a["rows"].as_array().unwrap())
+        .find(|r| r["id"] == "21")
+        .expect("row 21");
+    let weight = row["weight"].as_f64().expect("a weight below 1");
+    assert!((0.5..1.0).contains(&weight), "{weight}");
+    let warnings: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("treecal: warning: ") && l.contains("down-weighted by"))
+        .collect();
+    assert_eq!(warnings.len(), 1, "{text}");
+    assert!(
+        warnings[0].contains("1 of 52 identification rows")
+            && warnings[0].contains(&format!("21 (weight {weight:.3}")),
+        "{text}"
+    );
+    assert!(text.contains(&format!("| 21 | {weight:.4} |")), "{text}");
+    assert_eq!(report["verdict"]["status"], "warning");
 }

@@ -13,6 +13,7 @@ mod frame;
 mod from_mcpc;
 mod hardening;
 mod hardening_files;
+mod honest_report;
 mod identifiability;
 mod identification;
 mod jacobian;

@@ -180,13 +180,23 @@ pub fn residual_scale(stage: &StageReport) -> Option<Finding> {
         Some(Finding::warning(
             "sigma-ratio",
             format!(
-                "stage '{}': σ̂ = {scale:.1}: the residuals ({residuals}) are {scale:.0}× the assumed noise; either the noise is larger than --position-sigma / --rotation-sigma say, or the model misses something (flexibility: --stiffness, a loose joint, a wrong tool); the standard deviations are scaled by σ̂",
-                stage.name
+                "stage '{}': σ̂ = {scale:.1}: the residuals ({residuals}) are {scale:.0}× the assumed noise: the model leaves about {} mm RMS unexplained (the residual beyond the declared noise, in quadrature). That is model error — compare richer models with --cv or let --model auto choose (flexibility: --stiffness; backlash, joint-angle errors, a wrong tool) — or a noise larger than --position-sigma / --rotation-sigma say; either way the accuracy to trust is the validation RMS in mm (report.md), whatever σ is declared; the standard deviations are scaled by σ̂",
+                stage.name,
+                readable(unexplained_mm(id.residual_rms_position, scale)),
             ),
         ))
     } else {
         None
     }
+}
+
+/// The part of an RMS position residual (m) the declared noise does not explain, in
+/// quadrature (mm): `rms·√(1 − 1/σ̂²)` (the noise alone would leave `rms/σ̂`).
+pub fn unexplained_mm(rms_position: f64, scale: f64) -> f64 {
+    if scale <= 1.0 {
+        return 0.0;
+    }
+    rms_position * 1e3 * (1.0 - 1.0 / (scale * scale)).sqrt()
 }
 
 /// Four decimals, or scientific notation for values a mistake makes huge.
@@ -257,20 +267,20 @@ fn expected_validation_rms(run: &CalibrationRun) -> Option<f64> {
     Some((noise * noise + predicted * predicted).sqrt()).filter(|e| e.is_finite() && *e > 0.0)
 }
 
-/// On the validation data the calibrated model must beat the nominal one (mean position
-/// error), unless the nominal model is already within the noise.
+/// On the validation data the calibrated model must beat the registered nominal one (RMS
+/// position error over every row), unless the nominal model is already within the noise.
 pub fn validation_improves(run: &CalibrationRun) -> Option<Finding> {
     let expected = expected_validation_rms(run);
     let worse: Vec<String> = run
         .validation
         .iter()
-        .filter(|arm| arm.after.mean_position_mm >= arm.before.mean_position_mm)
+        .filter(|arm| arm.after.rms_position_mm >= arm.before.rms_position_mm)
         // A nominal model already at the noise floor cannot be improved measurably.
-        .filter(|arm| expected.is_none_or(|e| arm.before.mean_position_mm > 2.0 * e))
+        .filter(|arm| expected.is_none_or(|e| arm.before.rms_position_mm > 2.0 * e))
         .map(|arm| {
             format!(
-                "{} (mean position error {:.4} mm before, {:.4} mm after)",
-                arm.arm, arm.before.mean_position_mm, arm.after.mean_position_mm
+                "{} (RMS position error {:.4} mm before, {:.4} mm after)",
+                arm.arm, arm.before.rms_position_mm, arm.after.rms_position_mm
             )
         })
         .collect();

@@ -12,13 +12,20 @@
 //! - [`stiffness`]: compliance scale factors identified jointly with the MCPC parameters
 //!   (`--identify-stiffness`), and what a set of measurements can determine of them.
 //! - [`robust`]: robust estimation (Huber or Cauchy by IRLS): blunders named and left out.
+//! - [`baseline`]: the fair "before": the nominal robot registered like the calibrated one.
+//! - [`validation`]: where validation configurations lie (repeat, inside, outside the
+//!   identification ranges).
+//! - [`columns`]: joint columns that look swapped or shifted, named by joint, and the
+//!   findings that follow from them marked as probable consequences.
 //! - [`sessions`]: one measurement frame per measurement session (a nuisance block per
 //!   session), fitted with the geometry; validation in the training frame and re-registered.
 //! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
 //!   validation) that feed the verdict.
 //! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
+pub mod baseline;
 pub mod checks;
+pub mod columns;
 pub mod frame;
 pub mod identifiability;
 pub mod initial_guess;
@@ -30,6 +37,7 @@ pub mod run;
 pub mod sessions;
 pub mod solver;
 pub mod stiffness;
+pub mod validation;
 pub mod verdict;
 
 pub use frame::{

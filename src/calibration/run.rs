@@ -68,13 +68,17 @@ pub struct ParameterEstimate {
     pub identifiable: bool,
 }
 
-/// Maximum and mean errors over a set of observations of one tool.
+/// RMS, maximum and mean errors over a set of observations of one tool.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ErrorSummary {
+    /// Root-mean-square position error (mm): the headline figure.
+    pub rms_position_mm: f64,
     /// Largest position error (mm).
     pub max_position_mm: f64,
     /// Mean position error (mm).
     pub mean_position_mm: f64,
+    /// Root-mean-square orientation error (deg); `None` for position-only data.
+    pub rms_orientation_deg: Option<f64>,
     /// Largest orientation error (deg); `None` for position-only data.
     pub max_orientation_deg: Option<f64>,
     /// Mean orientation error (deg); `None` for position-only data.
@@ -82,13 +86,17 @@ pub struct ErrorSummary {
 }
 
 impl ErrorSummary {
-    fn of(position_mm: &[f64], orientation_deg: &[f64]) -> Self {
+    /// The summary of per-observation errors (mm, deg; no orientation: empty).
+    pub fn of(position_mm: &[f64], orientation_deg: &[f64]) -> Self {
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
         let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
         let some = |v: f64| (!orientation_deg.is_empty()).then_some(v);
         Self {
+            rms_position_mm: rms(position_mm),
             max_position_mm: max(position_mm),
             mean_position_mm: mean(position_mm),
+            rms_orientation_deg: some(rms(orientation_deg)),
             max_orientation_deg: some(max(orientation_deg)),
             mean_orientation_deg: some(mean(orientation_deg)),
         }
@@ -107,13 +115,14 @@ pub struct ArmResiduals {
     pub rows: Vec<usize>,
     /// Observations of this arm's tool in the set.
     pub observations: usize,
-    /// Before: the nominal model in the fitted measurement frame, tools fitted.
+    /// Before: the nominal robot registered like the calibrated one (measurement frame when
+    /// fitted, tool frames), rigid ([`CalibrationRun::baseline`]).
     pub before: ErrorSummary,
     /// After calibration.
     pub after: ErrorSummary,
-    /// % of the mean position error removed.
+    /// % of the RMS position error removed.
     pub position_removed_percent: f64,
-    /// % of the mean orientation error removed (pose observations only).
+    /// % of the RMS orientation error removed (pose observations only).
     pub orientation_removed_percent: Option<f64>,
     /// Position error per observation (mm): before, after (JSON: `before`, `after`).
     #[serde(serialize_with = "crate::serde_labels::before_after")]
@@ -155,9 +164,17 @@ pub struct CalibrationRun {
     /// What the robust estimation did (loss, scale, weights and residuals of the
     /// identification data).
     pub robust: RobustReport,
-    /// The measurements named as outliers, identification then validation: left out of the
-    /// fit and of the error statistics (`identification`, `validation`).
+    /// The measurements named as outliers, identification then validation: identification
+    /// outliers are left out of the fit and of `identification`; validation outliers are
+    /// only marked (every validation row counts in `validation`).
     pub outliers: Vec<Outlier>,
+    /// The fair "before": the nominal robot with its measurement frame (when fitted) and tool
+    /// frames fitted by least squares to the rows and weights of the fit
+    /// ([`super::baseline::registered_nominal`]).
+    pub baseline: McpcModel,
+    /// Per validation measurement (in order): where it lies relative to the identification
+    /// configurations.
+    pub validation_strata: Vec<super::validation::Stratum>,
     /// The measurement sessions, when the data name any (`session` column): each training
     /// session's frame, and each validation session's figures in the training frame and
     /// re-registered.
@@ -300,17 +317,30 @@ pub fn run_calibration(
         measurements,
         validation,
     )?;
-    // The rows kept, with their indices in the data given (for the reports' row ids).
-    let kept = |data: &[Measurement], set: DataSet| -> (Vec<usize>, Vec<Measurement>) {
-        data.iter()
-            .enumerate()
-            .filter(|(i, _)| !outliers.iter().any(|o| o.set == set && o.index == *i))
-            .map(|(i, m)| (i, m.clone()))
-            .unzip()
-    };
-    let (measurement_rows, measurements) = kept(measurements, DataSet::Identification);
-    let (validation_rows, validation) = kept(validation, DataSet::Validation);
-    let (measurements, validation) = (&measurements[..], &validation[..]);
+    // The fair "before": the nominal robot registered like the calibrated one (frame when
+    // fitted, tools), on the rows the fit used with the fit's weights.
+    let baseline = super::baseline::registered_nominal(
+        &guess.model,
+        measurements,
+        &robust.fit_weights(),
+        fitted_frame,
+        input.options,
+    )?;
+    let validation_strata = super::validation::strata(&report.model, measurements, validation);
+    // The identification rows the fit kept, with their indices in the data given (for the
+    // reports' row ids); every validation row counts (its outliers are only marked).
+    let (measurement_rows, measurements): (Vec<usize>, Vec<Measurement>) = measurements
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            !outliers
+                .iter()
+                .any(|o| o.set == DataSet::Identification && o.index == *i)
+        })
+        .map(|(i, m)| (i, m.clone()))
+        .unzip();
+    let validation_rows: Vec<usize> = (0..validation.len()).collect();
+    let measurements = &measurements[..];
     let parameters = estimates(input, &guess.model, &report);
     let predict = |model: &McpcModel, q: &[f64], payload: Option<f64>| -> Result<Vec<Pose>> {
         match input.flexibility {
@@ -325,7 +355,7 @@ pub fn run_calibration(
             input,
             data,
             rows,
-            &|q, _| Ok(guess.model.tool_poses(q)),
+            &|q, _| Ok(baseline.tool_poses(q)),
             &|q, payload| predict(&report.model, q, payload),
         )
     };
@@ -376,17 +406,38 @@ pub fn run_calibration(
         findings,
         robust,
         outliers,
+        baseline,
+        validation_strata,
         sessions,
     };
     let found = super::checks::assess(&run, input.tree);
     run.findings.extend(found);
+    // Residuals far above the noise: look for a root cause in the joint columns.
+    let suspicious = run.report.stages.iter().any(|s| {
+        let scale = s.identification.residual_scale;
+        !scale.is_finite() || scale > super::checks::SIGMA_WARNING
+    });
+    if suspicious {
+        let frame = run.report.model.world_from_base();
+        if let Some(cause) = super::columns::diagnose_columns(
+            input.tree,
+            input.nominal,
+            measurements,
+            fitted_frame,
+            &frame,
+            input.options,
+        )? {
+            run.findings.insert(1, cause);
+        }
+    }
+    super::columns::mark_consequences(&mut run.findings);
     Ok(run)
 }
 
 /// The outliers of the identification data (the robust fit's) and of the validation data
 /// (judged by the same loss at the larger of the identification data's robust scale and
-/// their own): none when the loss is off. Validation data are never fitted, so a blunder there would only inflate the
-/// validation statistics; it is named and left out of them instead.
+/// their own): none when the loss is off. Validation data are never fitted: a validation outlier
+/// is named and marked, and still counted in every validation figure.
 fn name_outliers(
     input: &CalibrationInput<'_>,
     report: &CalibrationReport,
@@ -424,25 +475,25 @@ fn name_outliers(
     Ok(outliers)
 }
 
-/// The warning that names how many measurements were left out as outliers; `kept` counts
-/// what the statistics still use.
+/// The warning that names the outliers: identification rows left out of the fit, validation
+/// rows marked but kept in every figure; `kept_identification` counts the identification rows
+/// the fit still uses, `validation` all validation rows.
 fn outlier_finding(
     robust: &RobustReport,
     outliers: &[Outlier],
     kept_identification: usize,
-    kept_validation: usize,
+    validation: usize,
 ) -> Option<Finding> {
     if outliers.is_empty() {
         return None;
     }
     let count = |set: DataSet| outliers.iter().filter(|o| o.set == set).count();
-    let (identification, validation) = (count(DataSet::Identification), count(DataSet::Validation));
+    let (identification, flagged) = (count(DataSet::Identification), count(DataSet::Validation));
     Some(Finding::warning(
         "outliers",
         format!(
-            "{identification} of {} identification and {validation} of {} validation measurements were down-weighted as outliers by the robust {} loss (residuals beyond {:.0}–{:.0} robust σ, robust σ = {:.3} of the assumed noise) and left out of the fit and the error statistics; see \"outliers\" in report.json, check those rows (a bumped target, a wrong row), or compare with --robust off",
+            "{identification} of {} identification and {flagged} of {validation} validation measurements are outliers by the robust {} loss (residuals beyond {:.0}–{:.0} robust σ, robust σ = {:.3} of the assumed noise): the identification ones were left out of the fit, the validation ones are marked and still counted in every validation figure; see \"outliers\" in report.json, check those rows (a bumped target, a wrong row), or compare with --robust off",
             identification + kept_identification,
-            validation + kept_validation,
             robust.loss,
             robust.loss.outlier_norm(3),
             robust.loss.outlier_norm(6),
@@ -593,12 +644,12 @@ fn arm_residuals(
                 before,
                 after,
                 position_removed_percent: removed_percent(
-                    before.mean_position_mm,
-                    after.mean_position_mm,
+                    before.rms_position_mm,
+                    after.rms_position_mm,
                 ),
                 orientation_removed_percent: before
-                    .mean_orientation_deg
-                    .zip(after.mean_orientation_deg)
+                    .rms_orientation_deg
+                    .zip(after.rms_orientation_deg)
                     .map(|(b, a)| removed_percent(b, a)),
                 position_mm: position[tool].clone(),
                 orientation_deg: orientation[tool].clone(),

@@ -104,6 +104,10 @@ pub struct SessionFrame {
     pub session_from_first: Pose,
     /// How many of the block's six directions its rows determine (6 for the first session).
     pub determined: usize,
+    /// How far the frame moves the session's own rows: RMS over them of `‖p − T⁻¹·p‖` (m),
+    /// the measured positions `p` (the frame's origin can be metres away, where a small turn
+    /// is a large offset).
+    pub displacement: f64,
 }
 
 /// The sessions of a calibration and of its validation data.
@@ -327,6 +331,27 @@ fn from_coordinates(c: &[f64]) -> Pose {
     )
 }
 
+/// RMS over session `s`'s rows of how far `session_from_first` moves their measured
+/// positions (m).
+fn displacement(
+    measurements: &[Measurement],
+    sessions: &Sessions,
+    s: usize,
+    session_from_first: &Pose,
+) -> f64 {
+    let first_from_session = session_from_first.inverse();
+    let moved: Vec<f64> = measurements
+        .iter()
+        .zip(&sessions.of)
+        .filter(|(_, &k)| k == s)
+        .map(|(m, _)| {
+            let p = super::initial_guess::measured_position(m);
+            (p - first_from_session.transform_point(&p.into()).coords).norm_squared()
+        })
+        .collect();
+    (moved.iter().sum::<f64>() / moved.len().max(1) as f64).sqrt()
+}
+
 /// Every session's measurements mapped into the first session's frame.
 fn mapped(measurements: &[Measurement], sessions: &Sessions, frames: &[Pose]) -> Vec<Measurement> {
     measurements
@@ -401,6 +426,7 @@ pub fn calibrate_sessions(
                     rows: measurements.len(),
                     session_from_first: Pose::identity(),
                     determined: FRAME_BLOCK_PARAMETERS,
+                    displacement: 0.0,
                 }],
                 rounds: 0,
                 converged: true,
@@ -468,6 +494,7 @@ pub fn calibrate_sessions(
             rows: sessions.rows(s),
             session_from_first: *frame,
             determined: *determined,
+            displacement: displacement(measurements, &sessions, s, frame),
         })
         .collect();
     Ok(SessionCalibration {
@@ -591,10 +618,11 @@ pub fn session_findings(report: &SessionsReport) -> Vec<Finding> {
                 )
             } else {
                 format!(
-                    "{} {} rows (frame {} from the first)",
+                    "{} {} rows (frame {} from the first; its rows moved by {:.2} mm RMS)",
                     session_label(&f.name),
                     f.rows,
-                    offset_words(&f.session_from_first)
+                    offset_words(&f.session_from_first),
+                    f.displacement * 1e3
                 )
             }
         })

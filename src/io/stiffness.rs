@@ -126,7 +126,8 @@ fn positive<'de, D: Deserializer<'de>>(
         Some(problem) => Err(serde::de::Error::custom(format!("{key} {problem}"))),
         // Below it the compliance, and the deflections, overflow.
         None if value < MIN_STIFFNESS => Err(serde::de::Error::custom(format!(
-            "{key} is {value}; must be at least {MIN_STIFFNESS:e} (docs/file-formats.md, \"Limits\")"
+            "{key} is {}; must be at least {MIN_STIFFNESS:e} (docs/file-formats.md, \"Limits\")",
+            crate::limits::shown(value)
         ))),
         None => Ok(Some(value)),
     }
@@ -169,7 +170,8 @@ fn mass<'de, D: Deserializer<'de>>(deserializer: D) -> Result<f64, D::Error> {
     let problem = mass_problem(value).or_else(|| {
         (value > MAX_MASS).then(|| {
             format!(
-                "is {value}, beyond the limit {MAX_MASS:e} kg (docs/file-formats.md, \"Limits\")"
+                "is {}, beyond the limit {MAX_MASS:e} kg (docs/file-formats.md, \"Limits\")",
+                crate::limits::shown(value)
             )
         })
     });

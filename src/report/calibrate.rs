@@ -2,9 +2,13 @@
 //! (errors before and after, per arm) layouts in markdown, a serialisable summary for JSON, the
 //! parameter file (`params.yaml`) and the per-configuration error plots (Fig. 9–12 style).
 
+use super::artifact::ArtifactReport;
 use super::outliers::{outliers_markdown, robust_summary, OutlierRow, RobustSummary};
 use super::plot::arm_error_plots_by_id;
 use super::stiffness::StiffnessSummary;
+use super::strata::ValidationStrata;
+use crate::calibration::robust::DataSet;
+use crate::calibration::validation::Stratum;
 use crate::calibration::{
     ArmResiduals, CalibrationRun, ErrorSummary, IdentificationOptions, ParameterEstimate, Status,
     Verdict,
@@ -101,8 +105,12 @@ pub struct CalibrationSummary {
     pub parameters: Vec<ParameterEstimate>,
     /// Errors on the identification data, per arm, with every row's errors.
     pub identification: Vec<ArmReport>,
-    /// Errors on the validation data, per arm, with every row's errors.
+    /// Errors on the validation data, per arm, with every row's errors (every row counts;
+    /// outliers are marked).
     pub validation: Vec<ArmReport>,
+    /// The validation position error by stratum (repeat, inside, outside the identification
+    /// ranges) and the worst row (renamed by [`CalibrationSummary::name_rows`]).
+    pub validation_strata: Option<ValidationStrata>,
     /// RMS validation position error the parameter covariance predicts (mm).
     pub predicted_validation_rms_mm: Option<f64>,
     /// The predicted position error standard deviation per validation observation (mm), in
@@ -117,6 +125,10 @@ pub struct CalibrationSummary {
     /// The measurements named as outliers (left out of the fit or the statistics); filled by
     /// the caller with [`super::outliers::outlier_rows`], which needs the rows' ids.
     pub outliers: Vec<OutlierRow>,
+    /// The outputs validated as written: the URDF alone, with its compensation file, and
+    /// the registration (filled by the workflow).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub artifact: Option<ArtifactReport>,
     /// The stiffness identification (`--identify-stiffness`), if it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stiffness: Option<StiffnessSummary>,
@@ -132,15 +144,17 @@ pub struct ArmReport {
     pub arm: String,
     /// The arm's tool link (the CSV's `tool`).
     pub tool: String,
-    /// Observations of this tool in the set (outliers left out).
+    /// Observations of this tool in the set (identification: the outliers left out of the fit
+    /// are left out; validation: every row).
     pub observations: usize,
-    /// Before calibration: the nominal model in the fitted measurement frame, tools fitted.
+    /// Before calibration: the nominal robot registered like the calibrated one (measurement
+    /// frame when fitted, tool frames: least squares on the identification rows), rigid.
     pub before: ErrorSummary,
     /// After calibration.
     pub after: ErrorSummary,
-    /// % of the mean position error removed.
+    /// % of the RMS position error removed.
     pub position_removed_percent: f64,
-    /// % of the mean orientation error removed (`null` for position-only data).
+    /// % of the RMS orientation error removed (`null` for position-only data).
     pub orientation_removed_percent: Option<f64>,
     /// Every observation, in file order.
     pub rows: Vec<RowErrors>,
@@ -164,6 +178,26 @@ pub struct RowErrors {
     /// predicts here (mm); absent elsewhere or when no covariance was available.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub predicted_sd_mm: Option<f64>,
+    /// Validation rows: whether the posture repeats an identification posture, is new inside
+    /// the identification joint ranges, or lies outside them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stratum: Option<Stratum>,
+    /// Whether the robust loss names the row an outlier (a validation outlier is still
+    /// counted in every figure).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub outlier: bool,
+    /// The robust weight of an identification row the fit down-weighted (below 1); absent at
+    /// weight 1 and for validation rows.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub weight: Option<f64>,
+}
+
+/// What marks a row besides its errors: stratum, outlier, robust weight.
+#[derive(Debug, Clone, Copy, Default)]
+struct RowMarks {
+    stratum: Option<Stratum>,
+    outlier: bool,
+    weight: Option<f64>,
 }
 
 /// A quantity before and after calibration.
@@ -178,7 +212,12 @@ pub struct BeforeAfter {
 impl ArmReport {
     /// The report of `arm`; `predicted[i]`: the predicted spread at the set's `i`-th kept row
     /// (empty for none).
-    fn of(arm: &ArmResiduals, kept: &[usize], predicted: &[f64]) -> Self {
+    fn of(
+        arm: &ArmResiduals,
+        kept: &[usize],
+        predicted: &[f64],
+        marks: &dyn Fn(usize) -> RowMarks,
+    ) -> Self {
         let rows = arm
             .rows
             .iter()
@@ -190,7 +229,11 @@ impl ArmReport {
                         after: *values[1].get(k)?,
                     })
                 };
+                let mark = marks(index);
                 RowErrors {
+                    stratum: mark.stratum,
+                    outlier: mark.outlier,
+                    weight: mark.weight,
                     id: format!("#{}", index + 1),
                     index,
                     position_mm: pair(&arm.position_mm).unwrap_or(BeforeAfter {
@@ -219,16 +262,46 @@ impl ArmReport {
 
     /// The reports of `arms`, one data set; `predicted`: the spread per kept row of the set,
     /// in file order (empty for none).
-    fn of_set(arms: &[ArmResiduals], predicted: &[f64]) -> Vec<Self> {
+    fn of_set(run: &CalibrationRun, set: DataSet) -> Vec<Self> {
+        let (arms, predicted): (&[ArmResiduals], &[f64]) = match set {
+            DataSet::Identification => (&run.identification, &[]),
+            DataSet::Validation => (&run.validation, &run.predicted_validation_sd_mm),
+        };
         let mut kept: Vec<usize> = arms.iter().flat_map(|a| a.rows.iter().copied()).collect();
         kept.sort_unstable();
+        let marks = |index: usize| RowMarks {
+            stratum: match set {
+                DataSet::Validation => run.validation_strata.get(index).copied(),
+                DataSet::Identification => None,
+            },
+            outlier: run
+                .outliers
+                .iter()
+                .any(|o| o.set == set && o.index == index),
+            weight: match set {
+                DataSet::Identification => {
+                    run.robust.weights.get(index).copied().filter(|&w| w < 1.0)
+                }
+                DataSet::Validation => None,
+            },
+        };
         arms.iter()
-            .map(|arm| Self::of(arm, &kept, predicted))
+            .map(|arm| Self::of(arm, &kept, predicted, &marks))
             .collect()
     }
 }
 
 impl CalibrationSummary {
+    /// The identification rows the fit kept with a robust weight below 1: `(id, weight,
+    /// position error after calibration in mm)`, in file order.
+    pub fn down_weighted(&self) -> Vec<(String, f64, f64)> {
+        self.identification
+            .iter()
+            .flat_map(|a| a.rows.iter())
+            .filter_map(|r| r.weight.map(|w| (r.id.clone(), w, r.position_mm.after)))
+            .collect()
+    }
+
     /// Names every row by its id: `ids[0]` for the identification data, `ids[1]` for the
     /// validation data, in the order the run got them (a missing id stays `#n`).
     pub fn name_rows(&mut self, ids: [&[String]; 2]) {
@@ -242,6 +315,7 @@ impl CalibrationSummary {
                 }
             }
         }
+        self.validation_strata = ValidationStrata::of(&self.validation);
     }
 }
 
@@ -300,6 +374,7 @@ pub fn calibration_summary(
             }
         })
         .collect();
+    let validation = ArmReport::of_set(run, DataSet::Validation);
     CalibrationSummary {
         verdict: Verdict::from_findings(run.findings.clone()),
         schema_version: REPORT_SCHEMA,
@@ -310,14 +385,16 @@ pub fn calibration_summary(
         cycles: run.report.cycles,
         stages,
         parameters: run.parameters.clone(),
-        identification: ArmReport::of_set(&run.identification, &[]),
-        validation: ArmReport::of_set(&run.validation, &run.predicted_validation_sd_mm),
+        identification: ArmReport::of_set(run, DataSet::Identification),
+        validation_strata: ValidationStrata::of(&validation),
+        validation,
         predicted_validation_rms_mm: run.predicted_validation_rms_mm,
         predicted_validation_sd_mm: run.predicted_validation_sd_mm.clone(),
         changed_joints,
         robust: robust_summary(run),
         // The caller knows the rows' ids and the tool names: see `outlier_rows`.
         outliers: Vec::new(),
+        artifact: None,
         stiffness: None,
         sessions: run.sessions.as_ref().map(super::sessions::sessions_summary),
     }
@@ -371,6 +448,7 @@ pub fn calibration_markdown(
     let c = &summary.context;
     let _ = writeln!(out, "# Calibration of '{}'\n", c.robot);
     verdict_markdown(&mut out, &summary.verdict);
+    headline_markdown(&mut out, summary);
     let _ = writeln!(
         out,
         "Measurements: {}. Validation: {}. Plan: {} ({} cycle(s)). Flexibility: {}. Assumed noise: σ = {:.4} mm, {:.4} mrad.\n",
@@ -411,6 +489,20 @@ pub fn calibration_markdown(
     }
 
     // Table 3 layout.
+    let _ = writeln!(
+        out,
+        "\"Before\" is the nominal robot (the URDF's geometry) registered like the calibrated one: its {} tool frames fitted by least squares to the identification rows with the fit's weights (rigid). \"After\" is the calibrated model{}. Every validation row counts; RMS is the headline figure.\n",
+        if c.measurement_frame.starts_with("fitted") {
+            "measurement frame and"
+        } else {
+            ""
+        },
+        if c.compensation.starts_with("compensated") {
+            " with its predicted deflections"
+        } else {
+            ""
+        }
+    );
     for (title, arms) in [
         ("measurement configurations", &summary.identification),
         ("validation configurations", &summary.validation),
@@ -421,17 +513,19 @@ pub fn calibration_markdown(
         let _ = writeln!(out, "## Errors on the {title} (paper Table 3 layout)\n");
         let _ = writeln!(
             out,
-            "| arm | n | | before max | before mean | after max | after mean | mean removed |"
+            "| arm | n | | before RMS | before max | before mean | after RMS | after max | after mean | RMS removed |"
         );
-        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|");
         for arm in arms {
             let _ = writeln!(
                 out,
-                "| {} | {} | position (mm) | {:.4} | {:.4} | {:.4} | {:.4} | {:.2} % |",
+                "| {} | {} | position (mm) | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:.2} % |",
                 arm.arm,
                 arm.observations,
+                arm.before.rms_position_mm,
                 arm.before.max_position_mm,
                 arm.before.mean_position_mm,
+                arm.after.rms_position_mm,
                 arm.after.max_position_mm,
                 arm.after.mean_position_mm,
                 arm.position_removed_percent
@@ -439,11 +533,13 @@ pub fn calibration_markdown(
             if arm.before.mean_orientation_deg.is_some() {
                 let _ = writeln!(
                     out,
-                    "| {} | {} | orientation (deg) | {} | {} | {} | {} | {} % |",
+                    "| {} | {} | orientation (deg) | {} | {} | {} | {} | {} | {} | {} % |",
                     arm.arm,
                     arm.observations,
+                    number(arm.before.rms_orientation_deg, 5),
                     number(arm.before.max_orientation_deg, 5),
                     number(arm.before.mean_orientation_deg, 5),
+                    number(arm.after.rms_orientation_deg, 5),
                     number(arm.after.max_orientation_deg, 5),
                     number(arm.after.mean_orientation_deg, 5),
                     number(arm.orientation_removed_percent, 2),
@@ -451,6 +547,9 @@ pub fn calibration_markdown(
             }
         }
         out.push('\n');
+    }
+    if let Some(strata) = &summary.validation_strata {
+        out.push_str(&strata.markdown());
     }
     if let Some(rms) = summary.predicted_validation_rms_mm {
         let mut spread = summary.predicted_validation_sd_mm.clone();
@@ -465,7 +564,14 @@ pub fn calibration_markdown(
         );
     }
 
-    out.push_str(&outliers_markdown(&summary.robust, &summary.outliers));
+    if let Some(artifact) = &summary.artifact {
+        out.push_str(&artifact.markdown());
+    }
+    out.push_str(&outliers_markdown(
+        &summary.robust,
+        &summary.outliers,
+        &summary.down_weighted(),
+    ));
 
     // Solver outcome.
     let _ = writeln!(out, "## Solver, per stage\n");
@@ -548,6 +654,45 @@ pub fn calibration_markdown(
     out
 }
 
+/// The held-out accuracy in mm, whatever σ was declared: every validation row, the
+/// registered nominal robot, and what the written URDF gives alone.
+fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
+    let Some(all) = summary
+        .validation_strata
+        .as_ref()
+        .and_then(|s| s.strata.first())
+    else {
+        return;
+    };
+    let Some(rms) = all.rms_position_mm else {
+        return;
+    };
+    let before: Vec<f64> = summary
+        .validation
+        .iter()
+        .flat_map(|a| a.rows.iter().map(|r| r.position_mm.before))
+        .collect();
+    let before_rms =
+        (before.iter().map(|v| v * v).sum::<f64>() / before.len().max(1) as f64).sqrt();
+    let _ = write!(
+        out,
+        "**Held-out accuracy:** RMS position error {rms:.3} mm over all {} validation rows (before: {before_rms:.3} mm, the registered nominal robot)",
+        all.observations
+    );
+    if let Some(alone) = summary
+        .artifact
+        .as_ref()
+        .and_then(|a| a.urdf_alone.as_ref())
+    {
+        let _ = write!(
+            out,
+            "; {} as written: {:.3} mm",
+            alone.files, alone.errors.rms_position_mm
+        );
+    }
+    out.push_str(".\n\n");
+}
+
 /// The verdict and its reasons, as the report's first section.
 fn verdict_markdown(out: &mut String, verdict: &Verdict) {
     let meaning = match verdict.status {
@@ -574,7 +719,19 @@ fn verdict_markdown(out: &mut String, verdict: &Verdict) {
 pub fn calibration_plots(arms: &[ArmReport], set: &str) -> Result<Vec<(String, String)>> {
     let mut plots = Vec::new();
     for arm in arms {
-        let ids: Vec<String> = arm.rows.iter().map(|r| r.id.clone()).collect();
+        // Outliers stay in the plots, marked `*`.
+        let ids: Vec<String> = arm
+            .rows
+            .iter()
+            .map(|r| {
+                if r.outlier {
+                    format!("{}*", r.id)
+                } else {
+                    r.id.clone()
+                }
+            })
+            .collect();
+        let marked = arm.rows.iter().any(|r| r.outlier);
         let column = |f: &dyn Fn(&RowErrors) -> Option<f64>| -> Vec<f64> {
             arm.rows.iter().filter_map(f).collect()
         };
@@ -589,7 +746,14 @@ pub fn calibration_plots(arms: &[ArmReport], set: &str) -> Result<Vec<(String, S
         plots.extend(arm_error_plots_by_id(
             &arm.arm,
             &format!("{}_{set}", arm.arm),
-            &format!("on the {set} configurations"),
+            &format!(
+                "on the {set} configurations{}",
+                if marked {
+                    " (* outlier, still counted)"
+                } else {
+                    ""
+                }
+            ),
             &["before calibration", "after calibration"],
             &ids,
             &position,

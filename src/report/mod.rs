@@ -1,5 +1,6 @@
 //! Human- and machine-readable reports.
 
+pub mod artifact;
 pub mod calibrate;
 pub mod check;
 pub mod inspect;
@@ -9,6 +10,7 @@ pub mod plot;
 pub mod sessions;
 pub mod simulate;
 pub mod stiffness;
+pub mod strata;
 
 pub use calibrate::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file, ArmReport,

@@ -12,7 +12,8 @@ use std::fmt::Write;
 pub struct OutlierRow {
     /// The row's `id` (the CSV's id column, else its 1-based data row number).
     pub id: String,
-    /// `identification` (left out of the fit) or `validation` (left out of the statistics).
+    /// `identification` (left out of the fit) or `validation` (marked, still counted in every
+    /// validation figure).
     pub set: DataSet,
     /// The tool link observed.
     pub tool: String,
@@ -87,8 +88,14 @@ pub fn outlier_rows(
         .collect()
 }
 
-/// The `## Outliers` section of `report.md` (empty when the loss is off and nothing to say).
-pub fn outliers_markdown(robust: &RobustSummary, rows: &[OutlierRow]) -> String {
+/// The `## Outliers` section of `report.md` (empty when the loss is off and nothing to say);
+/// `down_weighted`: the identification rows the fit kept with a weight below 1, as
+/// `(id, weight, position residual after calibration in mm)`.
+pub fn outliers_markdown(
+    robust: &RobustSummary,
+    rows: &[OutlierRow],
+    down_weighted: &[(String, f64, f64)],
+) -> String {
     let mut out = String::new();
     if robust.loss == RobustLoss::Off {
         let _ = writeln!(
@@ -106,13 +113,25 @@ pub fn outliers_markdown(robust: &RobustSummary, rows: &[OutlierRow]) -> String 
         robust.rounds,
         if robust.converged { "" } else { " (the weights had not settled)" }
     );
+    if !down_weighted.is_empty() {
+        let _ = writeln!(
+            out,
+            "Down-weighted but kept in the fit (identification rows with a robust weight below 1):\n"
+        );
+        let _ = writeln!(out, "| id | weight | position after (mm) |");
+        let _ = writeln!(out, "|---|---|---|");
+        for (id, weight, error) in down_weighted {
+            let _ = writeln!(out, "| {id} | {weight:.4} | {error:.4} |");
+        }
+        out.push('\n');
+    }
     if rows.is_empty() {
         let _ = writeln!(out, "No measurement is an outlier.\n");
         return out;
     }
     let _ = writeln!(
         out,
-        "Left out of the fit (identification) or of the error statistics (validation):\n"
+        "Outliers: identification rows were left out of the fit; validation rows are marked and still counted in every validation figure:\n"
     );
     let _ = writeln!(
         out,

@@ -38,6 +38,8 @@ pub struct SessionRow {
     pub offset_deg: f64,
     /// Directions of the frame its rows determine (of 6).
     pub determined: usize,
+    /// How far the frame moves the session's own measured points (RMS, mm).
+    pub rows_moved_mm: f64,
 }
 
 /// A validation session's figures.
@@ -99,6 +101,7 @@ pub fn sessions_summary(report: &SessionsReport) -> SessionsSummary {
                 offset_mm: f.session_from_first.translation.vector.norm() * 1e3,
                 offset_deg: f.session_from_first.rotation.angle().to_degrees(),
                 determined: f.determined,
+                rows_moved_mm: f.displacement * 1e3,
             })
             .collect(),
         validation: report
@@ -142,17 +145,18 @@ pub fn sessions_markdown(summary: &SessionsSummary) -> String {
     );
     let _ = writeln!(
         out,
-        "| training session | rows | frame from the first (mm) | (deg) | directions determined |"
+        "| training session | rows | frame from the first (mm) | (deg) | its rows moved (mm RMS) | directions determined |"
     );
-    let _ = writeln!(out, "|---|---:|---:|---:|---:|");
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|");
     for s in &summary.training {
         let _ = writeln!(
             out,
-            "| {} | {} | {:.2} | {:.3} | {}/6 |",
+            "| {} | {} | {:.2} | {:.3} | {:.2} | {}/6 |",
             session_label(&s.name),
             s.rows,
             s.offset_mm,
             s.offset_deg,
+            s.rows_moved_mm,
             s.determined
         );
     }

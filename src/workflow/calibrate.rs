@@ -17,12 +17,14 @@ use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit};
 use std::path::{Path, PathBuf};
 
 /// The files [`Calibration::write`] writes besides the SVG plots.
-pub const OUTPUT_FILES: [&str; 6] = [
+pub const OUTPUT_FILES: [&str; 8] = [
     "calibrated.urdf",
     "params.yaml",
     "report.md",
     "report.json",
     "stiffness.yaml",
+    super::calibrate_artifact::REGISTRATION_FILE,
+    super::calibrate_artifact::COMPENSATED_URDF,
     "joint_errors.yaml",
 ];
 

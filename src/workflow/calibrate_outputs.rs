@@ -2,10 +2,11 @@
 //! their row ids, report.md, report.json, params.yaml, the plots and the calibrated URDF.
 
 use super::calibrate::CalibrateConfig;
+use super::calibrate_artifact::{assess, CompensationFile, COMPENSATED_URDF, REGISTRATION_FILE};
 use super::calibrate_steps::{Data, Identified, IdentifiedStiffness, Loaded};
 use crate::calibration::identifiability::NamedCombination;
-use crate::calibration::robust::DataSet;
-use crate::calibration::{CalibrationRun, ChosenFrame, Verdict};
+use crate::calibration::robust::{DataSet, OUTLIER_WEIGHT};
+use crate::calibration::{CalibrationRun, ChosenFrame, Finding, Verdict};
 use crate::error::{Error, Result};
 use crate::io::{stiffness_to_yaml, to_json, to_yaml};
 use crate::report::{
@@ -100,8 +101,22 @@ fn summary(
                 DataSet::Validation => format!("{} (validation)", o.id),
             })
             .collect();
-        finding.message = format!("{}; rows: {}", finding.message, rows.join(", "));
+        // One stderr line: the first rows, and how many in all (report.md lists every one).
+        let shown = rows.len().min(2 * FIRST_IDS);
+        finding.message = format!(
+            "{}; rows: {}{}",
+            finding.message,
+            rows[..shown].join(", "),
+            if rows.len() > shown {
+                format!(", … ({} in all, every one in report.md)", rows.len())
+            } else {
+                String::new()
+            }
+        );
     }
+    run.findings
+        .extend(down_weighted_finding(run, &data.ids[0]));
+    crate::calibration::columns::mark_consequences(&mut run.findings);
     let changed: Vec<String> = export
         .iter()
         .flat_map(|e| e.changes.iter().map(|c| c.joint.clone()))
@@ -114,6 +129,50 @@ fn summary(
     summary
 }
 
+/// How many identification rows shown at once in a stderr line.
+const FIRST_IDS: usize = 5;
+
+/// The identification rows the robust loss down-weighted but kept in the fit (the outliers
+/// have their own warning): counted, the first named with their weights, never silently.
+fn down_weighted_finding(run: &CalibrationRun, ids: &[String]) -> Option<Finding> {
+    let weights = &run.robust.weights;
+    let mut rows: Vec<(usize, f64)> = weights
+        .iter()
+        .enumerate()
+        .filter(|(_, &w)| (OUTLIER_WEIGHT..1.0).contains(&w))
+        .map(|(i, &w)| (i, w))
+        .collect();
+    if rows.is_empty() {
+        return None;
+    }
+    // The lightest first: they pulled least and are the likeliest blunders.
+    rows.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let named: Vec<String> = rows
+        .iter()
+        .take(FIRST_IDS)
+        .map(|&(i, w)| {
+            let id = ids.get(i).cloned().unwrap_or_else(|| format!("#{}", i + 1));
+            let residual = run
+                .robust
+                .residuals
+                .get(i)
+                .map_or(String::new(), |r| format!(", {:.2} mm", r.position * 1e3));
+            format!("{id} (weight {w:.3}{residual})")
+        })
+        .collect();
+    Some(Finding::warning(
+        "down-weighted",
+        format!(
+            "{} of {} identification rows were down-weighted by the robust {} loss and kept in the fit with less weight: {}{}; check them (a bumped target, a wrong row), every one is listed with its weight in report.md and report.json (`weight`); compare with --robust off or --robust cauchy",
+            rows.len(),
+            weights.len(),
+            run.robust.loss,
+            named.join(", "),
+            if rows.len() > FIRST_IDS { ", …" } else { "" }
+        ),
+    ))
+}
+
 /// Everything the outcome holds besides the parameters and notes.
 pub(super) struct Outputs {
     pub verdict: Verdict,
@@ -123,8 +182,9 @@ pub(super) struct Outputs {
     pub files: Vec<(String, Vec<u8>)>,
 }
 
-/// Renders report.md, report.json, params.yaml, the plots and (with stiffness
-/// identification) stiffness.yaml; the URDF only when the verdict is usable.
+/// Renders report.md, report.json, params.yaml, the plots, registration.yaml (a fitted
+/// frame) and (with stiffness identification) stiffness.yaml; scores the URDF as written
+/// (`calibrate_artifact`); the URDF only when the verdict is usable.
 pub(super) fn outputs(
     config: &CalibrateConfig,
     loaded: &Loaded,
@@ -133,10 +193,35 @@ pub(super) fn outputs(
     export: Option<ExportReport>,
     identified: IdentifiedStiffness,
 ) -> Result<Outputs> {
+    let tree = loaded.robot.tree();
+    let stiffness_file = identified.as_ref().map(|(_, file)| {
+        stiffness_to_yaml(
+            file,
+            &format!(
+                "Identified by `treecal calibrate --identify-stiffness` from {} (robot '{}'):\nevery calibrated joint and body with its identified stiffness; see report.md.",
+                config.measurements.origin(),
+                tree.name()
+            ),
+        )
+    });
+    let compensation = match (&stiffness_file, &config.stiffness) {
+        (Some(text), _) => Some(CompensationFile::Written(text)),
+        (None, Some(source)) => Some(CompensationFile::Source(source)),
+        (None, None) => None,
+    };
+    let artifact = assess(config, loaded, data, result, export.as_ref(), compensation)?;
+    result
+        .run
+        .findings
+        .extend(artifact.findings.iter().cloned());
+    let (export, compensated_urdf) = match artifact.replaced {
+        Some((rigid, compensated)) => (Some(rigid), Some(compensated)),
+        None => (export, None),
+    };
     let mut summary = summary(config, loaded, data, result, export.as_ref());
     summary.stiffness = identified.as_ref().map(|(s, _)| s.clone());
+    summary.artifact = Some(artifact.report);
     let run = &result.run;
-    let tree = loaded.robot.tree();
     let mut markdown = calibration_markdown(&summary, &result.options);
     if let Some(sessions) = &summary.sessions {
         markdown.push_str(&crate::report::sessions_markdown(sessions));
@@ -148,20 +233,11 @@ pub(super) fn outputs(
     };
     let json = to_json(&summary)?;
     let report = serde_json::to_value(&summary).map_err(json_error)?;
-    let mut stiffness_file = None;
-    if let Some((stiffness_summary, file)) = &identified {
+    if let Some((stiffness_summary, _)) = &identified {
         markdown.push_str(&stiffness_markdown(stiffness_summary));
         params.push_str(&to_yaml(
             &serde_json::json!({ "stiffness": stiffness_summary }),
         )?);
-        stiffness_file = Some(stiffness_to_yaml(
-            file,
-            &format!(
-                "Identified by `treecal calibrate --identify-stiffness` from {} (robot '{}'):\nevery calibrated joint and body with its identified stiffness; see report.md.",
-                config.measurements.origin(),
-                tree.name()
-            ),
-        ));
     }
     let mut plots = calibration_plots(&summary.identification, "measurement")?;
     plots.extend(calibration_plots(&summary.validation, "validation")?);
@@ -170,6 +246,12 @@ pub(super) fn outputs(
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     if let Some(urdf) = &urdf {
         files.push(("calibrated.urdf".into(), urdf.clone().into_bytes()));
+        if let Some(text) = compensated_urdf {
+            files.push((COMPENSATED_URDF.into(), text.into_bytes()));
+        }
+    }
+    if let Some(text) = artifact.registration {
+        files.push((REGISTRATION_FILE.into(), text.into_bytes()));
     }
     files.push(("params.yaml".into(), params.into_bytes()));
     files.push(("report.md".into(), markdown.clone().into_bytes()));

@@ -12,7 +12,7 @@ use super::note::Note;
 use super::source::{measured_branches, LoadedRobot};
 use crate::calibration::{
     hold_out_indices, identified_stiffness, identify_stiffness, CalibrationInput, CalibrationRun,
-    Finding, IdentificationOptions, MeasurementFrame, StiffnessOptions,
+    Finding, IdentificationOptions, MeasurementFrame, Plan, StiffnessOptions,
 };
 use crate::error::{Error, Result};
 use crate::io::{read_registration, MeasurementReadOptions};
@@ -137,6 +137,10 @@ pub(super) struct Identified {
     pub run: CalibrationRun,
     pub plan_name: String,
     pub options: IdentificationOptions,
+    /// The plan the run used.
+    pub plan: Plan,
+    /// The flexibility model of the final run (with the identified stiffness, if any).
+    pub flexibility: Option<FlexibilityModel>,
     /// The model calibrated.
     pub spec: ModelSpec,
     /// The cross-validation table (`--cv`, `--model auto`).
@@ -220,6 +224,7 @@ pub(super) fn identify(
         &data.validation,
     )?;
     let mut identified = None;
+    let mut final_flexibility = flexibility.clone().filter(|_| spec.compensate);
     if let (Some(prior), Some(stiffness), true) =
         (&flexibility, &stiffness, config.identify_stiffness)
     {
@@ -257,11 +262,14 @@ pub(super) fn identify(
             .extend(crate::calibration::checks::stiffness_below_zero(&report));
         let file = identified_stiffness(stiffness, tree, &loaded.nominal, &report.estimates);
         identified = Some((StiffnessSummary::new(&report, config.stiffness_prior), file));
+        final_flexibility = Some(report.flexibility);
     }
     let identified_run = Identified {
         run,
         plan_name,
         options,
+        plan,
+        flexibility: final_flexibility,
         spec,
         cross_validation,
     };

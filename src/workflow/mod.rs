@@ -4,6 +4,7 @@
 //! See docs/workflows.md.
 
 pub mod calibrate;
+pub mod calibrate_artifact;
 mod calibrate_outputs;
 mod calibrate_steps;
 pub mod check;

@@ -137,10 +137,20 @@ pub fn second_robot(seed: u64) -> SecondRobot {
         Vec3::new(1.9, -0.7, 0.05),
         nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.6),
     );
+    // The later days' frames: a few millimetres and about half a degree, turned about a point
+    // at the robot (where the markers are), so that the rows move by 7–9 mm as on the real
+    // robot, not by the lever arm of the camera system's origin.
+    let about_robot = |motion: Pose| {
+        let centre = pose(
+            (world_from_base * nalgebra::Point3::new(0.05, -0.6, 1.0)).coords,
+            nalgebra::UnitQuaternion::identity(),
+        );
+        centre * motion * centre.inverse()
+    };
     let session_from_first = [
         Pose::identity(),
-        random_motion(&mut rng, 0.008, 0.5f64.to_radians()),
-        random_motion(&mut rng, 0.0075, 0.45f64.to_radians()),
+        about_robot(random_motion(&mut rng, 0.0065, 0.5f64.to_radians())),
+        about_robot(random_motion(&mut rng, 0.006, 0.45f64.to_radians())),
     ];
     let poses: Vec<Vec<f64>> = (0..POSE_POSTURES)
         .map(|_| posture(&tree, &mut rng))
@@ -231,6 +241,39 @@ impl SecondRobot {
                     m.session = None;
                 }
                 m
+            })
+            .collect()
+    }
+
+    /// How far `session_from_first` moves the measured positions of session `s` (RMS, m).
+    pub fn rows_moved(&self, s: usize, session_from_first: &Pose) -> f64 {
+        let back = session_from_first.inverse();
+        let moved: Vec<f64> = self
+            .measurements
+            .iter()
+            .filter(|m| m.session.as_deref() == Some(SESSIONS[s]))
+            .map(|m| {
+                let p = match &m.observation {
+                    Observation::Pose(p) => p.translation.vector,
+                    Observation::Position(p) => *p,
+                };
+                (p - back.transform_point(&p.into()).coords).norm_squared()
+            })
+            .collect();
+        (moved.iter().sum::<f64>() / moved.len() as f64).sqrt()
+    }
+
+    /// Every row with the pose session's rows reduced to the body's position (one observation
+    /// layout for every row, as one CSV file needs).
+    pub fn clone_rows_as_positions(&self) -> Vec<Measurement> {
+        self.measurements
+            .iter()
+            .map(|m| match &m.observation {
+                Observation::Pose(p) => Measurement {
+                    observation: Observation::Position(p.translation.vector),
+                    ..m.clone()
+                },
+                Observation::Position(_) => m.clone(),
             })
             .collect()
     }

@@ -174,7 +174,10 @@ impl Stiffness {
 /// What is wrong with a stiffness value, if anything: it must be > 0; `+∞` (rigid) is allowed.
 pub(crate) fn stiffness_problem(value: f64) -> Option<String> {
     if value.is_nan() || value <= 0.0 {
-        Some(format!("is {value}; must be positive (use .inf for rigid)"))
+        Some(format!(
+            "is {}; must be positive (use .inf for rigid)",
+            crate::limits::shown(value)
+        ))
     } else {
         None
     }

@@ -1,0 +1,154 @@
+//! The fair "before" of a calibration: the nominal robot with the same freedom as the
+//! calibrated one has outside its geometry — the measurement frame (when it is fitted) and the
+//! tool frames — fitted by least squares to the same rows with the same weights. The
+//! closed-form start (`initial_guess`) places frame and tools one after the other and can leave
+//! the nominal robot several times worse than a registration would: a baseline that flatters
+//! the calibration.
+
+use super::solver::IdentificationOptions;
+use crate::error::Result;
+use crate::kinematics::McpcModel;
+use crate::math::{pose_error, Pose};
+use crate::measurement::{Measurement, Observation};
+use nalgebra::{DMatrix, DVector, UnitQuaternion, Vector3};
+
+/// Levenberg–Marquardt iterations at most.
+const MAX_ITERATIONS: usize = 100;
+
+/// Central-difference step of the numerical Jacobian (m, rad).
+const STEP: f64 = 1e-6;
+
+/// `start` with its tool frames (and, when `fit_frame`, its measurement frame) fitted by
+/// weighted least squares to `measurements`: position rows over `position_sigma`, rotation
+/// rows over `rotation_sigma`, measurement `i` weighted by `weights[i]` (empty: all 1). The
+/// joint frames keep their nominal values.
+pub fn registered_nominal(
+    start: &McpcModel,
+    measurements: &[Measurement],
+    weights: &[f64],
+    fit_frame: bool,
+    options: &IdentificationOptions,
+) -> Result<McpcModel> {
+    let tools: Vec<usize> = (0..start.tools().len())
+        .filter(|&t| measurements.iter().any(|m| m.tool == t))
+        .flat_map(|t| {
+            let offset = start.tool_parameter_offset(t);
+            offset..offset + 6
+        })
+        .collect();
+    let frame_count = if fit_frame { 6 } else { 0 };
+    let unknowns = frame_count + tools.len();
+    if unknowns == 0 || measurements.is_empty() {
+        return Ok(start.clone());
+    }
+    let base = start.parameters();
+    let frame = start.world_from_base();
+    let model_at = |x: &DVector<f64>| -> Result<McpcModel> {
+        let mut model = start.clone();
+        if fit_frame {
+            model.set_world_from_base(&moved(&frame, &x.as_slice()[..6]));
+        }
+        let mut parameters = base.clone();
+        for (k, &p) in tools.iter().enumerate() {
+            parameters[p] += x[frame_count + k];
+        }
+        model.set_parameters(&parameters)?;
+        Ok(model)
+    };
+    let residual_at = |x: &DVector<f64>| -> Result<DVector<f64>> {
+        Ok(weighted_residual(
+            &model_at(x)?,
+            measurements,
+            weights,
+            options,
+        ))
+    };
+    let mut x = DVector::zeros(unknowns);
+    let mut residual = residual_at(&x)?;
+    let mut damping = 1e-3;
+    for _ in 0..MAX_ITERATIONS {
+        let mut jacobian = DMatrix::zeros(residual.len(), unknowns);
+        for k in 0..unknowns {
+            let (mut plus, mut minus) = (x.clone(), x.clone());
+            plus[k] += STEP;
+            minus[k] -= STEP;
+            let column = (residual_at(&plus)? - residual_at(&minus)?) / (2.0 * STEP);
+            jacobian.set_column(k, &column);
+        }
+        crate::limits::ensure_finite(jacobian.iter(), "the nominal robot's registration")?;
+        let normal = jacobian.tr_mul(&jacobian);
+        let gradient = jacobian.tr_mul(&residual);
+        let cost = residual.norm_squared();
+        let mut improved = false;
+        for _ in 0..12 {
+            let scale = normal.diagonal().map(|d| d.max(1e-12));
+            let damped = &normal + DMatrix::from_diagonal(&(scale * damping));
+            // Position-only tools leave combinations free: the minimum-norm step.
+            let svd = damped.svd(true, true);
+            let Ok(step) = svd.solve(&(-&gradient), 1e-12 * normal.diagonal().max()) else {
+                break;
+            };
+            let trial = &x + &step;
+            let trial_residual = residual_at(&trial)?;
+            if trial_residual.norm_squared() < cost {
+                x = trial;
+                residual = trial_residual;
+                damping = (damping * 0.3).max(1e-12);
+                improved = true;
+                break;
+            }
+            damping *= 10.0;
+        }
+        let decrease = cost - residual.norm_squared();
+        if !improved || decrease <= 1e-12 * cost.max(1e-300) {
+            break;
+        }
+    }
+    model_at(&x)
+}
+
+/// `frame` moved by `delta` = (translation, rotation vector) in the measurement frame, turned
+/// about its own origin.
+fn moved(frame: &Pose, delta: &[f64]) -> Pose {
+    let rotation = UnitQuaternion::from_scaled_axis(Vector3::new(delta[3], delta[4], delta[5]));
+    let origin = frame.translation.vector + Vector3::new(delta[0], delta[1], delta[2]);
+    Pose::from_parts(origin.into(), rotation * frame.rotation)
+}
+
+/// The residual rows of every measurement at `model` (rigid), over the σ's and weighted.
+fn weighted_residual(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    weights: &[f64],
+    options: &IdentificationOptions,
+) -> DVector<f64> {
+    let mut rows = Vec::with_capacity(measurements.len() * 6);
+    let mut cached: Option<(&[f64], Vec<Pose>)> = None;
+    for (i, m) in measurements.iter().enumerate() {
+        if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
+            cached = Some((m.q.as_slice(), model.tool_poses(&m.q)));
+        }
+        let Some(predicted) = cached.as_ref().and_then(|(_, p)| p.get(m.tool)) else {
+            continue;
+        };
+        let w = weights.get(i).copied().unwrap_or(1.0).max(0.0).sqrt();
+        match &m.observation {
+            Observation::Pose(measured) => {
+                let e = pose_error(measured, predicted);
+                for k in 0..6 {
+                    let sigma = if k < 3 {
+                        options.position_sigma
+                    } else {
+                        options.rotation_sigma
+                    };
+                    rows.push(w * e[k] / sigma);
+                }
+            }
+            Observation::Position(p) => {
+                let d = p - predicted.translation.vector;
+                rows.extend(d.iter().map(|v| w * v / options.position_sigma));
+            }
+        }
+    }
+    DVector::from_vec(rows)
+}

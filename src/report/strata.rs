@@ -1,0 +1,141 @@
+//! The validation figures of a calibration by stratum: rows that repeat an identification
+//! posture, new postures inside the identification joint ranges, postures outside them, all
+//! rows together, and the worst row (`report.json` `"validation_strata"`, report.md).
+
+use super::calibrate::ArmReport;
+use crate::calibration::validation::Stratum;
+use serde::Serialize;
+use std::fmt::Write;
+
+/// The position error of one group of validation rows, after calibration.
+#[derive(Debug, Clone, Serialize)]
+pub struct StratumFigures {
+    /// `repeat`, `inside`, `outside`, or `all`.
+    pub stratum: String,
+    /// In words.
+    pub description: String,
+    /// Rows in the group (every row counts, outliers included).
+    pub observations: usize,
+    /// RMS position error (mm); `None` for an empty group.
+    pub rms_position_mm: Option<f64>,
+    /// Largest position error (mm); `None` for an empty group.
+    pub max_position_mm: Option<f64>,
+}
+
+/// The validation row with the largest position error after calibration.
+#[derive(Debug, Clone, Serialize)]
+pub struct WorstRow {
+    /// The row's id.
+    pub id: String,
+    /// Its index in the validation data (for renaming).
+    #[serde(skip)]
+    pub index: usize,
+    /// The tool observed.
+    pub tool: String,
+    /// Its stratum.
+    pub stratum: Option<Stratum>,
+    /// Its position error after calibration (mm).
+    pub position_mm: f64,
+    /// Whether the robust loss names it an outlier.
+    pub outlier: bool,
+}
+
+/// The validation figures by stratum and the worst row.
+#[derive(Debug, Clone, Serialize)]
+pub struct ValidationStrata {
+    /// `all`, then `repeat`, `inside`, `outside`.
+    pub strata: Vec<StratumFigures>,
+    /// The worst row.
+    pub worst: Option<WorstRow>,
+}
+
+fn figures(stratum: &str, description: &str, errors: &[f64]) -> StratumFigures {
+    let n = errors.len();
+    StratumFigures {
+        stratum: stratum.to_owned(),
+        description: description.to_owned(),
+        observations: n,
+        rms_position_mm: (n > 0)
+            .then(|| (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt()),
+        max_position_mm: (n > 0).then(|| errors.iter().copied().fold(0.0, f64::max)),
+    }
+}
+
+impl ValidationStrata {
+    /// The strata of the validation `arms` (every row carries its stratum); `None` without
+    /// validation rows.
+    pub fn of(arms: &[ArmReport]) -> Option<Self> {
+        let rows: Vec<(&ArmReport, &super::calibrate::RowErrors)> = arms
+            .iter()
+            .flat_map(|a| a.rows.iter().map(move |r| (a, r)))
+            .collect();
+        if rows.is_empty() {
+            return None;
+        }
+        let errors = |keep: &dyn Fn(Option<Stratum>) -> bool| -> Vec<f64> {
+            rows.iter()
+                .filter(|(_, r)| keep(r.stratum))
+                .map(|(_, r)| r.position_mm.after)
+                .collect()
+        };
+        let mut strata = vec![figures("all", "every validation row", &errors(&|_| true))];
+        for stratum in [Stratum::Repeat, Stratum::Inside, Stratum::Outside] {
+            strata.push(figures(
+                stratum.as_str(),
+                stratum.describe(),
+                &errors(&|s| s == Some(stratum)),
+            ));
+        }
+        let worst = rows
+            .iter()
+            .max_by(|a, b| a.1.position_mm.after.total_cmp(&b.1.position_mm.after))
+            .map(|(arm, row)| WorstRow {
+                id: row.id.clone(),
+                index: row.index,
+                tool: arm.tool.clone(),
+                stratum: row.stratum,
+                position_mm: row.position_mm.after,
+                outlier: row.outlier,
+            });
+        Some(Self { strata, worst })
+    }
+
+    /// The markdown paragraph and table.
+    pub fn markdown(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "### Validation by stratum (every row counted, position after calibration)\n"
+        );
+        let _ = writeln!(out, "| rows | n | RMS (mm) | max (mm) |");
+        let _ = writeln!(out, "|---|---|---|---|");
+        let mm = |v: Option<f64>| v.map_or_else(|| "—".to_owned(), |v| format!("{v:.4}"));
+        for s in &self.strata {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} |",
+                s.description,
+                s.observations,
+                mm(s.rms_position_mm),
+                mm(s.max_position_mm)
+            );
+        }
+        out.push('\n');
+        if let Some(w) = &self.worst {
+            let _ = writeln!(
+                out,
+                "Worst validation row: {} ({}, {}{}): {:.4} mm.\n",
+                w.id,
+                w.tool,
+                w.stratum.map_or("—", Stratum::describe),
+                if w.outlier {
+                    ", marked as an outlier"
+                } else {
+                    ""
+                },
+                w.position_mm
+            );
+        }
+        out
+    }
+}

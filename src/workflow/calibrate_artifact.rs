@@ -1,0 +1,466 @@
+//! The outputs of `calibrate` validated as written: the exported URDF text is re-read and
+//! scored on every validation row alone (with the written registration when the frame was
+//! fitted) and with its compensation file; when the URDF alone is worse than the registered
+//! nominal robot, the best rigid-only geometry (fitted to what the compensated model predicts
+//! at the identification configurations) is exported instead, and the compensated geometry
+//! is kept beside it (`docs/calibration.md`, "Outputs").
+
+use super::calibrate::{CalibrateConfig, GravityFrame};
+use super::calibrate_steps::{Data, Identified, Loaded};
+use super::source::StiffnessSource;
+use crate::calibration::{calibrate as run_plan, ChosenFrame, Compensation, ErrorSummary, Finding};
+use crate::error::{Error, Result};
+use crate::io::{parse_registration, parse_stiffness};
+use crate::kinematics::{FlexibilityModel, McpcModel, Stiffness};
+use crate::math::{rpy_from_rotation, Pose};
+use crate::measurement::{Measurement, Observation};
+use crate::report::artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
+use crate::tree::{detect_branches, KinematicTree};
+use crate::urdf::{export_urdf_with, parse_urdf, ExportOptions, ExportReport};
+
+/// The registration `calibrate` writes when it fits the measurement frame.
+pub const REGISTRATION_FILE: &str = "registration.yaml";
+
+/// The calibrated geometry to use with the compensation file, when `calibrated.urdf` holds
+/// the rigid-only geometry instead.
+pub const COMPENSATED_URDF: &str = "calibrated_compensated.urdf";
+
+/// What the artifact step decided and found.
+pub(super) struct Artifact {
+    /// The report block.
+    pub report: ArtifactReport,
+    /// `registration.yaml`, when the frame was fitted.
+    pub registration: Option<String>,
+    /// The URDF to write as `calibrated.urdf` when it is not the export's (the rigid-only
+    /// geometry), and the export's text to write as [`COMPENSATED_URDF`].
+    pub replaced: Option<(ExportReport, String)>,
+    /// Findings for the verdict.
+    pub findings: Vec<Finding>,
+}
+
+/// `world_from_base` as a registration file `--measurement-frame FILE` reads, in m and rad
+/// at full precision.
+pub fn registration_text(world_from_base: &Pose, robot: &str) -> String {
+    let t = world_from_base.translation.vector;
+    let rpy = rpy_from_rotation(&world_from_base.rotation);
+    format!(
+        "# Robot '{robot}': where calibrated.urdf's root link frame is in the measurement (tracker) frame,\n# fitted by `treecal calibrate`. calibrated.urdf + this file reproduce the validation figures of\n# report.md; `treecal calibrate --measurement-frame registration.yaml` reads it.\nunits: {{length: m, angle: rad}}\nxyz: [{:?}, {:?}, {:?}]\nrpy: [{:?}, {:?}, {:?}]\n",
+        t.x, t.y, t.z, rpy[0], rpy[1], rpy[2]
+    )
+}
+
+/// The compensation file the outputs go with: the user's `--stiffness` file, or the
+/// `stiffness.yaml` text `--identify-stiffness` writes.
+pub(super) enum CompensationFile<'a> {
+    /// The user's file (read again against the exported URDF).
+    Source(&'a StiffnessSource),
+    /// `stiffness.yaml` as written.
+    Written(&'a str),
+}
+
+impl CompensationFile<'_> {
+    /// How the report names it.
+    fn name(&self) -> String {
+        match self {
+            CompensationFile::Source(source) => source.origin(),
+            CompensationFile::Written(_) => "stiffness.yaml".into(),
+        }
+    }
+
+    /// The stiffness for the exported `tree` and its `model`.
+    fn read(&self, tree: &KinematicTree, model: &McpcModel) -> Result<Stiffness> {
+        match self {
+            CompensationFile::Source(source) => source.read(tree, model),
+            CompensationFile::Written(text) => parse_stiffness(text, "stiffness.yaml", tree, model),
+        }
+    }
+}
+
+/// How the outputs are scored: the URDF text, the frame it sits in, the exported link of each
+/// model tool, and the flexibility (stiffness and gravity frame) to predict deflections with.
+struct Scoring<'a> {
+    loaded: &'a Loaded,
+    world_from_base: Pose,
+    export: &'a ExportReport,
+}
+
+impl Scoring<'_> {
+    /// The exported link scored for the model's tool `tool`: the added `<tool>_calibrated`
+    /// link when the export added one, else the tool link.
+    fn scored_link(&self, tool: usize) -> String {
+        let tree = self.loaded.robot.tree();
+        let name = &tree.link(self.loaded.nominal.tools()[tool].link).name;
+        self.export
+            .added_links
+            .iter()
+            .find(|a| &a.tool == name)
+            .map_or_else(|| name.clone(), |a| a.link.clone())
+    }
+
+    /// The validation error of the URDF text `urdf` (the files named `files`), rigid or with
+    /// `flexibility`'s stiffness and gravity predicting the deflections.
+    fn score(
+        &self,
+        urdf: &str,
+        files: &str,
+        measurements: &[Measurement],
+        compensation: Option<&CompensationFile<'_>>,
+        gravity: GravityFrame,
+    ) -> Result<ArtifactScore> {
+        let import = parse_urdf(urdf, files)?;
+        let tree = &import.tree;
+        let original = self.loaded.robot.tree();
+        let dof_of = dof_map(original, tree, files)?;
+        let tools = self.loaded.nominal.tools();
+        let tool_links = tools
+            .iter()
+            .map(|t| tree.link_id(&original.link(t.link).name))
+            .collect::<Result<Vec<_>>>()?;
+        let scored = (0..tools.len())
+            .map(|t| tree.link_id(&self.scored_link(t)))
+            .collect::<Result<Vec<_>>>()?;
+        let deflected = match compensation {
+            Some(file) => {
+                let branches = detect_branches(tree, Some(&tool_links))?;
+                let mut model = McpcModel::from_tree(tree, &branches)?;
+                model.set_world_from_base(&self.world_from_base);
+                let stiffness = file.read(tree, &model)?;
+                let flexibility = FlexibilityModel::new(tree, &model, &stiffness)?;
+                let flexibility = match gravity {
+                    GravityFrame::Measurement => flexibility.with_gravity_in_measurement_frame(),
+                    GravityFrame::Base => flexibility,
+                };
+                Some((model, flexibility))
+            }
+            None => None,
+        };
+        let (mut position, mut orientation) = (Vec::new(), Vec::new());
+        for m in measurements {
+            let q: Vec<f64> = dof_of.iter().map(|&d| m.q[d]).collect();
+            let link_pose = tree.link_pose(scored[m.tool], &q)?;
+            let pose = match &deflected {
+                None => self.world_from_base * link_pose,
+                Some((model, flexibility)) => {
+                    let tool = model
+                        .tool_of_link(tool_links[m.tool])
+                        .ok_or_else(|| invalid(files, "a measured tool is not a tool"))?;
+                    let deflected = flexibility
+                        .for_payload(m.payload)?
+                        .deflected_tool_poses(tree, model, &q)?[tool];
+                    // The scored link rides rigidly on the tool link.
+                    let tool_from_scored =
+                        tree.link_pose(tool_links[m.tool], &q)?.inverse() * link_pose;
+                    deflected * tool_from_scored
+                }
+            };
+            match &m.observation {
+                Observation::Pose(measured) => {
+                    position
+                        .push((measured.translation.vector - pose.translation.vector).norm() * 1e3);
+                    orientation.push(measured.rotation.angle_to(&pose.rotation).to_degrees());
+                }
+                Observation::Position(p) => {
+                    position.push((p - pose.translation.vector).norm() * 1e3);
+                }
+            }
+        }
+        Ok(ArtifactScore {
+            files: files.to_owned(),
+            observations: position.len(),
+            errors: ErrorSummary::of(&position, &orientation),
+        })
+    }
+}
+
+fn invalid(origin: &str, message: &str) -> Error {
+    Error::InvalidData {
+        origin: origin.to_owned(),
+        message: message.to_owned(),
+    }
+}
+
+/// For each independent joint of `exported`, the index of the same joint in `original`'s
+/// configuration vector.
+fn dof_map(original: &KinematicTree, exported: &KinematicTree, origin: &str) -> Result<Vec<usize>> {
+    exported
+        .dofs()
+        .iter()
+        .map(|&joint| {
+            let name = &exported.joint(joint).name;
+            original
+                .dofs()
+                .iter()
+                .position(|&j| &original.joint(j).name == name)
+                .ok_or_else(|| invalid(origin, &format!("joint '{name}' is not in the robot")))
+        })
+        .collect()
+}
+
+/// The rigid model closest to what the compensated model predicts at the identification
+/// configurations: the plan run on those predictions, without compensation.
+fn rigid_equivalent(
+    loaded: &Loaded,
+    identified: &Identified,
+    flexibility: &FlexibilityModel,
+    measurements: &[Measurement],
+) -> Result<McpcModel> {
+    let model = &identified.run.report.model;
+    let tree = loaded.robot.tree();
+    let predicted = measurements
+        .iter()
+        .map(|m| {
+            let pose = flexibility
+                .for_payload(m.payload)?
+                .deflected_tool_poses(tree, model, &m.q)?[m.tool];
+            let observation = match m.observation {
+                Observation::Pose(_) => Observation::Pose(pose),
+                Observation::Position(_) => Observation::Position(pose.translation.vector),
+            };
+            Ok(Measurement {
+                observation,
+                ..m.clone()
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let options = crate::calibration::IdentificationOptions {
+        observation_weights: Vec::new(),
+        ..identified.options.clone()
+    };
+    Ok(run_plan(
+        &loaded.branches,
+        model,
+        &predicted,
+        Compensation::None,
+        &identified.plan,
+        &options,
+    )?
+    .model)
+}
+
+/// The registered nominal robot's validation error (the run's "before"), over every row.
+fn registered_nominal(identified: &Identified) -> Option<ArtifactScore> {
+    let arms = &identified.run.validation;
+    let position: Vec<f64> = arms.iter().flat_map(|a| a.position_mm[0].clone()).collect();
+    let orientation: Vec<f64> = arms
+        .iter()
+        .flat_map(|a| a.orientation_deg[0].clone())
+        .collect();
+    (!position.is_empty()).then(|| ArtifactScore {
+        files: "the nominal URDF, registered (\"before\")".into(),
+        observations: position.len(),
+        errors: ErrorSummary::of(&position, &orientation),
+    })
+}
+
+/// What the data cannot see with a fitted frame: the exported root against the registered
+/// nominal robot's root, and how far that moves the tool positions in the root frame.
+fn unobservable_base(loaded: &Loaded, identified: &Identified, data: &Data) -> UnobservableBase {
+    let run = &identified.run;
+    let calibrated = run.report.model.world_from_base();
+    let registered = run.baseline.world_from_base();
+    let root_change = registered.inverse() * calibrated;
+    let mut shifts: Vec<f64> = data
+        .measurements
+        .iter()
+        .map(|m| {
+            let p = run.report.model.tool_poses(&m.q)[m.tool].translation.vector;
+            let in_root = calibrated.inverse_transform_point(&p.into());
+            (root_change.transform_point(&in_root) - in_root).norm() * 1e3
+        })
+        .collect();
+    shifts.sort_by(f64::total_cmp);
+    let tree = loaded.robot.tree();
+    let first: Vec<String> = run
+        .report
+        .model
+        .frames()
+        .iter()
+        .filter(|f| f.parent.is_none())
+        .map(|f| tree.joint(f.joint).name.clone())
+        .collect();
+    UnobservableBase {
+        transform: format!(
+            "the transform from the robot's base link '{}' to its first joint{} ({})",
+            tree.link(crate::tree::LinkId(0)).name,
+            if first.len() == 1 { "" } else { "s" },
+            first.join(", ")
+        ),
+        translation_mm: root_change.translation.vector.norm() * 1e3,
+        rotation_deg: root_change.rotation.angle().to_degrees(),
+        tool_shift_mm: [
+            shifts.first().copied().unwrap_or(0.0),
+            shifts.last().copied().unwrap_or(0.0),
+        ],
+    }
+}
+
+/// Scores the outputs as written; with compensation and a URDF alone worse than the
+/// registered nominal robot, exports the rigid-only geometry instead.
+pub(super) fn assess(
+    config: &CalibrateConfig,
+    loaded: &Loaded,
+    data: &Data,
+    identified: &Identified,
+    export: Option<&ExportReport>,
+    compensation: Option<CompensationFile<'_>>,
+) -> Result<Artifact> {
+    let compensation_name = compensation.as_ref().map(CompensationFile::name);
+    let compensation_file = compensation_name.as_deref();
+    let run = &identified.run;
+    let fitted = run.frame.chosen == ChosenFrame::Fitted;
+    let world_from_base = run.report.model.world_from_base();
+    let robot = loaded.robot.tree().name();
+    let registration = fitted.then(|| registration_text(&world_from_base, robot));
+    let frame = match &registration {
+        Some(text) => parse_registration(text, REGISTRATION_FILE)?,
+        None => world_from_base,
+    };
+    let registered = registered_nominal(identified);
+    let unobservable = fitted.then(|| unobservable_base(loaded, identified, data));
+    let mut findings: Vec<Finding> = unobservable.iter().map(unobservable_finding).collect();
+    let mut report = ArtifactReport {
+        registration: registration.as_ref().map(|_| REGISTRATION_FILE.to_owned()),
+        urdf_alone: None,
+        with_compensation: None,
+        registered_nominal: registered.clone(),
+        how_to_use: String::new(),
+        unobservable_base: unobservable,
+    };
+    let (Some(export), false) = (export, data.validation.is_empty()) else {
+        report.how_to_use = how_to_use(fitted, None, false);
+        return Ok(Artifact {
+            report,
+            registration,
+            replaced: None,
+            findings,
+        });
+    };
+    let with_registration = |urdf: &str| {
+        if fitted {
+            format!("{urdf} + {REGISTRATION_FILE}")
+        } else {
+            urdf.to_owned()
+        }
+    };
+    let scoring = Scoring {
+        loaded,
+        world_from_base: frame,
+        export,
+    };
+    // Rows of other sessions are placed in the training frame, as the run scored them.
+    let validation = &crate::calibration::sessions::validation_in_training_frames(
+        &data.validation,
+        run.sessions.as_ref(),
+    );
+    let gravity = config.gravity_frame;
+    let alone_name = with_registration("calibrated.urdf");
+    let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;
+    let mut replaced = None;
+    let before = registered.as_ref().map(|r| r.errors.rms_position_mm);
+    if let (Some(flexibility), Some(file), Some(source)) = (
+        &identified.flexibility,
+        compensation_file,
+        compensation.as_ref(),
+    ) {
+        let worse = before.is_some_and(|b| alone.errors.rms_position_mm > b);
+        let compensated_name = if worse {
+            COMPENSATED_URDF
+        } else {
+            "calibrated.urdf"
+        };
+        report.with_compensation = Some(scoring.score(
+            &export.urdf,
+            &format!("{} + {file}", with_registration(compensated_name)),
+            validation,
+            Some(source),
+            gravity,
+        )?);
+        if worse {
+            let rigid = rigid_equivalent(loaded, identified, flexibility, &data.measurements)?;
+            let tree = loaded.robot.tree();
+            let std_devs = vec![None; rigid.parameter_count()];
+            let options =
+                ExportOptions::with_uncertainty(tree, &rigid, &std_devs, config.add_tool_links);
+            let rigid_export = export_urdf_with(
+                &loaded.robot.text,
+                &loaded.robot.origin,
+                tree,
+                &rigid,
+                &options,
+            )?;
+            let rigid_scoring = Scoring {
+                export: &rigid_export,
+                ..scoring
+            };
+            let rigid_alone =
+                rigid_scoring.score(&rigid_export.urdf, &alone_name, validation, None, gravity)?;
+            findings.push(Finding::note(
+                "rigid-only-urdf",
+                format!(
+                    "the calibrated geometry used without its compensation file is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({:.3} mm alone); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({:.3} mm)",
+                    alone.errors.rms_position_mm,
+                    before.unwrap_or(f64::NAN),
+                    rigid_alone.errors.rms_position_mm,
+                    report.with_compensation.as_ref().map_or(f64::NAN, |s| s.errors.rms_position_mm),
+                ),
+            ));
+            replaced = Some((rigid_export, export.urdf.clone()));
+            alone = rigid_alone;
+        }
+    }
+    if let Some(b) = before.filter(|&b| alone.errors.rms_position_mm > b) {
+        findings.push(Finding::warning(
+            "urdf-alone-worse",
+            format!(
+                "calibrated.urdf used alone ({}) is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({b:.3} mm): do not use it alone{}",
+                alone.files,
+                alone.errors.rms_position_mm,
+                compensation_file.map_or(String::new(), |f| format!("; it must accompany {f}"))
+            ),
+        ));
+    }
+    report.how_to_use = how_to_use(fitted, compensation_file, replaced.is_some());
+    report.urdf_alone = Some(alone);
+    Ok(Artifact {
+        report,
+        registration,
+        replaced,
+        findings,
+    })
+}
+
+/// The `unobservable-base` note.
+fn unobservable_finding(base: &UnobservableBase) -> Finding {
+    Finding::note(
+        "unobservable-base",
+        format!(
+            "the measurement frame was fitted, so {} cannot be seen: calibrated.urdf's root is the fitted (tracker-side) frame, not the physical base; it lies {:.2} mm and {:.3}° from the registered nominal robot's root, which moves the tool positions in the URDF's own root frame by {:.2}–{:.2} mm over the measured configurations. Use calibrated.urdf with {REGISTRATION_FILE} (written beside it; --measurement-frame {REGISTRATION_FILE} reads it) to reproduce the validated figures, or measure in the robot's base frame",
+            base.transform,
+            base.translation_mm,
+            base.rotation_deg,
+            base.tool_shift_mm[0],
+            base.tool_shift_mm[1]
+        ),
+    )
+}
+
+/// How a user applies the outputs, in words.
+fn how_to_use(fitted: bool, compensation_file: Option<&str>, rigid_only: bool) -> String {
+    let mut text = String::from("calibrated.urdf replaces the robot's URDF");
+    if fitted {
+        text.push_str(&format!(
+            "; its root link sits at {REGISTRATION_FILE} in the measurement frame (to compare with tracker data, place the root there)"
+        ));
+    }
+    match (compensation_file, rigid_only) {
+        (Some(file), true) => text.push_str(&format!(
+            ". It holds the rigid-only geometry (for controllers that do not model deflections); {COMPENSATED_URDF} with {file} predicts the deflections under gravity (treecal's flexibility model: the URDF, --stiffness {file}) and is the better prediction"
+        )),
+        (Some(file), false) => text.push_str(&format!(
+            ". Its geometry assumes the deflections under gravity are predicted with {file} (treecal's flexibility model: the URDF, --stiffness {file}); used alone it gives the \"alone\" figure"
+        )),
+        (None, _) => {}
+    }
+    text.push('.');
+    text
+}
