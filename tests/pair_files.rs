@@ -378,7 +378,11 @@ fn the_paired_csv_calibrates() {
     assert_success(&run, "calibrate");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["verdict"]["status"], "ok", "{run}");
+    // The logs come from the nominal robot, so there is nothing to correct: main's
+    // `urdf-alone-worse` check may warn on a tie (0.004 mm against 0.004 mm); the verdict must
+    // not fail, and the held-out error is the averaged tracker noise.
+    assert_ne!(report["verdict"]["status"], "failed", "{run}");
+    assert!(run.stdout.contains("RMS position error 0.00"), "{run}");
 }
 
 /// The CLI's refusals exit 1 and write nothing: an ambiguous offset (repetitive motion), and
