@@ -7,6 +7,7 @@ pub mod kinematics;
 pub mod limits;
 pub mod math;
 pub mod measurement;
+pub mod pairing;
 pub mod report;
 mod serde_labels;
 pub mod sim;

@@ -1,8 +1,11 @@
-//! Reading and writing data files (YAML, CSV): the only users of serde_yaml and csv.
+//! Reading and writing data files (YAML, CSV, MCAP): the only users of serde_yaml, csv and
+//! mcap.
 
 pub mod bounded;
 mod collada;
 mod csv_scan;
+pub mod joint_log;
+pub mod joint_log_mcap;
 pub mod joints_csv;
 pub mod mcpc_table;
 pub mod measurement_table;
@@ -10,17 +13,21 @@ pub mod measurements_csv;
 pub mod mesh_files;
 pub mod observations;
 pub mod output_lock;
+pub mod paired_csv;
 pub mod params;
 pub mod plan;
 pub mod poses_csv;
 pub mod registration;
+pub mod ros_joint_state;
 pub mod stiffness;
 pub mod stiffness_write;
+pub mod tracker_log;
 pub mod units;
 pub mod write;
 mod yaml;
 
 pub use bounded::{read_bytes, read_text};
+pub use joint_log::{parse_joint_log_csv, read_joint_log, JointLog, JointLogOptions};
 pub use joints_csv::{
     append_poses, configurations, joint_value, parse_csv, ColumnMapping, CsvTable,
 };
@@ -36,6 +43,7 @@ pub use mesh_files::{
     mesh_file_loader, mesh_vertices, package_dirs, read_mesh_vertices, resolve_mesh,
 };
 pub use output_lock::OutputLock;
+pub use paired_csv::{paired_measurements_to_csv, PairedRow};
 pub use params::{
     parse_parameters, read_parameter_file_robot, read_parameters, ParameterFileRobot,
     ParameterValues,
@@ -45,6 +53,9 @@ pub use poses_csv::{planned_poses_to_csv, pose_rows, PoseSet};
 pub use registration::{parse_registration, read_registration};
 pub use stiffness::{parse_stiffness, read_stiffness};
 pub use stiffness_write::stiffness_to_yaml;
+pub use tracker_log::{
+    parse_tracker_log, read_tracker_log, TrackerColumns, TrackerLog, TrackerLogOptions,
+};
 pub use units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };

@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod check;
 pub mod inspect;
 pub mod outliers;
+pub mod pairing;
 pub mod plot;
 pub mod sessions;
 pub mod simulate;
@@ -18,6 +19,7 @@ pub use calibrate::{
 pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use inspect::{inspect, InspectReport};
 pub use outliers::{outlier_rows, OutlierRow, RobustSummary};
+pub use pairing::{pairing_markdown, PairingReport};
 pub use sessions::{sessions_markdown, sessions_summary, SessionsSummary};
 pub use simulate::{simulation_results, SimulationResults, RESULTS_SCHEMA};
 pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};

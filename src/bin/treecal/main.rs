@@ -12,6 +12,7 @@ mod fk;
 mod from_mcpc;
 mod inspect;
 mod output;
+mod pair;
 mod plan;
 mod progress;
 mod simulate;
@@ -32,6 +33,7 @@ fn main() -> ExitCode {
         cli::Command::Export(a) => export::run(a),
         cli::Command::Check(a) => check::run(a),
         cli::Command::Plan(a) => plan::run(a),
+        cli::Command::Pair(a) => pair::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
