@@ -408,7 +408,7 @@ pub(super) fn assess(
             alone = rigid_alone;
         }
     }
-    if let Some(b) = before.filter(|&b| alone.errors.rms_position_mm > b) {
+    if let Some(b) = before.filter(|&b| clearly_worse(alone.errors.rms_position_mm, b)) {
         findings.push(Finding::warning(
             "urdf-alone-worse",
             format!(
@@ -427,6 +427,14 @@ pub(super) fn assess(
         replaced,
         findings,
     })
+}
+
+/// Whether an RMS error (mm) is worse than the registered nominal robot's beyond what the
+/// noise of fitting moves it: more than 5 % and more than 0.01 mm (a tracker's noise floor). A
+/// tie — the nominal robot already exact and the calibration fitting only noise — is not worse
+/// (no warning); the rigid-only replacement above still acts on any excess.
+fn clearly_worse(rms_mm: f64, nominal_mm: f64) -> bool {
+    rms_mm > 1.05 * nominal_mm && rms_mm - nominal_mm > 0.01
 }
 
 /// The `unobservable-base` note.
