@@ -190,18 +190,7 @@ fn exchange(_: &Path, _: &Path) -> std::io::Result<bool> {
 mod tests {
     use super::*;
 
-    fn names(folder: &Path) -> Vec<String> {
-        let mut names: Vec<String> = std::fs::read_dir(folder)
-            .map(|entries| {
-                entries
-                    .filter_map(|e| e.ok())
-                    .map(|e| e.file_name().to_string_lossy().into_owned())
-                    .collect()
-            })
-            .unwrap_or_default();
-        names.sort();
-        names
-    }
+    use crate::io::write::tests::names;
 
     #[test]
     fn a_second_lock_is_refused_and_a_dropped_one_leaves_nothing() -> std::io::Result<()> {

@@ -215,14 +215,16 @@ fn parent_of(path: &Path) -> std::path::PathBuf {
 }
 
 #[cfg(test)]
-mod tests {
+pub(in crate::io) mod tests {
     use super::*;
 
     fn ours(name: &str) -> bool {
         name.ends_with(".txt")
     }
 
-    fn names(folder: &Path) -> Vec<String> {
+    /// The entries of `folder`, sorted (empty when it cannot be read); shared with
+    /// `output_lock`'s tests.
+    pub(in crate::io) fn names(folder: &Path) -> Vec<String> {
         let mut names: Vec<String> = std::fs::read_dir(folder)
             .map(|entries| {
                 entries
