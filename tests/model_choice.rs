@@ -8,7 +8,7 @@ use crate::common::cli::*;
 use crate::common::*;
 use rand::RngExt;
 use treecal::calibration::{
-    calibrate, Compensation, IdentificationOptions, MeasurementFrame, Plan, Prior,
+    calibrate, CalibrationInput, Compensation, IdentificationOptions, MeasurementFrame, Plan, Prior,
 };
 use treecal::kinematics::{GravitySigns, JointErrorTerms, McpcModel};
 use treecal::measurement::{Measurement, Observation};
@@ -366,13 +366,15 @@ fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
     let plan = Plan::simultaneous();
     let patterns = ParameterPatterns::default();
     let input = CrossValidationInput {
-        tree: &tree,
-        branches: &branches,
-        nominal: &nominal,
-        flexibility: None,
-        plan: &plan,
-        options: &options,
-        measurement_frame: MeasurementFrame::Base,
+        calibration: CalibrationInput {
+            tree: &tree,
+            branches: &branches,
+            nominal: &nominal,
+            flexibility: None,
+            plan: &plan,
+            options: &options,
+            measurement_frame: MeasurementFrame::Base,
+        },
         patterns: &patterns,
     };
     let list = vec![

@@ -333,13 +333,15 @@ fn choose_model(
     }
     let tree = loaded.robot.tree();
     let input = CrossValidationInput {
-        tree,
-        branches: &loaded.branches,
-        nominal: &loaded.nominal,
-        flexibility,
-        plan,
-        options,
-        measurement_frame: loaded.frame,
+        calibration: CalibrationInput {
+            tree,
+            branches: &loaded.branches,
+            nominal: &loaded.nominal,
+            flexibility,
+            plan,
+            options,
+            measurement_frame: loaded.frame,
+        },
         patterns: &config.patterns,
     };
     let mut list = candidates(tree, &loaded.nominal, flexibility.is_some());

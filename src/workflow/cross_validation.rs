@@ -5,11 +5,11 @@
 use super::model_choice::{
     grouped_folds, position_errors, prepare, run_model, ModelLevel, ModelSpec, ParameterPatterns,
 };
-use crate::calibration::{CalibrationInput, IdentificationOptions, MeasurementFrame, Plan};
+use crate::calibration::CalibrationInput;
 use crate::error::Result;
-use crate::kinematics::{FlexibilityModel, GravitySigns, McpcModel};
+use crate::kinematics::{GravitySigns, McpcModel};
 use crate::measurement::Measurement;
-use crate::tree::{Branches, KinematicTree};
+use crate::tree::KinematicTree;
 
 /// The default number of folds of `--model auto` without `--cv`.
 pub const DEFAULT_FOLDS: usize = 5;
@@ -17,20 +17,10 @@ pub const DEFAULT_FOLDS: usize = 5;
 /// What the cross-validation works on.
 #[derive(Clone, Copy)]
 pub struct CrossValidationInput<'a> {
-    /// The robot.
-    pub tree: &'a KinematicTree,
-    /// Its measured branches.
-    pub branches: &'a Branches,
-    /// The nominal MCPC model (no extra parameters).
-    pub nominal: &'a McpcModel,
-    /// The flexibility model, if a stiffness is in play.
-    pub flexibility: Option<&'a FlexibilityModel>,
-    /// The plan.
-    pub plan: &'a Plan,
-    /// The identification options (σ's, robust loss).
-    pub options: &'a IdentificationOptions,
-    /// How the measurement frame is found.
-    pub measurement_frame: MeasurementFrame,
+    /// The robot, its nominal model (no extra parameters), the flexibility model if a
+    /// stiffness is in play, the plan, the identification options and the measurement frame:
+    /// what every fold's calibration runs on.
+    pub calibration: CalibrationInput<'a>,
     /// `--freeze` / `--free`.
     pub patterns: &'a ParameterPatterns,
 }
@@ -167,20 +157,17 @@ fn evaluate(
 ) -> Result<CvRow> {
     let prepared = prepare(
         spec,
-        input.tree,
-        input.nominal,
-        input.options,
+        input.calibration.tree,
+        input.calibration.nominal,
+        input.calibration.options,
         input.patterns,
     )?;
     let parameters = prepared.nominal.parameter_count() - prepared.options.frozen.len();
     let calibration = CalibrationInput {
-        tree: input.tree,
-        branches: input.branches,
         nominal: &prepared.nominal,
-        flexibility: input.flexibility.filter(|_| spec.compensate),
-        plan: input.plan,
+        flexibility: input.calibration.flexibility.filter(|_| spec.compensate),
         options: &prepared.options,
-        measurement_frame: input.measurement_frame,
+        ..input.calibration
     };
     let mut errors = Vec::new();
     for fold in folds.iter().filter(|f| !f.is_empty()) {
