@@ -56,6 +56,16 @@ impl Prior {
         }
     }
 
+    /// The same prior with every σ multiplied by `factor` (> 0; else unchanged).
+    pub fn scaled(mut self, factor: f64) -> Self {
+        if factor.is_finite() && factor > 0.0 {
+            for sigma in &mut self.sigma {
+                *sigma *= factor;
+            }
+        }
+        self
+    }
+
     /// The same prior for a reduced model whose first `shared` parameters are this one's
     /// (a coupled stage: the torso frames), with `count` parameters in all.
     pub fn for_reduced_model(&self, shared: usize, count: usize) -> Self {

@@ -7,7 +7,7 @@
 use super::calibrate_outputs::outputs;
 use super::calibrate_steps::{check_config, export_calibrated, identify, read_data, Loaded};
 use super::checks::{check_outputs, Output};
-use super::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
+use super::model_choice::{ModelChoice, ParameterPatterns};
 use super::note::Note;
 use super::source::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
 use crate::calibration::{
@@ -110,6 +110,8 @@ pub struct CalibrateConfig {
     pub backlash: bool,
     /// The default Gaussian prior on the nominal values (`--prior`).
     pub prior: bool,
+    /// The prior's σ times this (`--prior-scale`; 1: the documented defaults).
+    pub prior_scale: f64,
     /// Keep only the corrections of at least this many standard deviations (`--significant`).
     pub significant: Option<f64>,
     /// `--freeze` and `--free` patterns.
@@ -171,10 +173,11 @@ impl Default for CalibrateConfig {
             stiffness_prior: 0.5,
             gravity_frame: GravityFrame::Measurement,
             add_tool_links: false,
-            model: ModelChoice::Level(ModelLevel::Geometry),
+            model: ModelChoice::Adaptive,
             harmonics: false,
             backlash: false,
             prior: false,
+            prior_scale: 1.0,
             significant: None,
             patterns: ParameterPatterns::default(),
             cv: None,

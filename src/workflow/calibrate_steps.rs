@@ -8,7 +8,9 @@ use super::cross_validation::{
     CrossValidationInput, DEFAULT_FOLDS,
 };
 use super::export::export_notes;
-use super::model_choice::{prepare, run_model, ModelChoice, ModelLevel, ModelSpec};
+use super::model_choice::{
+    prepare, run_model, shows_model_error, ModelChoice, ModelLevel, ModelSpec,
+};
 use super::note::Note;
 use super::source::{add_measured_points, measured_branches, LoadedRobot, MeasuredPoints};
 use crate::calibration::{
@@ -42,6 +44,13 @@ pub(super) fn check_config(config: &CalibrateConfig) -> Result<()> {
         return Err(invalid(
             "--stiffness-prior",
             format!("{prior} must be a positive number"),
+        ));
+    }
+    let scale = config.prior_scale;
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(invalid(
+            "--prior-scale",
+            format!("{scale} must be a positive number (1: the default σ)"),
         ));
     }
     Ok(())
@@ -216,42 +225,77 @@ pub(super) fn identify(
         robust: config.robust,
         ..IdentificationOptions::default()
     };
-    let (spec, cross_validation) = choose_model(
-        config,
-        loaded,
-        flexibility.as_ref(),
-        &plan,
-        &options,
-        &data.measurements,
-    )?;
+    let choose = |model| {
+        choose_model(
+            config,
+            model,
+            loaded,
+            flexibility.as_ref(),
+            &plan,
+            &options,
+            &data.measurements,
+        )
+    };
+    let (mut spec, mut cross_validation) = choose(config.model)?;
+    let fit = |spec: &ModelSpec| -> Result<(CalibrationRun, IdentificationOptions, McpcModel)> {
+        let prepared = prepare(spec, tree, &loaded.nominal, &options, &config.patterns)?;
+        let input = CalibrationInput {
+            tree,
+            branches: &loaded.branches,
+            nominal: &prepared.nominal,
+            flexibility: flexibility.as_ref().filter(|_| spec.compensate),
+            plan: &plan,
+            options: &prepared.options,
+            measurement_frame: loaded.frame,
+        };
+        let run = run_model(
+            &input,
+            spec.significant,
+            &data.measurements,
+            &data.validation,
+        )?;
+        Ok((run, prepared.options, prepared.nominal))
+    };
+    let (mut run, mut options, mut nominal) = fit(&spec)?;
+    // The default: the full geometry, unless its fit shows model error; then as `auto`.
+    let adaptive = config.model == ModelChoice::Adaptive && shows_model_error(&run);
+    if adaptive {
+        let chosen = match &cross_validation {
+            Some(cv) => (
+                cv.chosen.map_or(spec, |i| cv.rows[i].spec),
+                cross_validation.clone(),
+            ),
+            None => choose(ModelChoice::Auto)?,
+        };
+        if chosen.0 != spec {
+            (run, options, nominal) = fit(&chosen.0)?;
+        }
+        (spec, cross_validation) = chosen;
+    }
     notes.extend(cross_validation.as_ref().map(|cv| {
         Note::info(format!(
             "model: '{}' ({})",
             spec.name(),
-            if config.model == ModelChoice::Auto {
-                cv.reason.clone()
-            } else {
-                "as asked; --model auto would choose by the cross-validation in report.md".into()
+            match config.model {
+                ModelChoice::Auto => cv.reason.clone(),
+                ModelChoice::Adaptive if adaptive => format!(
+                    "the geometry fit leaves residuals over {}× the declared noise (model error), so the model is chosen by cross-validation: {}; --model geometry keeps the full geometry",
+                    crate::calibration::checks::SIGMA_WARNING,
+                    cv.reason
+                ),
+                _ => "as asked; --model auto would choose by the cross-validation in report.md".into(),
             }
         ))
     }));
-    let prepared = prepare(&spec, tree, &loaded.nominal, &options, &config.patterns)?;
-    let options = prepared.options;
     let input = CalibrationInput {
         tree,
         branches: &loaded.branches,
-        nominal: &prepared.nominal,
+        nominal: &nominal,
         flexibility: flexibility.as_ref().filter(|_| spec.compensate),
         plan: &plan,
         options: &options,
         measurement_frame: loaded.frame,
     };
-    let mut run = run_model(
-        &input,
-        spec.significant,
-        &data.measurements,
-        &data.validation,
-    )?;
     let mut identified = None;
     let mut final_flexibility = flexibility.clone().filter(|_| spec.compensate);
     if let (Some(prior), Some(stiffness), true) =
@@ -309,6 +353,7 @@ pub(super) fn identify(
 /// cross-validation table when asked (`--cv`) or needed (`--model auto`).
 fn choose_model(
     config: &CalibrateConfig,
+    model: ModelChoice,
     loaded: &Loaded,
     flexibility: Option<&FlexibilityModel>,
     plan: &crate::calibration::Plan,
@@ -320,13 +365,19 @@ fn choose_model(
         harmonics: config.harmonics,
         backlash: config.backlash,
         prior: config.prior,
+        prior_scale: config.prior_scale,
         significant: config.significant,
         compensate: true,
     };
-    let folds = match (config.model, config.cv) {
+    let level = match model {
+        ModelChoice::Level(level) => Some(level),
+        ModelChoice::Adaptive => Some(ModelLevel::Geometry),
+        ModelChoice::Auto => None,
+    };
+    let folds = match (level, config.cv) {
         (_, Some(k)) => k,
-        (ModelChoice::Auto, None) => DEFAULT_FOLDS,
-        (ModelChoice::Level(level), None) => return Ok((asked(level), None)),
+        (None, None) => DEFAULT_FOLDS,
+        (Some(level), None) => return Ok((asked(level), None)),
     };
     if folds < 2 {
         return Err(invalid("--cv", format!("{folds} folds: give at least 2")));
@@ -345,17 +396,17 @@ fn choose_model(
         patterns: &config.patterns,
     };
     let mut list = candidates(tree, &loaded.nominal, flexibility.is_some());
-    if let ModelChoice::Level(level) = config.model {
+    if let Some(level) = level {
         let mine = asked(level);
         if !list.contains(&mine) {
             list.insert(0, mine);
         }
     }
     let cv = cross_validate(&input, &list, measurements, folds, config.seed)?;
-    let spec = match (config.model, cv.chosen) {
-        (ModelChoice::Level(level), _) => asked(level),
-        (ModelChoice::Auto, Some(i)) => cv.rows[i].spec,
-        (ModelChoice::Auto, None) => asked(ModelLevel::Geometry),
+    let spec = match (level, cv.chosen) {
+        (Some(level), _) => asked(level),
+        (None, Some(i)) => cv.rows[i].spec,
+        (None, None) => asked(ModelLevel::Geometry),
     };
     Ok((spec, Some(cv)))
 }

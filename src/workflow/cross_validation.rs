@@ -68,8 +68,8 @@ pub fn candidates(tree: &KinematicTree, nominal: &McpcModel, stiffness: bool) ->
         prior,
         harmonics,
         backlash: with_backlash,
-        significant: None,
         compensate: stiffness,
+        ..ModelSpec::default()
     };
     let mut list = vec![
         spec(ModelLevel::Offsets, false, false, false),

@@ -2,6 +2,7 @@
 //! `--free`, `--prior`, `--joint-errors`), and the cross-validation that compares model
 //! levels (`--cv K`) and lets `--model auto` choose. See `docs/identification.md`.
 
+use crate::calibration::checks::{SIGMA_FAILED, SIGMA_WARNING};
 use crate::calibration::{
     run_calibration, CalibrationInput, CalibrationRun, IdentificationOptions, Prior,
 };
@@ -22,19 +23,39 @@ pub enum ModelLevel {
     Geometry,
 }
 
-/// `--model`: a level, or the one cross-validation prefers.
+/// `--model`: a level, the one cross-validation prefers, or (the default) the full geometry
+/// unless its fit shows model error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ModelChoice {
     /// One level.
     Level(ModelLevel),
     /// The candidate with the lowest cross-validated error ([`super::cross_validation::candidates`]).
-    #[default]
     Auto,
+    /// The full geometry; when its fit shows model error ([`shows_model_error`]: residuals
+    /// more than [`SIGMA_WARNING`] times the declared noise), the cross-validation's choice,
+    /// as `Auto`.
+    #[default]
+    Adaptive,
+}
+
+/// Whether a fit shows model error: some stage's residual scale σ̂ above
+/// [`SIGMA_WARNING`] and none above [`SIGMA_FAILED`] (a mistake such as a unit, not a model
+/// to choose: the verdict fails and says so).
+pub fn shows_model_error(run: &CalibrationRun) -> bool {
+    let scales: Vec<f64> = run
+        .report
+        .stages
+        .iter()
+        .map(|stage| &stage.identification)
+        .filter(|id| id.rows > id.free.len())
+        .map(|id| id.residual_scale)
+        .collect();
+    scales.iter().any(|s| *s > SIGMA_WARNING) && scales.iter().all(|s| *s <= SIGMA_FAILED)
 }
 
 /// One model: a level, joint-angle error terms, the prior, and whether only the corrections
 /// of at least `k` standard deviations are kept.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ModelSpec {
     /// The level.
     pub level: ModelLevel,
@@ -44,11 +65,27 @@ pub struct ModelSpec {
     pub backlash: bool,
     /// The default Gaussian prior on the nominal values ([`Prior::default_for`]).
     pub prior: bool,
+    /// The prior's σ times this (1: the documented defaults; 0.5: twice as tight).
+    pub prior_scale: f64,
     /// Keep only the MCPC corrections of at least this many standard deviations (the others
     /// frozen at nominal and the rest refitted).
     pub significant: Option<f64>,
     /// With the stiffness in play: compensate the deflections (else rigid).
     pub compensate: bool,
+}
+
+impl Default for ModelSpec {
+    fn default() -> Self {
+        Self {
+            level: ModelLevel::default(),
+            harmonics: false,
+            backlash: false,
+            prior: false,
+            prior_scale: 1.0,
+            significant: None,
+            compensate: false,
+        }
+    }
 }
 
 impl ModelSpec {
@@ -58,11 +95,13 @@ impl ModelSpec {
             ModelLevel::Offsets => "offsets".to_string(),
             ModelLevel::Geometry => "geometry".to_string(),
         };
-        for (on, part) in [
-            (self.prior, "+prior"),
-            (self.harmonics, "+harmonics"),
-            (self.backlash, "+backlash"),
-        ] {
+        if self.prior {
+            name.push_str("+prior");
+            if self.prior_scale != 1.0 {
+                name.push_str(&format!("×{}", self.prior_scale));
+            }
+        }
+        for (on, part) in [(self.harmonics, "+harmonics"), (self.backlash, "+backlash")] {
             if on {
                 name.push_str(part);
             }
@@ -156,7 +195,7 @@ pub fn prepare(
         .collect();
     let prior = spec
         .prior
-        .then(|| Prior::default_for(&model, &model.parameters()));
+        .then(|| Prior::default_for(&model, &model.parameters()).scaled(spec.prior_scale));
     Ok(PreparedModel {
         nominal: model,
         options: IdentificationOptions {

@@ -75,10 +75,12 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
             ModelArg::Offsets => ModelChoice::Level(ModelLevel::Offsets),
             ModelArg::Geometry => ModelChoice::Level(ModelLevel::Geometry),
             ModelArg::Auto => ModelChoice::Auto,
+            ModelArg::Adaptive => ModelChoice::Adaptive,
         },
         harmonics: args.joint_errors.contains(&JointErrorArg::Harmonics),
         backlash: args.joint_errors.contains(&JointErrorArg::Backlash),
         prior: args.prior,
+        prior_scale: args.prior_scale,
         significant: args.significant,
         patterns: ParameterPatterns {
             freeze: args.freeze.clone(),

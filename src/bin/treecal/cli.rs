@@ -522,6 +522,9 @@ pub struct CheckArgs {
 /// `--model`.
 #[derive(Clone, Copy, ValueEnum)]
 pub enum ModelArg {
+    /// The full geometry, or as `auto` when its fit leaves residuals over 10× the declared
+    /// noise (model error).
+    Adaptive,
     /// Joint zero offsets, the tools and the measurement frame.
     Offsets,
     /// The full MCPC geometry.
@@ -556,8 +559,9 @@ pub struct CalibrateArgs {
     pub add_tool_links: bool,
     /// Which parameters describe the robot: `offsets` (joint zero offsets, the tools and the
     /// measurement frame), `geometry` (the full MCPC model), `auto` (the candidate with the
-    /// lowest cross-validated held-out error; docs/identification.md).
-    #[arg(long, value_enum, default_value = "geometry")]
+    /// lowest cross-validated held-out error; docs/identification.md), `adaptive` (`geometry`,
+    /// or `auto` when the geometry fit leaves residuals over 10× the declared noise).
+    #[arg(long, value_enum, default_value = "adaptive")]
     pub model: ModelArg,
     /// Joint-angle errors as extra parameters, comma-separated: `harmonics` (a·sin q + b·cos q
     /// per joint), `backlash` (half the dead band, signed by the gravity torque; needs the
@@ -569,6 +573,9 @@ pub struct CalibrateArgs {
     /// residual scale.
     #[arg(long)]
     pub prior: bool,
+    /// Multiply every default prior σ by S (0.5: twice as tight); with --prior.
+    #[arg(long, value_name = "S", default_value_t = 1.0, requires = "prior")]
+    pub prior_scale: f64,
     /// Keep only the geometric corrections of at least K standard deviations (the others
     /// frozen at nominal, the rest refitted).
     #[arg(long, value_name = "K")]
