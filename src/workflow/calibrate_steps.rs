@@ -257,8 +257,12 @@ pub(super) fn identify(
         Ok((run, prepared.options, prepared.nominal))
     };
     let (mut run, mut options, mut nominal) = fit(&spec)?;
-    // The default: the full geometry, unless its fit shows model error; then as `auto`.
-    let adaptive = config.model == ModelChoice::Adaptive && shows_model_error(&run);
+    // The default: the full geometry, unless its fit shows model error; then as `auto`. A
+    // model asked for by flags (prior, joint errors, significance) is kept.
+    let asked_extras =
+        config.prior || config.harmonics || config.backlash || config.significant.is_some();
+    let adaptive =
+        config.model == ModelChoice::Adaptive && !asked_extras && shows_model_error(&run);
     if adaptive {
         let chosen = match &cross_validation {
             Some(cv) => (
