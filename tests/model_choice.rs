@@ -471,3 +471,48 @@ fn calibrate_writes_joint_errors_and_refuses_unknown_patterns() {
         "bad pattern",
     );
 }
+
+/// The default model (`adaptive`): data at the declared noise keep the full geometry; the same
+/// data with a noise declared 30× too small (σ̂ ≈ 30: what model error looks like) are
+/// calibrated with the cross-validation's choice, which a note explains; a model asked for by
+/// flags is kept.
+#[test]
+fn the_default_model_follows_cross_validation_only_under_model_error() {
+    let (tree, _, nominal) = humanoid();
+    let truth = perturbed(&nominal, 0.002, 31);
+    let data = measure(&tree, &truth, 24, 5e-5, 32);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("measurements.csv");
+    let text = treecal::io::measurements_to_csv(&tree, &nominal, &data).unwrap();
+    std::fs::write(&path, text).unwrap();
+    let config = |sigma: f64, prior: bool| treecal::workflow::CalibrateConfig {
+        robot: treecal::workflow::RobotSource::File(robot("humanoid/humanoid.urdf")),
+        measurements: treecal::workflow::MeasurementSource::Csv(path.clone()),
+        measurement_frame: treecal::workflow::MeasurementFrameChoice::Base,
+        position_sigma: sigma,
+        rotation_sigma: sigma,
+        prior,
+        cv: Some(2),
+        ..Default::default()
+    };
+    let explained = |result: &treecal::workflow::Calibration| {
+        result
+            .notes
+            .iter()
+            .any(|n| n.text.contains("model error") && n.text.contains("cross-validation"))
+    };
+    let clean = treecal::workflow::calibrate(&config(5e-5, false)).unwrap();
+    assert_eq!(clean.report["model"]["name"], "geometry");
+    assert!(!explained(&clean));
+    let error = treecal::workflow::calibrate(&config(5e-5 / 30.0, false)).unwrap();
+    let choice = &error.report["model_choice"];
+    let chosen = choice["chosen"].as_u64().unwrap() as usize;
+    assert_eq!(
+        error.report["model"]["name"],
+        choice["rows"][chosen]["model"]
+    );
+    assert!(explained(&error), "{:#?}", error.notes);
+    let asked = treecal::workflow::calibrate(&config(5e-5 / 30.0, true)).unwrap();
+    assert_eq!(asked.report["model"]["name"], "geometry+prior");
+    assert!(!explained(&asked));
+}
