@@ -344,3 +344,78 @@ fn robonaut() -> (KinematicTree, McpcModel) {
     let model = McpcModel::from_tree(&tree, &branches).unwrap();
     (tree, model)
 }
+
+/// The CSV of [`points_csv`] as arrays (Python's `treecal.Measurements`): `points` and
+/// `sessions` columns carried by the table.
+fn points_table(text: &str, sessions: bool) -> treecal::io::MeasurementTable {
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let joints = header.len() - 7;
+    let (mut ids, mut tools, mut points, mut values, mut positions, mut labels) =
+        (vec![], vec![], vec![], vec![], vec![], vec![]);
+    for line in lines {
+        let cells: Vec<&str> = line.split(',').collect();
+        ids.push(cells[0].to_owned());
+        tools.push(cells[1].to_owned());
+        points.push(cells[2].to_owned());
+        let number = |c: &str| c.parse::<f64>().unwrap();
+        values.push(cells[3..3 + joints].iter().map(|c| number(c)).collect());
+        let p: Vec<f64> = cells[3 + joints..6 + joints]
+            .iter()
+            .map(|c| number(c))
+            .collect();
+        positions.push([p[0], p[1], p[2]]);
+        let posture: usize = cells[0].split('-').next().unwrap().parse().unwrap();
+        labels.push(if posture % 2 == 0 { "even" } else { "odd" }.to_owned());
+    }
+    treecal::io::MeasurementTable {
+        origin: "points (arrays)".into(),
+        ids: Some(ids),
+        tools,
+        joint_names: header[3..3 + joints]
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        joints: values,
+        observations: treecal::io::ObservationRows::Positions(positions),
+        stages: None,
+        sessions: sessions.then_some(labels),
+        points: Some(points),
+        length_unit: None,
+        angle_unit: None,
+    }
+}
+
+/// Arrays with a `points` column calibrate exactly as the CSV with a `point` column (marker
+/// links added alike); with `sessions`, one measurement frame per session is fitted.
+#[test]
+fn a_table_carries_points_and_sessions_like_a_csv() {
+    let (truth_tree, truth_model) = truth();
+    let dir = tempfile::tempdir().unwrap();
+    let text = points_csv(&truth_tree, &truth_model, 30);
+    let csv = write(dir.path(), "points.csv", &text);
+    let urdf = write(dir.path(), "robonaut.urdf", &robonaut_text());
+    let config = |measurements| CalibrateConfig {
+        robot: RobotSource::File(urdf.clone()),
+        measurements,
+        measurement_frame: MeasurementFrameChoice::Base,
+        ..CalibrateConfig::default()
+    };
+    let from_csv = calibrate(&config(MeasurementSource::Csv(csv))).unwrap();
+    let table = MeasurementSource::Table(points_table(&text, false));
+    let from_table = calibrate(&config(table)).unwrap();
+    assert!(from_table.usable(), "{:?}", from_table.verdict);
+    assert_eq!(from_csv.parameters.len(), from_table.parameters.len());
+    for (a, b) in from_csv.parameters.iter().zip(&from_table.parameters) {
+        assert_eq!(a.name, b.name);
+        assert_eq!(a.calibrated.to_bits(), b.calibrated.to_bits(), "{}", a.name);
+    }
+    assert_eq!(from_csv.urdf, from_table.urdf);
+    let sessions = MeasurementSource::Table(points_table(&text, true));
+    let with_sessions = calibrate(&config(sessions)).unwrap();
+    assert!(with_sessions.usable(), "{:?}", with_sessions.verdict);
+    let training = with_sessions.report["sessions"]["training"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{}", with_sessions.report["sessions"]));
+    assert_eq!(training.len(), 2);
+}

@@ -64,6 +64,8 @@ fn example_table() -> MeasurementTable {
         joints,
         observations: ObservationRows::ThreeTargets(targets),
         stages: Some(stages),
+        sessions: None,
+        points: None,
         length_unit: Some(LengthUnit::Millimetre),
         angle_unit: Some(AngleUnit::Degree),
     }

@@ -19,6 +19,8 @@ pub struct TablePayload {
     kind: String,
     observations: Vec<Vec<f64>>,
     stages: Option<Vec<String>>,
+    sessions: Option<Vec<String>>,
+    points: Option<Vec<String>>,
     length_unit: Option<String>,
     angle_unit: Option<String>,
 }
@@ -64,6 +66,8 @@ fn table(p: TablePayload) -> PyResult<MeasurementTable> {
         joints: p.joints,
         observations,
         stages: p.stages,
+        sessions: p.sessions,
+        points: p.points,
     })
 }
 

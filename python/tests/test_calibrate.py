@@ -235,3 +235,25 @@ def test_bad_arguments_raise_treecal_errors():
         treecal.Measurements(["left_tool"], [[0.0]], ["left_joint1"], positions=[[0.0, 1.0]])
     with pytest.raises(treecal.TreecalError, match="nowhere.csv"):
         treecal.calibrate(measurements="nowhere.csv")
+
+
+def test_measurements_carry_sessions_and_points():
+    table = treecal.Measurements(
+        tools=["left_link6", "left_link6"],
+        joints=[[0.0], [0.1]],
+        joint_names=["left_joint1"],
+        positions=[[0.0, 0.0, 0.0], [0.0, 0.0, 0.1]],
+        sessions=["day1", "day2"],
+        points=["P1", "P2"],
+    )
+    payload = table._payload()
+    assert payload["sessions"] == ["day1", "day2"]
+    assert payload["points"] == ["P1", "P2"]
+    with pytest.raises(treecal.TreecalError, match="sessions"):
+        treecal.Measurements(
+            tools=["left_link6"],
+            joints=[[0.0]],
+            joint_names=["left_joint1"],
+            positions=[[0.0, 0.0, 0.0]],
+            sessions=["day1", "day2"],
+        )

@@ -202,7 +202,10 @@ class Measurements:
     - `targets` (N, 9): three targets A, B, C (ax, ay, az, bx, …, cz) on the tool.
 
     `ids` name the rows in messages and reports (default "1".."N"); `stages` label rows
-    "torso" or "arms" for the staged plan. `length_unit` ("m"/"mm") and `angle_unit`
+    "torso" or "arms" for the staged plan; `sessions` name each row's measurement session
+    (one measurement frame per session, the CSV's `session` column); `points` name the
+    measured point of each row on its tool (several markers on one body, the CSV's `point`
+    column). `length_unit` ("m"/"mm") and `angle_unit`
     ("rad"/"deg") are the units of the values, like a CSV's ``# units:`` comment (default:
     m and rad, with the same diagnoses of a wrong unit as for a CSV). Values are checked by
     the same code that reads a CSV, when the table is used; errors name the row id.
@@ -219,6 +222,8 @@ class Measurements:
         targets: Any = None,
         ids: Optional[Sequence[Any]] = None,
         stages: Optional[Sequence[str]] = None,
+        sessions: Optional[Sequence[str]] = None,
+        points: Optional[Sequence[str]] = None,
         length_unit: Optional[str] = None,
         angle_unit: Optional[str] = None,
         origin: str = "measurements (arrays)",
@@ -239,6 +244,8 @@ class Measurements:
         self.tools = _strings(tools, f"{origin}: tools", rows)
         self.ids = None if ids is None else _strings(ids, f"{origin}: ids", rows)
         self.stages = None if stages is None else _strings(stages, f"{origin}: stages", rows)
+        self.sessions = None if sessions is None else _strings(sessions, f"{origin}: sessions", rows)
+        self.points = None if points is None else _strings(points, f"{origin}: points", rows)
         self.length_unit = _optional_text(length_unit, "length_unit")
         self.angle_unit = _optional_text(angle_unit, "angle_unit")
         self.origin = _text(origin, "origin")
@@ -260,6 +267,8 @@ class Measurements:
             "kind": self.kind,
             "observations": self.observations.tolist(),
             "stages": self.stages,
+            "sessions": self.sessions,
+            "points": self.points,
             "length_unit": self.length_unit,
             "angle_unit": self.angle_unit,
         }

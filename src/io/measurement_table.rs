@@ -76,6 +76,12 @@ pub struct MeasurementTable {
     pub observations: ObservationRows,
     /// `torso` (taken with the arms locked) or `arms` per row, for the staged plan.
     pub stages: Option<Vec<String>>,
+    /// The measurement session of each row (the CSV's `session` column: one measurement
+    /// frame per session).
+    pub sessions: Option<Vec<String>>,
+    /// The measured point of each row on its tool (the CSV's `point` column: several markers
+    /// on one body).
+    pub points: Option<Vec<String>>,
     /// Unit of positions, targets and prismatic joint values, like `# units: length=`.
     pub length_unit: Option<LengthUnit>,
     /// Unit of revolute joint values, like `# units: angle=`.
@@ -100,6 +106,26 @@ impl MeasurementTable {
             }
         }
         Ok(names)
+    }
+
+    /// The distinct `(tool, point)` pairs the rows name, in order of first appearance (as
+    /// [`super::measured_targets`] reads them from a CSV); the point is `None` without
+    /// `points` or for an empty label.
+    pub fn targets(&self) -> Result<Vec<(Option<String>, Option<String>)>> {
+        self.tool_names()?;
+        let mut pairs = Vec::new();
+        for (row, tool) in self.tools.iter().enumerate() {
+            let point = self
+                .points
+                .as_ref()
+                .map(|points| points[row].trim().to_owned())
+                .filter(|p| !p.is_empty());
+            let pair = (Some(tool.trim().to_owned()), point);
+            if !pairs.contains(&pair) {
+                pairs.push(pair);
+            }
+        }
+        Ok(pairs)
     }
 
     /// The measurements of the table for the robot `tree` with model `model`, checked exactly
@@ -209,6 +235,8 @@ impl MeasurementTable {
             ("observations", Some(self.observations.len())),
             ("ids", self.ids.as_ref().map(Vec::len)),
             ("stages", self.stages.as_ref().map(Vec::len)),
+            ("sessions", self.sessions.as_ref().map(Vec::len)),
+            ("points", self.points.as_ref().map(Vec::len)),
         ];
         for (what, length) in lengths {
             if let Some(length) = length.filter(|&l| l != rows) {
@@ -230,7 +258,7 @@ impl MeasurementTable {
                 ));
             }
         }
-        let identity = ["id", "stage", "tool"];
+        let identity = ["id", "stage", "tool", "session", "point"];
         let observed = [
             ObservationKind::Position,
             ObservationKind::Pose,
@@ -271,6 +299,8 @@ impl MeasurementTable {
         headers.extend(self.ids.as_ref().map(|_| "id".to_owned()));
         headers.extend(self.stages.as_ref().map(|_| "stage".to_owned()));
         headers.push("tool".to_owned());
+        headers.extend(self.sessions.as_ref().map(|_| "session".to_owned()));
+        headers.extend(self.points.as_ref().map(|_| "point".to_owned()));
         headers.extend(self.joint_names.iter().map(|n| n.trim().to_owned()));
         headers.extend(
             self.observations
@@ -289,6 +319,9 @@ impl MeasurementTable {
                         .map(|stages| stages[row].trim().to_owned()),
                 );
                 fields.push(self.tools[row].trim().to_owned());
+                for labels in [&self.sessions, &self.points].into_iter().flatten() {
+                    fields.push(labels[row].trim().to_owned());
+                }
                 fields.extend(self.joints[row].iter().map(|&v| text(v)));
                 fields.extend(self.observations.row(row).iter().map(|&v| text(v)));
                 (row + 1, fields)

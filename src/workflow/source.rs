@@ -307,11 +307,7 @@ impl MeasurementSource {
     pub fn targets(&self) -> Result<Vec<(Option<String>, Option<String>)>> {
         match self {
             MeasurementSource::Csv(path) => read_measured_targets(path),
-            MeasurementSource::Table(table) => Ok(table
-                .tool_names()?
-                .into_iter()
-                .map(|name| (Some(name), None))
-                .collect()),
+            MeasurementSource::Table(table) => table.targets(),
         }
     }
 
