@@ -235,3 +235,13 @@ def test_bad_arguments_raise_treecal_errors():
         treecal.Measurements(["left_tool"], [[0.0]], ["left_joint1"], positions=[[0.0, 1.0]])
     with pytest.raises(treecal.TreecalError, match="nowhere.csv"):
         treecal.calibrate(measurements="nowhere.csv")
+
+
+def test_reference_link_is_a_keyword():
+    # An unknown reference link is an error that lists the robot's links.
+    with pytest.raises(treecal.TreecalError, match=r"reference link 'base_lnk'.*base_link"):
+        treecal.calibrate(measurements=EXAMPLE_CSV, reference_link="base_lnk")
+    # The root named explicitly is the default: the same calibration.
+    root = treecal.calibrate(measurements=EXAMPLE_CSV, reference_link="base_link")
+    default = treecal.calibrate(measurements=EXAMPLE_CSV)
+    assert root.parameters == default.parameters

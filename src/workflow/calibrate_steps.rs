@@ -72,7 +72,12 @@ impl Loaded {
             &config.measurements,
         )?;
         let tools = points.tools.as_deref().or(config.tools.as_deref());
-        let branches = measured_branches(&robot.import, tools, &config.measurements)?;
+        let branches = measured_branches(
+            &robot.import,
+            tools,
+            config.reference_link.as_deref(),
+            &config.measurements,
+        )?;
         let nominal = McpcModel::from_tree(robot.tree(), &branches)?;
         Ok(Self {
             robot,
@@ -114,6 +119,7 @@ pub(super) fn read_data(
     };
     notes.extend(loaded.points.note());
     let tree = loaded.robot.tree();
+    notes.extend(loaded.branches.reference_summary(tree).map(Note::info));
     let mut read = |source: &super::source::MeasurementSource| {
         let set = source.read(tree, &loaded.nominal, &options)?;
         notes.extend(set.warnings.iter().map(Note::warning));

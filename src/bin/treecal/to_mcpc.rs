@@ -14,6 +14,7 @@ pub fn run(args: ToMcpcArgs) -> Result<()> {
     let table = to_mcpc(&ModelConfig {
         robot: RobotSource::from_path(robot),
         tools: args.tools.clone(),
+        reference_link: args.reference_link.clone(),
     })?;
     for note in &table.notes {
         crate::output::note(note);
