@@ -151,6 +151,14 @@ fn a_humanoid_calibrates_from_its_sole() {
     ]);
     assert_success(&run, "calibrate from the sole");
     assert!(run.stderr.contains("reference link 'l_sole'"), "{run}");
+    for role in [
+        "coupled 'coupled' (6 joints)",
+        "head 'Head'",
+        "leg 'r_sole'",
+        "arm 'l_gripper'",
+    ] {
+        assert!(run.stderr.contains(role), "{role}\n{run}");
+    }
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["verdict"]["status"], "ok", "{run}");
@@ -228,8 +236,8 @@ fn simulate_check_and_plan_from_a_foot() {
         stiffness: Some(StiffnessSource::File(stiffness)),
         tools: Some(tools.clone()),
         reference_link: reference.clone(),
-        poses: 30,
-        torso_poses: 12,
+        poses: 40,
+        torso_poses: 16,
         validation_poses: 10,
         trials: 1,
         seed: 31,
@@ -251,8 +259,9 @@ fn simulate_check_and_plan_from_a_foot() {
             "{}: before {:.3} mm, after {:.4} (rigid {:.4}) mm",
             arm.arm, arm.before_position_mm.mean, compensated.mean, rigid.mean
         ));
+        // The simulated tracker's noise floor is about 0.04 mm (docs/simulation.md).
         assert!(
-            compensated.mean < 0.05,
+            compensated.mean < 0.1,
             "{}: {} mm after compensation\n{}",
             arm.arm,
             compensated.mean,
@@ -262,7 +271,11 @@ fn simulate_check_and_plan_from_a_foot() {
     assert_eq!(table.len(), 4);
     eprintln!("humanoid from its left foot:\n{}", table.join("\n"));
     for joint in ["l_ankle_roll", "l_hip_yaw", "neck_pitch", "r_knee"] {
-        assert!(outcome.markdown.contains(joint), "{joint}\n{}", outcome.markdown);
+        assert!(
+            outcome.markdown.contains(joint),
+            "{joint}\n{}",
+            outcome.markdown
+        );
     }
 
     let checked = check(&CheckConfig {
@@ -273,7 +286,10 @@ fn simulate_check_and_plan_from_a_foot() {
     })
     .unwrap();
     assert!(
-        checked.notes.iter().any(|n| n.text.contains("reference link 'l_foot'")),
+        checked
+            .notes
+            .iter()
+            .any(|n| n.text.contains("reference link 'l_foot'")),
         "{:?}",
         checked.notes
     );
@@ -287,5 +303,8 @@ fn simulate_check_and_plan_from_a_foot() {
         ..PlanConfig::default()
     })
     .unwrap();
-    assert!(planned.notes.iter().any(|n| n.to_string().contains("l_foot")));
+    assert!(planned
+        .notes
+        .iter()
+        .any(|n| n.to_string().contains("l_foot")));
 }

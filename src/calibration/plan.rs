@@ -441,14 +441,17 @@ fn skipped_stage_notes(
         .collect()
 }
 
-/// The model frames of the coupled branch's joints (the torso), parents first.
+/// The model frames of the coupled branch's joints (the torso), parents first (a path up a
+/// leg from a reference link lists them the other way).
 pub fn coupled_frames(model: &McpcModel, branches: &Branches) -> Vec<usize> {
-    branches
+    let mut frames: Vec<usize> = branches
         .coupled
         .joints
         .iter()
         .filter_map(|j| model.frame_of_joint(*j))
-        .collect()
+        .collect();
+    frames.sort_unstable();
+    frames
 }
 
 /// The orientation parameters (α, β, γ) of every tool that `data` observe, but by positions

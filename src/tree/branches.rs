@@ -186,6 +186,34 @@ impl Branches {
         std::iter::once(&self.coupled).chain(self.arms.iter())
     }
 
+    /// The branches with their roles in one line, for a whole-body model (a reference link
+    /// other than the root, or a leg, head or other branch); `None` for torso-and-arms robots,
+    /// whose outputs stay as they were.
+    pub fn roles_summary(&self, tree: &KinematicTree) -> Option<String> {
+        let whole_body = self.reference != tree.root()
+            || self.arms.iter().any(|a| {
+                matches!(
+                    a.role,
+                    BranchRole::Leg | BranchRole::Head | BranchRole::Other
+                )
+            });
+        if !whole_body {
+            return None;
+        }
+        let list: Vec<String> = self
+            .all()
+            .map(|b| {
+                format!(
+                    "{} '{}' ({} joints)",
+                    b.role.label(),
+                    b.name,
+                    b.joints.len()
+                )
+            })
+            .collect();
+        Some(format!("branches: {}", list.join(", ")))
+    }
+
     /// What a reference link other than the root makes invisible, in words (`None` for the
     /// root): its own placement, absorbed by the world-fixed measurement frame, and the
     /// movable joints on the root side of both it and every tool, which move nothing relative
@@ -247,6 +275,12 @@ pub fn detect_branches_from(
     if tips.is_empty() {
         return Err(Error::Branches("no tool links given".into()));
     }
+    if let Some(&tip) = tips.iter().find(|&&t| t == reference) {
+        return Err(Error::Branches(format!(
+            "tool link '{}' is the reference link; a link fixed in the world cannot be measured",
+            tree.link(tip).name
+        )));
+    }
     for (i, &a) in tips.iter().enumerate() {
         for &b in &tips[i + 1..] {
             if a == b {
@@ -265,12 +299,6 @@ pub fn detect_branches_from(
                 )));
             }
         }
-    }
-    if let Some(&tip) = tips.iter().find(|&&t| t == reference) {
-        return Err(Error::Branches(format!(
-            "tool link '{}' is the reference link; a link fixed in the world cannot be measured",
-            tree.link(tip).name
-        )));
     }
 
     let divergence = if tips.len() == 1 {
@@ -326,12 +354,19 @@ pub fn detect_branches_from(
         }
     }
 
-    let sides = if arms.len() == 2 && all_arms {
+    // Two tools of one kind (two arms, two legs) are told left from right.
+    let pair = arms.len() == 2 && (all_arms || arms[0].role == arms[1].role);
+    let sides = if pair {
         let rule = assign_sides(tree, &mut arms, selection)?;
-        arms[0].name = "left_arm".into();
-        arms[0].role = BranchRole::Left;
-        arms[1].name = "right_arm".into();
-        arms[1].role = BranchRole::Right;
+        if all_arms {
+            arms[0].name = "left_arm".into();
+            arms[0].role = BranchRole::Left;
+            arms[1].name = "right_arm".into();
+            arms[1].role = BranchRole::Right;
+        } else if arms[0].role == BranchRole::Leg {
+            arms[0].name = "left_leg".into();
+            arms[1].name = "right_leg".into();
+        }
         rule
     } else {
         DecisionRule::NoSides

@@ -119,6 +119,7 @@ pub(super) fn read_data(
     };
     notes.extend(loaded.points.note());
     let tree = loaded.robot.tree();
+    notes.extend(loaded.branches.roles_summary(tree).map(Note::info));
     notes.extend(loaded.branches.reference_summary(tree).map(Note::info));
     let mut read = |source: &super::source::MeasurementSource| {
         let set = source.read(tree, &loaded.nominal, &options)?;

@@ -172,6 +172,7 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
     };
     let tree = &import.tree;
     let model = McpcModel::from_tree(tree, &branches)?;
+    notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
     let requested = requested_plan(&config.plan)?;
     let rows = rows(

@@ -63,6 +63,11 @@ pub fn to_mcpc(config: &ModelConfig) -> Result<McpcTableText> {
         config.tools.as_deref(),
         config.reference_link.as_deref(),
     )?;
+    if branches.reference != robot.tree().root() {
+        return Err(crate::error::Error::Branches(
+            "an MCPC table is rooted at the URDF root; give no reference link".into(),
+        ));
+    }
     let model = McpcModel::from_tree(robot.tree(), &branches)?;
     let table = McpcTable::from_model(robot.tree(), &branches, &model)?;
     let source = match &config.robot {

@@ -181,6 +181,7 @@ pub fn simulate_with_progress(
         config.reference_link.as_deref(),
     )?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
+    notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
     let stiffness = stiffness(config, tree, &nominal)?;
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;

@@ -187,10 +187,6 @@ pub struct ToMcpcArgs {
     /// Tool links ending the arms, comma-separated (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
-    /// The link fixed in the world while measuring (a sole on the floor, a mobile base):
-    /// measurements are relative to it, paths from it may run up a leg [default: the URDF root].
-    #[arg(long, value_name = "LINK")]
-    pub reference_link: Option<String>,
     /// The YAML file to write [default: standard output] (`--output` is accepted too).
     #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.yaml")]
     pub output: Option<PathBuf>,
