@@ -17,5 +17,5 @@ pub mod workflow;
 
 pub use error::{Error, Result};
 pub use kinematics::{McpcModel, McpcTable};
-pub use tree::{detect_branches, Branches, KinematicTree};
+pub use tree::{detect_branches, detect_branches_from, Branches, KinematicTree};
 pub use urdf::{export_urdf, load_urdf, parse_urdf, urdf_from_mcpc_table};

@@ -83,7 +83,7 @@ impl PyCalibration {
 /// Runs `treecal::workflow::calibrate`; arguments as `treecal.calibrate` documents them.
 #[pyfunction]
 #[pyo3(signature = (*, robot, measurements, validation, length_unit, angle_unit,
-    joint_length_unit, stiffness, tools, plan, seed, robust, identify_stiffness, stiffness_prior,
+    joint_length_unit, stiffness, tools, reference_link, plan, seed, robust, identify_stiffness, stiffness_prior,
     measurement_frame, gravity_frame, position_sigma, rotation_sigma, ignore_columns, strict,
     add_tool_links))]
 #[allow(clippy::too_many_arguments)]
@@ -97,6 +97,7 @@ pub fn calibrate(
     joint_length_unit: Option<String>,
     stiffness: Option<PathBuf>,
     tools: Option<Vec<String>>,
+    reference_link: Option<String>,
     plan: Option<String>,
     seed: u64,
     robust: &str,
@@ -117,6 +118,7 @@ pub fn calibrate(
         validation: validation.map(measurement_source).transpose()?,
         stiffness: stiffness.map(StiffnessSource::File),
         tools,
+        reference_link,
         plan: plan_source(plan.as_deref()),
         length_unit: parse_unit(length_unit.as_deref())?,
         angle_unit: parse_unit(angle_unit.as_deref())?,

@@ -257,3 +257,13 @@ def test_measurements_carry_sessions_and_points():
             positions=[[0.0, 0.0, 0.0]],
             sessions=["day1", "day2"],
         )
+
+
+def test_reference_link_is_a_keyword():
+    # An unknown reference link is an error that lists the robot's links.
+    with pytest.raises(treecal.TreecalError, match=r"reference link 'base_lnk'.*base_link"):
+        treecal.calibrate(measurements=EXAMPLE_CSV, reference_link="base_lnk")
+    # The root named explicitly is the default: the same calibration.
+    root = treecal.calibrate(measurements=EXAMPLE_CSV, reference_link="base_link")
+    default = treecal.calibrate(measurements=EXAMPLE_CSV)
+    assert root.parameters == default.parameters

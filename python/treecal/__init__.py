@@ -351,6 +351,7 @@ def calibrate(
     joint_length_unit: Optional[str] = None,
     stiffness: Optional[PathLike] = None,
     tools: Optional[Sequence[str]] = None,
+    reference_link: Optional[str] = None,
     plan: Optional[PathLike] = None,
     seed: int = 0,
     robust: str = "huber",
@@ -372,6 +373,8 @@ def calibrate(
     "staged", "simultaneous", a plan YAML path, or None (staged when rows are labelled
     torso/arms). `measurement_frame` is "auto", "fit", "base" or a registration YAML path;
     `robust` "huber", "cauchy" or "off"; `gravity_frame` "measurement" or "base".
+    `reference_link` names the link fixed in the world while measuring (a sole, a mobile
+    base; None: the URDF root).
     `position_sigma` (m), `rotation_sigma` (rad) and `stiffness_prior` default to the CLI's
     defaults (None).
     Bad input raises :class:`TreecalError`; a failed verdict does not (see
@@ -389,6 +392,7 @@ def calibrate(
         joint_length_unit=_optional_text(joint_length_unit, "joint_length_unit"),
         stiffness=None if stiffness is None else _path(stiffness, "stiffness"),
         tools=None if tools is None else _strings(tools, "tools"),
+        reference_link=_optional_text(reference_link, "reference_link"),
         plan=None if plan is None else _path(plan, "plan"),
         seed=_seed(seed),
         robust=_text(robust, "robust"),

@@ -42,6 +42,7 @@ def calibrate(
     joint_length_unit: Optional[str],
     stiffness: Optional[str],
     tools: Optional[List[str]],
+    reference_link: Optional[str],
     plan: Optional[str],
     seed: int,
     robust: str,

@@ -198,7 +198,7 @@ fn fit_tools(current: &McpcModel, measurements: &[Measurement]) -> Result<McpcMo
                 Some(f) => current
                     .moved(f, &m.q, &current.frame_transforms(&m.q)[f])
                     .to_pose(),
-                None => current.world_from_base(),
+                None => current.world_from_root(&m.q),
             })
             .collect();
         let current_relative = tool.constant_transform();

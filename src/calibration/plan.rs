@@ -441,14 +441,17 @@ fn skipped_stage_notes(
         .collect()
 }
 
-/// The model frames of the coupled branch's joints (the torso), parents first.
+/// The model frames of the coupled branch's joints (the torso), parents first (a path up a
+/// leg from a reference link lists them the other way).
 pub fn coupled_frames(model: &McpcModel, branches: &Branches) -> Vec<usize> {
-    branches
+    let mut frames: Vec<usize> = branches
         .coupled
         .joints
         .iter()
         .filter_map(|j| model.frame_of_joint(*j))
-        .collect()
+        .collect();
+    frames.sort_unstable();
+    frames
 }
 
 /// The orientation parameters (α, β, γ) of every tool that `data` observe, but by positions
@@ -522,7 +525,6 @@ pub fn locked_arm_model(
             });
         }
     }
-    let last = coupled_frames.last().copied();
     // Arm joint values of a measurement: every frame not in the coupled branch on its chain.
     let arm_values = |m: &Measurement| -> Vec<f64> {
         model
@@ -551,10 +553,18 @@ pub fn locked_arm_model(
     }
     let mut tools = Vec::with_capacity(groups.len());
     for (tool, _, q) in &groups {
+        // The tool's last coupled frame (the last coupled frame, unless a reference link's
+        // path runs through coupled frames off the tool's chain).
+        let last = model
+            .tool_chain(*tool)
+            .iter()
+            .rev()
+            .find(|f| coupled_frames.contains(f))
+            .copied();
         let world_from_tool = model.tool_pose(*tool, q);
         let world_from_last = match last {
             Some(f) => model.moved(f, q, &model.frame_transforms(q)[f]).to_pose(),
-            None => model.world_from_base(),
+            None => model.world_from_root(q),
         };
         let twist = last.map_or(0.0, |f| model.frames()[f].twist);
         let link = model.tools()[*tool].link;
@@ -566,6 +576,21 @@ pub fn locked_arm_model(
         ));
     }
     let mut stage_model = McpcModel::new(frames, tools)?;
+    if let Some(reference) = model.reference() {
+        if !model
+            .reference_chain()
+            .iter()
+            .all(|f| coupled_frames.contains(f))
+        {
+            return Err(Error::InvalidData {
+                origin: format!("stage '{stage}'"),
+                message:
+                    "the reference link's path leaves the coupled branch; use the simultaneous plan"
+                        .into(),
+            });
+        }
+        stage_model.set_reference(Some(reference.clone()))?;
+    }
     stage_model.set_world_from_base(&model.world_from_base());
     Ok((stage_model, stage_data, groups.len()))
 }

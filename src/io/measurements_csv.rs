@@ -239,8 +239,10 @@ pub(super) fn measurements_from_table(
         .tools()
         .iter()
         .map(|t| {
+            // The joints between the link fixed in the world and the tool.
+            let reference = model.reference().map_or(tree.root(), |r| r.link);
             let mut dofs: Vec<usize> = tree
-                .path_from_root(t.link)
+                .path_between(reference, t.link)
                 .into_iter()
                 .filter_map(|j| match tree.joint(j).actuation {
                     Actuation::Independent(dof) | Actuation::Mimic { master: dof, .. } => {

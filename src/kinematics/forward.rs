@@ -71,15 +71,14 @@ impl McpcModel {
     /// Every frame Σᵢ in the measurement frame ([`McpcModel::world_from_base`], the base frame
     /// unless set), before its own joint's motion (fast form).
     pub fn frame_transforms(&self, q: &[f64]) -> Vec<Transform> {
+        let world_from_root = self.world_from_root_transform(q);
         let mut base_from_frame: Vec<Transform> = Vec::with_capacity(self.frames().len());
         for (index, frame) in self.frames().iter().enumerate() {
             let transform = match frame.parent {
                 Some(p) => self
                     .moved(p, q, &base_from_frame[p])
                     .then(self.frame_constant(index)),
-                None => self
-                    .world_from_base_transform()
-                    .then(self.frame_constant(index)),
+                None => world_from_root.then(self.frame_constant(index)),
             };
             base_from_frame.push(transform);
         }
@@ -98,7 +97,7 @@ impl McpcModel {
     /// Pose of tool `tool` in the base frame at configuration `q` (eq. (3)), walking only its
     /// own chain.
     pub fn tool_pose(&self, tool: usize, q: &[f64]) -> Pose {
-        let mut current = *self.world_from_base_transform();
+        let mut current = self.world_from_root_transform(q);
         let mut previous: Option<usize> = None;
         for &frame in self.tool_chain(tool) {
             if let Some(p) = previous {
@@ -128,25 +127,30 @@ impl McpcModel {
     /// `frames` has its size. `frames.tools` ends up holding the same poses as
     /// [`Self::tool_poses`] (bit for bit: the same products in the same order).
     pub fn tool_transforms_into(&self, q: &[f64], frames: &mut ForwardFrames) {
-        self.moved_frames_into(q, &mut frames.moved, &mut frames.motions);
+        let world_from_root = self.world_from_root_transform(q);
+        self.moved_frames_into(q, &world_from_root, &mut frames.moved, &mut frames.motions);
         frames
             .tools
             .resize(self.tools().len(), Transform::identity());
         for (tool, target) in frames.tools.iter_mut().enumerate() {
-            *target = self.tool_from_moved(tool, &frames.moved);
+            *target = self.tool_from_moved(tool, &world_from_root, &frames.moved);
         }
     }
 
     /// Every frame moved by its own joint, Σᵢ·Q(θᵢ), in the measurement frame.
-    fn moved_frames_into(&self, q: &[f64], moved: &mut Vec<Transform>, motions: &mut JointMotions) {
+    fn moved_frames_into(
+        &self,
+        q: &[f64],
+        world_from_root: &Transform,
+        moved: &mut Vec<Transform>,
+        motions: &mut JointMotions,
+    ) {
         motions.fill(self, q);
         moved.resize(self.frames().len(), Transform::identity());
         for (index, frame) in self.frames().iter().enumerate() {
             let placed = match frame.parent {
                 Some(p) => moved[p].then(self.frame_constant(index)),
-                None => self
-                    .world_from_base_transform()
-                    .then(self.frame_constant(index)),
+                None => world_from_root.then(self.frame_constant(index)),
             };
             moved[index] = motions.apply(self, index, &placed);
         }
@@ -154,12 +158,15 @@ impl McpcModel {
 
     /// Tool `tool` from the moved frames of [`Self::moved_frames_into`].
     #[inline]
-    fn tool_from_moved(&self, tool: usize, moved: &[Transform]) -> Transform {
+    fn tool_from_moved(
+        &self,
+        tool: usize,
+        world_from_root: &Transform,
+        moved: &[Transform],
+    ) -> Transform {
         match self.tools()[tool].parent {
             Some(last) => moved[last].then(self.tool_constant(tool)),
-            None => self
-                .world_from_base_transform()
-                .then(self.tool_constant(tool)),
+            None => world_from_root.then(self.tool_constant(tool)),
         }
     }
 

@@ -45,6 +45,9 @@ pub struct ChainFrames {
     pub(crate) motions: JointMotions,
     /// Per frame, `∂θ/∂(joint-error term)` (empty without joint errors).
     pub(crate) joint_error_factors: Vec<[f64; 4]>,
+    /// The root in the measurement frame at the configuration, where it moves (a reference
+    /// link other than the root); `None`: the model's constant measurement frame.
+    pub(crate) world_from_root: Option<Transform>,
 }
 
 thread_local! {
@@ -66,12 +69,28 @@ impl McpcModel {
         self.size_chain(chain);
         chain.motions.fill(self, q);
         self.joint_error_factors(q, &mut chain.joint_error_factors);
+        chain.world_from_root = self.moving_root(q);
         for frame in 0..self.frames().len() {
             self.set_chain_frame(frame, chain);
         }
         for tool in 0..self.tools().len() {
             self.set_chain_tool(tool, chain);
         }
+    }
+
+    /// The root in the measurement frame at `q` if it moves (a reference link), else `None`.
+    fn moving_root(&self, q: &[f64]) -> Option<Transform> {
+        self.reference()
+            .is_some()
+            .then(|| self.world_from_root_transform(q))
+    }
+
+    /// The frame the root-side frames and tools hang from: the root in the measurement frame.
+    #[inline]
+    fn chain_root(&self, chain: &ChainFrames) -> Transform {
+        chain
+            .world_from_root
+            .unwrap_or(*self.world_from_base_transform())
     }
 
     /// Sizes `chain`'s buffers for this model (new entries are identities; entries not
@@ -94,7 +113,7 @@ impl McpcModel {
     fn set_chain_frame(&self, frame: usize, chain: &mut ChainFrames) {
         let previous = match self.frames()[frame].parent {
             Some(p) => chain.motions.apply(self, p, &chain.frames[p]),
-            None => *self.world_from_base_transform(),
+            None => self.chain_root(chain),
         };
         chain.frames[frame] = previous.then(self.frame_constant(frame));
         chain.previous[frame] = previous;
@@ -105,7 +124,7 @@ impl McpcModel {
     fn set_chain_tool(&self, tool: usize, chain: &mut ChainFrames) {
         let previous = match self.tools()[tool].parent {
             Some(p) => chain.motions.apply(self, p, &chain.frames[p]),
-            None => *self.world_from_base_transform(),
+            None => self.chain_root(chain),
         };
         chain.tools[tool] = previous.then(self.tool_constant(tool));
         chain.tool_previous[tool] = previous;
@@ -168,6 +187,15 @@ impl McpcModel {
             &chain.joint_error_factors,
             jacobian.as_mut_slice(),
         );
+        if self.reference().is_some() {
+            self.add_reference_columns(
+                &tip,
+                &chain.previous,
+                &chain.frames,
+                &chain.joint_error_factors,
+                jacobian.as_mut_slice(),
+            );
+        }
     }
 
     /// Tool poses and identification Jacobians of every tool on a given chain.
@@ -204,7 +232,8 @@ impl McpcModel {
         self.size_chain(chain);
         chain.motions.fill(self, q);
         self.joint_error_factors(q, &mut chain.joint_error_factors);
-        for &frame in self.tool_chain(tool) {
+        chain.world_from_root = self.moving_root(q);
+        for &frame in self.reference_chain().iter().chain(self.tool_chain(tool)) {
             self.set_chain_frame(frame, chain);
         }
         self.set_chain_tool(tool, chain);

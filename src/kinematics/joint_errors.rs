@@ -242,11 +242,12 @@ impl McpcModel {
         model
     }
 
-    /// Takes `other`'s joint-error and measurement-frame parameters (same frames): a model
-    /// rebuilt with new tools keeps them.
+    /// Takes `other`'s joint-error and measurement-frame parameters and its reference link
+    /// (same frames): a model rebuilt with new tools keeps them.
     pub fn adopt_extra_parameters(&mut self, other: &McpcModel) {
         self.joint_errors = other.joint_errors.clone();
         self.frame_parameters = other.frame_parameters.clone();
+        self.reference = other.reference.clone();
     }
 
     /// Whether the measurement frame is a parameter ([`Self::with_frame_parameters`]).

@@ -209,6 +209,8 @@ pub struct McpcModel {
     pub(crate) joint_errors: super::joint_errors::JointErrors,
     /// The measurement frame as parameters, last in the flat vector.
     pub(crate) frame_parameters: Option<super::joint_errors::FrameParameters>,
+    /// The link fixed in the world, when it is not the root (`kinematics::reference`).
+    pub(crate) reference: Option<super::reference::ReferenceChain>,
 }
 
 /// Which parameter of a frame or tool.
@@ -340,6 +342,7 @@ impl McpcModel {
             world_from_base: Transform::identity(),
             joint_errors: Default::default(),
             frame_parameters: None,
+            reference: None,
         };
         model.refresh();
         Ok(model)
@@ -824,11 +827,7 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
             .find_map(|&j| frame_of(frames, j))
     };
 
-    let chains = branches.all().flat_map(|b| b.joints.iter().copied());
-    for joint_id in chains {
-        if frame_of(&frames, joint_id).is_some() {
-            continue;
-        }
+    for joint_id in frame_order(tree, branches) {
         let joint = tree.joint(joint_id);
         let kind = match joint.kind {
             JointKind::Revolute | JointKind::Continuous => FrameKind::Revolute,
@@ -898,6 +897,16 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
         });
     }
 
+    let reference = (branches.reference != tree.root()).then(|| {
+        let parent = parent_frame(&frames, branches.reference);
+        let previous = parent.map_or(BASE, |p| placed[p]);
+        super::ReferenceLink {
+            link: branches.reference,
+            parent,
+            last_from_link: pose(previous.origin, previous.rotation).inverse()
+                * root_from_link[branches.reference.0],
+        }
+    });
     let mut tools = Vec::new();
     for tool_link in branches.tools() {
         let parent = parent_frame(&frames, tool_link);
@@ -911,5 +920,26 @@ fn convert(tree: &KinematicTree, branches: &Branches) -> Result<McpcModel> {
             &last_from_tool,
         ));
     }
-    McpcModel::new(frames, tools)
+    let mut model = McpcModel::new(frames, tools)?;
+    model.set_reference(reference)?;
+    Ok(model)
+}
+
+/// The joints that get an MCPC frame, parents first: the branches' joints in branch order,
+/// each preceded by those of its URDF ancestors that are on a branch too (a path up a leg from
+/// a reference link lists a leg's joints against their URDF order).
+fn frame_order(tree: &KinematicTree, branches: &Branches) -> Vec<JointId> {
+    let wanted: Vec<JointId> = branches
+        .all()
+        .flat_map(|b| b.joints.iter().copied())
+        .collect();
+    let mut ordered: Vec<JointId> = Vec::with_capacity(wanted.len());
+    for &joint in &wanted {
+        for ancestor in tree.path_from_root(tree.joint(joint).child) {
+            if wanted.contains(&ancestor) && !ordered.contains(&ancestor) {
+                ordered.push(ancestor);
+            }
+        }
+    }
+    ordered
 }

@@ -5,6 +5,7 @@ mod forward;
 mod jacobian;
 pub mod joint_errors;
 pub mod mcpc;
+mod reference;
 pub mod table;
 
 pub use flexibility::{FlexibilityModel, Stiffness};
@@ -14,4 +15,5 @@ pub use joint_errors::{GravitySigns, JointErrorTerms};
 pub use mcpc::{
     FrameKind, McpcFrame, McpcModel, McpcTool, ParameterKind, ParameterOwner, SINGULARITY_THRESHOLD,
 };
+pub use reference::ReferenceLink;
 pub use table::{McpcTable, TableBranch, TableRow, TableTool};

@@ -29,6 +29,9 @@ pub struct InspectReport {
     pub tree: Vec<TreeEntry>,
     /// The detected branches.
     pub branches: BranchesReport,
+    /// Every limb of the tree with its role, whatever the tools (what a whole-body calibration
+    /// could measure).
+    pub limbs: Vec<LimbEntry>,
     /// The MCPC table.
     pub mcpc: McpcReport,
 }
@@ -65,9 +68,27 @@ pub struct TreeEntry {
     pub branch: Option<String>,
 }
 
+/// One limb of the tree ([`crate::tree::limbs`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct LimbEntry {
+    /// The link it ends at.
+    pub end: String,
+    /// Role from the names: coupled, arm, leg, head or other.
+    pub role: BranchRole,
+    /// Movable joints, root side first.
+    pub joints: Vec<String>,
+    /// Movable joints beyond it (fingers, grippers) counted with it.
+    pub beyond: usize,
+}
+
 /// The branches and why.
 #[derive(Debug, Clone, Serialize)]
 pub struct BranchesReport {
+    /// The link fixed in the world while measuring (the root unless chosen).
+    pub reference_link: String,
+    /// What that reference makes invisible, in words (none for the root).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_note: Option<String>,
     /// How the tools were chosen.
     pub selection_rule: String,
     /// How left and right were decided.
@@ -257,7 +278,10 @@ pub fn inspect(
         degrees_of_freedom: tree.dof_count(),
         warnings: warnings.to_vec(),
         tree: entries,
+        limbs: limb_entries(tree),
         branches: BranchesReport {
+            reference_link: tree.link(branches.reference).name.clone(),
+            reference_note: branches.reference_summary(tree),
             selection_rule: branches.selection.to_string(),
             side_rule: branches.sides.to_string(),
             divergence_link: tree.link(branches.divergence).name.clone(),
@@ -272,6 +296,23 @@ pub fn inspect(
             ),
         },
     }
+}
+
+/// The tree's limbs with their roles.
+fn limb_entries(tree: &KinematicTree) -> Vec<LimbEntry> {
+    crate::tree::limbs(tree)
+        .into_iter()
+        .map(|limb| LimbEntry {
+            end: tree.link(limb.end).name.clone(),
+            role: limb.role,
+            joints: limb
+                .joints
+                .iter()
+                .map(|j| tree.joint(*j).name.clone())
+                .collect(),
+            beyond: limb.beyond,
+        })
+        .collect()
 }
 
 /// Rounds away float noise (1e-9 of a degree or millimetre) so tables read cleanly.
@@ -338,8 +379,37 @@ impl InspectReport {
                 }
             }
         }
+        let _ = writeln!(
+            out,
+            "\nlimbs (roles from the names; any of them can be measured)"
+        );
+        for limb in &self.limbs {
+            let beyond = if limb.beyond > 0 {
+                format!(" (+{} movable joints beyond)", limb.beyond)
+            } else {
+                String::new()
+            };
+            let _ = writeln!(
+                out,
+                "  {:<8} {} joints up to '{}': {}{beyond}",
+                limb.role.label(),
+                limb.joints.len(),
+                limb.end,
+                limb.joints.join(", ")
+            );
+        }
         let b = &self.branches;
         let _ = writeln!(out, "\nbranches (diverging at '{}')", b.divergence_link);
+        if b.reference_link != self.root {
+            let _ = writeln!(
+                out,
+                "  reference link:  {} (fixed in the world)",
+                b.reference_link
+            );
+        }
+        if let Some(note) = &b.reference_note {
+            let _ = writeln!(out, "  {note}");
+        }
         let _ = writeln!(out, "  tools chosen by: {}", b.selection_rule);
         let _ = writeln!(out, "  left/right by:   {}", b.side_rule);
         for branch in &b.list {
@@ -355,9 +425,10 @@ impl InspectReport {
             };
             let _ = writeln!(
                 out,
-                "  {:<10} {} joints: {joints}{tool}",
+                "  {:<10} {} joints: {joints}{tool} [{}]",
                 branch.name,
-                branch.joints.len()
+                branch.joints.len(),
+                branch.role.label()
             );
         }
         let _ = writeln!(

@@ -8,9 +8,13 @@
 mod arm_search;
 mod branches;
 mod geometry;
+mod limbs;
 
-pub use branches::{detect_branches, Branch, BranchRole, Branches, DecisionRule};
+pub use branches::{
+    detect_branches, detect_branches_from, Branch, BranchRole, Branches, DecisionRule,
+};
 pub use geometry::{Inertial, LinkGeometry, Shape};
+pub use limbs::{limbs, Limb};
 
 use crate::error::{Error, Result};
 use crate::math::{pose, rot_axis, Pose, Vec3};
@@ -349,6 +353,18 @@ impl KinematicTree {
             current = self.joints[joint.0].parent;
         }
         path.reverse();
+        path
+    }
+
+    /// The joints (fixed included) on the path from link `from` to link `to`, in the order
+    /// the path crosses them: first up from `from` towards the root (joints traversed against
+    /// their URDF direction), then down to `to`.
+    pub fn path_between(&self, from: LinkId, to: LinkId) -> Vec<JointId> {
+        let up = self.path_from_root(from);
+        let down = self.path_from_root(to);
+        let shared = up.iter().zip(&down).take_while(|(a, b)| a == b).count();
+        let mut path: Vec<JointId> = up[shared..].iter().rev().copied().collect();
+        path.extend_from_slice(&down[shared..]);
         path
     }
 

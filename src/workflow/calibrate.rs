@@ -72,6 +72,8 @@ pub struct CalibrateConfig {
     pub stiffness: Option<StiffnessSource>,
     /// Tool links ending the arms [default: the measured tools].
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole, a mobile base) [default: the root].
+    pub reference_link: Option<String>,
     /// The calibration plan.
     pub plan: PlanSource,
     /// Unit of lengths in the measurements [default: as stated, else m].
@@ -158,6 +160,7 @@ impl Default for CalibrateConfig {
             validation: None,
             stiffness: None,
             tools: None,
+            reference_link: None,
             plan: PlanSource::Auto,
             length_unit: None,
             angle_unit: None,

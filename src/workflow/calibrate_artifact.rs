@@ -134,10 +134,15 @@ impl Scoring<'_> {
             }
             None => None,
         };
+        // The link fixed in the world (the root unless a reference link was chosen).
+        let reference = tree.link_id(&original.link(self.loaded.branches.reference).name)?;
         let (mut position, mut orientation) = (Vec::new(), Vec::new());
         for m in measurements {
             let q: Vec<f64> = dof_of.iter().map(|&d| m.q[d]).collect();
-            let link_pose = tree.link_pose(scored[m.tool], &q)?;
+            let mut link_pose = tree.link_pose(scored[m.tool], &q)?;
+            if reference != tree.root() {
+                link_pose = tree.link_pose(reference, &q)?.inverse() * link_pose;
+            }
             let pose = match &deflected {
                 None => self.world_from_base * link_pose,
                 Some((model, flexibility)) => {

@@ -81,7 +81,12 @@ impl Loaded {
             &config.measurements,
         )?;
         let tools = points.tools.as_deref().or(config.tools.as_deref());
-        let branches = measured_branches(&robot.import, tools, &config.measurements)?;
+        let branches = measured_branches(
+            &robot.import,
+            tools,
+            config.reference_link.as_deref(),
+            &config.measurements,
+        )?;
         let nominal = McpcModel::from_tree(robot.tree(), &branches)?;
         Ok(Self {
             robot,
@@ -123,6 +128,8 @@ pub(super) fn read_data(
     };
     notes.extend(loaded.points.note());
     let tree = loaded.robot.tree();
+    notes.extend(loaded.branches.roles_summary(tree).map(Note::info));
+    notes.extend(loaded.branches.reference_summary(tree).map(Note::info));
     let mut read = |source: &super::source::MeasurementSource| {
         let set = source.read(tree, &loaded.nominal, &options)?;
         notes.extend(set.warnings.iter().map(Note::warning));

@@ -39,6 +39,8 @@ pub struct CheckConfig {
     pub robot: RobotSource,
     /// Tool links ending the arms [default: detected, or the measured ones].
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole, a mobile base) [default: the root].
+    pub reference_link: Option<String>,
     /// A pose CSV (joint columns, optional `tool` and `stage`), e.g. `plan`'s output.
     pub pose_file: Option<PathBuf>,
     /// Measurements (a CSV or arrays) whose configurations, tools and stages are analysed.
@@ -79,6 +81,7 @@ impl Default for CheckConfig {
         Self {
             robot: RobotSource::BuiltIn,
             tools: None,
+            reference_link: None,
             pose_file: None,
             measurements: None,
             length_unit: None,
@@ -159,12 +162,18 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
             let points = add_measured_points(&mut import, config.tools.as_deref(), source)?;
             notes.extend(points.note());
             let tools = points.tools.as_deref().or(config.tools.as_deref());
-            measured_branches(&import, tools, source)?
+            measured_branches(&import, tools, config.reference_link.as_deref(), source)?
         }
-        None => branches(&import, config.tools.as_deref())?,
+        None => branches(
+            &import,
+            config.tools.as_deref(),
+            config.reference_link.as_deref(),
+        )?,
     };
     let tree = &import.tree;
     let model = McpcModel::from_tree(tree, &branches)?;
+    notes.extend(branches.roles_summary(tree).map(Note::info));
+    notes.extend(branches.reference_summary(tree).map(Note::info));
     let requested = requested_plan(&config.plan)?;
     let rows = rows(
         config,

@@ -54,7 +54,7 @@ pub fn export(config: &ExportConfig) -> Result<Export> {
         tools => tools.clone(),
     };
     let tree = robot.tree();
-    let branches = branches(&robot.import, tools.as_deref())?;
+    let branches = branches(&robot.import, tools.as_deref(), None)?;
     let mut model = McpcModel::from_tree(tree, &branches)?;
     let parameters = read_parameters(&config.parameters, tree, &model)?;
     // A file for another branch selection misses every parameter: name a few, count the rest.

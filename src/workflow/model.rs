@@ -17,6 +17,8 @@ pub struct ModelConfig {
     pub robot: RobotSource,
     /// Tool links ending the arms [default: detected].
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole, a mobile base) [default: the root].
+    pub reference_link: Option<String>,
 }
 
 /// A robot's tree, branches and MCPC parameter table.
@@ -31,7 +33,11 @@ pub struct Inspection {
 /// Loads the robot, detects its branches and builds its MCPC model.
 pub fn inspect(config: &ModelConfig) -> Result<Inspection> {
     let robot = config.robot.load()?;
-    let branches = branches(&robot.import, config.tools.as_deref())?;
+    let branches = branches(
+        &robot.import,
+        config.tools.as_deref(),
+        config.reference_link.as_deref(),
+    )?;
     let model = McpcModel::from_tree(robot.tree(), &branches)?;
     let report = inspect_report(robot.tree(), &robot.import.warnings, &branches, &model);
     Ok(Inspection {
@@ -52,7 +58,16 @@ pub struct McpcTableText {
 /// The MCPC table of the detected (or named) branches, with the constant phi of every row.
 pub fn to_mcpc(config: &ModelConfig) -> Result<McpcTableText> {
     let robot = config.robot.load()?;
-    let branches = branches(&robot.import, config.tools.as_deref())?;
+    let branches = branches(
+        &robot.import,
+        config.tools.as_deref(),
+        config.reference_link.as_deref(),
+    )?;
+    if branches.reference != robot.tree().root() {
+        return Err(crate::error::Error::Branches(
+            "an MCPC table is rooted at the URDF root; give no reference link".into(),
+        ));
+    }
     let model = McpcModel::from_tree(robot.tree(), &branches)?;
     let table = McpcTable::from_model(robot.tree(), &branches, &model)?;
     let source = match &config.robot {

@@ -50,6 +50,8 @@ pub struct PlanConfig {
     pub collision_check: CollisionCheck,
     /// Tool links ending the arms [default: detected].
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole, a mobile base) [default: the root].
+    pub reference_link: Option<String>,
     /// Configurations to choose (for `Staged`: the arms set).
     pub poses: usize,
     /// Configurations of the torso set for `Staged`.
@@ -81,6 +83,7 @@ impl Default for PlanConfig {
             package_paths: Vec::new(),
             collision_check: CollisionCheck::Meshes,
             tools: None,
+            reference_link: None,
             poses: 20,
             torso_poses: 10,
             candidates: 5000,
@@ -155,8 +158,14 @@ pub fn plan_with_progress(config: &PlanConfig, progress: ProgressFn<'_>) -> Resu
     notes.extend(robot.notes());
     let import = robot.import;
     let tree = &import.tree;
-    let branches = branches(&import, config.tools.as_deref())?;
+    let branches = branches(
+        &import,
+        config.tools.as_deref(),
+        config.reference_link.as_deref(),
+    )?;
     let model = McpcModel::from_tree(tree, &branches)?;
+    notes.extend(branches.roles_summary(tree).map(Note::info));
+    notes.extend(branches.reference_summary(tree).map(Note::info));
     let checker = collision_checker(
         &config.robot,
         tree,

@@ -58,6 +58,8 @@ pub struct SimulateConfig {
     pub stiffness: Option<StiffnessSource>,
     /// Tool links ending the arms [default: detected].
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole, a mobile base) [default: the root].
+    pub reference_link: Option<String>,
     /// Configurations measured for the arms.
     pub poses: usize,
     /// Configurations measured for the torso with the arms locked.
@@ -111,6 +113,7 @@ impl Default for SimulateConfig {
             collision_check: CollisionCheck::Meshes,
             stiffness: None,
             tools: None,
+            reference_link: None,
             poses: 20,
             torso_poses: 10,
             validation_poses: 20,
@@ -172,8 +175,14 @@ pub fn simulate_with_progress(
     notes.extend(robot.notes());
     let import = robot.import;
     let tree = &import.tree;
-    let branches = branches(&import, config.tools.as_deref())?;
+    let branches = branches(
+        &import,
+        config.tools.as_deref(),
+        config.reference_link.as_deref(),
+    )?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
+    notes.extend(branches.roles_summary(tree).map(Note::info));
+    notes.extend(branches.reference_summary(tree).map(Note::info));
     let stiffness = stiffness(config, tree, &nominal)?;
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
     let model_flexibility = truth_flexibility.scaled(1.0 / config.model_stiffness_scale)?;

@@ -9,7 +9,7 @@ use crate::io::{
     read_stiffness, MeasurementReadOptions, MeasurementSet, MeasurementTable,
 };
 use crate::kinematics::{McpcModel, Stiffness};
-use crate::tree::{detect_branches, Branches, KinematicTree};
+use crate::tree::{detect_branches_from, Branches, KinematicTree, LinkId};
 use crate::urdf::{parse_urdf, UrdfImport};
 use std::path::{Path, PathBuf};
 
@@ -103,8 +103,32 @@ impl LoadedRobot {
     }
 }
 
-/// Detects branches, with the tool links named by the user if any.
-pub fn branches(import: &UrdfImport, tools: Option<&[String]>) -> Result<Branches> {
+/// The link fixed in the world while measuring: `name`, or the root without one. An unknown
+/// name is an error that lists the links there are.
+pub fn reference_link(tree: &KinematicTree, name: Option<&str>) -> Result<LinkId> {
+    let Some(name) = name.map(str::trim) else {
+        return Ok(tree.root());
+    };
+    tree.link_id(name).map_err(|_| {
+        Error::Branches(format!(
+            "reference link '{name}' is not a link of robot '{}'; its links are: {}",
+            tree.name(),
+            tree.links()
+                .iter()
+                .map(|l| l.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))
+    })
+}
+
+/// Detects branches from the named tools (else automatically), measured from the reference
+/// link (else the root).
+pub fn branches(
+    import: &UrdfImport,
+    tools: Option<&[String]>,
+    reference: Option<&str>,
+) -> Result<Branches> {
     let tree = &import.tree;
     let tools = tools
         .map(|names| {
@@ -114,18 +138,20 @@ pub fn branches(import: &UrdfImport, tools: Option<&[String]>) -> Result<Branche
                 .collect::<Result<Vec<_>>>()
         })
         .transpose()?;
-    detect_branches(tree, tools.as_deref())
+    detect_branches_from(tree, tools.as_deref(), reference_link(tree, reference)?)
 }
 
 /// Detects branches from the tools the user named, else from the links the measurements'
-/// `tool` column names (the measured tools), so that automatic detection cannot pick others.
+/// `tool` column names (the measured tools), so that automatic detection cannot pick others;
+/// measured from the reference link (else the root).
 pub fn measured_branches(
     import: &UrdfImport,
     tools: Option<&[String]>,
+    reference: Option<&str>,
     measurements: &MeasurementSource,
 ) -> Result<Branches> {
     if tools.is_some() {
-        return branches(import, tools);
+        return branches(import, tools, reference);
     }
     let measured = measurements.tool_names()?;
     let tree = &import.tree;
@@ -143,7 +169,7 @@ pub fn measured_branches(
             })
         })
         .collect::<Result<Vec<_>>>()?;
-    detect_branches(tree, Some(&ids))
+    detect_branches_from(tree, Some(&ids), reference_link(tree, reference)?)
 }
 
 /// The measured points the robot's URDF lacks, added to its tree as marker links (a fixed

@@ -48,6 +48,7 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
         validation: args.validation.clone().map(MeasurementSource::Csv),
         stiffness: args.stiffness.clone().map(StiffnessSource::File),
         tools: args.tools.clone(),
+        reference_link: args.reference_link.clone(),
         plan,
         length_unit: args.length_unit,
         angle_unit: args.angle_unit,

@@ -9,6 +9,7 @@ fn config(args: CheckArgs) -> CheckConfig {
     CheckConfig {
         robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
         tools: args.tools,
+        reference_link: args.reference_link,
         pose_file: args.pose_file.or(args.poses),
         measurements: args.measurements.map(MeasurementSource::Csv),
         length_unit: args.length_unit,

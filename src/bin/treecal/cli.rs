@@ -124,6 +124,10 @@ pub struct InspectArgs {
     /// two arm end links are found automatically and the rule that decided is printed.
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole on the floor, a mobile base):
+    /// measurements are relative to it, paths from it may run up a leg [default: the URDF root].
+    #[arg(long, value_name = "LINK")]
+    pub reference_link: Option<String>,
     /// Output format.
     #[arg(long, value_enum, default_value = "text")]
     pub format: Format,
@@ -220,6 +224,10 @@ pub struct SimulateArgs {
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole on the floor, a mobile base):
+    /// measurements are relative to it, paths from it may run up a leg [default: the URDF root].
+    #[arg(long, value_name = "LINK")]
+    pub reference_link: Option<String>,
     /// Configurations measured for the arms.
     #[arg(long, default_value_t = 20, allow_negative_numbers = true)]
     pub poses: u32,
@@ -367,6 +375,10 @@ pub struct PlanArgs {
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole on the floor, a mobile base):
+    /// measurements are relative to it, paths from it may run up a leg [default: the URDF root].
+    #[arg(long, value_name = "LINK")]
+    pub reference_link: Option<String>,
     /// Configurations to choose (for --stage staged: the arms set).
     #[arg(long, allow_negative_numbers = true)]
     pub poses: u32,
@@ -452,6 +464,10 @@ pub struct CheckArgs {
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole on the floor, a mobile base):
+    /// measurements are relative to it, paths from it may run up a leg [default: the URDF root].
+    #[arg(long, value_name = "LINK")]
+    pub reference_link: Option<String>,
     /// CSV of the configurations to be measured (joint columns, optional `tool` and `stage`),
     /// e.g. what `treecal plan` writes.
     #[arg(long, value_name = "P.csv", conflicts_with_all = ["measurements", "poses"])]
@@ -605,6 +621,10 @@ pub struct CalibrateArgs {
     /// Tool links ending the arms (see `inspect --help`).
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
+    /// The link fixed in the world while measuring (a sole on the floor, a mobile base):
+    /// measurements are relative to it, paths from it may run up a leg [default: the URDF root].
+    #[arg(long, value_name = "LINK")]
+    pub reference_link: Option<String>,
     /// Calibration plan [default: staged when rows are labelled torso/arms, else
     /// simultaneous]; a value ending in .yaml is taken as --plan-file.
     #[arg(long, value_parser = PlanArgParser)]

@@ -9,6 +9,7 @@ pub fn run(args: InspectArgs) -> Result<()> {
     let inspection = inspect(&ModelConfig {
         robot: RobotSource::from_path(crate::cli::robot_path(&args.robot, &args.robot_file)),
         tools: args.tools.clone(),
+        reference_link: args.reference_link.clone(),
     })?;
     for note in &inspection.notes {
         crate::output::note(note);

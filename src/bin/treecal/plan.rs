@@ -13,6 +13,7 @@ fn config(args: PlanArgs) -> PlanConfig {
         package_paths: args.package_path,
         collision_check: args.collision_check.into(),
         tools: args.tools,
+        reference_link: args.reference_link,
         poses: args.poses as usize,
         torso_poses: args.torso_poses as usize,
         candidates: args.candidates as usize,

@@ -14,6 +14,7 @@ fn config(args: SimulateArgs) -> SimulateConfig {
         collision_check: args.collision_check.into(),
         stiffness: args.stiffness.map(StiffnessSource::File),
         tools: args.tools,
+        reference_link: args.reference_link,
         poses: args.poses as usize,
         torso_poses: args.torso_poses as usize,
         validation_poses: args.validation_poses as usize,

@@ -14,6 +14,8 @@ pub fn run(args: ToMcpcArgs) -> Result<()> {
     let table = to_mcpc(&ModelConfig {
         robot: RobotSource::from_path(robot),
         tools: args.tools.clone(),
+        // An MCPC table is rooted at the URDF root.
+        reference_link: None,
     })?;
     for note in &table.notes {
         crate::output::note(note);

@@ -36,17 +36,29 @@ impl FlexibilityModel {
                 let tip = transform.translation;
                 let mut position = Vec3::zeros();
                 let mut rotation = Vec3::zeros();
-                for &frame in model.tool_chain(tool) {
-                    let joint = &joints[frame];
-                    position += joint.rotation.cross(&(tip - joint.origin));
-                    rotation += joint.rotation;
+                // The tool's own chain moves it; the reference link's chain moves the
+                // reference, which is held fixed instead: the opposite motion of everything.
+                let chains = [
+                    (model.tool_chain(tool), 1.0),
+                    (model.reference_chain(), -1.0),
+                ];
+                for (chain, sign) in chains {
+                    for &frame in chain {
+                        let joint = &joints[frame];
+                        position += sign * joint.rotation.cross(&(tip - joint.origin));
+                        rotation += sign * joint.rotation;
+                    }
+                    let on_path = chain
+                        .iter()
+                        .filter_map(|&frame| self.segment_to_frame[frame]);
+                    for index in on_path {
+                        let segment = &segments[index];
+                        position += sign
+                            * (segment.translation + segment.rotation.cross(&(tip - segment.end)));
+                        rotation += sign * segment.rotation;
+                    }
                 }
-                let on_path = model
-                    .tool_chain(tool)
-                    .iter()
-                    .filter_map(|&frame| self.segment_to_frame[frame])
-                    .chain(self.segment_to_tool[tool]);
-                for index in on_path {
+                if let Some(index) = self.segment_to_tool[tool] {
                     let segment = &segments[index];
                     position += segment.translation + segment.rotation.cross(&(tip - segment.end));
                     rotation += segment.rotation;
@@ -117,13 +129,14 @@ impl FlexibilityModel {
             }
         };
         let count = model.frames().len();
+        let world_from_root = model.world_from_root_transform(q);
         let mut deflected: Vec<Transform> = Vec::with_capacity(count);
         let mut previous: Vec<Transform> = Vec::with_capacity(count);
         let mut frames: Vec<Transform> = Vec::with_capacity(count);
         for (i, frame) in model.frames().iter().enumerate() {
             let before = match frame.parent {
                 Some(p) => deflected[p].then(&segment_transform(self.segment_to_frame[i])),
-                None => *model.world_from_base_transform(),
+                None => world_from_root,
             };
             let sigma = before.then(model.frame_constant(i));
             let value = model.joint_value(i, q);
@@ -145,14 +158,31 @@ impl FlexibilityModel {
             .enumerate()
             .map(|(t, tool)| match tool.parent {
                 Some(p) => deflected[p].then(&segment_transform(self.segment_to_tool[t])),
-                None => *model.world_from_base_transform(),
+                None => world_from_root,
             })
             .collect();
-        let tools = tool_previous
+        let tools: Vec<Transform> = tool_previous
             .iter()
             .enumerate()
             .map(|(t, before)| before.then(model.tool_constant(t)))
             .collect();
+        // A reference link other than the root deflects with its chain; it is held fixed, so
+        // everything moves back by its deflection.
+        let mut all = [deflected, previous, frames, tool_previous, tools];
+        if let Some(reference) = &model.reference {
+            let moved = match reference.reference.parent {
+                Some(p) => all[0][p],
+                None => world_from_root,
+            };
+            let deflected_reference = moved.then(&reference.last_from_link);
+            let back = model
+                .world_from_base_transform()
+                .then(&crate::kinematics::reference::inverse(&deflected_reference));
+            for transform in all.iter_mut().flatten() {
+                *transform = back.then(transform);
+            }
+        }
+        let [deflected, previous, frames, tool_previous, tools] = all;
         Ok(Deflection {
             chain: ChainFrames {
                 previous,

@@ -277,6 +277,16 @@ impl ComplianceBasis {
         model: &McpcModel,
         q: &[f64],
     ) -> Result<ComplianceJacobian> {
+        if let Some(reference) = model.reference() {
+            return Err(Error::InvalidData {
+                origin: "stiffness identification".into(),
+                message: format!(
+                    "the compliance derivatives hold the root link '{}' fixed, not the reference link '{}'; identify the stiffness with the root as the reference link",
+                    tree.link(tree.root()).name,
+                    tree.link(reference.link).name
+                ),
+            });
+        }
         let current = self.scaled(scales)?;
         let deflection = current.deflect(tree, model, q)?;
         let units = self

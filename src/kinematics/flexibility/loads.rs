@@ -118,7 +118,7 @@ impl FlexibilityModel {
             .map(|(t, tool)| match tool.parent {
                 Some(p) => moved[p].then(model.tool_constant(t)),
                 None => model
-                    .world_from_base_transform()
+                    .world_from_root_transform(q)
                     .then(model.tool_constant(t)),
             })
             .collect();
