@@ -39,7 +39,9 @@ fn args() -> Result<Args, String> {
     let mut words = std::env::args().skip(1);
     let (mut robot, mut poses, mut out, mut session) = (None, None, None, 1);
     while let Some(flag) = words.next() {
-        let value = words.next().ok_or(format!("{flag} needs a value"))?;
+        let value = words
+            .next()
+            .ok_or_else(|| format!("{flag} needs a value"))?;
         match flag.as_str() {
             "--robot" => robot = Some(PathBuf::from(value)),
             "--poses" => poses = Some(PathBuf::from(value)),
@@ -116,7 +118,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|t| tree.link_id(t))
         .collect::<Result<Vec<_>, _>>()?;
-    let nominal = McpcModel::from_tree(&tree, &detect_branches(&tree, Some(&tool_links))?)?;
+    let nominal =
+        McpcModel::from_tree(&tree, &detect_branches(&tree, Some(tool_links.as_slice()))?)?;
     // The true robot: the same for every session (seed 23).
     let mut truth = nominal.clone();
     let mut rng = ChaCha8Rng::seed_from_u64(23);
@@ -176,8 +179,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let q = configuration_at(&configurations, t);
             let point = truth.tool_pose(index, &q).translation.vector;
             let _ = write!(log, "{:.4}", t + TRACKER_CLOCK_START - lag);
-            for c in 0..3 {
-                let _ = write!(log, ",{:.4}", (point[c] + noise.sample(&mut rng)) * 1e3);
+            for coordinate in point.iter() {
+                let _ = write!(log, ",{:.4}", (coordinate + noise.sample(&mut rng)) * 1e3);
             }
             log.push('\n');
         }

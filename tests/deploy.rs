@@ -151,9 +151,67 @@ fn offsets_of(text: &str) -> Vec<(String, f64)> {
         .collect()
 }
 
+/// Measurements of the nominal Robonaut whose encoders read `q − offset` (positions of both
+/// tools in the root frame, m and rad): a robot that offsets alone calibrate.
+fn offset_measurements(dir: &Path, offsets: &[(&str, f64)]) -> PathBuf {
+    let tree = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
+    let names: Vec<String> = tree
+        .dofs()
+        .iter()
+        .map(|&j| tree.joint(j).name.clone())
+        .collect();
+    let mut text = format!("id,tool,{},x,y,z\n", names.join(","));
+    let mut rng = rng(11);
+    for row in 0..40 {
+        let q: Vec<f64> = random_configuration(&tree, &mut rng)
+            .iter()
+            .map(|v| 0.8 * v)
+            .collect();
+        let mut reported = q.clone();
+        for (joint, offset) in offsets {
+            reported[tree.dof_of(tree.joint_id(joint).unwrap()).unwrap().0] -= offset;
+        }
+        for tool in ["left_tool", "right_tool"] {
+            let p = tree
+                .link_pose(tree.link_id(tool).unwrap(), &q)
+                .unwrap()
+                .translation
+                .vector;
+            let values: Vec<String> = reported.iter().map(|v| v.to_string()).collect();
+            text += &format!(
+                "{row}{tool},{tool},{},{},{},{}\n",
+                values.join(","),
+                p.x,
+                p.y,
+                p.z
+            );
+        }
+    }
+    let path = dir.join("offsets.csv");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
 #[test]
 fn offsets_model_writes_joint_offsets_that_move_the_nominal_urdf_like_the_calibrated_one() {
-    let (_dir, out) = calibrate_example(&["--model", "offsets"]);
+    let dir = tempfile::tempdir().unwrap();
+    let truth = [
+        ("torso_joint2", 0.004),
+        ("left_joint2", -0.006),
+        ("right_joint3", 0.003),
+    ];
+    let csv = offset_measurements(dir.path(), &truth);
+    let out = dir.path().join("out");
+    let run = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&csv),
+        "--model",
+        "offsets",
+        "--out",
+        path_str(&out),
+    ]);
+    assert_success(&run, "calibrate --model offsets");
     let text = read(&out.join("joint_offsets.yaml"));
     assert!(
         text.contains("convention: q_urdf = q_reported + offset"),
@@ -161,7 +219,14 @@ fn offsets_model_writes_joint_offsets_that_move_the_nominal_urdf_like_the_calibr
     );
     let offsets = offsets_of(&text);
     assert!(offsets.len() >= 10, "{text}");
-    assert!(offsets.iter().any(|(_, v)| v.abs() > 1e-4), "{offsets:?}");
+    // The offsets found are the true ones (noise-free data).
+    for (joint, value) in &truth {
+        let found = offsets.iter().find(|(j, _)| j == joint).unwrap().1;
+        assert!(
+            (found - value).abs() < 1e-6,
+            "{joint}: {found} against {value}"
+        );
+    }
     let nominal = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
     let calibrated = load_urdf(&out.join("calibrated.urdf")).unwrap().tree;
     let mut rng = rng(7);
