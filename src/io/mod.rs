@@ -13,6 +13,7 @@ pub mod measurements_csv;
 pub mod mesh_files;
 pub mod observations;
 pub mod output_lock;
+pub mod overlay;
 pub mod paired_csv;
 pub mod params;
 pub mod plan;
@@ -43,6 +44,10 @@ pub use mesh_files::{
     mesh_file_loader, mesh_vertices, package_dirs, read_mesh_vertices, resolve_mesh,
 };
 pub use output_lock::OutputLock;
+pub use overlay::{
+    joint_offsets_to_yaml, overlay_to_yaml, parse_overlay, JointOffset, OFFSETS_FORMAT,
+    OVERLAY_FORMAT,
+};
 pub use paired_csv::{paired_measurements_to_csv, PairedRow};
 pub use params::{
     parse_parameters, read_parameter_file_robot, read_parameters, ParameterFileRobot,

@@ -3,6 +3,8 @@
 pub mod artifact;
 pub mod calibrate;
 pub mod check;
+pub mod html;
+pub mod html_chart;
 pub mod inspect;
 pub mod outliers;
 pub mod pairing;
@@ -17,6 +19,7 @@ pub use calibrate::{
     BeforeAfter, CalibrationContext, CalibrationSummary, RowErrors, REPORT_SCHEMA,
 };
 pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
+pub use html::{calibration_html, HtmlReport, Scene, SceneConfiguration};
 pub use inspect::{inspect, InspectReport};
 pub use outliers::{outlier_rows, OutlierRow, RobustSummary};
 pub use pairing::{pairing_markdown, PairingReport};

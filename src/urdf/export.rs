@@ -158,17 +158,23 @@ pub fn export_urdf_with(
     if !added_links.is_empty() {
         edits.push(document.before_root_end(&added_links)?);
     }
-    edits.sort_by_key(|(start, _, _)| std::cmp::Reverse(*start));
-    let mut urdf = original.to_owned();
-    for (start, end, replacement) in edits {
-        urdf.replace_range(start..end, &replacement);
-    }
+    let urdf = apply_edits(original, edits);
     Ok(ExportReport {
         urdf,
         changes,
         dropped,
         added_links,
     })
+}
+
+/// `original` with the `(start, end, replacement)` edits applied (non-overlapping ranges).
+pub(super) fn apply_edits(original: &str, mut edits: Vec<(usize, usize, String)>) -> String {
+    edits.sort_by_key(|(start, _, _)| std::cmp::Reverse(*start));
+    let mut text = original.to_owned();
+    for (start, end, replacement) in edits {
+        text.replace_range(start..end, &replacement);
+    }
+    text
 }
 
 /// A joint's new placement: its origin and, where it changes, its axis (in the joint frame).
@@ -182,7 +188,7 @@ struct Placement {
 
 /// Twice the vector part of the relative quaternion: the rotation angle for small angles,
 /// without the acos that makes `angle_to` blind below about 1e-8 rad.
-fn rotation_gap(a: &Rotation, b: &Rotation) -> f64 {
+pub(super) fn rotation_gap(a: &Rotation, b: &Rotation) -> f64 {
     2.0 * (a.inverse() * b).quaternion().imag().norm()
 }
 
@@ -417,14 +423,14 @@ fn numbers(values: [f64; 3]) -> String {
 }
 
 /// The original text with its elements located.
-struct Document<'a> {
+pub(super) struct Document<'a> {
     text: &'a str,
     origin: &'a str,
     elements: Vec<Element>,
 }
 
 impl<'a> Document<'a> {
-    fn new(text: &'a str, origin: &'a str) -> Result<Self> {
+    pub(super) fn new(text: &'a str, origin: &'a str) -> Result<Self> {
         let elements = scan(text, origin)?;
         Ok(Self {
             text,
@@ -442,7 +448,7 @@ impl<'a> Document<'a> {
 
     /// The `<joint>` element called `name` directly under the root `<robot>` (joints inside
     /// `<transmission>` or `<gazebo>` are other things with the same tag).
-    fn joint(&self, name: &str) -> Result<usize> {
+    pub(super) fn joint(&self, name: &str) -> Result<usize> {
         let mut found = self.elements.iter().enumerate().filter(|(_, e)| {
             e.name == "joint"
                 && e.parent.is_some_and(|p| self.elements[p].parent.is_none())
@@ -465,7 +471,7 @@ impl<'a> Document<'a> {
     }
 
     /// Whether a `<link name="…">` directly under the root declares link `name`.
-    fn has_link(&self, name: &str) -> bool {
+    pub(super) fn has_link(&self, name: &str) -> bool {
         self.elements.iter().any(|e| {
             e.name == "link"
                 && e.parent.is_some_and(|p| self.elements[p].parent.is_none())
@@ -543,7 +549,10 @@ impl<'a> Document<'a> {
     }
 
     /// An edit that inserts the `added` links before the root's `</robot>`.
-    fn before_root_end(&self, added: &[AddedToolLink]) -> Result<(usize, usize, String)> {
+    pub(super) fn before_root_end(
+        &self,
+        added: &[AddedToolLink],
+    ) -> Result<(usize, usize, String)> {
         let Some(end) = self.text.rfind("</robot") else {
             return Err(Error::InvalidRobot {
                 origin: self.origin.to_owned(),
@@ -565,7 +574,7 @@ impl<'a> Document<'a> {
         Ok((end, end, added_links_xml(added, &indent)))
     }
 
-    fn set_origin(
+    pub(super) fn set_origin(
         &self,
         joint: usize,
         joint_name: &str,
@@ -577,7 +586,7 @@ impl<'a> Document<'a> {
         self.set_child(joint, joint_name, "origin", &values, edits)
     }
 
-    fn set_axis(
+    pub(super) fn set_axis(
         &self,
         joint: usize,
         joint_name: &str,

@@ -31,7 +31,9 @@ pub const OUTPUT_FILES: [&str; 8] = [
 
 /// Whether a file name is one `calibrate` writes (a previous output may be replaced).
 pub fn is_output_file(name: &str) -> bool {
-    OUTPUT_FILES.contains(&name) || name.ends_with(".svg")
+    OUTPUT_FILES.contains(&name)
+        || super::calibrate_deploy::DEPLOY_FILES.contains(&name)
+        || name.ends_with(".svg")
 }
 
 /// How the measurement frame is found.

@@ -250,8 +250,13 @@ pub(super) fn outputs(
     }
     let mut plots = calibration_plots(&summary.identification, "measurement")?;
     plots.extend(calibration_plots(&summary.validation, "validation")?);
-    let verdict = summary.verdict;
-    let urdf = export.filter(|_| verdict.usable()).map(|e| e.urdf);
+    let verdict = summary.verdict.clone();
+    let export = export.filter(|_| verdict.usable());
+    // The overlay and offsets (issue 23), and the page that shows all of it.
+    let deploy = super::calibrate_deploy::deployable(tree, &loaded.nominal, run, export.as_ref())?;
+    markdown.push_str(&deploy.markdown);
+    let html = super::calibrate_html::report_html(loaded, data, result, &summary, &plots, &deploy)?;
+    let urdf = export.map(|e| e.urdf);
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     if let Some(urdf) = &urdf {
         files.push(("calibrated.urdf".into(), urdf.clone().into_bytes()));
@@ -271,6 +276,8 @@ pub(super) fn outputs(
     if let Some(text) = stiffness_file {
         files.push(("stiffness.yaml".into(), text.into_bytes()));
     }
+    files.extend(deploy.files);
+    files.push((super::calibrate_deploy::HTML_FILE.into(), html.into_bytes()));
     Ok(Outputs {
         verdict,
         report,

@@ -5,6 +5,8 @@
 
 pub mod calibrate;
 pub mod calibrate_artifact;
+pub mod calibrate_deploy;
+mod calibrate_html;
 mod calibrate_outputs;
 mod calibrate_steps;
 pub mod check;
