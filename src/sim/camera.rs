@@ -243,6 +243,9 @@ fn visible_configurations(
     let tree = setup.tree;
     let limits = tree.dof_limits();
     let torso = setup.branches.coupled.dofs(tree);
+    let tool_targets: Vec<usize> = (0..setup.rig.targets.len())
+        .filter(|&t| setup.rig.targets[t].tool < setup.rig.robot_tools)
+        .collect();
     let mut accepted = Vec::with_capacity(options.configurations);
     let attempts = 500 * options.configurations.max(1);
     for _ in 0..attempts {
@@ -278,7 +281,13 @@ fn visible_configurations(
             &fixed,
         )?
         .remove(0);
-        if !visible_targets(setup.rig, truth, &q, options).is_empty() {
+        // Each configuration shows the tool boards in turn (every tool is seen as often),
+        // and whatever else is in view.
+        let visible = visible_targets(setup.rig, truth, &q, options);
+        let wanted = tool_targets
+            .get(accepted.len() % tool_targets.len().max(1))
+            .copied();
+        if visible.iter().any(|v| wanted.is_none_or(|t| v.target == t)) {
             accepted.push(q);
         }
     }

@@ -119,12 +119,16 @@ pub fn camera_rig(
         let d = tool.translation.vector - eye_in_link.coords;
         d.norm() > 0.25 && d.normalize().dot(direction) > (0.8 * half_fov).cos()
     };
+    // The direction that sees the least-seen tool most often (then the most tools).
     let look = best_direction(|direction| {
-        tools
-            .iter()
-            .flatten()
-            .filter(|(_, p)| seen(direction, p))
-            .count()
+        let mut counts = vec![0; nominal.tools().len()];
+        for (tool, pose) in tools.iter().flatten() {
+            if seen(direction, pose) {
+                counts[*tool] += 1;
+            }
+        }
+        let least = counts.iter().copied().min().unwrap_or(0);
+        least * (SURVEY_CONFIGURATIONS * counts.len() + 1) + counts.iter().sum::<usize>()
     });
     let link_from_camera = looking(
         eye_in_link.coords,
