@@ -267,7 +267,7 @@ mod tests {
             Err(Rejection::BehindCamera)
         );
         assert_eq!(
-            camera.project(&Vec3::new(0.5, 0.0, 1.0)),
+            camera.project(&Vec3::new(0.8, 0.0, 1.0)),
             Err(Rejection::OutsideImage)
         );
         // Far off-axis, k1 < 0 folds the image back towards the centre.
