@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod calibration;
+pub mod camera;
 pub mod error;
 pub mod io;
 pub mod kinematics;

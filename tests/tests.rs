@@ -4,6 +4,7 @@ mod common;
 
 mod branches;
 mod calibrate;
+mod camera;
 mod cli;
 mod collision;
 mod corpus;

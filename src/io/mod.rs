@@ -2,8 +2,10 @@
 //! mcap.
 
 pub mod bounded;
+pub mod camera_yaml;
 mod collada;
 mod csv_scan;
+pub mod detections_csv;
 pub mod joint_log;
 pub mod joint_log_mcap;
 pub mod joints_csv;

@@ -1,6 +1,8 @@
 //! Simulation: random and planned configurations and the self-collision checks they must pass.
 
 pub mod blunders;
+pub mod camera;
+pub mod camera_setup;
 pub mod collision;
 mod detmax;
 pub mod experiment;

@@ -22,6 +22,7 @@ pub mod pair;
 pub mod plan;
 pub mod progress;
 pub mod simulate;
+mod simulate_camera;
 pub mod source;
 
 pub use calibrate::{

@@ -45,6 +45,22 @@ pub enum MeasurementFormat {
     Tracker,
 }
 
+/// What the simulated calibration observes (`--observation`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum ObservationChoice {
+    /// The paper's experiment: a tracker, gravity loads, the staged plan.
+    #[default]
+    Tracker,
+    /// A camera on the coupled branch's last link seeing boards on the tools and in the world
+    /// (`crate::sim::camera`; rigid robot).
+    Camera,
+    /// The camera and the tracker together, each with its own σ.
+    Mixed,
+    /// The tracker alone at the camera simulation's configurations (rigid robot): the
+    /// comparison row.
+    RigidTracker,
+}
+
 /// Settings of [`simulate`]; `Default` is `treecal simulate` without flags.
 #[derive(Debug, Clone)]
 pub struct SimulateConfig {
@@ -103,6 +119,16 @@ pub struct SimulateConfig {
     pub candidates: usize,
     /// The layout of trial 1's measurements CSV, if wanted.
     pub measurement_format: Option<MeasurementFormat>,
+    /// What is observed.
+    pub observation: ObservationChoice,
+    /// The camera's link (camera observations) [default: the coupled branch's last link].
+    pub camera_link: Option<String>,
+    /// Pixel noise σ of a detected corner (px).
+    pub pixel_sigma: f64,
+    /// Whether a board stands in the world in front of the robot (camera observations).
+    pub world_board: bool,
+    /// Whether the camera's intrinsics are estimated with the robot.
+    pub estimate_intrinsics: bool,
 }
 
 impl Default for SimulateConfig {
@@ -135,6 +161,11 @@ impl Default for SimulateConfig {
             poses_from: PosesFrom::Random,
             candidates: 2000,
             measurement_format: None,
+            observation: ObservationChoice::Tracker,
+            camera_link: None,
+            pixel_sigma: 0.5,
+            world_board: true,
+            estimate_intrinsics: false,
         }
     }
 }
@@ -156,6 +187,9 @@ pub struct Simulation {
     pub files: Vec<(String, Vec<u8>)>,
     /// Trial 1's simulated measurements as CSV, when asked for.
     pub measurements_csv: Option<String>,
+    /// Every trial of a camera simulation (empty for the tracker experiment, whose trials are
+    /// `reports`).
+    pub camera_reports: Vec<crate::sim::camera::CameraTrialReport>,
 }
 
 /// Runs the simulation; writes nothing.
@@ -169,6 +203,9 @@ pub fn simulate_with_progress(
     progress: ProgressFn<'_>,
 ) -> Result<Simulation> {
     validate(config)?;
+    if config.observation != ObservationChoice::Tracker {
+        return super::simulate_camera::simulate_camera(config, progress);
+    }
     let noise = NoiseModel::parse(&config.noise)?;
     let mut notes = Vec::new();
     let robot = config.robot.load()?;
@@ -246,6 +283,7 @@ pub fn simulate_with_progress(
         markdown,
         files,
         measurements_csv,
+        camera_reports: Vec::new(),
     })
 }
 
@@ -340,6 +378,36 @@ fn validate(config: &SimulateConfig) -> Result<()> {
     }
     if config.poses_from == PosesFrom::Planned {
         validate_candidates(config)?;
+    }
+    if config.observation != ObservationChoice::Tracker {
+        limits::check_range(config.pixel_sigma, (0.0, 1e3), "--pixel-sigma", "px")?;
+        if config.poses + config.torso_poses == 0 {
+            return Err(invalid(
+                "--poses",
+                "a camera simulation needs at least one configuration (--poses + --torso-poses)"
+                    .into(),
+            ));
+        }
+        for (flag, set) in [
+            ("--measurement-format", config.measurement_format.is_some()),
+            ("--identify-stiffness", config.identify_stiffness),
+            ("--poses-from", config.poses_from == PosesFrom::Planned),
+            ("--outliers", config.outliers > 0.0),
+        ] {
+            if set {
+                return Err(invalid(
+                    flag,
+                    "is not available with camera observations (rigid robot, random visible \
+                     configurations); use --observation tracker"
+                        .into(),
+                ));
+            }
+        }
+    } else if config.camera_link.is_some() || !config.world_board || config.estimate_intrinsics {
+        return Err(invalid(
+            "--observation",
+            "--camera-link, --no-world-board and --estimate-intrinsics need --observation camera or mixed".into(),
+        ));
     }
     Ok(())
 }

@@ -303,6 +303,37 @@ pub struct SimulateArgs {
     /// Candidate configurations each planned pose set is chosen from (--poses-from planned).
     #[arg(long, default_value_t = 2000, allow_negative_numbers = true)]
     pub candidates: u32,
+    /// What is observed: `tracker` (the paper's experiment), `camera` (a camera on the
+    /// coupled branch's last link sees a board on each tool and one in the world; rigid robot;
+    /// --poses + --torso-poses configurations), `mixed` (camera and tracker, each with its
+    /// σ) or `rigid-tracker` (the tracker at the camera simulation's configurations).
+    #[arg(long, value_enum, default_value = "tracker")]
+    pub observation: ObservationArg,
+    /// The camera's link (--observation camera|mixed) [default: the coupled branch's last link].
+    #[arg(long, value_name = "LINK")]
+    pub camera_link: Option<String>,
+    /// Pixel noise σ of a detected board corner (px).
+    #[arg(long, default_value_t = 0.5, value_name = "PX")]
+    pub pixel_sigma: f64,
+    /// No board in the world: the camera then sees the tools only relative to itself, and the
+    /// coupled branch's parameters are not determined (named in the output).
+    #[arg(long)]
+    pub no_world_board: bool,
+    /// Estimate the camera's intrinsics (fx, fy, cx, cy, k1, k2, p1, p2, k3) with the robot.
+    #[arg(long)]
+    pub estimate_intrinsics: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ObservationArg {
+    /// A laser tracker (the paper's experiment).
+    Tracker,
+    /// The head camera and the boards.
+    Camera,
+    /// Camera and tracker together.
+    Mixed,
+    /// The tracker at the camera simulation's configurations (rigid robot).
+    RigidTracker,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -1,6 +1,6 @@
 //! `treecal simulate`: flags → [`SimulateConfig`] → [`simulate_with_progress`] → print, write.
 
-use crate::cli::{MeasurementFormat, PlanChoice, PosesFrom, SimulateArgs};
+use crate::cli::{MeasurementFormat, ObservationArg, PlanChoice, PosesFrom, SimulateArgs};
 use crate::progress::Display;
 use treecal::io::write_atomically;
 use treecal::workflow::simulate::{self, simulate_with_progress, SimulateConfig};
@@ -47,6 +47,16 @@ fn config(args: SimulateArgs) -> SimulateConfig {
                 MeasurementFormat::Tracker => simulate::MeasurementFormat::Tracker,
             }
         }),
+        observation: match args.observation {
+            ObservationArg::Tracker => simulate::ObservationChoice::Tracker,
+            ObservationArg::Camera => simulate::ObservationChoice::Camera,
+            ObservationArg::Mixed => simulate::ObservationChoice::Mixed,
+            ObservationArg::RigidTracker => simulate::ObservationChoice::RigidTracker,
+        },
+        camera_link: args.camera_link,
+        pixel_sigma: args.pixel_sigma,
+        world_board: !args.no_world_board,
+        estimate_intrinsics: args.estimate_intrinsics,
     }
 }
 

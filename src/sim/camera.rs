@@ -1,0 +1,522 @@
+//! The camera simulation (`simulate --observation camera|mixed|tracker`): a true robot with
+//! random parameter errors, observed at the same configurations by the head camera looking at
+//! the boards, by a tracker, or by both, calibrated by [`crate::camera::calibrate_camera`], and
+//! judged on tool poses against the true robot in its root frame at separate validation
+//! configurations, whatever was observed. The robot is rigid here (no gravity loads).
+
+use super::camera_setup::CameraRigOptions;
+use super::collision::CollisionChecker;
+use super::experiment::trial_seed;
+use super::noise::{observe, NoiseModel, Targets};
+use super::sampling::{sample_configurations, SamplingOptions};
+use super::truth::{true_model, ErrorRanges};
+use crate::camera::{
+    calibrate_camera, predict_pixels, CameraFitOptions, CameraFitReport, CameraProblem, Rig,
+    TargetShape, Unknown, View,
+};
+use crate::error::{Error, Result};
+use crate::kinematics::McpcModel;
+use crate::measurement::Measurement;
+use crate::tree::{Branches, KinematicTree};
+use nalgebra::{DMatrix, Vector2};
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use serde::Serialize;
+
+/// What the simulated calibration observes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ObservationMode {
+    /// A laser tracker measures three targets on every tool.
+    Tracker,
+    /// The head camera sees the boards.
+    Camera,
+    /// Both, each with its own σ.
+    Mixed,
+}
+
+/// Settings of a camera simulation.
+#[derive(Debug, Clone)]
+pub struct CameraSimulationOptions {
+    /// The camera, boards and what is estimated.
+    pub rig: CameraRigOptions,
+    /// Identification configurations (each sees at least one board).
+    pub configurations: usize,
+    /// Validation configurations (drawn over the whole joint ranges).
+    pub validation_poses: usize,
+    /// Parameter errors of the true robot (and of the camera's mounting).
+    pub errors: ErrorRanges,
+    /// Pixel noise σ of a detected corner (px).
+    pub pixel_sigma: f64,
+    /// Tracker noise (tracker and mixed).
+    pub tracker_noise: NoiseModel,
+    /// The coupled branch's joints are drawn within ± this of zero (rad) so that the camera
+    /// sees the world board in a good share of the configurations.
+    pub torso_spread: f64,
+    /// The master seed.
+    pub seed: u64,
+}
+
+impl Default for CameraSimulationOptions {
+    fn default() -> Self {
+        Self {
+            rig: CameraRigOptions::default(),
+            configurations: 30,
+            validation_poses: 20,
+            errors: ErrorRanges::default(),
+            pixel_sigma: 0.5,
+            tracker_noise: NoiseModel::at901(),
+            torso_spread: 0.4,
+            seed: 0,
+        }
+    }
+}
+
+/// Everything a trial needs that does not change between trials.
+pub struct CameraSetup<'a> {
+    /// The robot.
+    pub tree: &'a KinematicTree,
+    /// Its branches.
+    pub branches: &'a Branches,
+    /// Self-collision checks for sampling.
+    pub checker: Option<&'a CollisionChecker>,
+    /// The cameras and targets.
+    pub rig: &'a Rig,
+    /// The nominal model with the rig's frames ([`Rig::build`]).
+    pub augmented: &'a McpcModel,
+}
+
+/// The outcome of one trial in one observation mode.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CameraTrialReport {
+    /// The trial's seed.
+    pub seed: u64,
+    /// What was observed.
+    pub mode: ObservationMode,
+    /// Identification configurations.
+    pub configurations: usize,
+    /// Images (one target in one configuration) used.
+    pub views: usize,
+    /// Detected points used.
+    pub points: usize,
+    /// Tracker rows used.
+    pub tracker_rows: usize,
+    /// Mean validation tool position error before calibration (mm).
+    pub before_mean_position_mm: f64,
+    /// Mean validation tool position error after calibration (mm).
+    pub mean_position_mm: f64,
+    /// Largest validation tool position error (mm).
+    pub max_position_mm: f64,
+    /// RMS validation tool position error (mm).
+    pub rms_position_mm: f64,
+    /// The RMS position error the fit's covariance predicts at the validation
+    /// configurations (mm).
+    pub predicted_rms_position_mm: f64,
+    /// Mean validation tool orientation error (deg).
+    pub mean_orientation_deg: f64,
+    /// `σ̂` of the fit.
+    pub residual_scale: f64,
+    /// Unknowns fitted and the rank of the problem.
+    pub unknowns: usize,
+    /// Numerical rank.
+    pub rank: usize,
+    /// The parameters the data cannot determine, by name.
+    pub unidentifiable: Vec<String>,
+}
+
+/// Runs trial `trial` in `mode`. Configurations, truth and noise depend on the seed only, so
+/// the three modes see the same robot at the same configurations.
+pub fn run_camera_trial(
+    setup: &CameraSetup<'_>,
+    options: &CameraSimulationOptions,
+    mode: ObservationMode,
+    trial: usize,
+) -> Result<CameraTrialReport> {
+    let seed = trial_seed(options.seed, trial);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let truth = camera_truth(setup, options, &mut rng)?;
+    let configurations = visible_configurations(setup, &truth, options, &mut rng)?;
+    let validation = sample_configurations(
+        setup.tree,
+        setup.checker,
+        options.validation_poses,
+        &mut rng,
+        &SamplingOptions::default(),
+        &[],
+    )?;
+    // Noise from its own stream: the three modes draw the same pixels and the same targets.
+    let mut noise_rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_CA11_B7A7_E000);
+    let views = if mode == ObservationMode::Tracker {
+        Vec::new()
+    } else {
+        observe_views(setup.rig, &truth, &configurations, options, &mut noise_rng)?
+    };
+    let mut tracker_rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7AC4_E500_0000_0001);
+    let tracker = if mode == ObservationMode::Camera {
+        Vec::new()
+    } else {
+        tracker_rows(
+            setup.rig,
+            &truth,
+            &configurations,
+            options,
+            &mut tracker_rng,
+        )
+    };
+    let problem = CameraProblem {
+        rig: setup.rig,
+        views: &views,
+        tracker: &tracker,
+        unknowns: unknowns(setup, !views.is_empty()),
+    };
+    let fit_options = fit_options(options);
+    let report = calibrate_camera(setup.augmented, &problem, &fit_options)?;
+    let judged = judge(setup, &truth, &report, &validation)?;
+    Ok(CameraTrialReport {
+        seed,
+        mode,
+        configurations: configurations.len(),
+        views: views.len(),
+        points: views.iter().map(|v| v.points.len()).sum(),
+        tracker_rows: tracker.len(),
+        before_mean_position_mm: judged.before_mean,
+        mean_position_mm: judged.mean,
+        max_position_mm: judged.max,
+        rms_position_mm: judged.rms,
+        predicted_rms_position_mm: judged.predicted_rms,
+        mean_orientation_deg: judged.orientation_mean,
+        residual_scale: report.residual_scale,
+        unknowns: report.unknowns.len(),
+        rank: report.rank,
+        unidentifiable: unidentifiable_names(setup, &problem, &report),
+    })
+}
+
+/// The fit's settings for the simulated noise.
+pub fn fit_options(options: &CameraSimulationOptions) -> CameraFitOptions {
+    let mut fit = CameraFitOptions {
+        pixel_sigma: if options.pixel_sigma > 0.0 {
+            options.pixel_sigma
+        } else {
+            0.5
+        },
+        ..CameraFitOptions::default()
+    };
+    if !options.tracker_noise.is_none() {
+        let sigma = options.tracker_noise.sigma(&crate::math::Vec3::zeros());
+        fit.position_sigma = sigma;
+        fit.rotation_sigma = std::f64::consts::SQRT_2 * sigma / crate::measurement::TARGET_SPACING;
+    }
+    fit
+}
+
+/// The true augmented model: every parameter of the robot and of the camera mounting off by
+/// a random error; targets whose pose is not estimated stay where they are declared to be.
+fn camera_truth(
+    setup: &CameraSetup<'_>,
+    options: &CameraSimulationOptions,
+    rng: &mut ChaCha8Rng,
+) -> Result<McpcModel> {
+    let mut truth = true_model(setup.augmented, &options.errors, rng)?;
+    let nominal = setup.augmented.parameters();
+    let mut values = truth.parameters();
+    for (extra, (_, free)) in setup.rig.extra.iter().enumerate() {
+        if !free {
+            for p in setup.rig.extra_parameters(setup.augmented, extra) {
+                values[p] = nominal[p];
+            }
+        }
+    }
+    truth.set_parameters(&values)?;
+    Ok(truth)
+}
+
+/// Identification configurations in which the true robot shows the camera at least one
+/// whole board facing it: the coupled branch within ±`torso_spread`, the rest anywhere.
+fn visible_configurations(
+    setup: &CameraSetup<'_>,
+    truth: &McpcModel,
+    options: &CameraSimulationOptions,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<Vec<f64>>> {
+    let tree = setup.tree;
+    let limits = tree.dof_limits();
+    let torso = setup.branches.coupled.dofs(tree);
+    let tool_targets: Vec<usize> = (0..setup.rig.targets.len())
+        .filter(|&t| setup.rig.targets[t].tool < setup.rig.robot_tools)
+        .collect();
+    let mut accepted = Vec::with_capacity(options.configurations);
+    let attempts = 500 * options.configurations.max(1);
+    for _ in 0..attempts {
+        if accepted.len() == options.configurations {
+            return Ok(accepted);
+        }
+        let fixed: Vec<(usize, f64)> = torso
+            .iter()
+            .map(|&d| {
+                let (lower, upper) =
+                    limits[d].map_or((-options.torso_spread, options.torso_spread), |l| {
+                        (
+                            l.lower.max(-options.torso_spread),
+                            l.upper.min(options.torso_spread),
+                        )
+                    });
+                (
+                    d,
+                    if upper > lower {
+                        rng.random_range(lower..upper)
+                    } else {
+                        lower
+                    },
+                )
+            })
+            .collect();
+        let q = sample_configurations(
+            tree,
+            setup.checker,
+            1,
+            rng,
+            &SamplingOptions::default(),
+            &fixed,
+        )?
+        .remove(0);
+        // Each configuration shows the tool boards in turn (every tool is seen as often),
+        // and whatever else is in view.
+        let visible = visible_targets(setup.rig, truth, &q, options);
+        let wanted = tool_targets
+            .get(accepted.len() % tool_targets.len().max(1))
+            .copied();
+        if visible.iter().any(|v| wanted.is_none_or(|t| v.target == t)) {
+            accepted.push(q);
+        }
+    }
+    Err(Error::InvalidData {
+        origin: "camera simulation".into(),
+        message: format!(
+            "only {} of {} configurations in {attempts} draws show the camera a whole board; \
+             choose another camera link or a smaller board",
+            accepted.len(),
+            options.configurations
+        ),
+    })
+}
+
+/// The targets wholly visible at `q` on the true robot, with their exact pixels.
+fn visible_targets(
+    rig: &Rig,
+    truth: &McpcModel,
+    q: &[f64],
+    options: &CameraSimulationOptions,
+) -> Vec<View> {
+    let poses = truth.tool_poses(q);
+    let mut views = Vec::new();
+    for (camera_index, camera) in rig.cameras.iter().enumerate() {
+        let camera_pose = poses[camera.tool];
+        for (target_index, target) in rig.targets.iter().enumerate() {
+            let board = poses[target.tool] * target.tool_from_target;
+            if target.shape.has_face() {
+                let to_camera =
+                    (camera_pose.translation.vector - board.translation.vector).normalize();
+                let face = board.rotation * -nalgebra::Vector3::z();
+                if face.dot(&to_camera) < options.rig.max_view_angle.cos() {
+                    continue;
+                }
+            }
+            let mut view = View {
+                id: String::new(),
+                q: q.to_vec(),
+                camera: camera_index,
+                target: target_index,
+                points: (0..target.shape.point_count())
+                    .map(|k| (k, Vector2::zeros()))
+                    .collect(),
+            };
+            let pixels = predict_pixels(rig, &view, &poses, &camera.intrinsics, true);
+            if pixels.iter().all(|p| p.is_ok()) {
+                for ((_, pixel), predicted) in view.points.iter_mut().zip(pixels) {
+                    *pixel = predicted.unwrap_or_else(|_| Vector2::zeros());
+                }
+                views.push(view);
+            }
+        }
+    }
+    views
+}
+
+/// The noisy views of every configuration.
+fn observe_views(
+    rig: &Rig,
+    truth: &McpcModel,
+    configurations: &[Vec<f64>],
+    options: &CameraSimulationOptions,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<View>> {
+    let noise = Normal::new(0.0, options.pixel_sigma.max(0.0)).map_err(|e| Error::InvalidData {
+        origin: "camera simulation".into(),
+        message: format!("pixel σ {}: {e}", options.pixel_sigma),
+    })?;
+    let mut views = Vec::new();
+    for (index, q) in configurations.iter().enumerate() {
+        for mut view in visible_targets(rig, truth, q, options) {
+            view.id = format!("c{index}-{}", rig.targets[view.target].name);
+            if options.pixel_sigma > 0.0 {
+                for (_, pixel) in &mut view.points {
+                    pixel.x += noise.sample(rng);
+                    pixel.y += noise.sample(rng);
+                }
+            }
+            views.push(view);
+        }
+    }
+    Ok(views)
+}
+
+/// Three-target frames of every robot tool at every configuration.
+fn tracker_rows(
+    rig: &Rig,
+    truth: &McpcModel,
+    configurations: &[Vec<f64>],
+    options: &CameraSimulationOptions,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Measurement> {
+    let mut rows = Vec::new();
+    for q in configurations {
+        for (tool, pose) in truth.tool_poses(q).iter().take(rig.robot_tools).enumerate() {
+            rows.push(Measurement {
+                tool,
+                q: q.clone(),
+                observation: observe(pose, Targets::Three, &options.tracker_noise, rng),
+                stage: None,
+                payload: None,
+                session: None,
+            });
+        }
+    }
+    rows
+}
+
+/// Every robot parameter, the estimated rig poses (with views) and estimated intrinsics.
+fn unknowns(setup: &CameraSetup<'_>, with_views: bool) -> Vec<Unknown> {
+    let rig = setup.rig;
+    let model = setup.augmented;
+    let extra: Vec<usize> = (0..rig.extra.len())
+        .flat_map(|e| rig.extra_parameters(model, e))
+        .collect();
+    let mut unknowns: Vec<Unknown> = (0..model.parameter_count())
+        .filter(|p| !extra.contains(p))
+        .map(Unknown::Parameter)
+        .collect();
+    if with_views {
+        for (e, (_, free)) in rig.extra.iter().enumerate() {
+            if *free {
+                unknowns.extend(rig.extra_parameters(model, e).map(Unknown::Parameter));
+            }
+        }
+        for (camera, spec) in rig.cameras.iter().enumerate() {
+            if spec.estimate_intrinsics {
+                unknowns.extend(
+                    (0..crate::camera::INTRINSIC_COUNT)
+                        .map(|index| Unknown::Intrinsic { camera, index }),
+                );
+            }
+        }
+    }
+    unknowns
+}
+
+/// Validation figures of a fit.
+struct Judged {
+    before_mean: f64,
+    mean: f64,
+    max: f64,
+    rms: f64,
+    predicted_rms: f64,
+    orientation_mean: f64,
+}
+
+/// Tool pose errors of the fitted robot against the truth at `validation` (robot tools only,
+/// root frame), and the RMS the fit's covariance predicts there.
+fn judge(
+    setup: &CameraSetup<'_>,
+    truth: &McpcModel,
+    report: &CameraFitReport,
+    validation: &[Vec<f64>],
+) -> Result<Judged> {
+    let tools = setup.rig.robot_tools;
+    let (mut before, mut after, mut orientation, mut predicted) =
+        (Vec::new(), Vec::new(), Vec::new(), 0.0);
+    let columns: Vec<Option<usize>> = report
+        .unknowns
+        .iter()
+        .map(|u| match u {
+            Unknown::Parameter(p) => Some(*p),
+            Unknown::Intrinsic { .. } => None,
+        })
+        .collect();
+    for q in validation {
+        let actual = truth.tool_poses(q);
+        let nominal = setup.augmented.tool_poses(q);
+        let fitted = report.model.tool_jacobians(q);
+        for tool in 0..tools {
+            let d = |p: &crate::math::Pose| {
+                (actual[tool].translation.vector - p.translation.vector).norm() * 1e3
+            };
+            before.push(d(&nominal[tool]));
+            after.push(d(&fitted[tool].pose));
+            orientation.push(
+                actual[tool]
+                    .rotation
+                    .angle_to(&fitted[tool].pose.rotation)
+                    .to_degrees(),
+            );
+            if let Some(covariance) = &report.covariance {
+                let position = DMatrix::from_fn(3, columns.len(), |r, c| {
+                    columns[c].map_or(0.0, |p| fitted[tool].jacobian[(r, p)])
+                });
+                predicted += (&position * covariance * position.transpose()).trace();
+            }
+        }
+    }
+    let n = after.len().max(1) as f64;
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / n;
+    Ok(Judged {
+        before_mean: mean(&before),
+        mean: mean(&after),
+        max: after.iter().copied().fold(0.0, f64::max),
+        rms: (after.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
+        predicted_rms: if report.covariance.is_some() {
+            (predicted / n).sqrt() * 1e3
+        } else {
+            f64::NAN
+        },
+        orientation_mean: mean(&orientation),
+    })
+}
+
+/// The names of the unknowns the data cannot determine.
+fn unidentifiable_names(
+    setup: &CameraSetup<'_>,
+    problem: &CameraProblem<'_>,
+    report: &CameraFitReport,
+) -> Vec<String> {
+    report
+        .identifiable
+        .iter()
+        .enumerate()
+        .filter(|(_, ok)| !**ok)
+        .map(|(k, _)| problem.unknown_name(setup.tree, &report.model, k))
+        .collect()
+}
+
+/// The default board on each tool, for messages and reports.
+pub fn board_size(shape: &TargetShape) -> String {
+    match shape {
+        TargetShape::Board {
+            rows,
+            columns,
+            spacing,
+        } => format!("{rows} × {columns} corners, {:.0} mm apart", spacing * 1e3),
+        TargetShape::Marker => "a single marker".into(),
+    }
+}

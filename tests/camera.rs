@@ -1,0 +1,318 @@
+//! Camera calibration: the pixel Jacobians against finite differences, the rig's frames, and
+//! simulated calibrations (noise-free recovery, what a camera cannot see without the world
+//! board).
+
+use crate::common::{simulated_robonaut, SimulatedRobot};
+use treecal::camera::{linearise_view, Intrinsics, Rig, View, INTRINSIC_COUNT};
+use treecal::kinematics::McpcModel;
+use treecal::sim::camera::{
+    run_camera_trial, CameraSetup, CameraSimulationOptions, ObservationMode,
+};
+use treecal::sim::camera_setup::{camera_rig, CameraRigOptions};
+use treecal::sim::noise::NoiseModel;
+
+fn rig(robot: &SimulatedRobot, options: &CameraRigOptions) -> (Rig, McpcModel) {
+    camera_rig(
+        &robot.tree,
+        &robot.branches,
+        &robot.nominal,
+        Some(&robot.checker),
+        options,
+        7,
+    )
+    .unwrap()
+}
+
+/// A view of every point of every target at `q` (pixels unused by the Jacobian).
+fn views_at(rig: &Rig, q: &[f64]) -> Vec<View> {
+    rig.targets
+        .iter()
+        .enumerate()
+        .map(|(target, t)| View {
+            id: format!("t{target}"),
+            q: q.to_vec(),
+            camera: 0,
+            target,
+            points: (0..t.shape.point_count())
+                .map(|k| (k, nalgebra::Vector2::zeros()))
+                .collect(),
+        })
+        .collect()
+}
+
+#[test]
+fn pixel_jacobians_match_finite_differences() {
+    let robot = simulated_robonaut();
+    let options = CameraRigOptions {
+        intrinsics: Intrinsics {
+            distortion: [-0.2, 0.07, 1e-3, -5e-4, -0.01],
+            ..CameraRigOptions::default().intrinsics
+        },
+        ..Default::default()
+    };
+    let (rig, model) = rig(&robot, &options);
+    let mut rng = crate::common::rng(3);
+    let intrinsics = rig.cameras[0].intrinsics;
+    for _ in 0..3 {
+        let q = crate::common::random_configuration(&robot.tree, &mut rng);
+        for view in views_at(&rig, &q) {
+            let analytic = linearise_view(&rig, &view, &model.tool_jacobians(&q), &intrinsics);
+            // Points behind the camera have no pixel and no Jacobian rows.
+            let usable: Vec<usize> = (0..view.points.len())
+                .filter(|&k| analytic.pixels[k].is_ok())
+                .collect();
+            let step = 1e-6;
+            let parameters = model.parameters();
+            let mut shifted = model.clone();
+            let pixels_at = |model: &McpcModel, intrinsics: &Intrinsics| {
+                linearise_view(&rig, &view, &model.tool_jacobians(&q), intrinsics).pixels
+            };
+            for p in 0..parameters.len() {
+                let mut values = parameters.clone();
+                values[p] += step;
+                shifted.set_parameters(&values).unwrap();
+                let up = pixels_at(&shifted, &intrinsics);
+                values[p] -= 2.0 * step;
+                shifted.set_parameters(&values).unwrap();
+                let down = pixels_at(&shifted, &intrinsics);
+                for &k in &usable {
+                    let (Ok(u), Ok(d)) = (up[k], down[k]) else {
+                        continue;
+                    };
+                    let numeric = (u - d) / (2.0 * step);
+                    let column = analytic.wrt_model.view((2 * k, p), (2, 1));
+                    let error = (numeric - column).norm();
+                    assert!(
+                        error <= 1e-4 * column.norm().max(1.0),
+                        "parameter {p}, view {}, point {k}: analytic {column} numeric {numeric}",
+                        view.id
+                    );
+                }
+            }
+            let values = intrinsics.to_vector();
+            for i in 0..INTRINSIC_COUNT {
+                let h = 1e-6 * values[i].abs().max(1.0);
+                let mut plus = values;
+                plus[i] += h;
+                let mut minus = values;
+                minus[i] -= h;
+                let up = pixels_at(&model, &intrinsics.with_vector(&plus));
+                let down = pixels_at(&model, &intrinsics.with_vector(&minus));
+                for &k in &usable {
+                    let numeric = (up[k].unwrap() - down[k].unwrap()) / (2.0 * h);
+                    let column = analytic.wrt_intrinsics.view((2 * k, i), (2, 1));
+                    assert!((numeric - column).norm() <= 1e-5 * column.norm().max(1.0));
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_rig_adds_frames_and_gives_the_robot_back() {
+    let robot = simulated_robonaut();
+    let (rig, model) = rig(&robot, &CameraRigOptions::default());
+    assert_eq!(rig.robot_tools, robot.nominal.tools().len());
+    // The camera and the world board are extra frames; the tool boards ride on the tools.
+    assert_eq!(rig.extra.len(), 2);
+    assert_eq!(
+        model.parameter_count(),
+        robot.nominal.parameter_count() + 12
+    );
+    assert_eq!(rig.robot_model(&model).unwrap(), robot.nominal);
+    let mut rng = crate::common::rng(5);
+    let q = crate::common::random_configuration(&robot.tree, &mut rng);
+    let poses = model.tool_poses(&q);
+    for (tool, pose) in robot.nominal.tool_poses(&q).iter().enumerate() {
+        crate::common::assert_pose_eq(pose, &poses[tool], 1e-12, "robot tool");
+    }
+    // The camera frame moves with the coupled branch's last link.
+    let link = robot.branches.divergence;
+    let link_from_camera =
+        robot.tree.link_pose(link, &q).unwrap().inverse() * poses[rig.cameras[0].tool];
+    let q0 = robot.tree.zero_configuration();
+    let at_zero = robot.tree.link_pose(link, &q0).unwrap().inverse()
+        * model.tool_poses(&q0)[rig.cameras[0].tool];
+    crate::common::assert_pose_eq(&link_from_camera, &at_zero, 1e-9, "camera in its link");
+}
+
+fn simulation(
+    robot: &SimulatedRobot,
+    rig_options: CameraRigOptions,
+) -> (Rig, McpcModel, CameraSimulationOptions) {
+    let (rig, model) = rig(robot, &rig_options);
+    let options = CameraSimulationOptions {
+        rig: rig_options,
+        configurations: 20,
+        validation_poses: 10,
+        ..Default::default()
+    };
+    (rig, model, options)
+}
+
+#[test]
+fn noise_free_camera_calibration_recovers_the_robot() {
+    let robot = simulated_robonaut();
+    let (rig, model, options) = simulation(&robot, CameraRigOptions::default());
+    let setup = CameraSetup {
+        tree: &robot.tree,
+        branches: &robot.branches,
+        checker: Some(&robot.checker),
+        rig: &rig,
+        augmented: &model,
+    };
+    let options = CameraSimulationOptions {
+        pixel_sigma: 0.0,
+        tracker_noise: NoiseModel::none(),
+        ..options
+    };
+    for mode in [ObservationMode::Camera, ObservationMode::Mixed] {
+        let report = run_camera_trial(&setup, &options, mode, 0).unwrap();
+        eprintln!("{report:?}");
+        assert!(report.before_mean_position_mm > 10.0);
+        // 1e-6 m.
+        assert!(report.max_position_mm < 1e-3, "{mode:?}: {report:?}");
+    }
+}
+
+#[test]
+fn without_the_world_board_the_torso_is_unobservable() {
+    let robot = simulated_robonaut();
+    let (rig, model, options) = simulation(
+        &robot,
+        CameraRigOptions {
+            world_board: None,
+            ..Default::default()
+        },
+    );
+    let setup = CameraSetup {
+        tree: &robot.tree,
+        branches: &robot.branches,
+        checker: Some(&robot.checker),
+        rig: &rig,
+        augmented: &model,
+    };
+    let options = CameraSimulationOptions {
+        pixel_sigma: 0.0,
+        ..options
+    };
+    let report = run_camera_trial(&setup, &options, ObservationMode::Camera, 0).unwrap();
+    for joint in &robot.branches.coupled.joints {
+        let name = &robot.tree.joint(*joint).name;
+        assert!(
+            report
+                .unidentifiable
+                .iter()
+                .any(|u| u.starts_with(name.as_str())),
+            "{name} not named in {:?}",
+            report.unidentifiable
+        );
+    }
+}
+
+const CAMERA_FILE: &str = "\
+units: {length: m, angle: deg}
+cameras:
+  - name: head
+    link: torso_link2
+    pose: {xyz: [0.0, 0.0, 0.2], rpy: [-90, 0, -90]}
+    intrinsics: {fx: 533.0, fy: 533.0, cx: 320.0, cy: 240.0}
+    distortion: [0.05, -0.1, 0.0, 0.0, 0.0]
+    image: {width: 640, height: 480}
+    estimate: [pose, intrinsics]
+targets:
+  - name: left_board
+    link: left_tool
+    pose: {xyz: [0, 0, 0.01], rpy: [180, 0, 0]}
+    board: {rows: 5, columns: 7, spacing: 0.025}
+  - name: pole
+    link: world
+    pose: {xyz: [1.5, 0, 0.5], rpy: [-90, 0, -90]}
+    board: {rows: 7, columns: 10, spacing: 0.06}
+    estimate: []
+";
+
+#[test]
+fn the_camera_file_and_detections_are_read_with_named_errors() {
+    use treecal::io::camera_yaml::parse_camera_file;
+    use treecal::io::detections_csv::parse_detections;
+    use treecal::io::StatedUnits;
+    let robot = simulated_robonaut();
+    let contents = parse_camera_file(CAMERA_FILE, "cameras.yaml", &robot.tree).unwrap();
+    assert_eq!(contents.cameras.len(), 1);
+    assert!(contents.cameras[0].estimate_intrinsics && contents.cameras[0].estimate_pose);
+    assert!(contents.targets[0].estimate_pose && !contents.targets[1].estimate_pose);
+    assert!((contents.cameras[0].mount_from_camera.translation.vector.z - 0.2).abs() < 1e-15);
+    let (rig, _) = Rig::build(
+        &robot.tree,
+        &robot.nominal,
+        &contents.cameras,
+        &contents.targets,
+    )
+    .unwrap();
+    // Unknown keys name the closest valid one.
+    let typo = CAMERA_FILE.replace("distortion:", "distorsion:");
+    let error = parse_camera_file(&typo, "cameras.yaml", &robot.tree)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("the closest valid key is 'distortion'"),
+        "{error}"
+    );
+    let unknown_link = CAMERA_FILE.replace("link: left_tool", "link: left_tol");
+    let error = parse_camera_file(&unknown_link, "cameras.yaml", &robot.tree)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("targets[0]") && error.contains("left_tool"),
+        "{error}"
+    );
+
+    let joints = "torso_joint1,torso_joint2,left_joint1";
+    let csv = format!(
+        "# units: angle=deg\nid,camera,target,corner,u,v,{joints}\n\
+         a,head,left_board,0,100.5,200.25,0,10,20\n\
+         a,head,left_board,1,120.5,200.25,0,10,20\n\
+         a,head,pole,3,300,100,0,10,20\n\
+         b,head,left_board,0,101,201,5,10,20\n"
+    );
+    let views =
+        parse_detections(&csv, "d.csv", &robot.tree, &rig, &StatedUnits::default()).unwrap();
+    assert_eq!(views.len(), 3);
+    assert_eq!(views[0].points.len(), 2);
+    assert!((views[0].q[1] - 10f64.to_radians()).abs() < 1e-15);
+    assert_eq!(views[1].target, 1);
+    let bad_target = csv.replace("a,head,pole", "a,head,pol");
+    let error = parse_detections(
+        &bad_target,
+        "d.csv",
+        &robot.tree,
+        &rig,
+        &StatedUnits::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        error.starts_with("d.csv:5:target") && error.contains("'pole'"),
+        "{error}"
+    );
+    let bad_corner = csv.replace("a,head,pole,3", "a,head,pole,70");
+    let error = parse_detections(
+        &bad_corner,
+        "d.csv",
+        &robot.tree,
+        &rig,
+        &StatedUnits::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(error.contains("has 70 points (0 to 69)"), "{error}");
+    let moved = csv.replace(
+        "a,head,pole,3,300,100,0,10,20",
+        "a,head,pole,3,300,100,1,10,20",
+    );
+    let error = parse_detections(&moved, "d.csv", &robot.tree, &rig, &StatedUnits::default())
+        .unwrap_err()
+        .to_string();
+    assert!(error.contains("line 3"), "{error}");
+}
