@@ -23,12 +23,21 @@ pub(super) fn simulate_camera(
     config: &SimulateConfig,
     progress: ProgressFn<'_>,
 ) -> Result<Simulation> {
+    if let Some(reference) = &config.reference_link {
+        return Err(crate::Error::InvalidData {
+            origin: "simulate".into(),
+            message: format!(
+                "the camera simulation measures from the URDF root; reference link '{reference}' \
+                 is not supported with a camera observation yet: leave the reference link out"
+            ),
+        });
+    }
     let mut notes = Vec::new();
     let robot = config.robot.load()?;
     notes.extend(robot.notes());
     let import = robot.import;
     let tree = &import.tree;
-    let branches = branches(&import, config.tools.as_deref())?;
+    let branches = branches(&import, config.tools.as_deref(), None)?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
     let checker = collision_checker(
         &config.robot,
