@@ -1,5 +1,7 @@
 //! Identification of MCPC parameters from measurements (paper section 4, done robustly).
 //!
+//! - [`observation`]: the observation seam: what a kind of measurement predicts, its
+//!   residual, Jacobian and noise model ([`MeasurementKind`]); positions and poses today.
 //! - [`identifiability`]: rank, condition number, observability indices O1–O5 and the
 //!   unidentifiable parameter combinations of a set of configurations, before measuring.
 //! - [`frame`]: which measurement frame (root, fitted, known), and the unit-scale check.
@@ -30,6 +32,7 @@ pub mod frame;
 pub mod identifiability;
 pub mod initial_guess;
 mod normal_equations;
+pub mod observation;
 pub mod plan;
 pub mod prior;
 pub mod robust;
@@ -48,6 +51,7 @@ pub use identifiability::{
     IdentifiabilityReport, NamedCombination, ObservabilityIndices, ObservationKind, PoseRow,
 };
 pub use initial_guess::{fit_rigid_transform, fit_similarity_scale, initial_guess, InitialGuess};
+pub use observation::{kind_of, MeasurementKind, Noise, Nuisance, RobotState, RowKind};
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
 };

@@ -462,9 +462,11 @@ pub fn position_only_orientations(model: &McpcModel, data: &[Measurement]) -> Ve
     let mut positions = vec![false; tools];
     let mut poses = vec![false; tools];
     for m in data.iter().filter(|m| m.tool < tools) {
-        match m.observation {
-            crate::measurement::Observation::Position(_) => positions[m.tool] = true,
-            crate::measurement::Observation::Pose(_) => poses[m.tool] = true,
+        let rows = super::observation::kind_of(&m.observation).row_kinds();
+        if rows.contains(&super::observation::RowKind::Rotation) {
+            poses[m.tool] = true;
+        } else if rows.contains(&super::observation::RowKind::Position) {
+            positions[m.tool] = true;
         }
     }
     model

@@ -11,12 +11,15 @@
 //! fell below [`OUTLIER_WEIGHT`] are outliers: named, and left out of one last fit. See
 //! `docs/identification.md`, "Robust estimation".
 
+use super::observation::{
+    kind_of, norms_by_row_kind, standardized_norm, Nuisance, RobotState, Tools,
+};
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
 use super::solver::{Cached, IdentificationOptions, Predictor};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
-use crate::math::{pose_error, Pose};
-use crate::measurement::{Measurement, Observation};
+use crate::math::Pose;
+use crate::measurement::Measurement;
 use crate::tree::Branches;
 use nalgebra::Vector6;
 use serde::Serialize;
@@ -348,6 +351,8 @@ pub fn residuals(
 ) -> Result<Vec<Residual>> {
     let mut cached: Cached<'_, Vec<Pose>> = None;
     let mut out = Vec::with_capacity(measurements.len());
+    let noise = options.noise();
+    let mut error = Vec::new();
     for (index, m) in measurements.iter().enumerate() {
         let key = (m.q.as_slice(), m.payload);
         if cached.as_ref().is_none_or(|(k, _)| *k != key) {
@@ -357,29 +362,25 @@ pub fn residuals(
             };
             cached = Some((key, poses));
         }
-        let Some(predicted) = cached.as_ref().and_then(|(_, p)| p.get(m.tool)) else {
+        let Some((_, predicted)) = cached.as_ref().filter(|(_, p)| m.tool < p.len()) else {
             continue;
         };
-        let mut error = match &m.observation {
-            Observation::Pose(pose) => pose_error(pose, predicted),
-            Observation::Position(p) => {
-                let d = p - predicted.translation.vector;
-                Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
-            }
+        let kind = kind_of(&m.observation);
+        let state = RobotState {
+            model,
+            q: &m.q,
+            tool: m.tool,
+            tools: Tools::Poses(predicted),
+            offset: offsets.and_then(|o| o.get(index)),
+            nuisance: Nuisance::none(),
         };
-        if let Some(offset) = offsets.and_then(|o| o.get(index)) {
-            error -= offset;
-        }
-        let position = error.fixed_rows::<3>(0).norm();
-        let rotation =
-            matches!(m.observation, Observation::Pose(_)).then(|| error.fixed_rows::<3>(3).norm());
-        let norm = ((position / options.position_sigma).powi(2)
-            + (rotation.unwrap_or(0.0) / options.rotation_sigma).powi(2))
-        .sqrt();
+        error.resize(kind.rows(), 0.0);
+        kind.residual(&state, &mut error)?;
+        let [position, rotation] = norms_by_row_kind(kind, &error);
         out.push(Residual {
-            position,
+            position: position.unwrap_or(0.0),
             rotation,
-            norm,
+            norm: standardized_norm(kind, &error, &noise),
         });
     }
     Ok(out)
@@ -410,6 +411,7 @@ fn linear_offsets(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::measurement::Observation;
 
     #[test]
     fn huber_keeps_clean_norms_and_caps_large_ones() {

@@ -4,6 +4,7 @@
 pub use super::frame::MeasurementFrame;
 use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame, FrameDecision};
 use super::initial_guess::InitialGuess;
+use super::observation::kind_of;
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
 use super::robust::{self, DataSet, Outlier, RobustLoss, RobustReport};
 use super::sessions::{
@@ -15,7 +16,7 @@ use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::Pose;
-use crate::measurement::{Measurement, Observation};
+use crate::measurement::Measurement;
 use crate::tree::{Branches, KinematicTree};
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::ChaCha8Rng;
@@ -621,16 +622,13 @@ fn arm_residuals(
                 origin: "measurements".into(),
                 message: format!("tool {} does not exist", m.tool),
             })?;
-            match &m.observation {
-                Observation::Pose(measured) => {
-                    let d = measured.translation.vector - pose.translation.vector;
-                    position[m.tool][k].push(d.norm() * 1e3);
-                    orientation[m.tool][k]
-                        .push(measured.rotation.angle_to(&pose.rotation).to_degrees());
-                }
-                Observation::Position(measured) => {
-                    position[m.tool][k].push((measured - pose.translation.vector).norm() * 1e3);
-                }
+            let kind = kind_of(&m.observation);
+            if let Some(measured) = kind.measured_point() {
+                position[m.tool][k].push((measured - pose.translation.vector).norm() * 1e3);
+            }
+            if let Some(measured) = kind.measured_frame() {
+                orientation[m.tool][k]
+                    .push(measured.rotation.angle_to(&pose.rotation).to_degrees());
             }
         }
     }

@@ -10,10 +10,11 @@
 //! error. See `docs/identification.md`.
 
 use super::normal_equations::{accumulate, NormalEquations, Problem, Products};
+use super::observation::{kind_of, squares_by_row_kind, Noise, Nuisance, RobotState, Tools};
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ToolJacobian};
 use crate::math::{pose_error, Pose};
-use crate::measurement::{Measurement, Observation};
+use crate::measurement::Measurement;
 use nalgebra::{DMatrix, DVector, Vector6};
 
 /// How far (rad, m) the parameters may move before a Jacobian correction of
@@ -301,6 +302,14 @@ pub struct IdentificationOptions {
 }
 
 impl IdentificationOptions {
+    /// The noise model: σ per row kind.
+    pub fn noise(&self) -> Noise {
+        Noise {
+            position: self.position_sigma,
+            rotation: self.rotation_sigma,
+        }
+    }
+
     /// The same options for the measurements at `selected` (a stage's subset): the
     /// observation weights follow the measurements.
     pub fn for_measurements(&self, selected: &[usize]) -> Self {
@@ -422,10 +431,8 @@ fn rows_of(measurements: &[Measurement]) -> usize {
     measurements.iter().map(|m| m.observation.rows()).sum()
 }
 
-/// Raw (unweighted) residual of one measurement: measured ⊖ predicted − offset.
-/// The weighted residual of every measurement (position rows over `position_sigma`, rotation
-/// rows over `rotation_sigma`) under `predictor` at `model`: the vector whose half squared norm
-/// [`identify`] minimises.
+/// The weighted residual of every measurement (each row over its σ, [`Noise`]) under
+/// `predictor` at `model`: the vector whose half squared norm [`identify`] minimises.
 pub fn weighted_residual(
     model: &McpcModel,
     measurements: &[Measurement],
@@ -435,24 +442,11 @@ pub fn weighted_residual(
     Ok(linearise(model, measurements, None, predictor, &[], options, false)?.residual)
 }
 
-fn raw_residual(
-    measured: &Observation,
-    predicted: &Pose,
-    offset: Option<&Vector6<f64>>,
-) -> Vector6<f64> {
-    let mut error = match measured {
-        Observation::Pose(pose) => pose_error(pose, predicted),
-        Observation::Position(p) => {
-            let d = p - predicted.translation.vector;
-            Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
-        }
-    };
-    if let Some(offset) = offset {
-        error -= offset;
-    }
-    error
-}
-
+/// The stacked residual `W·r` and, `with_jacobian`, its Jacobian `W·J` over the `free`
+/// parameters, through the observation seam: each measurement's kind gives its unweighted
+/// residual and Jacobian rows from the robot state the predictor evaluated (once per
+/// configuration and payload, shared by the rows measured there), and each row is multiplied
+/// by `√w_i / σ` of its row kind.
 pub(super) fn linearise(
     model: &McpcModel,
     measurements: &[Measurement],
@@ -465,61 +459,51 @@ pub(super) fn linearise(
     let rows = rows_of(measurements);
     let mut residual = DVector::zeros(rows);
     let mut jacobian = DMatrix::zeros(if with_jacobian { rows } else { 0 }, free.len());
-    let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
+    let noise = options.noise();
     let mut row = 0;
     // Measurements of several tools at one configuration share one evaluation.
     // Keyed by configuration and payload.
     let mut cached: Cached<'_, Vec<ToolJacobian>> = None;
     let mut cached_poses: Cached<'_, Vec<Pose>> = None;
     for (index, m) in measurements.iter().enumerate() {
-        let count = m.observation.rows();
+        let kind = kind_of(&m.observation);
+        let count = kind.rows();
+        let key = (m.q.as_slice(), m.payload);
+        let tools = if with_jacobian {
+            if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+                cached = Some((key, predictor.jacobians_at(model, &m.q, m.payload)?));
+            }
+            Tools::Jacobians(cached.as_ref().map_or(&[][..], |(_, j)| j.as_slice()))
+        } else {
+            if cached_poses.as_ref().is_none_or(|(k, _)| *k != key) {
+                cached_poses = Some((key, predictor.predict_at(model, &m.q, m.payload)?));
+            }
+            Tools::Poses(cached_poses.as_ref().map_or(&[][..], |(_, p)| p.as_slice()))
+        };
+        let state = RobotState {
+            model,
+            q: &m.q,
+            tool: m.tool,
+            tools,
+            offset: offsets.map(|o| &o[index]),
+            nuisance: Nuisance::none(),
+        };
         // Multiplying by exactly 1.0 keeps unweighted problems bit for bit as before.
         let observation = options
             .observation_weights
             .get(index)
             .map_or(1.0, |w| w.sqrt());
-        let weights = [weights[0] * observation, weights[1] * observation];
-        let predicted = if with_jacobian {
-            let key = (m.q.as_slice(), m.payload);
-            if cached.as_ref().is_none_or(|(k, _)| *k != key) {
-                cached = Some((key, predictor.jacobians_at(model, &m.q, m.payload)?));
+        let weight = |row_kind| (1.0 / noise.sigma(row_kind)) * observation;
+        if with_jacobian {
+            let mut block = jacobian.view_mut((row, 0), (count, free.len()));
+            kind.jacobian(&state, free, &mut block)?;
+            for (k, &row_kind) in kind.row_kinds().iter().enumerate() {
+                block.row_mut(k).scale_mut(weight(row_kind));
             }
-            let tools = cached
-                .as_ref()
-                .map(|(_, j)| j)
-                .ok_or_else(|| Error::InvalidData {
-                    origin: "identification".into(),
-                    message: "no Jacobian".into(),
-                })?;
-            let tool = &tools[m.tool];
-            // Column-major: each column's `count` rows are contiguous in both matrices.
-            let height = jacobian.nrows();
-            let stride = tool.jacobian.nrows();
-            let (to, from) = (jacobian.as_mut_slice(), tool.jacobian.as_slice());
-            for (column, &parameter) in free.iter().enumerate() {
-                let to = &mut to[column * height + row..][..count];
-                let from = &from[parameter * stride..][..count];
-                for (k, (to, from)) in to.iter_mut().zip(from).enumerate() {
-                    *to = from * weights[k / 3];
-                }
-            }
-            tool.pose
-        } else {
-            let key = (m.q.as_slice(), m.payload);
-            if cached_poses.as_ref().is_none_or(|(k, _)| *k != key) {
-                cached_poses = Some((key, predictor.predict_at(model, &m.q, m.payload)?));
-            }
-            cached_poses
-                .as_ref()
-                .map(|(_, p)| p[m.tool])
-                .ok_or_else(|| Error::InvalidData {
-                    origin: "identification".into(),
-                    message: "no prediction".into(),
-                })?
-        };
-        let error = raw_residual(&m.observation, &predicted, offsets.map(|o| &o[index]));
-        for k in 0..count {
-            residual[row + k] = error[k] * weights[k / 3];
+        }
+        kind.residual(&state, &mut residual.as_mut_slice()[row..row + count])?;
+        for (k, &row_kind) in kind.row_kinds().iter().enumerate() {
+            residual[row + k] *= weight(row_kind);
         }
         row += count;
     }
@@ -534,6 +518,7 @@ fn residual_rms(
     options: &IdentificationOptions,
 ) -> Result<(f64, f64)> {
     let (mut position, mut rotation, mut poses, mut count) = (0.0, 0.0, 0usize, 0usize);
+    let mut error = Vec::new();
     for (index, m) in measurements.iter().enumerate() {
         // Measurements left out (weight 0, robust estimation) are not part of the fit.
         if options.observation_weights.get(index) == Some(&0.0) {
@@ -541,14 +526,21 @@ fn residual_rms(
         }
         count += 1;
         let predicted = predictor.predict_at(model, &m.q, m.payload)?;
-        let error = raw_residual(
-            &m.observation,
-            &predicted[m.tool],
-            offsets.map(|o| &o[index]),
-        );
-        position += error.fixed_rows::<3>(0).norm_squared();
-        if let Observation::Pose(_) = m.observation {
-            rotation += error.fixed_rows::<3>(3).norm_squared();
+        let kind = kind_of(&m.observation);
+        let state = RobotState {
+            model,
+            q: &m.q,
+            tool: m.tool,
+            tools: Tools::Poses(&predicted),
+            offset: offsets.map(|o| &o[index]),
+            nuisance: Nuisance::none(),
+        };
+        error.resize(kind.rows(), 0.0);
+        kind.residual(&state, &mut error)?;
+        let [position_squares, rotation_squares] = squares_by_row_kind(kind, &error);
+        position += position_squares.unwrap_or(0.0);
+        if let Some(squares) = rotation_squares {
+            rotation += squares;
             poses += 1;
         }
     }
@@ -1037,7 +1029,7 @@ fn validate(
     if measurements.is_empty() {
         return Err(bad("no measurements".into()));
     }
-    if !(options.position_sigma > 0.0 && options.rotation_sigma > 0.0) {
+    if !options.noise().is_valid() {
         return Err(bad(
             "position_sigma and rotation_sigma must be positive".into()
         ));
@@ -1081,16 +1073,7 @@ fn validate(
                 model.tools().len()
             )));
         }
-        let finite = m.q.iter().all(|v| v.is_finite())
-            && match &m.observation {
-                Observation::Pose(p) => p
-                    .translation
-                    .vector
-                    .iter()
-                    .chain(p.rotation.coords.iter())
-                    .all(|v| v.is_finite()),
-                Observation::Position(p) => p.iter().all(|v| v.is_finite()),
-            };
+        let finite = m.q.iter().all(|v| v.is_finite()) && kind_of(&m.observation).is_finite();
         if !finite {
             return Err(bad(format!("measurement {index} has a non-finite value")));
         }
