@@ -6,7 +6,7 @@
 //! the calibration.
 
 use super::observation::{kind_of, Nuisance, RobotState, Tools};
-use super::solver::IdentificationOptions;
+use super::options::IdentificationOptions;
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::math::Pose;

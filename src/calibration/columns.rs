@@ -7,7 +7,7 @@
 
 use super::baseline::registered_nominal;
 use super::initial_guess::{initial_guess, initial_tool_frames};
-use super::solver::IdentificationOptions;
+use super::options::IdentificationOptions;
 use super::verdict::{Finding, Status};
 use crate::error::Result;
 use crate::kinematics::McpcModel;

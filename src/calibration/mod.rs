@@ -29,11 +29,18 @@ pub mod baseline;
 pub mod checks;
 pub mod columns;
 pub mod frame;
+mod hold_out;
 pub mod identifiability;
 pub mod initial_guess;
+mod linear_algebra;
+mod linearise;
+mod loss;
 mod normal_equations;
 pub mod observation;
+mod options;
+mod outcome;
 pub mod plan;
+mod predictor;
 pub mod prior;
 pub mod robust;
 pub mod run;
@@ -70,8 +77,9 @@ pub use solver::{
     IdentificationReport, Predictor, Rigid, Termination,
 };
 pub use stiffness::{
-    analyse_compliance, identified_stiffness, identify_stiffness, ComplianceEstimate,
-    ComplianceIdentifiability, StiffnessOptions, StiffnessReport,
+    analyse_compliance, calibrate_with_stiffness, identified_stiffness, identify_stiffness,
+    without_outliers, ComplianceEstimate, ComplianceIdentifiability, Fitted, StiffnessOptions,
+    StiffnessReport, StiffnessSequence,
 };
 pub use verdict::{Finding, Status, Verdict};
 

@@ -1,10 +1,9 @@
 //! Calibration plans: which parameters are identified from which measurements, in which order
 //! (paper section 5.3.1). A plan is data; the paper's staging is the [`Plan::staged`] preset.
 
-use super::solver::{
-    identify, Deflected, DeflectedWithDerivative, IdentificationOptions, IdentificationReport,
-    Rigid,
-};
+use super::options::IdentificationOptions;
+use super::predictor::{Deflected, DeflectedWithDerivative, Rigid};
+use super::solver::{identify, IdentificationReport};
 use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool, ParameterOwner};

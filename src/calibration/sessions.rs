@@ -19,9 +19,10 @@
 //! are reported ([`SessionValidation`]).
 
 use super::observation::kind_of;
+use super::options::IdentificationOptions;
 use super::plan::{Anderson, CalibrationReport, Compensation, Plan};
+use super::predictor::{Predictor, Rigid};
 use super::robust::{calibrate_robust, RobustReport};
-use super::solver::{IdentificationOptions, Predictor, Rigid};
 use super::verdict::Finding;
 use crate::error::Result;
 use crate::kinematics::McpcModel;

@@ -11,7 +11,7 @@
 //! summaries consume only this trait.
 //!
 //! Each kind lives in a file of its own, implemented on the measured value that
-//! [`Observation`] holds: [`position`] (a point, 3 rows) and [`pose`] (a frame, 6 rows; also
+//! [`Observation`] holds: `position.rs` (a point, 3 rows) and `pose.rs` (a frame, 6 rows; also
 //! the three-target frame, which the reader turns into a pose). [`kind_of`] is the only
 //! place that maps an observation to its kind. `docs/architecture.md`, "Adding a measurement
 //! kind", says what a new kind touches.
@@ -20,8 +20,8 @@
 //! [`MeasurementKind::jacobian`] is `J = ∂predicted/∂θ` (so `∂r/∂θ ≈ −J`); the solver steps
 //! by `Δθ = (JᵀWJ)⁻¹JᵀWr`.
 
-pub mod pose;
-pub mod position;
+mod pose;
+mod position;
 
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ToolJacobian};

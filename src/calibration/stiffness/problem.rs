@@ -3,7 +3,8 @@
 //! the compliance scales).
 
 use crate::calibration::observation::{kind_of, Nuisance, RobotState, Tools};
-use crate::calibration::solver::IdentificationOptions;
+use crate::calibration::options::IdentificationOptions;
+use crate::calibration::solver::Termination;
 use crate::error::{Error, Result};
 use crate::kinematics::flexibility::{ComplianceBasis, ComplianceParameter};
 use crate::kinematics::{FlexibilityModel, McpcModel};
@@ -22,6 +23,21 @@ pub(super) struct Problem<'a> {
     pub(super) basis_of: Vec<usize>,
     pub(super) free: &'a [usize],
     pub(super) options: &'a IdentificationOptions,
+}
+
+/// A fit of the geometry and the compliance scales (`fit`), with the covariance factor of the
+/// chosen scales (`covariance`).
+pub(super) struct Fit {
+    pub(super) model: McpcModel,
+    pub(super) scales: Vec<f64>,
+    pub(super) cost: [f64; 2],
+    pub(super) iterations: usize,
+    pub(super) termination: Termination,
+    pub(super) rank: usize,
+    pub(super) residual_scale: f64,
+    /// A factor `F` of the covariance of the chosen scales (`F·Fᵀ`), one row per chosen scale
+    /// in `chosen` order.
+    pub(super) factor: DMatrix<f64>,
 }
 
 /// A linearisation: weighted residual and Jacobian, columns `[free geometry, compliances]`.
