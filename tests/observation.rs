@@ -182,7 +182,8 @@ fn tool_motion_jacobians_match_finite_differences() {
         for j in 0..6 {
             let mut xi = Vector6::zeros();
             xi[j] = h;
-            let rotation = nalgebra::UnitQuaternion::from_scaled_axis(xi.fixed_rows::<3>(3));
+            let rotation =
+                nalgebra::UnitQuaternion::from_scaled_axis(xi.fixed_rows::<3>(3).into_owned());
             let mut moved = poses.clone();
             moved[tool] = pose(
                 poses[tool].translation.vector + xi.fixed_rows::<3>(0),

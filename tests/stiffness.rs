@@ -469,7 +469,8 @@ fn largest_scale_change(
 #[test]
 fn the_stiffness_fit_leaves_the_outliers_out() {
     use treecal::calibration::{
-        calibrate_robust, calibrate_with_stiffness, Compensation, Deflected, Fitted, Plan,
+        calibrate_robust, calibrate_with_stiffness, CalibrationReport, Compensation, Deflected,
+        Fitted, Plan, RobustReport,
     };
     let (tree, nominal, flexibility) = robonaut();
     let branches = detect_branches(&tree, None).unwrap();
@@ -516,7 +517,7 @@ fn the_stiffness_fit_leaves_the_outliers_out() {
                     &options,
                 )
             },
-            |(report, robust)| Fitted {
+            |(report, robust): &(CalibrationReport, RobustReport)| Fitted {
                 model: report.model.clone(),
                 measurements: data.to_vec(),
                 outliers: robust.outliers(),

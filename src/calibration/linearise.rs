@@ -21,8 +21,8 @@ pub(super) fn rows_of(measurements: &[Measurement]) -> usize {
     measurements.iter().map(|m| m.observation.rows()).sum()
 }
 
-/// The weighted residual of every measurement (each row over its σ, [`Noise`]) under
-/// `predictor` at `model`: the vector whose half squared norm [`identify`] minimises.
+/// The weighted residual of every measurement (each row over its σ, [`Noise`](super::observation::Noise)) under
+/// `predictor` at `model`: the vector whose half squared norm [`identify`](super::solver::identify) minimises.
 pub fn weighted_residual(
     model: &McpcModel,
     measurements: &[Measurement],

@@ -25,11 +25,11 @@ pub struct IdentificationOptions {
     /// Empty: every weight is 1 (the plain least-squares problem, bit for bit).
     pub observation_weights: Vec<f64>,
     /// How [`super::run::run_calibration`] and [`super::robust::calibrate_robust`] weight
-    /// measurements by their residuals (default Huber); [`identify`] itself only applies
+    /// measurements by their residuals (default Huber); [`identify`](super::solver::identify) itself only applies
     /// `observation_weights`.
     pub robust: RobustLoss,
     /// Parameters (flat indices into the full model) that a plan never frees: the model
-    /// level's and `--freeze`'s ([`super::plan::calibrate`]); [`identify`] frees what it is told.
+    /// level's and `--freeze`'s ([`super::plan::calibrate`]); [`identify`](super::solver::identify) frees what it is told.
     pub frozen: Vec<usize>,
     /// A Gaussian prior on the parameters (rows in the normal equations; `None`: no prior).
     pub prior: Option<Prior>,
