@@ -192,7 +192,6 @@ impl<'a> Problem<'a> {
             }
         }
         let count_of = self.parameters().len();
-        let group = |p: &ComplianceParameter| usize::from(!p.kind.is_joint());
         let is_fitted: Vec<bool> = (0..count_of).map(|j| fitted.contains(&j)).collect();
         let noise = self.options.noise();
         let mut error = Vec::new();
@@ -239,17 +238,7 @@ impl<'a> Problem<'a> {
                     // unit of its own (times its group's), a group per unit of its own over the
                     // members that follow it.
                     for (column, &c) in chosen.iter().enumerate() {
-                        let value = match self.parameters().get(c) {
-                            Some(_) if is_fitted[c] => per_unit[(k, c)],
-                            Some(p) => per_unit[(k, c)] * scales[count_of + group(p)],
-                            None => self
-                                .parameters()
-                                .iter()
-                                .enumerate()
-                                .filter(|(j, p)| group(p) == c - count_of && !is_fitted[*j])
-                                .map(|(j, _)| per_unit[(k, j)] * scales[j])
-                                .sum(),
-                        };
+                        let value = self.compliance_column(per_unit, k, c, scales, &is_fitted);
                         jacobian[(row + k, self.free.len() + column)] = value * weight;
                     }
                 }
@@ -257,5 +246,32 @@ impl<'a> Problem<'a> {
             row += kind.rows();
         }
         Ok(Linearisation { residual, jacobian })
+    }
+
+    /// Row `k` of compliance column `c` from the motions per unit individual scale
+    /// `per_unit`: a fitted scale per unit of its effective scale, a held one per unit of its
+    /// own (times its group's), a group (`c` past the individual scales) per unit of its own
+    /// over the members that follow it.
+    fn compliance_column(
+        &self,
+        per_unit: &DMatrix<f64>,
+        k: usize,
+        c: usize,
+        scales: &[f64],
+        is_fitted: &[bool],
+    ) -> f64 {
+        let count_of = self.parameters().len();
+        let group = |p: &ComplianceParameter| usize::from(!p.kind.is_joint());
+        match self.parameters().get(c) {
+            Some(_) if is_fitted[c] => per_unit[(k, c)],
+            Some(p) => per_unit[(k, c)] * scales[count_of + group(p)],
+            None => self
+                .parameters()
+                .iter()
+                .enumerate()
+                .filter(|(j, p)| group(p) == c - count_of && !is_fitted[*j])
+                .map(|(j, _)| per_unit[(k, j)] * scales[j])
+                .sum(),
+        }
     }
 }
