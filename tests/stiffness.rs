@@ -448,3 +448,109 @@ fn a_scale_fitted_below_zero_is_held_at_the_prior_and_named() {
         assert!(e.scale > 0.0, "{}: identified at {}", e.name, e.scale);
     }
 }
+
+/// The largest relative difference of the identified compliance scales of two fits.
+fn largest_scale_change(
+    a: &[treecal::calibration::ComplianceEstimate],
+    b: &[treecal::calibration::ComplianceEstimate],
+) -> f64 {
+    a.iter()
+        .zip(b)
+        .filter(|(x, _)| x.identified)
+        .map(|(x, y)| ((x.scale - y.scale) / y.scale).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Issue 22's question: `calibrate --identify-stiffness` passed the rows the robust fit named as
+/// blunders to the stiffness fit, `simulate` left them out. The stiffness fit is plain least
+/// squares, so leaving them out is right: with a 20 mm blunder in one row, the shared sequence
+/// (`calibrate_with_stiffness`) identifies the compliance scales of the clean data, while a fit
+/// of every row moves them ten times as far.
+#[test]
+#[ignore = "unfinished (issue 22): the 20 mm blunder is not named an outlier with this set-up; see the h22 report"]
+fn the_stiffness_fit_leaves_the_outliers_out() {
+    use treecal::calibration::{
+        calibrate_robust, calibrate_with_stiffness, CalibrationReport, Compensation, Deflected,
+        Fitted, Plan, RobustReport,
+    };
+    let (tree, nominal, flexibility) = robonaut();
+    let branches = detect_branches(&tree, None).unwrap();
+    let mut random = rng(11);
+    let mut truth = nominal.clone();
+    let values: Vec<f64> = truth
+        .parameters()
+        .iter()
+        .map(|v| v + random.random_range(-0.01..0.01))
+        .collect();
+    truth.set_parameters(&values).unwrap();
+    let truth_flexibility = flexibility.scaled(1.3).unwrap();
+    let configurations: Vec<(Vec<f64>, f64)> = (0..30)
+        .map(|_| (random_configuration(&tree, &mut random), 20.0))
+        .collect();
+    let (clean, _) = measure(&tree, &truth, &truth_flexibility, &configurations, false);
+    let mut blundered = clean.clone();
+    if let Observation::Pose(pose) = &mut blundered[7].observation {
+        pose.translation.vector.x += 0.02;
+    }
+    let options = IdentificationOptions::default();
+    let stiffness = StiffnessOptions::default();
+    let sequence = |data: &[Measurement]| {
+        calibrate_with_stiffness(
+            &tree,
+            &flexibility,
+            Some(&flexibility),
+            &options,
+            &stiffness,
+            |flexibility: Option<&FlexibilityModel>| {
+                let compensation = match flexibility {
+                    Some(flexibility) => Compensation::Exact(Deflected {
+                        tree: &tree,
+                        flexibility,
+                    }),
+                    None => Compensation::None,
+                };
+                calibrate_robust(
+                    &branches,
+                    &nominal,
+                    data,
+                    compensation,
+                    &Plan::simultaneous(),
+                    &options,
+                )
+            },
+            |(report, robust): &(CalibrationReport, RobustReport)| Fitted {
+                model: report.model.clone(),
+                measurements: data.to_vec(),
+                outliers: robust.outliers(),
+            },
+        )
+        .unwrap()
+    };
+    let on_clean = sequence(&clean);
+    let on_blundered = sequence(&blundered);
+    assert!(on_blundered.first.1.outliers().contains(&7));
+    let kept_out = largest_scale_change(
+        &on_blundered.stiffness.estimates,
+        &on_clean.stiffness.estimates,
+    );
+    // The same fit with the blunder kept in (what `calibrate` did).
+    let free: Vec<usize> = (0..nominal.parameter_count()).collect();
+    let kept_in = identify_stiffness(
+        &tree,
+        &on_blundered.first.0.model,
+        &flexibility,
+        &blundered,
+        None,
+        &free,
+        &options,
+        &stiffness,
+    )
+    .unwrap();
+    let kept_in = largest_scale_change(&kept_in.estimates, &on_clean.stiffness.estimates);
+    eprintln!("largest scale change: outlier left out {kept_out:.2e}, kept in {kept_in:.2e}");
+    assert!(kept_out < 1e-3, "{kept_out}");
+    assert!(
+        kept_in > 10.0 * kept_out.max(1e-4),
+        "{kept_in} vs {kept_out}"
+    );
+}

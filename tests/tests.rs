@@ -25,6 +25,7 @@ mod mcpc;
 mod measured_points;
 mod measurements_csv;
 mod model_choice;
+mod observation;
 mod oracle;
 mod pair;
 mod pair_files;

@@ -5,11 +5,12 @@
 //! the nominal robot several times worse than a registration would: a baseline that flatters
 //! the calibration.
 
-use super::solver::IdentificationOptions;
+use super::observation::{kind_of, Nuisance, RobotState, Tools};
+use super::options::IdentificationOptions;
 use crate::error::Result;
 use crate::kinematics::McpcModel;
-use crate::math::{pose_error, Pose};
-use crate::measurement::{Measurement, Observation};
+use crate::math::Pose;
+use crate::measurement::Measurement;
 use nalgebra::{DMatrix, DVector, UnitQuaternion, Vector3};
 
 /// Levenberg–Marquardt iterations at most.
@@ -124,30 +125,31 @@ fn weighted_residual(
 ) -> DVector<f64> {
     let mut rows = Vec::with_capacity(measurements.len() * 6);
     let mut cached: Option<(&[f64], Vec<Pose>)> = None;
+    let noise = options.noise();
+    let mut error = Vec::new();
     for (i, m) in measurements.iter().enumerate() {
         if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
             cached = Some((m.q.as_slice(), model.tool_poses(&m.q)));
         }
-        let Some(predicted) = cached.as_ref().and_then(|(_, p)| p.get(m.tool)) else {
+        if cached.as_ref().is_none_or(|(_, p)| m.tool >= p.len()) {
             continue;
-        };
+        }
         let w = weights.get(i).copied().unwrap_or(1.0).max(0.0).sqrt();
-        match &m.observation {
-            Observation::Pose(measured) => {
-                let e = pose_error(measured, predicted);
-                for k in 0..6 {
-                    let sigma = if k < 3 {
-                        options.position_sigma
-                    } else {
-                        options.rotation_sigma
-                    };
-                    rows.push(w * e[k] / sigma);
-                }
-            }
-            Observation::Position(p) => {
-                let d = p - predicted.translation.vector;
-                rows.extend(d.iter().map(|v| w * v / options.position_sigma));
-            }
+        let kind = kind_of(&m.observation);
+        let at = RobotState {
+            model,
+            q: &m.q,
+            tool: m.tool,
+            tools: Tools::Poses(cached.as_ref().map_or(&[][..], |(_, p)| p.as_slice())),
+            offset: None,
+            nuisance: Nuisance::none(),
+        };
+        error.resize(kind.rows(), 0.0);
+        if kind.residual(&at, &mut error).is_err() {
+            continue;
+        }
+        for (e, row_kind) in error.iter().zip(kind.row_kinds()) {
+            rows.push(w * e / noise.sigma(*row_kind));
         }
     }
     DVector::from_vec(rows)

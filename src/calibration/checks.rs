@@ -4,8 +4,8 @@
 //! chosen. Thresholds and their reasons: `docs/calibration.md`, "What treecal checks and
 //! infers".
 
+use super::outcome::CalibrationRun;
 use super::plan::StageReport;
-use super::run::CalibrationRun;
 use super::solver::Termination;
 use super::verdict::Finding;
 use crate::tree::KinematicTree;
@@ -252,7 +252,7 @@ pub fn stiffness_below_zero(report: &super::StiffnessReport) -> Option<Finding> 
 }
 
 /// RMS over the position errors (mm) after calibration of every arm of a data set.
-fn rms_after(arms: &[super::run::ArmResiduals]) -> Option<f64> {
+fn rms_after(arms: &[super::outcome::ArmResiduals]) -> Option<f64> {
     let values: Vec<f64> = arms.iter().flat_map(|a| a.position_mm[1].clone()).collect();
     (!values.is_empty())
         .then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())

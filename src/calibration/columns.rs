@@ -7,12 +7,12 @@
 
 use super::baseline::registered_nominal;
 use super::initial_guess::{initial_guess, initial_tool_frames};
-use super::solver::IdentificationOptions;
+use super::options::IdentificationOptions;
 use super::verdict::{Finding, Status};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::math::Pose;
-use crate::measurement::{Measurement, Observation};
+use crate::measurement::Measurement;
 use crate::tree::{Actuation, KinematicTree};
 
 /// A rearranged data set must be fitted this many times better (RMS) to be named.
@@ -56,13 +56,10 @@ fn registered_rms(
     let model = registered_nominal(&start, data, &[], fit_frame, options)?;
     let sum: f64 = data
         .iter()
-        .map(|m| {
+        .filter_map(|m| {
             let predicted = model.tool_poses(&m.q)[m.tool].translation.vector;
-            let measured = match &m.observation {
-                Observation::Pose(pose) => pose.translation.vector,
-                Observation::Position(p) => *p,
-            };
-            (measured - predicted).norm_squared()
+            let measured = super::initial_guess::measured_position(m)?;
+            Some((measured - predicted).norm_squared())
         })
         .sum();
     Ok((sum / data.len().max(1) as f64).sqrt())

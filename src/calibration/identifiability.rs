@@ -7,10 +7,9 @@
 //! and its right singular vectors for the singular values below the rank threshold are the
 //! parameter combinations the configurations cannot determine. See `docs/identifiability.md`.
 
+use super::linear_algebra::{column_scales, scale_columns, singular_decomposition};
 use super::plan::{locked_arm_model, ParameterSet};
-use super::solver::{
-    column_scales, combination, scale_columns, singular_decomposition, Combination,
-};
+use super::solver::{combination, Combination};
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ParameterOwner, ToolJacobian};
 use crate::measurement::{Measurement, Observation};

@@ -9,10 +9,11 @@
 //! `last_frame⁻¹ · measured` over its measurements, and repeat a few times, since each fit
 //! improves the other.
 
+use super::observation::kind_of;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool};
 use crate::math::{pose, Mat3, Pose, Rotation, Vec3};
-use crate::measurement::{Measurement, Observation};
+use crate::measurement::Measurement;
 use nalgebra::{Rotation3, UnitQuaternion};
 
 /// What the initial guess changed.
@@ -37,27 +38,28 @@ pub(crate) fn base_frame_positions(
 ) -> (Vec<Vec3>, Vec<Vec3>) {
     let mut in_base = model.clone();
     in_base.set_world_from_base(&Pose::identity());
-    let predicted = measurements
+    // Only kinds that measure the tool's origin take part (all of today's).
+    measurements
         .iter()
-        .map(|m| in_base.tool_pose(m.tool, &m.q).translation.vector)
-        .collect();
-    let measured = measurements.iter().map(measured_position).collect();
-    (predicted, measured)
+        .filter_map(|m| {
+            let measured = measured_position(m)?;
+            Some((in_base.tool_pose(m.tool, &m.q).translation.vector, measured))
+        })
+        .unzip()
 }
 
-/// The measured position of an observation (the pose's origin, or the point).
-pub(crate) fn measured_position(m: &Measurement) -> Vec3 {
-    match &m.observation {
-        Observation::Pose(p) => p.translation.vector,
-        Observation::Position(p) => *p,
-    }
+/// The measured position of the tool's origin, when the observation's kind measures it
+/// (a pose's origin, a point: [`crate::calibration::MeasurementKind::measured_point`]).
+pub(crate) fn measured_position(m: &Measurement) -> Option<Vec3> {
+    kind_of(&m.observation).measured_point()
 }
 
 fn position_rms(model: &McpcModel, measurements: &[Measurement]) -> f64 {
     let sum: f64 = measurements
         .iter()
-        .map(|m| {
-            (model.tool_pose(m.tool, &m.q).translation.vector - measured_position(m)).norm_squared()
+        .filter_map(|m| {
+            let measured = measured_position(m)?;
+            Some((model.tool_pose(m.tool, &m.q).translation.vector - measured).norm_squared())
         })
         .sum();
     (sum / measurements.len().max(1) as f64).sqrt()
@@ -205,9 +207,10 @@ fn fit_tools(current: &McpcModel, measurements: &[Measurement]) -> Result<McpcMo
         let poses: Vec<Pose> = own
             .iter()
             .zip(&last_poses)
-            .filter_map(|(m, last)| match &m.observation {
-                Observation::Pose(p) => Some(last.inverse() * p),
-                Observation::Position(_) => None,
+            .filter_map(|(m, last)| {
+                kind_of(&m.observation)
+                    .measured_frame()
+                    .map(|p| last.inverse() * p)
             })
             .collect();
         let relative = if poses.len() == own.len() {
@@ -227,8 +230,10 @@ fn fit_tools(current: &McpcModel, measurements: &[Measurement]) -> Result<McpcMo
             let point = own
                 .iter()
                 .zip(&last_poses)
-                .map(|(m, last)| last.inverse() * nalgebra::Point3::from(measured_position(m)))
-                .map(|p| p.coords)
+                .filter_map(|(m, last)| {
+                    measured_position(m)
+                        .map(|p| (last.inverse() * nalgebra::Point3::from(p)).coords)
+                })
                 .sum::<Vec3>()
                 / own.len() as f64;
             pose(point, current_relative.rotation)

@@ -1,5 +1,7 @@
 //! Identification of MCPC parameters from measurements (paper section 4, done robustly).
 //!
+//! - [`observation`]: the observation seam: what a kind of measurement predicts, its
+//!   residual, Jacobian and noise model ([`MeasurementKind`]); positions and poses today.
 //! - [`identifiability`]: rank, condition number, observability indices O1–O5 and the
 //!   unidentifiable parameter combinations of a set of configurations, before measuring.
 //! - [`frame`]: which measurement frame (root, fitted, known), and the unit-scale check.
@@ -27,10 +29,18 @@ pub mod baseline;
 pub mod checks;
 pub mod columns;
 pub mod frame;
+mod hold_out;
 pub mod identifiability;
 pub mod initial_guess;
+mod linear_algebra;
+mod linearise;
+mod loss;
 mod normal_equations;
+pub mod observation;
+mod options;
+mod outcome;
 pub mod plan;
+mod predictor;
 pub mod prior;
 pub mod robust;
 pub mod run;
@@ -48,6 +58,7 @@ pub use identifiability::{
     IdentifiabilityReport, NamedCombination, ObservabilityIndices, ObservationKind, PoseRow,
 };
 pub use initial_guess::{fit_rigid_transform, fit_similarity_scale, initial_guess, InitialGuess};
+pub use observation::{kind_of, MeasurementKind, Noise, Nuisance, RobotState, RowKind};
 pub use plan::{
     calibrate, CalibrationReport, Compensation, ParameterSet, Plan, Stage, StageReport,
 };
@@ -66,8 +77,9 @@ pub use solver::{
     IdentificationReport, Predictor, Rigid, Termination,
 };
 pub use stiffness::{
-    analyse_compliance, identified_stiffness, identify_stiffness, ComplianceEstimate,
-    ComplianceIdentifiability, StiffnessOptions, StiffnessReport,
+    analyse_compliance, calibrate_with_stiffness, identified_stiffness, identify_stiffness,
+    without_outliers, ComplianceEstimate, ComplianceIdentifiability, Fitted, StiffnessOptions,
+    StiffnessReport, StiffnessSequence,
 };
 pub use verdict::{Finding, Status, Verdict};
 

@@ -16,7 +16,9 @@
 //! Jacobian `J·S⁻¹`, so the QR + SVD decision is the one the stacked form made.
 //! See `docs/identification.md` and `docs/performance.md`.
 
-use super::solver::{linearise, IdentificationOptions, Predictor};
+use super::linearise::linearise;
+use super::options::IdentificationOptions;
+use super::predictor::Predictor;
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;
@@ -338,7 +340,8 @@ fn add_prior(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::solver::{Linearisation, Rigid};
+    use crate::calibration::linearise::Linearisation;
+    use crate::calibration::predictor::Rigid;
     use crate::measurement::Observation;
     use crate::{detect_branches, load_urdf};
     use rand::rngs::ChaCha8Rng;

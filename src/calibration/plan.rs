@@ -1,10 +1,9 @@
 //! Calibration plans: which parameters are identified from which measurements, in which order
 //! (paper section 5.3.1). A plan is data; the paper's staging is the [`Plan::staged`] preset.
 
-use super::solver::{
-    identify, Deflected, DeflectedWithDerivative, IdentificationOptions, IdentificationReport,
-    Rigid,
-};
+use super::options::IdentificationOptions;
+use super::predictor::{Deflected, DeflectedWithDerivative, Rigid};
+use super::solver::{identify, IdentificationReport};
 use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool, ParameterOwner};
@@ -465,9 +464,11 @@ pub fn position_only_orientations(model: &McpcModel, data: &[Measurement]) -> Ve
     let mut positions = vec![false; tools];
     let mut poses = vec![false; tools];
     for m in data.iter().filter(|m| m.tool < tools) {
-        match m.observation {
-            crate::measurement::Observation::Position(_) => positions[m.tool] = true,
-            crate::measurement::Observation::Pose(_) => poses[m.tool] = true,
+        let rows = super::observation::kind_of(&m.observation).row_kinds();
+        if rows.contains(&super::observation::RowKind::Rotation) {
+            poses[m.tool] = true;
+        } else if rows.contains(&super::observation::RowKind::Position) {
+            positions[m.tool] = true;
         }
     }
     model

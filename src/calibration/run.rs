@@ -2,27 +2,28 @@
 //! uncertainties and the errors before and after, per arm (`treecal calibrate`).
 
 pub use super::frame::MeasurementFrame;
-use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame, FrameDecision};
-use super::initial_guess::InitialGuess;
+use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame};
+pub use super::hold_out::{hold_out, hold_out_indices};
+use super::observation::kind_of;
+use super::options::IdentificationOptions;
+pub use super::outcome::{
+    ArmResiduals, CalibrationRun, ErrorSummary, FrameRefinement, ParameterEstimate,
+};
 use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
+use super::predictor::Deflected;
 use super::robust::{self, DataSet, Outlier, RobustLoss, RobustReport};
 use super::sessions::{
     calibrate_sessions, finish_sessions, session_findings, validation_in_training_frames,
-    SessionCalibration, Sessions, SessionsReport,
+    SessionCalibration, Sessions,
 };
-use super::solver::{Deflected, IdentificationOptions};
 use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::Pose;
-use crate::measurement::{Measurement, Observation};
+use crate::measurement::Measurement;
 use crate::tree::{Branches, KinematicTree};
 use nalgebra::{DMatrix, DVector};
-use rand::rngs::ChaCha8Rng;
-use rand::seq::SliceRandom;
-use rand::SeedableRng;
 use rayon::prelude::*;
-use serde::Serialize;
 
 /// What a calibration is run on and how.
 #[derive(Debug, Clone, Copy)]
@@ -42,211 +43,6 @@ pub struct CalibrationInput<'a> {
     /// Where the measurements are: fitted, the root frame, a known registration, or `Auto`
     /// (see [`MeasurementFrame`]); the tool frames are always fitted.
     pub measurement_frame: MeasurementFrame,
-}
-
-/// One MCPC parameter before and after, with its uncertainty: a row of the paper's Table 2.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ParameterEstimate {
-    /// Name as [`McpcModel::parameter_name`] gives it, e.g. `left_joint1 alpha`.
-    pub name: String,
-    /// The joint (joint frames) or tool link (tool frames) it belongs to.
-    pub owner: String,
-    /// `alpha`, `beta`, `gamma`, `x`, `y` or `z`.
-    pub kind: String,
-    /// `rad` or `m`.
-    pub unit: String,
-    /// Nominal value (from the URDF).
-    pub nominal: f64,
-    /// Where the fit started: the nominal value, except for tools, whose measured frame is
-    /// first fitted in closed form (the initial guess).
-    pub start: f64,
-    /// Calibrated value.
-    pub calibrated: f64,
-    /// `calibrated − nominal`.
-    pub change: f64,
-    /// Standard deviation from the residuals (`σ̂²·(JᵀWJ)⁺`), if the stage that identified it
-    /// has redundant data.
-    pub std_dev: Option<f64>,
-    /// Whether the data determine it on its own.
-    pub identifiable: bool,
-}
-
-/// RMS, maximum and mean errors over a set of observations of one tool.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ErrorSummary {
-    /// Root-mean-square position error (mm): the headline figure.
-    pub rms_position_mm: f64,
-    /// Largest position error (mm).
-    pub max_position_mm: f64,
-    /// Mean position error (mm).
-    pub mean_position_mm: f64,
-    /// Root-mean-square orientation error (deg); `None` for position-only data.
-    pub rms_orientation_deg: Option<f64>,
-    /// Largest orientation error (deg); `None` for position-only data.
-    pub max_orientation_deg: Option<f64>,
-    /// Mean orientation error (deg); `None` for position-only data.
-    pub mean_orientation_deg: Option<f64>,
-}
-
-impl ErrorSummary {
-    /// The summary of per-observation errors (mm, deg; no orientation: empty).
-    pub fn of(position_mm: &[f64], orientation_deg: &[f64]) -> Self {
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
-        let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
-        let some = |v: f64| (!orientation_deg.is_empty()).then_some(v);
-        Self {
-            rms_position_mm: rms(position_mm),
-            max_position_mm: max(position_mm),
-            mean_position_mm: mean(position_mm),
-            rms_orientation_deg: some(rms(orientation_deg)),
-            max_orientation_deg: some(max(orientation_deg)),
-            mean_orientation_deg: some(mean(orientation_deg)),
-        }
-    }
-}
-
-/// Errors of one arm's tool on one data set, before and after calibration.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ArmResiduals {
-    /// The arm (branch name).
-    pub arm: String,
-    /// The arm's tool link.
-    pub tool: String,
-    /// Per observation, its index in the data set the run was given (outliers included), so
-    /// that reports can name the row by its id.
-    pub rows: Vec<usize>,
-    /// Observations of this arm's tool in the set.
-    pub observations: usize,
-    /// Before: the nominal robot registered like the calibrated one (measurement frame when
-    /// fitted, tool frames), rigid ([`CalibrationRun::baseline`]).
-    pub before: ErrorSummary,
-    /// After calibration.
-    pub after: ErrorSummary,
-    /// % of the RMS position error removed.
-    pub position_removed_percent: f64,
-    /// % of the RMS orientation error removed (pose observations only).
-    pub orientation_removed_percent: Option<f64>,
-    /// Position error per observation (mm): before, after (JSON: `before`, `after`).
-    #[serde(serialize_with = "crate::serde_labels::before_after")]
-    pub position_mm: [Vec<f64>; 2],
-    /// Orientation error per observation (deg): before, after (empty for positions; JSON:
-    /// `before`, `after`).
-    #[serde(serialize_with = "crate::serde_labels::before_after")]
-    pub orientation_deg: [Vec<f64>; 2],
-}
-
-/// Everything a calibration found.
-#[derive(Debug, Clone)]
-pub struct CalibrationRun {
-    /// The closed-form start: measurement frame and tool frames.
-    pub guess: InitialGuess,
-    /// Which measurement frame was used and why.
-    pub frame: FrameDecision,
-    /// With flexibility compensation and a fitted measurement frame: how the frame was
-    /// refined jointly with the parameters (`None` otherwise).
-    pub frame_refinement: Option<FrameRefinement>,
-    /// The plan's outcome (the calibrated model is `report.model`).
-    pub report: CalibrationReport,
-    /// Every MCPC parameter, in [`McpcModel::parameters`] order.
-    pub parameters: Vec<ParameterEstimate>,
-    /// Errors on the identification data, per arm.
-    pub identification: Vec<ArmResiduals>,
-    /// Errors on the validation data, per arm (empty without validation data).
-    pub validation: Vec<ArmResiduals>,
-    /// Predicted RMS position error at the validation configurations from the parameter
-    /// covariance alone (mm): what the noise of the identification data leaves.
-    pub predicted_validation_rms_mm: Option<f64>,
-    /// The predicted position error distribution per validation observation: the standard
-    /// deviation `√trace(J_p·C·J_pᵀ)` (mm), in validation order.
-    pub predicted_validation_sd_mm: Vec<f64>,
-    /// What the checks of this run found (frame choice, rank, σ̂, validation, …), in order;
-    /// [`Verdict::from_findings`](super::verdict::Verdict::from_findings) turns them into
-    /// the verdict.
-    pub findings: Vec<Finding>,
-    /// What the robust estimation did (loss, scale, weights and residuals of the
-    /// identification data).
-    pub robust: RobustReport,
-    /// The measurements named as outliers, identification then validation: identification
-    /// outliers are left out of the fit and of `identification`; validation outliers are
-    /// only marked (every validation row counts in `validation`).
-    pub outliers: Vec<Outlier>,
-    /// The fair "before": the nominal robot with its measurement frame (when fitted) and tool
-    /// frames fitted by least squares to the rows and weights of the fit
-    /// ([`super::baseline::registered_nominal`]).
-    pub baseline: McpcModel,
-    /// Per validation measurement (in order): where it lies relative to the identification
-    /// configurations.
-    pub validation_strata: Vec<super::validation::Stratum>,
-    /// The measurement sessions, when the data name any (`session` column): each training
-    /// session's frame, and each validation session's figures in the training frame and
-    /// re-registered.
-    pub sessions: Option<SessionsReport>,
-}
-
-/// Splits off a seeded fifth of the configurations for validation: whole configurations
-/// (every tool observed there), never torso-stage ones (the staged plan needs them), at
-/// least one. Returns `(identification, validation)`.
-pub fn hold_out(
-    measurements: &[Measurement],
-    fraction: f64,
-    seed: u64,
-) -> Result<(Vec<Measurement>, Vec<Measurement>)> {
-    let (identification, validation) = hold_out_indices(measurements, fraction, seed)?;
-    let pick = |indices: Vec<usize>| indices.iter().map(|&i| measurements[i].clone()).collect();
-    Ok((pick(identification), pick(validation)))
-}
-
-/// [`hold_out`] as indices into `measurements` (each part in file order), so that callers can
-/// carry row ids along.
-pub fn hold_out_indices(
-    measurements: &[Measurement],
-    fraction: f64,
-    seed: u64,
-) -> Result<(Vec<usize>, Vec<usize>)> {
-    // Distinct configurations, in file order, with the stage they belong to (hashed: a linear
-    // search made this O(N²)). `+ 0.0` makes −0 and +0 one key, as `==` does.
-    let mut groups: Vec<(&[f64], Option<&str>)> = Vec::new();
-    let mut index: std::collections::HashMap<(Vec<u64>, Option<&str>), usize> =
-        std::collections::HashMap::new();
-    let group_of: Vec<usize> = measurements
-        .iter()
-        .map(|m| {
-            let bits = m.q.iter().map(|v| (v + 0.0).to_bits()).collect();
-            *index.entry((bits, m.stage.as_deref())).or_insert_with(|| {
-                groups.push((m.q.as_slice(), m.stage.as_deref()));
-                groups.len() - 1
-            })
-        })
-        .collect();
-    let mut eligible: Vec<usize> = (0..groups.len())
-        .filter(|&g| groups[g].1 != Some("torso"))
-        .collect();
-    let count = ((eligible.len() as f64 * fraction).round() as usize).max(1);
-    if eligible.len() < count + 2 {
-        return Err(Error::InvalidData {
-            origin: "measurements".into(),
-            message: format!(
-                "{} configurations (not counting torso-stage ones) are too few to hold out a validation set; give one with --validation",
-                eligible.len()
-            ),
-        });
-    }
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    eligible.shuffle(&mut rng);
-    let mut held = vec![false; groups.len()];
-    for &g in &eligible[..count] {
-        held[g] = true;
-    }
-    let (mut identification, mut validation) = (Vec::new(), Vec::new());
-    for (index, &g) in group_of.iter().enumerate() {
-        if held[g] {
-            validation.push(index);
-        } else {
-            identification.push(index);
-        }
-    }
-    Ok((identification, validation))
 }
 
 /// Calibrates from `measurements` and evaluates the result on them and on `validation`.
@@ -604,7 +400,7 @@ fn arm_residuals(
     let mut position = vec![[Vec::new(), Vec::new()]; tools];
     let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
     let mut indices = vec![Vec::new(); tools];
-    let mut cache: super::solver::Cached<'_, [Vec<Pose>; 2]> = None;
+    let mut cache: super::predictor::Cached<'_, [Vec<Pose>; 2]> = None;
     for (i, m) in data.iter().enumerate() {
         if let Some(list) = indices.get_mut(m.tool) {
             list.push(rows.get(i).copied().unwrap_or(i));
@@ -621,16 +417,13 @@ fn arm_residuals(
                 origin: "measurements".into(),
                 message: format!("tool {} does not exist", m.tool),
             })?;
-            match &m.observation {
-                Observation::Pose(measured) => {
-                    let d = measured.translation.vector - pose.translation.vector;
-                    position[m.tool][k].push(d.norm() * 1e3);
-                    orientation[m.tool][k]
-                        .push(measured.rotation.angle_to(&pose.rotation).to_degrees());
-                }
-                Observation::Position(measured) => {
-                    position[m.tool][k].push((measured - pose.translation.vector).norm() * 1e3);
-                }
+            let kind = kind_of(&m.observation);
+            if let Some(measured) = kind.measured_point() {
+                position[m.tool][k].push((measured - pose.translation.vector).norm() * 1e3);
+            }
+            if let Some(measured) = kind.measured_frame() {
+                orientation[m.tool][k]
+                    .push(measured.rotation.angle_to(&pose.rotation).to_degrees());
             }
         }
     }
@@ -690,31 +483,6 @@ fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> V
         .collect()
 }
 
-/// How the measurement frame was refined (see [`run_calibration`]).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct FrameRefinement {
-    /// Gauss–Newton iterations over the six frame parameters.
-    pub iterations: usize,
-    /// Weighted cost ½‖r‖² with the closed-form frame, and after refinement (JSON:
-    /// `before`, `after`).
-    #[serde(serialize_with = "crate::serde_labels::before_after")]
-    pub cost: [f64; 2],
-    /// Rotation (rad) and translation (m) of the frame correction (JSON: `rotation_rad`,
-    /// `translation_m`).
-    #[serde(serialize_with = "correction_json")]
-    pub correction: [f64; 2],
-    /// How many of the six frame directions the data determine (the rest are only fixed
-    /// by the rigid kinematics, which cannot tell them from the parameters).
-    pub determined: usize,
-}
-
-fn correction_json<S: serde::Serializer>(
-    correction: &[f64; 2],
-    serializer: S,
-) -> std::result::Result<S::Ok, S::Error> {
-    crate::serde_labels::labelled(correction, ["rotation_rad", "translation_m"], serializer)
-}
-
 struct Refined {
     report: CalibrationReport,
     summary: FrameRefinement,
@@ -735,12 +503,12 @@ fn refine_measurement_frame(
     measurements: &[Measurement],
     start: &CalibrationReport,
 ) -> Result<Refined> {
-    let predictor = super::solver::Deflected {
+    let predictor = Deflected {
         tree: input.tree,
         flexibility,
     };
     let residual_of = |report: &CalibrationReport| {
-        super::solver::weighted_residual(&report.model, measurements, &predictor, input.options)
+        super::linearise::weighted_residual(&report.model, measurements, &predictor, input.options)
     };
     let calibrate_at = |from: &McpcModel, frame: &Pose| -> Result<CalibrationReport> {
         let mut model = from.clone();

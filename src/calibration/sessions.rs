@@ -18,9 +18,11 @@
 //! (their block's six parameters refitted with the calibrated geometry fixed): both figures
 //! are reported ([`SessionValidation`]).
 
+use super::observation::kind_of;
+use super::options::IdentificationOptions;
 use super::plan::{Anderson, CalibrationReport, Compensation, Plan};
+use super::predictor::{Predictor, Rigid};
 use super::robust::{calibrate_robust, RobustReport};
-use super::solver::{IdentificationOptions, Predictor, Rigid};
 use super::verdict::Finding;
 use crate::error::Result;
 use crate::kinematics::McpcModel;
@@ -159,13 +161,7 @@ pub struct SessionCalibration {
 
 /// `measurement` in the first session's frame, given its session's `session_from_first`.
 pub fn in_first_frame(measurement: &Measurement, session_from_first: &Pose) -> Measurement {
-    let first_from_session = session_from_first.inverse();
-    let observation = match &measurement.observation {
-        Observation::Pose(p) => Observation::Pose(first_from_session * p),
-        Observation::Position(p) => {
-            Observation::Position(first_from_session.transform_point(&(*p).into()).coords)
-        }
-    };
+    let observation = kind_of(&measurement.observation).in_frame(&session_from_first.inverse());
     Measurement {
         observation,
         ..measurement.clone()
@@ -206,11 +202,15 @@ pub fn fit_session_frame(
     let weight = |i: usize| weights.get(i).copied().unwrap_or(1.0);
     let used: Vec<usize> = (0..measured.len()).filter(|&i| weight(i) > 0.0).collect();
     let points = |i: &usize| predicted[*i].translation.vector;
-    let from: Vec<Vec3> = used.iter().map(points).collect();
-    let to: Vec<Vec3> = used
+    let (from, to): (Vec<Vec3>, Vec<Vec3>) = used
         .iter()
-        .map(|&i| super::initial_guess::measured_position(measured[i]))
-        .collect();
+        .filter_map(|i| {
+            Some((
+                points(i),
+                super::initial_guess::measured_position(measured[*i])?,
+            ))
+        })
+        .unzip();
     let mut frame = super::initial_guess::fit_rigid_transform(&from, &to)
         .unwrap_or_else(|| mean_translation(&from, &to));
     let centre = to.iter().sum::<Vec3>() / to.len().max(1) as f64;
@@ -344,9 +344,9 @@ fn displacement(
         .iter()
         .zip(&sessions.of)
         .filter(|(_, &k)| k == s)
-        .map(|(m, _)| {
-            let p = super::initial_guess::measured_position(m);
-            (p - first_from_session.transform_point(&p.into()).coords).norm_squared()
+        .filter_map(|(m, _)| {
+            let p = super::initial_guess::measured_position(m)?;
+            Some((p - first_from_session.transform_point(&p.into()).coords).norm_squared())
         })
         .collect();
     (moved.iter().sum::<f64>() / moved.len().max(1) as f64).sqrt()
@@ -553,10 +553,10 @@ pub fn validate_sessions(
     let rms = |rows: &[usize], frame: &Pose| -> f64 {
         let sum: f64 = rows
             .iter()
-            .map(|&i| {
+            .filter_map(|&i| {
                 let at = frame * predicted[i];
-                (super::initial_guess::measured_position(&validation[i]) - at.translation.vector)
-                    .norm_squared()
+                let measured = super::initial_guess::measured_position(&validation[i])?;
+                Some((measured - at.translation.vector).norm_squared())
             })
             .sum();
         (sum / rows.len().max(1) as f64).sqrt()

@@ -8,10 +8,12 @@ use super::noise::{observe, NoiseModel, Targets};
 use super::planning::{plan_poses, PlanningOptions, PlanningStage};
 use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, ErrorRanges};
-use crate::calibration::stiffness::{identify_stiffness, ComplianceEstimate, StiffnessOptions};
+use crate::calibration::stiffness::{
+    calibrate_with_stiffness, ComplianceEstimate, Fitted, StiffnessOptions,
+};
 use crate::calibration::{
     calibrate_robust, CalibrationReport, Compensation, Deflected, IdentificationOptions,
-    ParameterSet, Plan, RobustLoss,
+    ParameterSet, Plan, RobustLoss, RobustReport,
 };
 use crate::error::Result;
 use crate::kinematics::{FlexibilityModel, McpcModel};
@@ -445,10 +447,6 @@ fn finish_trial(
         robust: options.robust,
         ..identification_options.clone()
     };
-    let source = Deflected {
-        tree,
-        flexibility: setup.model_flexibility,
-    };
     let (rigid, rigid_robust) = calibrate_robust(
         setup.branches,
         setup.nominal,
@@ -457,45 +455,52 @@ fn finish_trial(
         &options.plan,
         &identification_options,
     )?;
-    let (compensated, compensated_robust) = calibrate_robust(
-        setup.branches,
-        setup.nominal,
-        &measurements,
-        Compensation::Exact(source),
-        &options.plan,
-        &identification_options,
-    )?;
+    let compensated_with = |flexibility: Option<&FlexibilityModel>| {
+        let compensation = match flexibility {
+            Some(flexibility) => Compensation::Exact(Deflected { tree, flexibility }),
+            None => Compensation::None,
+        };
+        calibrate_robust(
+            setup.branches,
+            setup.nominal,
+            &measurements,
+            compensation,
+            &options.plan,
+            &identification_options,
+        )
+    };
+    // With stiffness identification, the errors are those of the calibration again with the
+    // identified flexibility (`calibrate_with_stiffness`, as `calibrate` does).
+    let (compensated, compensated_robust, identified) = match &options.identify_stiffness {
+        Some(stiffness) => {
+            let sequence = calibrate_with_stiffness(
+                tree,
+                setup.model_flexibility,
+                Some(setup.model_flexibility),
+                &identification_options,
+                stiffness,
+                compensated_with,
+                |(report, robust): &(CalibrationReport, RobustReport)| Fitted {
+                    model: report.model.clone(),
+                    measurements: measurements.clone(),
+                    outliers: robust.outliers(),
+                },
+            )?;
+            let (first, first_robust) = sequence.first;
+            let (again, _) = sequence.again;
+            (first, first_robust, Some((again.model, sequence.stiffness)))
+        }
+        None => {
+            let (first, first_robust) = compensated_with(Some(setup.model_flexibility))?;
+            (first, first_robust, None)
+        }
+    };
     let blunders = BlunderReport {
         injected: Vec::new(),
         named: [rigid_robust.outliers(), compensated_robust.outliers()],
     };
-
-    let identified = match &options.identify_stiffness {
-        Some(stiffness) => {
-            let free: Vec<usize> = (0..compensated.model.parameter_count()).collect();
-            // The rows the robust calibration named as blunders are left out, as in its fit.
-            let outliers = compensated_robust.outliers();
-            let kept: Vec<Measurement> = measurements
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| !outliers.contains(k))
-                .map(|(_, m)| m.clone())
-                .collect();
-            Some(identify_stiffness(
-                tree,
-                &compensated.model,
-                setup.model_flexibility,
-                &kept,
-                None,
-                &free,
-                &identification_options,
-                stiffness,
-            )?)
-        }
-        None => None,
-    };
     let (compensated_model, compensated_flexibility) = match &identified {
-        Some(report) => (&report.model, &report.flexibility),
+        Some((model, report)) => (model, &report.flexibility),
         None => (&compensated.model, setup.model_flexibility),
     };
     let errors = |configurations: &[Vec<f64>]| -> Result<Vec<ArmErrors>> {
@@ -521,7 +526,7 @@ fn finish_trial(
         noise_floor_position_mm,
         rigid_run: summary(&rigid),
         compensated_run: summary(&compensated),
-        stiffness: identified.map(|r| r.estimates),
+        stiffness: identified.map(|(_, r)| r.estimates),
         blunders,
         measurements,
         notes: compensated

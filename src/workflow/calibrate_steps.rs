@@ -14,8 +14,9 @@ use super::model_choice::{
 use super::note::Note;
 use super::source::{add_measured_points, measured_branches, LoadedRobot, MeasuredPoints};
 use crate::calibration::{
-    hold_out_indices, identified_stiffness, identify_stiffness, CalibrationInput, CalibrationRun,
-    Finding, IdentificationOptions, MeasurementFrame, Plan, StiffnessOptions,
+    calibrate_with_stiffness, hold_out_indices, identified_stiffness, CalibrationInput,
+    CalibrationRun, Finding, Fitted, IdentificationOptions, MeasurementFrame, Plan,
+    StiffnessOptions,
 };
 use crate::error::{Error, Result};
 use crate::io::{read_registration, MeasurementReadOptions};
@@ -307,47 +308,56 @@ pub(super) fn identify(
         options: &options,
         measurement_frame: loaded.frame,
     };
-    let mut identified = None;
-    let mut final_flexibility = flexibility.clone().filter(|_| spec.compensate);
-    if let (Some(prior), Some(stiffness), true) =
-        (&flexibility, &stiffness, config.identify_stiffness)
-    {
-        let stiffness_options = StiffnessOptions {
-            prior_sigma: config.stiffness_prior,
-            ..StiffnessOptions::default()
-        };
-        let free: Vec<usize> = (0..run.report.model.parameter_count()).collect();
-        // Every session's rows in the first session's frame, by the frames the run fitted.
-        let in_first_frame = crate::calibration::sessions::validation_in_training_frames(
-            &data.measurements,
-            run.sessions.as_ref(),
-        );
-        let report = identify_stiffness(
-            tree,
-            &run.report.model,
-            prior,
-            &in_first_frame,
-            None,
-            &free,
-            &options,
-            &stiffness_options,
-        )?;
-        let again = CalibrationInput {
-            flexibility: Some(&report.flexibility),
+    let run_with = |flexibility: Option<&FlexibilityModel>| {
+        let input = CalibrationInput {
+            flexibility,
             ..input
         };
-        run = run_model(
-            &again,
+        run_model(
+            &input,
             spec.significant,
             &data.measurements,
             &data.validation,
-        )?;
-        run.findings
-            .extend(crate::calibration::checks::stiffness_below_zero(&report));
-        let file = identified_stiffness(stiffness, tree, &loaded.nominal, &report.estimates);
-        identified = Some((StiffnessSummary::new(&report, config.stiffness_prior), file));
-        final_flexibility = Some(report.flexibility);
-    }
+        )
+    };
+    let mut identified = None;
+    let mut final_flexibility = flexibility.clone().filter(|_| spec.compensate);
+    let run = match (&flexibility, &stiffness, config.identify_stiffness) {
+        (Some(prior), Some(stiffness), true) => {
+            let stiffness_options = StiffnessOptions {
+                prior_sigma: config.stiffness_prior,
+                ..StiffnessOptions::default()
+            };
+            let sequence = calibrate_with_stiffness(
+                tree,
+                prior,
+                input.flexibility,
+                &options,
+                &stiffness_options,
+                run_with,
+                |run: &CalibrationRun| Fitted {
+                    model: run.report.model.clone(),
+                    // Every session's rows in the first session's frame, by the frames the
+                    // run fitted.
+                    measurements: crate::calibration::sessions::validation_in_training_frames(
+                        &data.measurements,
+                        run.sessions.as_ref(),
+                    ),
+                    outliers: run.robust.outliers(),
+                },
+            )?;
+            let report = sequence.stiffness;
+            let mut run = sequence.again;
+            run.findings
+                .extend(crate::calibration::checks::stiffness_below_zero(&report));
+            let file = identified_stiffness(stiffness, tree, &loaded.nominal, &report.estimates);
+            identified = Some((StiffnessSummary::new(&report, config.stiffness_prior), file));
+            final_flexibility = Some(report.flexibility);
+            run
+        }
+        // The fit above is the run without a stiffness fit.
+        _ => run,
+    };
     let identified_run = Identified {
         run,
         plan_name,

@@ -1,11 +1,10 @@
 //! The covariance of the joint fit and the per-compliance estimates with their standard
 //! deviations.
 
-use super::fit::Fit;
-use super::problem::{Linearisation, Problem};
+use super::problem::{Fit, Linearisation, Problem};
 use super::selection::Selection;
 use super::{name, ComplianceEstimate, GROUPS};
-use crate::calibration::solver::{column_scales, scale_columns, singular_decomposition};
+use crate::calibration::linear_algebra::{column_scales, scale_columns, singular_decomposition};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::tree::KinematicTree;

@@ -7,26 +7,13 @@
 //! fit iterates; one that ends there is not physical and is rejected by the caller.
 
 use super::covariance::covariance;
-use super::problem::Problem;
+use super::problem::{Fit, Problem};
 use super::GROUPS;
+use crate::calibration::linear_algebra::{column_scales, scale_columns, singular_decomposition};
 use crate::calibration::solver::Termination;
-use crate::calibration::solver::{column_scales, scale_columns, singular_decomposition};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
-use nalgebra::{DMatrix, DVector};
-
-pub(super) struct Fit {
-    pub(super) model: McpcModel,
-    pub(super) scales: Vec<f64>,
-    pub(super) cost: [f64; 2],
-    pub(super) iterations: usize,
-    pub(super) termination: Termination,
-    pub(super) rank: usize,
-    pub(super) residual_scale: f64,
-    /// A factor `F` of the covariance of the chosen scales (`F·Fᵀ`), one row per chosen scale
-    /// in `chosen` order.
-    pub(super) factor: DMatrix<f64>,
-}
+use nalgebra::DVector;
 
 impl Problem<'_> {
     /// The joint fit in two steps: the common scales (all joints, all links) with the geometry

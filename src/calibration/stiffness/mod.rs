@@ -16,11 +16,14 @@ mod fit;
 mod output;
 mod problem;
 mod selection;
+mod sequence;
 
 pub use output::identified_stiffness;
 pub use selection::{analyse_compliance, ComplianceIdentifiability};
+pub use sequence::{calibrate_with_stiffness, without_outliers, Fitted, StiffnessSequence};
 
-use super::solver::{IdentificationOptions, Termination};
+use super::options::IdentificationOptions;
+use super::solver::Termination;
 use crate::error::{Error, Result};
 use crate::kinematics::flexibility::{ComplianceKind, ComplianceParameter};
 use crate::kinematics::{FlexibilityModel, McpcModel};
@@ -215,7 +218,7 @@ fn fit_physical(
     start: &McpcModel,
     chosen: &mut Vec<usize>,
     stiffness: &StiffnessOptions,
-) -> Result<(fit::Fit, Vec<(usize, f64)>)> {
+) -> Result<(problem::Fit, Vec<(usize, f64)>)> {
     let mut below_zero = Vec::new();
     loop {
         // A group whose members are all fitted on their own moves nothing.

@@ -2,12 +2,14 @@
 //! payload, and its linearisation (weighted residual and Jacobian over the free geometry and
 //! the compliance scales).
 
-use crate::calibration::solver::IdentificationOptions;
+use crate::calibration::observation::{kind_of, Nuisance, RobotState, Tools};
+use crate::calibration::options::IdentificationOptions;
+use crate::calibration::solver::Termination;
 use crate::error::{Error, Result};
 use crate::kinematics::flexibility::{ComplianceBasis, ComplianceParameter};
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::math::{pose_error, Pose};
-use crate::measurement::{Measurement, Observation};
+use crate::measurement::Measurement;
 use crate::tree::KinematicTree;
 use nalgebra::{DMatrix, DVector, Vector6};
 
@@ -21,6 +23,21 @@ pub(super) struct Problem<'a> {
     pub(super) basis_of: Vec<usize>,
     pub(super) free: &'a [usize],
     pub(super) options: &'a IdentificationOptions,
+}
+
+/// A fit of the geometry and the compliance scales (`fit`), with the covariance factor of the
+/// chosen scales (`covariance`).
+pub(super) struct Fit {
+    pub(super) model: McpcModel,
+    pub(super) scales: Vec<f64>,
+    pub(super) cost: [f64; 2],
+    pub(super) iterations: usize,
+    pub(super) termination: Termination,
+    pub(super) rank: usize,
+    pub(super) residual_scale: f64,
+    /// A factor `F` of the covariance of the chosen scales (`F·Fᵀ`), one row per chosen scale
+    /// in `chosen` order.
+    pub(super) factor: DMatrix<f64>,
 }
 
 /// A linearisation: weighted residual and Jacobian, columns `[free geometry, compliances]`.
@@ -115,10 +132,6 @@ impl<'a> Problem<'a> {
         let columns = self.free.len() + chosen.len();
         let mut residual = DVector::zeros(rows);
         let mut jacobian = DMatrix::zeros(if with_jacobian { rows } else { 0 }, columns);
-        let weights = [
-            1.0 / self.options.position_sigma,
-            1.0 / self.options.rotation_sigma,
-        ];
         let effective = self.effective(scales);
         let flexibilities = self
             .bases
@@ -179,57 +192,86 @@ impl<'a> Problem<'a> {
             }
         }
         let count_of = self.parameters().len();
-        let group = |p: &ComplianceParameter| usize::from(!p.kind.is_joint());
         let is_fitted: Vec<bool> = (0..count_of).map(|j| fitted.contains(&j)).collect();
+        let noise = self.options.noise();
+        let mut error = Vec::new();
         let mut row = 0;
         for (index, m) in self.measurements.iter().enumerate() {
             let g = group_of[index];
-            let predicted = poses[g].get(m.tool).ok_or_else(|| Error::InvalidData {
-                origin: "stiffness identification".into(),
-                message: format!("measurement {index} names tool {}", m.tool),
-            })?;
-            let error = raw_residual(&m.observation, predicted);
-            let count = m.observation.rows();
-            for k in 0..count {
-                let weight = weights[k / 3];
+            if m.tool >= poses[g].len() {
+                return Err(Error::InvalidData {
+                    origin: "stiffness identification".into(),
+                    message: format!("measurement {index} names tool {}", m.tool),
+                });
+            }
+            // Through the observation seam: the kind's residual, and its sensitivity to a
+            // motion of the tool (the geometry's and the compliances' columns are motions).
+            let kind = kind_of(&m.observation);
+            let at = RobotState {
+                model,
+                q: &m.q,
+                tool: m.tool,
+                tools: Tools::Poses(&poses[g]),
+                offset: None,
+                nuisance: Nuisance::none(),
+            };
+            error.resize(kind.rows(), 0.0);
+            kind.residual(&at, &mut error)?;
+            let sensitivity = with_jacobian.then(|| kind.tool_motion_jacobian(&at, m.tool));
+            let geometry_rows: Vec<DVector<f64>> = match &sensitivity {
+                Some(s) => geometry[g]
+                    .iter()
+                    .map(|change| s * change[m.tool])
+                    .collect(),
+                None => Vec::new(),
+            };
+            let per_unit = sensitivity.as_ref().map(|s| s * &compliance[g][m.tool]);
+            for (k, row_kind) in kind.row_kinds().iter().enumerate() {
+                let weight = 1.0 / noise.sigma(*row_kind);
                 residual[row + k] = error[k] * weight;
-                if with_jacobian {
-                    for (column, change) in geometry[g].iter().enumerate() {
-                        jacobian[(row + k, column)] = change[m.tool][k] * weight;
+                if let Some(per_unit) = &per_unit {
+                    for (column, change) in geometry_rows.iter().enumerate() {
+                        jacobian[(row + k, column)] = change[k] * weight;
                     }
                     // Columns per unit scale (the deflections are linear in the effective
                     // scales): a fitted scale per unit of its effective scale, a held one per
                     // unit of its own (times its group's), a group per unit of its own over the
                     // members that follow it.
-                    let per_unit = &compliance[g][m.tool];
                     for (column, &c) in chosen.iter().enumerate() {
-                        let value = match self.parameters().get(c) {
-                            Some(_) if is_fitted[c] => per_unit[(k, c)],
-                            Some(p) => per_unit[(k, c)] * scales[count_of + group(p)],
-                            None => self
-                                .parameters()
-                                .iter()
-                                .enumerate()
-                                .filter(|(j, p)| group(p) == c - count_of && !is_fitted[*j])
-                                .map(|(j, _)| per_unit[(k, j)] * scales[j])
-                                .sum(),
-                        };
+                        let value = self.compliance_column(per_unit, k, c, scales, &is_fitted);
                         jacobian[(row + k, self.free.len() + column)] = value * weight;
                     }
                 }
             }
-            row += count;
+            row += kind.rows();
         }
         Ok(Linearisation { residual, jacobian })
     }
-}
 
-fn raw_residual(measured: &Observation, predicted: &Pose) -> Vector6<f64> {
-    match measured {
-        Observation::Pose(pose) => pose_error(pose, predicted),
-        Observation::Position(p) => {
-            let d = p - predicted.translation.vector;
-            Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
+    /// Row `k` of compliance column `c` from the motions per unit individual scale
+    /// `per_unit`: a fitted scale per unit of its effective scale, a held one per unit of its
+    /// own (times its group's), a group (`c` past the individual scales) per unit of its own
+    /// over the members that follow it.
+    fn compliance_column(
+        &self,
+        per_unit: &DMatrix<f64>,
+        k: usize,
+        c: usize,
+        scales: &[f64],
+        is_fitted: &[bool],
+    ) -> f64 {
+        let count_of = self.parameters().len();
+        let group = |p: &ComplianceParameter| usize::from(!p.kind.is_joint());
+        match self.parameters().get(c) {
+            Some(_) if is_fitted[c] => per_unit[(k, c)],
+            Some(p) => per_unit[(k, c)] * scales[count_of + group(p)],
+            None => self
+                .parameters()
+                .iter()
+                .enumerate()
+                .filter(|(j, p)| group(p) == c - count_of && !is_fitted[*j])
+                .map(|(j, _)| per_unit[(k, j)] * scales[j])
+                .sum(),
         }
     }
 }

@@ -3,7 +3,8 @@
 
 use super::problem::{Linearisation, Problem};
 use super::{describe, name, DETERMINED, GROUPS, GROUP_NAMES};
-use crate::calibration::solver::{column_scales, scale_columns, IdentificationOptions};
+use crate::calibration::linear_algebra::{column_scales, scale_columns};
+use crate::calibration::options::IdentificationOptions;
 use crate::error::Result;
 use crate::kinematics::flexibility::ComplianceParameter;
 use crate::kinematics::{FlexibilityModel, McpcModel};

@@ -1,0 +1,101 @@
+//! Dense linear algebra of the identification: column scaling, and singular values and vectors
+//! of a column-scaled Jacobian (from the normal matrix when it is well conditioned, else by
+//! QR + SVD). Shared by the solver, the identifiability analysis and the stiffness fit.
+
+use nalgebra::{DMatrix, DVector};
+
+/// Smallest eigenvalue ratio of the scaled normal matrix for which squaring the Jacobian
+/// loses nothing near the rank tolerance (σ ratio 1e-5): eigenvalues then come out to ~1e-6
+/// relative.
+pub(super) const WELL_CONDITIONED: f64 = 1e-10;
+
+/// Singular values (unsorted) and `Vᵀ` of a column-scaled Jacobian: from the normal matrix
+/// when it is well conditioned, else through the SVD of the small triangle `R` of
+/// `J_s = Q·R`. Shared with `calibration::identifiability`.
+pub(crate) fn singular_decomposition(scaled: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
+    // Fast path: the eigen-decomposition of the scaled normal matrix gives σ² and V in a third
+    // of the time of QR + SVD, and exactly enough when the matrix is well conditioned (σ²
+    // ratios above 1e-10 are resolved to ~1e-6 relative, far from the rank tolerance). Near
+    // rank deficiency, where squaring would lose the small singular values, QR + SVD decide.
+    let normal = normal_matrix(&scaled);
+    if well_conditioned(&normal.symmetric_eigenvalues()) {
+        eigen_decomposition(normal)
+    } else {
+        qr_svd(scaled)
+    }
+}
+
+/// Whether the eigenvalues of a normal matrix are all above [`WELL_CONDITIONED`] of the
+/// largest.
+pub(super) fn well_conditioned(eigenvalues: &DVector<f64>) -> bool {
+    let largest = eigenvalues.max();
+    largest > 0.0 && eigenvalues.min() > WELL_CONDITIONED * largest
+}
+
+/// `σ = √λ` and `Vᵀ` from the eigen-decomposition of the normal matrix `JᵀJ`.
+pub(super) fn eigen_decomposition(normal: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
+    let eigen = normal.symmetric_eigen();
+    (
+        eigen.eigenvalues.map(|l| l.max(0.0).sqrt()),
+        eigen.eigenvectors.transpose(),
+    )
+}
+
+/// Singular values and `Vᵀ` through the SVD of the triangle `R` of `J = Q·R` (same σ and `V`);
+/// with fewer rows than columns, zero rows complete the matrix so that there is one singular
+/// value per column and `V` spans the whole null space.
+pub(super) fn qr_svd(scaled: DMatrix<f64>) -> (DVector<f64>, DMatrix<f64>) {
+    let columns = scaled.ncols();
+    let square = if scaled.nrows() >= columns {
+        scaled.qr().r()
+    } else {
+        scaled.resize_vertically(columns, 0.0)
+    };
+    let svd = square.svd(false, true);
+    let v_t = svd
+        .v_t
+        .unwrap_or_else(|| DMatrix::identity(columns, columns));
+    (svd.singular_values, v_t)
+}
+
+/// `AᵀA`. A dense product beat both a row-sparse and a block-sparse accumulation that skip the
+/// zeros outside each tool's chain (measured: 100 configurations 12.1 → 7.1 ms per
+/// calibration); the blocked kernel ([`super::normal_equations::add_gram`]) beats `tr_mul`.
+fn normal_matrix(a: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut normal = DMatrix::zeros(a.ncols(), a.ncols());
+    super::normal_equations::add_gram(&mut normal, a);
+    normal
+}
+
+/// Column norms, floored at 1e-6 of the largest: a column that is zero but for rounding (a
+/// rotation about an axis through the tool point, say) must stay negligible after scaling,
+/// not be blown up into a unit column of noise.
+pub(crate) fn column_scales(jacobian: &DMatrix<f64>) -> DVector<f64> {
+    floored_scales(jacobian.column_iter().map(|c| c.norm()))
+}
+
+/// [`column_scales`] from the column norms.
+pub(super) fn floored_scales(norms: impl Iterator<Item = f64>) -> DVector<f64> {
+    let norms: Vec<f64> = norms.collect();
+    let floor = norms.iter().copied().fold(0.0, f64::max) * 1e-6;
+    DVector::from_iterator(
+        norms.len(),
+        norms.into_iter().map(|n| {
+            if n > floor {
+                n
+            } else if floor > 0.0 {
+                floor
+            } else {
+                1.0
+            }
+        }),
+    )
+}
+
+pub(crate) fn scale_columns(jacobian: &DMatrix<f64>, scales: &DVector<f64>) -> DMatrix<f64> {
+    let mut scaled = jacobian.clone();
+    for (mut column, s) in scaled.column_iter_mut().zip(scales.iter()) {
+        column /= *s;
+    }
+    scaled
+}

@@ -1,0 +1,146 @@
+//! The stacked, weighted residual and its Jacobian over the free parameters, through the
+//! observation seam (`calibration::observation`): what the solver and the streamed normal
+//! equations linearise.
+
+use super::observation::{kind_of, squares_by_row_kind, Nuisance, RobotState, Tools};
+use super::options::IdentificationOptions;
+use super::predictor::{Cached, Predictor};
+use crate::error::Result;
+use crate::kinematics::{McpcModel, ToolJacobian};
+use crate::math::Pose;
+use crate::measurement::Measurement;
+use nalgebra::{DMatrix, DVector, Vector6};
+
+/// The stacked, weighted residual and its Jacobian over the free parameters.
+pub(super) struct Linearisation {
+    pub(super) residual: DVector<f64>,
+    pub(super) jacobian: DMatrix<f64>,
+}
+
+pub(super) fn rows_of(measurements: &[Measurement]) -> usize {
+    measurements.iter().map(|m| m.observation.rows()).sum()
+}
+
+/// The weighted residual of every measurement (each row over its σ, [`Noise`](super::observation::Noise)) under
+/// `predictor` at `model`: the vector whose half squared norm [`identify`](super::solver::identify) minimises.
+pub fn weighted_residual(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    predictor: &dyn Predictor,
+    options: &IdentificationOptions,
+) -> Result<DVector<f64>> {
+    Ok(linearise(model, measurements, None, predictor, &[], options, false)?.residual)
+}
+
+/// The stacked residual `W·r` and, `with_jacobian`, its Jacobian `W·J` over the `free`
+/// parameters, through the observation seam: each measurement's kind gives its unweighted
+/// residual and Jacobian rows from the robot state the predictor evaluated (once per
+/// configuration and payload, shared by the rows measured there), and each row is multiplied
+/// by `√w_i / σ` of its row kind.
+pub(super) fn linearise(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+    with_jacobian: bool,
+) -> Result<Linearisation> {
+    let rows = rows_of(measurements);
+    let mut residual = DVector::zeros(rows);
+    let mut jacobian = DMatrix::zeros(if with_jacobian { rows } else { 0 }, free.len());
+    let noise = options.noise();
+    let mut row = 0;
+    // Measurements of several tools at one configuration share one evaluation.
+    // Keyed by configuration and payload.
+    let mut cached: Cached<'_, Vec<ToolJacobian>> = None;
+    let mut cached_poses: Cached<'_, Vec<Pose>> = None;
+    for (index, m) in measurements.iter().enumerate() {
+        let kind = kind_of(&m.observation);
+        let count = kind.rows();
+        let key = (m.q.as_slice(), m.payload);
+        let tools = if with_jacobian {
+            if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+                cached = Some((key, predictor.jacobians_at(model, &m.q, m.payload)?));
+            }
+            Tools::Jacobians(cached.as_ref().map_or(&[][..], |(_, j)| j.as_slice()))
+        } else {
+            if cached_poses.as_ref().is_none_or(|(k, _)| *k != key) {
+                cached_poses = Some((key, predictor.predict_at(model, &m.q, m.payload)?));
+            }
+            Tools::Poses(cached_poses.as_ref().map_or(&[][..], |(_, p)| p.as_slice()))
+        };
+        let state = RobotState {
+            model,
+            q: &m.q,
+            tool: m.tool,
+            tools,
+            offset: offsets.map(|o| &o[index]),
+            nuisance: Nuisance::none(),
+        };
+        // Multiplying by exactly 1.0 keeps unweighted problems bit for bit as before.
+        let observation = options
+            .observation_weights
+            .get(index)
+            .map_or(1.0, |w| w.sqrt());
+        let weight = |row_kind| (1.0 / noise.sigma(row_kind)) * observation;
+        if with_jacobian {
+            let mut block = jacobian.view_mut((row, 0), (count, free.len()));
+            kind.jacobian(&state, free, &mut block)?;
+            for (k, &row_kind) in kind.row_kinds().iter().enumerate() {
+                block.row_mut(k).scale_mut(weight(row_kind));
+            }
+        }
+        kind.residual(&state, &mut residual.as_mut_slice()[row..row + count])?;
+        for (k, &row_kind) in kind.row_kinds().iter().enumerate() {
+            residual[row + k] *= weight(row_kind);
+        }
+        row += count;
+    }
+    Ok(Linearisation { residual, jacobian })
+}
+
+/// RMS of the position residuals (m) and of the rotation residuals (rad, over kinds with
+/// rotation rows) at `model`, over the measurements not left out.
+pub(super) fn residual_rms(
+    model: &McpcModel,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+    options: &IdentificationOptions,
+) -> Result<(f64, f64)> {
+    let (mut position, mut rotation, mut poses, mut count) = (0.0, 0.0, 0usize, 0usize);
+    let mut error = Vec::new();
+    for (index, m) in measurements.iter().enumerate() {
+        // Measurements left out (weight 0, robust estimation) are not part of the fit.
+        if options.observation_weights.get(index) == Some(&0.0) {
+            continue;
+        }
+        count += 1;
+        let predicted = predictor.predict_at(model, &m.q, m.payload)?;
+        let kind = kind_of(&m.observation);
+        let state = RobotState {
+            model,
+            q: &m.q,
+            tool: m.tool,
+            tools: Tools::Poses(&predicted),
+            offset: offsets.map(|o| &o[index]),
+            nuisance: Nuisance::none(),
+        };
+        error.resize(kind.rows(), 0.0);
+        kind.residual(&state, &mut error)?;
+        let [position_squares, rotation_squares] = squares_by_row_kind(kind, &error);
+        position += position_squares.unwrap_or(0.0);
+        if let Some(squares) = rotation_squares {
+            rotation += squares;
+            poses += 1;
+        }
+    }
+    let n = count.max(1) as f64;
+    let rotation_rms = if poses > 0 {
+        (rotation / poses as f64).sqrt()
+    } else {
+        0.0
+    };
+    Ok(((position / n).sqrt(), rotation_rms))
+}
