@@ -3,6 +3,7 @@
 pub mod artifact;
 pub mod calibrate;
 pub mod check;
+pub mod compare;
 pub mod inspect;
 pub mod outliers;
 pub mod pairing;
@@ -11,6 +12,7 @@ pub mod sessions;
 pub mod simulate;
 pub mod stiffness;
 pub mod strata;
+pub mod verify;
 
 pub use calibrate::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file, ArmReport,

@@ -10,6 +10,7 @@ mod calibrate_steps;
 pub mod check;
 pub mod checker;
 pub mod checks;
+pub mod compare;
 pub mod cross_validation;
 pub mod export;
 pub mod fk;
@@ -18,9 +19,12 @@ pub mod model_choice;
 pub mod note;
 pub mod pair;
 pub mod plan;
+pub mod postures;
 pub mod progress;
+pub mod provenance;
 pub mod simulate;
 pub mod source;
+pub mod verify;
 
 pub use calibrate::{
     calibrate, CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, ParameterRow,
@@ -31,4 +35,5 @@ pub use model::{from_mcpc, inspect, to_mcpc, Inspection, McpcTableText, ModelCon
 pub use note::{Note, NoteLevel};
 pub use pair::{pair, PairConfig, Pairing};
 pub use progress::{no_progress, Progress, ProgressFn};
+pub use verify::{verify, Verification, VerifyConfig, VerifyFrame};
 pub use source::{LoadedRobot, MeasurementSource, PlanSource, RobotSource, StiffnessSource};
