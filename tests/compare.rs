@@ -27,17 +27,35 @@ fn a_folder_compared_with_itself_lists_none() {
 #[test]
 fn two_sessions_calibrations_list_moved_parameters_and_the_displacement() {
     let dir = tempfile::tempdir().unwrap();
-    let (a, b, out) = (dir.path().join("a"), dir.path().join("b"), dir.path().join("cmp"));
+    let (a, b, out) = (
+        dir.path().join("a"),
+        dir.path().join("b"),
+        dir.path().join("cmp"),
+    );
     calibrate_tiago("three", &session("2021-11-26", "three"), &a);
     // B: calibrated on 2021-11-26, validated on 2021-11-30.
     let config = treecal::workflow::CalibrateConfig {
-        robot: treecal::workflow::RobotSource::File(crate::verify::tiago().join("urdf/tiago_48_schunk.urdf")),
+        robot: treecal::workflow::RobotSource::File(
+            crate::verify::tiago().join("urdf/tiago_48_schunk.urdf"),
+        ),
         measurements: treecal::workflow::MeasurementSource::Csv(session("2021-11-26", "three")),
-        validation: Some(treecal::workflow::MeasurementSource::Csv(session("2021-11-30", "three"))),
+        validation: Some(treecal::workflow::MeasurementSource::Csv(session(
+            "2021-11-30",
+            "three",
+        ))),
         ..Default::default()
     };
-    treecal::workflow::calibrate(&config).unwrap().write(&b).unwrap();
-    let run = treecal(&["compare", path_str(&a), path_str(&b), "--out", path_str(&out)]);
+    treecal::workflow::calibrate(&config)
+        .unwrap()
+        .write(&b)
+        .unwrap();
+    let run = treecal(&[
+        "compare",
+        path_str(&a),
+        path_str(&b),
+        "--out",
+        path_str(&out),
+    ]);
     assert_success(&run, "compare");
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
@@ -48,9 +66,20 @@ fn two_sessions_calibrations_list_moved_parameters_and_the_displacement() {
     let d = &report["displacement"];
     assert!(d["configurations"].as_u64().unwrap() > 60, "{d}");
     assert!(d["rms_aligned_mm"].as_f64().unwrap() > 0.0, "{d}");
-    assert!(run.stdout.contains("Parameters moved beyond 3 combined σ"), "{run}");
-    for file in ["report.md", "report.json", "displacement.svg", "provenance.yaml"] {
+    assert!(
+        run.stdout.contains("Parameters moved beyond 3 combined σ"),
+        "{run}"
+    );
+    for file in [
+        "report.md",
+        "report.json",
+        "displacement.svg",
+        "provenance.yaml",
+    ] {
         assert!(out.join(file).is_file(), "{file}");
     }
-    eprintln!("compare A/B: {} parameters moved beyond 3σ; displacement {d}", moved.len());
+    eprintln!(
+        "compare A/B: {} parameters moved beyond 3σ; displacement {d}",
+        moved.len()
+    );
 }

@@ -42,7 +42,10 @@ fn folder_without_times(dir: &Path) -> Vec<(String, Vec<u8>)> {
 }
 
 fn sha256sum(path: &Path) -> String {
-    let output = Command::new("sha256sum").arg(path).output().expect("sha256sum");
+    let output = Command::new("sha256sum")
+        .arg(path)
+        .output()
+        .expect("sha256sum");
     String::from_utf8(output.stdout)
         .unwrap()
         .split_whitespace()
@@ -76,7 +79,10 @@ fn calibrate_provenance_hashes_equal_sha256sum_and_runs_repeat_across_threads() 
         );
         folders.push(out);
     }
-    let (one, two) = (folder_without_times(&folders[0]), folder_without_times(&folders[1]));
+    let (one, two) = (
+        folder_without_times(&folders[0]),
+        folder_without_times(&folders[1]),
+    );
     assert_eq!(
         one.iter().map(|f| &f.0).collect::<Vec<_>>(),
         two.iter().map(|f| &f.0).collect::<Vec<_>>()
@@ -90,20 +96,47 @@ fn calibrate_provenance_hashes_equal_sha256sum_and_runs_repeat_across_threads() 
         assert!(text.contains(&line), "{line} missing from\n{text}");
         assert!(text.contains(path_str(input)), "{text}");
     }
-    for needle in ["version: 0.1.0", "command: calibrate", "hold_out: 0", "threads: 1", "position_sigma"] {
+    for needle in [
+        "version: 0.1.0",
+        "command: calibrate",
+        "hold_out: 0",
+        "threads: 1",
+        "position_sigma",
+    ] {
         assert!(text.contains(needle), "{needle} missing from\n{text}");
     }
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(folders[0].join("report.json")).unwrap()).unwrap();
     assert_eq!(report["provenance"], "provenance.yaml");
-    assert!(report["identification_postures"]["tools"][0]["postures"].as_array().unwrap().len() > 30);
+    assert!(
+        report["identification_postures"]["tools"][0]["postures"]
+            .as_array()
+            .unwrap()
+            .len()
+            > 30
+    );
 }
 
 #[test]
 fn simulate_writes_provenance_with_its_seed() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sim");
-    treecal_with_threads("1", &["simulate", "--poses", "8", "--torso-poses", "4", "--validation-poses", "4", "--seed", "7", "--out", path_str(&out)]);
+    treecal_with_threads(
+        "1",
+        &[
+            "simulate",
+            "--poses",
+            "8",
+            "--torso-poses",
+            "4",
+            "--validation-poses",
+            "4",
+            "--seed",
+            "7",
+            "--out",
+            path_str(&out),
+        ],
+    );
     let text = std::fs::read_to_string(out.join("provenance.yaml")).unwrap();
     for needle in ["command: simulate", "master: 7", "trials: 1"] {
         assert!(text.contains(needle), "{needle} missing from\n{text}");

@@ -89,22 +89,39 @@ fn verify_on_each_other_session_equals_calibrate_validation() {
         let alone = &report["artifact"]["urdf_alone"]["errors"];
         for key in ["rms_position_mm", "max_position_mm", "mean_position_mm"] {
             let expected = alone[key].as_f64().unwrap();
-            let got = serde_json::to_value(v.summary).unwrap()[key].as_f64().unwrap();
-            assert!((got - expected).abs() <= 1e-9, "{name} {key}: {got} vs {expected}");
+            let got = serde_json::to_value(v.summary).unwrap()[key]
+                .as_f64()
+                .unwrap();
+            assert!(
+                (got - expected).abs() <= 1e-9,
+                "{name} {key}: {got} vs {expected}"
+            );
         }
         // Every row against calibrate's per-row validation errors (the in-memory model).
         let expected = calibrate_rows(&report);
         assert_eq!(expected.len(), v.rows.len(), "{name}: rows");
         for row in &v.rows {
             let e = expected[&row.id];
-            assert!((row.position_mm - e).abs() <= 1e-9, "{name} {}: {} vs {e}", row.id, row.position_mm);
+            assert!(
+                (row.position_mm - e).abs() <= 1e-9,
+                "{name} {}: {} vs {e}",
+                row.id,
+                row.position_mm
+            );
         }
         // The strata: the same rows in the same strata, the same figures.
         let strata = serde_json::to_value(v.strata.as_ref().unwrap()).unwrap();
         let calibrate_strata = &report["validation_strata"];
-        for (a, b) in strata["strata"].as_array().unwrap().iter().zip(calibrate_strata["strata"].as_array().unwrap()) {
+        for (a, b) in strata["strata"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(calibrate_strata["strata"].as_array().unwrap())
+        {
             assert_eq!(a["observations"], b["observations"], "{name}: {a} vs {b}");
-            if let (Some(x), Some(y)) = (a["rms_position_mm"].as_f64(), b["rms_position_mm"].as_f64()) {
+            if let (Some(x), Some(y)) =
+                (a["rms_position_mm"].as_f64(), b["rms_position_mm"].as_f64())
+            {
                 assert!((x - y).abs() <= 1e-9, "{name}: {a} vs {b}");
             }
         }
@@ -113,14 +130,23 @@ fn verify_on_each_other_session_equals_calibrate_validation() {
 }
 
 /// Runs tests/oracle/verify_points.py; per-row errors by id, and the RMS.
-fn pinocchio_errors(urdf: &Path, link: &str, csv: &Path, extra: &[&str]) -> (HashMap<String, f64>, f64) {
+fn pinocchio_errors(
+    urdf: &Path,
+    link: &str,
+    csv: &Path,
+    extra: &[&str],
+) -> (HashMap<String, f64>, f64) {
     let output = Command::new("python3")
         .arg(repo().join("tests/oracle/verify_points.py"))
         .args([path_str(urdf), link, path_str(csv)])
         .args(extra)
         .output()
         .expect("python3");
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let mut rows = HashMap::new();
     let mut rms = f64::NAN;
     for line in String::from_utf8(output.stdout).unwrap().lines() {
@@ -153,19 +179,37 @@ fn verify_equals_an_independent_pinocchio_recomputation() {
     };
     let registration = out.join("registration.yaml");
     for (frame, extra) in [
-        (VerifyFrame::Registration, vec!["--registration", path_str(&registration)]),
-        (VerifyFrame::Fit, vec!["--registration", path_str(&registration), "--fit-frame"]),
+        (
+            VerifyFrame::Registration,
+            vec!["--registration", path_str(&registration)],
+        ),
+        (
+            VerifyFrame::Fit,
+            vec!["--registration", path_str(&registration), "--fit-frame"],
+        ),
     ] {
         let v = treecal::workflow::verify(&verify_config(&out, &fresh, frame)).unwrap();
         let (rows, rms) = pinocchio_errors(&urdf, link, &fresh, &extra);
         // The frame fit converges to the same least-squares minimum from both sides.
-        let tolerance = if frame == VerifyFrame::Fit { 1e-6 } else { 1e-9 };
+        let tolerance = if frame == VerifyFrame::Fit {
+            1e-6
+        } else {
+            1e-9
+        };
         for row in &v.report.rows {
             let p = rows[&row.id];
-            assert!((row.position_mm - p).abs() <= tolerance, "{frame:?} {}: {} vs pinocchio {p}", row.id, row.position_mm);
+            assert!(
+                (row.position_mm - p).abs() <= tolerance,
+                "{frame:?} {}: {} vs pinocchio {p}",
+                row.id,
+                row.position_mm
+            );
         }
         let got = v.report.summary.rms_position_mm;
-        assert!((got - rms).abs() <= tolerance, "{frame:?}: RMS {got} vs pinocchio {rms}");
+        assert!(
+            (got - rms).abs() <= tolerance,
+            "{frame:?}: RMS {got} vs pinocchio {rms}"
+        );
     }
 }
 
@@ -192,7 +236,10 @@ fn max_error_decides_the_exit_code() {
     let failed = run("2", "v2");
     assert_eq!(failed.code, Some(1), "{failed}");
     assert!(failed.stderr.contains("verdict: failed"), "{failed}");
-    assert!(dir.path().join("v2/report.md").is_file(), "the report is written before failing");
+    assert!(
+        dir.path().join("v2/report.md").is_file(),
+        "the report is written before failing"
+    );
     let passed = run("10", "v10");
     assert_success(&passed, "verify --max-error 10");
     assert!(passed.stdout.contains("verdict: passed"), "{passed}");
@@ -207,20 +254,31 @@ fn the_frame_refit_says_six_parameters_per_session_and_fits_better() {
     let fresh = session("2021-11-26", "three");
     let out = dir.path().join("cal");
     calibrate_tiago("three", &session("2021-11-30-1403", "three"), &out);
-    let fixed = treecal::workflow::verify(&verify_config(&out, &fresh, VerifyFrame::Registration)).unwrap();
+    let fixed =
+        treecal::workflow::verify(&verify_config(&out, &fresh, VerifyFrame::Registration)).unwrap();
     let fit = treecal::workflow::verify(&verify_config(&out, &fresh, VerifyFrame::Fit)).unwrap();
     assert_eq!(fit.report.context.refitted_parameters, 6);
     assert_eq!(fit.report.context.sessions.len(), 1);
     assert!(fit.markdown.contains("6 parameter(s)"), "{}", fit.markdown);
     // Same tracker frame in every session: the refit moves it little and cannot do worse.
     assert!(fit.report.summary.rms_position_mm <= fixed.report.summary.rms_position_mm + 1e-9);
-    assert!(fit.report.context.sessions[0].moved_mm < 5.0, "{:?}", fit.report.context.sessions);
+    assert!(
+        fit.report.context.sessions[0].moved_mm < 5.0,
+        "{:?}",
+        fit.report.context.sessions
+    );
 }
 
 #[test]
 fn verify_without_a_calibration_or_with_a_wrong_one_names_what_to_give() {
     let fresh = session("2021-11-26", "three");
-    let run = treecal(&["verify", "--measurements", path_str(&fresh), "--out", "/nonexistent/x"]);
+    let run = treecal(&[
+        "verify",
+        "--measurements",
+        path_str(&fresh),
+        "--out",
+        "/nonexistent/x",
+    ]);
     crate::common::cli::assert_error(&run, &["--calibration", "--robot"], "no robot");
     let dir = tempfile::tempdir().unwrap();
     let run = treecal(&[

@@ -129,7 +129,11 @@ impl CompareReport {
     pub fn markdown(&self) -> String {
         let [a, b] = &self.validation;
         let mut out = String::new();
-        let _ = writeln!(out, "# Comparison of two calibrations of robot '{}'\n", self.robot);
+        let _ = writeln!(
+            out,
+            "# Comparison of two calibrations of robot '{}'\n",
+            self.robot
+        );
         let _ = writeln!(out, "- A: {}\n- B: {}\n", a.folder, b.folder);
         let _ = writeln!(
             out,
@@ -169,14 +173,29 @@ impl CompareReport {
                 let _ = writeln!(out, "Neither folder records its identification postures (report.json `identification_postures`, written by calibrate since this version): no configuration set.\n");
             }
         }
-        let _ = writeln!(out, "## Validation figures (each on its own validation rows)\n");
+        let _ = writeln!(
+            out,
+            "## Validation figures (each on its own validation rows)\n"
+        );
         let _ = writeln!(out, "| | A | B |\n|---|---|---|");
         let mm = |v: Option<f64>| v.map_or_else(|| "—".to_owned(), |v| format!("{v:.4}"));
         let _ = writeln!(out, "| verdict | {} | {} |", a.verdict, b.verdict);
         for (label, fa, fb) in [
-            ("calibrated.urdf, RMS (mm)", a.urdf_alone_rms_mm, b.urdf_alone_rms_mm),
-            ("calibrated.urdf, max (mm)", a.urdf_alone_max_mm, b.urdf_alone_max_mm),
-            ("registered nominal, RMS (mm)", a.registered_nominal_rms_mm, b.registered_nominal_rms_mm),
+            (
+                "calibrated.urdf, RMS (mm)",
+                a.urdf_alone_rms_mm,
+                b.urdf_alone_rms_mm,
+            ),
+            (
+                "calibrated.urdf, max (mm)",
+                a.urdf_alone_max_mm,
+                b.urdf_alone_max_mm,
+            ),
+            (
+                "registered nominal, RMS (mm)",
+                a.registered_nominal_rms_mm,
+                b.registered_nominal_rms_mm,
+            ),
             ("repeat rows, RMS (mm)", a.repeat_rms_mm, b.repeat_rms_mm),
             ("new inside, RMS (mm)", a.inside_rms_mm, b.inside_rms_mm),
             ("outside, RMS (mm)", a.outside_rms_mm, b.outside_rms_mm),

@@ -169,11 +169,19 @@ impl VerifyReport {
         let mut out = String::new();
         let _ = writeln!(out, "# Verification of robot '{}'\n", c.robot);
         let _ = writeln!(out, "- Deployed files: {}", c.files);
-        let _ = writeln!(out, "- Fresh measurements: {} ({} rows)", c.measurements, self.rows.len());
+        let _ = writeln!(
+            out,
+            "- Fresh measurements: {} ({} rows)",
+            c.measurements,
+            self.rows.len()
+        );
         let _ = writeln!(out, "- Measurement frame: {}", frame_words(c));
         let _ = writeln!(out, "- **{}**\n", self.verdict.sentence());
         let s = &self.summary;
-        let _ = writeln!(out, "| rows | RMS (mm) | max (mm) | mean (mm) | RMS (deg) | max (deg) |");
+        let _ = writeln!(
+            out,
+            "| rows | RMS (mm) | max (mm) | mean (mm) | RMS (deg) | max (deg) |"
+        );
         let _ = writeln!(out, "|---|---|---|---|---|---|");
         let deg = |v: Option<f64>| v.map_or_else(|| "—".to_owned(), |v| format!("{v:.4}"));
         let _ = writeln!(
@@ -190,7 +198,11 @@ impl VerifyReport {
             Some(strata) => out.push_str(&strata.markdown()),
             None => {
                 if let Some(w) = self.worst() {
-                    let _ = writeln!(out, "Worst row: {} ({}): {:.4} mm.\n", w.id, w.tool, w.position_mm);
+                    let _ = writeln!(
+                        out,
+                        "Worst row: {} ({}): {:.4} mm.\n",
+                        w.id, w.tool, w.position_mm
+                    );
                 }
                 let _ = writeln!(out, "No calibration record (report.json with `identification_postures`): the rows are not sorted into repeat / inside / outside the calibrated ranges.\n");
             }
@@ -206,7 +218,11 @@ impl VerifyReport {
                 session.determined
             );
         }
-        let _ = writeln!(out, "\nPer-row position error: errors.svg. Provenance: {}.", self.provenance);
+        let _ = writeln!(
+            out,
+            "\nPer-row position error: errors.svg. Provenance: {}.",
+            self.provenance
+        );
         out
     }
 

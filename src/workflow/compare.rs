@@ -100,18 +100,24 @@ struct Folder {
 impl Folder {
     fn read(dir: &Path) -> Result<Self> {
         if !dir.is_dir() {
-            return Err(invalid(dir, "not a folder: give two `treecal calibrate` output folders"));
+            return Err(invalid(
+                dir,
+                "not a folder: give two `treecal calibrate` output folders",
+            ));
         }
         let report_path = dir.join("report.json");
         let urdf_path = dir.join("calibrated.urdf");
         for path in [&report_path, &urdf_path] {
             if !path.is_file() {
-                return Err(invalid(path, "missing: not a calibrate output folder with a usable verdict"));
+                return Err(invalid(
+                    path,
+                    "missing: not a calibrate output folder with a usable verdict",
+                ));
             }
         }
         let text = crate::io::read_text(&report_path, crate::limits::MAX_CSV_BYTES)?;
-        let report: serde_json::Value = serde_json::from_str(&text)
-            .map_err(|e| invalid(&report_path, e.to_string()))?;
+        let report: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| invalid(&report_path, e.to_string()))?;
         let parameters: Vec<Parameter> = report
             .get("parameters")
             .map(|v| serde_json::from_value(v.clone()))
@@ -235,7 +241,11 @@ fn tool_position(folder: &Folder, tool: &str, joints: &[(String, f64)]) -> Resul
     let tree = &folder.tree;
     let mut q = vec![0.0; tree.dofs().len()];
     for (name, value) in joints {
-        if let Some(d) = tree.dofs().iter().position(|&j| &tree.joint(j).name == name) {
+        if let Some(d) = tree
+            .dofs()
+            .iter()
+            .position(|&j| &tree.joint(j).name == name)
+        {
             q[d] = *value;
         }
     }
@@ -278,7 +288,10 @@ pub fn compare(config: &CompareConfig) -> Result<Comparison> {
     if !(config.k.is_finite() && config.k > 0.0) {
         return Err(Error::InvalidData {
             origin: "--k".into(),
-            message: format!("{} must be a positive number of standard deviations", config.k),
+            message: format!(
+                "{} must be a positive number of standard deviations",
+                config.k
+            ),
         });
     }
     let a = Folder::read(&config.a)?;
@@ -286,7 +299,12 @@ pub fn compare(config: &CompareConfig) -> Result<Comparison> {
     if a.tree.name() != b.tree.name() {
         return Err(invalid(
             &config.b,
-            format!("robot '{}' is not robot '{}' of {}", b.tree.name(), a.tree.name(), config.a.display()),
+            format!(
+                "robot '{}' is not robot '{}' of {}",
+                b.tree.name(),
+                a.tree.name(),
+                config.a.display()
+            ),
         ));
     }
     let (moved, judged) = moved(&a.parameters, &b.parameters, config.k);
@@ -312,7 +330,10 @@ pub fn compare(config: &CompareConfig) -> Result<Comparison> {
     let markdown = report.markdown();
     let mut files = vec![
         ("report.md".to_owned(), markdown.clone().into_bytes()),
-        ("report.json".to_owned(), crate::io::to_json(&report)?.into_bytes()),
+        (
+            "report.json".to_owned(),
+            crate::io::to_json(&report)?.into_bytes(),
+        ),
     ];
     if let Some(svg) = report.plot()? {
         files.push(("displacement.svg".to_owned(), svg.into_bytes()));

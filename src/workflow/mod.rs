@@ -35,5 +35,5 @@ pub use model::{from_mcpc, inspect, to_mcpc, Inspection, McpcTableText, ModelCon
 pub use note::{Note, NoteLevel};
 pub use pair::{pair, PairConfig, Pairing};
 pub use progress::{no_progress, Progress, ProgressFn};
-pub use verify::{verify, Verification, VerifyConfig, VerifyFrame};
 pub use source::{LoadedRobot, MeasurementSource, PlanSource, RobotSource, StiffnessSource};
+pub use verify::{verify, Verification, VerifyConfig, VerifyFrame};

@@ -234,7 +234,10 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     let started = super::provenance::Started::now();
     super::checks::sigmas(config.position_sigma, config.rotation_sigma)?;
     if let Some(max) = config.max_error_mm.filter(|m| !(m.is_finite() && *m > 0.0)) {
-        return Err(invalid("--max-error", format!("{max} must be a positive number of mm")));
+        return Err(invalid(
+            "--max-error",
+            format!("{max} must be a positive number of mm"),
+        ));
     }
     let files = resolve(config)?;
     let calibrate_config = CalibrateConfig {
@@ -280,7 +283,12 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     let (predicted, sessions) = refit(config, &set.measurements, predicted);
     let chains = match &files.report {
         Some(path) => match read_postures(path)? {
-            Some(recorded) => Some(chains_of(&recorded, tree, &loaded.nominal, &path.display().to_string())?),
+            Some(recorded) => Some(chains_of(
+                &recorded,
+                tree,
+                &loaded.nominal,
+                &path.display().to_string(),
+            )?),
             None => None,
         },
         None => None,
@@ -308,7 +316,10 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
 }
 
 /// The measurement frame: the registration (asked, or to start the fit from), or none.
-fn measurement_frame(config: &VerifyConfig, files: &Resolved) -> Result<(VerifyFrame, Option<Pose>)> {
+fn measurement_frame(
+    config: &VerifyConfig,
+    files: &Resolved,
+) -> Result<(VerifyFrame, Option<Pose>)> {
     match (config.frame, &files.registration) {
         (VerifyFrame::Base, _) => Ok((VerifyFrame::Base, None)),
         (frame, Some(path)) => Ok((frame, Some(read_registration(path)?))),
@@ -394,7 +405,12 @@ fn refit(
         for &i in &rows {
             predicted[i] = correction * predicted[i];
         }
-        sessions.push(VerifySession::new(name.clone(), rows.len(), &correction, determined));
+        sessions.push(VerifySession::new(
+            name.clone(),
+            rows.len(),
+            &correction,
+            determined,
+        ));
     }
     (predicted, sessions)
 }
@@ -469,7 +485,12 @@ fn finish(
 ) -> Result<Verification> {
     let mut inputs: Vec<PathBuf> = vec![files.robot.clone()];
     inputs.extend(files.registration.clone());
-    inputs.extend(files.stiffness.as_ref().and_then(|s| s.path().map(Path::to_owned)));
+    inputs.extend(
+        files
+            .stiffness
+            .as_ref()
+            .and_then(|s| s.path().map(Path::to_owned)),
+    );
     inputs.extend(config.measurements.path().map(Path::to_owned));
     inputs.extend(files.report.clone());
     let mut settings = config.clone();
