@@ -223,12 +223,7 @@ fn configurations(a: &Folder, b: &Folder) -> Vec<(String, Vec<(String, f64)>)> {
         };
         for tool in &recorded.tools {
             for posture in &tool.postures {
-                let joints = tool
-                    .joints
-                    .iter()
-                    .map(|j| j.name.clone())
-                    .zip(posture.iter().copied())
-                    .collect();
+                let joints = posture.iter().map(|(n, v)| (n.clone(), *v)).collect();
                 out.push((tool.tool.clone(), joints));
             }
         }

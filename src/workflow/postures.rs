@@ -8,6 +8,7 @@ use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// The report.json key.
 pub const POSTURES_KEY: &str = "identification_postures";
@@ -32,8 +33,8 @@ pub struct RecordedTool {
     pub tool: String,
     /// The independent joints of its chain, with their calibrated ranges.
     pub joints: Vec<RecordedJoint>,
-    /// Per identification row, the value of each joint of `joints` (rad, m).
-    pub postures: Vec<Vec<f64>>,
+    /// Per identification row, the value of each joint of `joints` by name (rad, m).
+    pub postures: Vec<BTreeMap<String, f64>>,
 }
 
 /// Every tool's postures (report.json `"identification_postures"`).
@@ -56,9 +57,8 @@ pub fn record(
         .tools()
         .iter()
         .zip(&chains)
-        .map(|(tool, chain)| RecordedTool {
-            tool: tree.link(tool.link).name.clone(),
-            joints: chain
+        .map(|(tool, chain)| {
+            let joints: Vec<RecordedJoint> = chain
                 .dofs
                 .iter()
                 .zip(chain.ranges())
@@ -68,8 +68,23 @@ pub fn record(
                     min,
                     max,
                 })
-                .collect(),
-            postures: chain.postures.clone(),
+                .collect();
+            let postures = chain
+                .postures
+                .iter()
+                .map(|posture| {
+                    joints
+                        .iter()
+                        .zip(posture)
+                        .map(|(joint, &value)| (joint.name.clone(), value))
+                        .collect()
+                })
+                .collect();
+            RecordedTool {
+                tool: tree.link(tool.link).name.clone(),
+                joints,
+                postures,
+            }
         })
         .collect();
     RecordedPostures {
@@ -113,10 +128,26 @@ pub fn chains_of(
                     Ok((dof, joint.kind == "revolute"))
                 })
                 .collect::<Result<Vec<_>>>()?;
-            Ok(Some(ChainPostures {
-                dofs,
-                postures: record.postures.clone(),
-            }))
+            let postures = record
+                .postures
+                .iter()
+                .map(|posture| {
+                    record
+                        .joints
+                        .iter()
+                        .map(|joint| {
+                            posture.get(&joint.name).copied().ok_or_else(|| Error::InvalidData {
+                                origin: format!("{origin}: {POSTURES_KEY}"),
+                                message: format!(
+                                    "a posture of tool '{name}' has no value of joint '{}'",
+                                    joint.name
+                                ),
+                            })
+                        })
+                        .collect::<Result<Vec<f64>>>()
+                })
+                .collect::<Result<Vec<_>>>()?;
+            Ok(Some(ChainPostures { dofs, postures }))
         })
         .collect()
 }
