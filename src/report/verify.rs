@@ -45,12 +45,22 @@ pub struct VerifySession {
     pub moved_mm: f64,
     /// The same, rotation (deg).
     pub turned_deg: f64,
-    /// The correction, xyz (m).
+    /// The correction, xyz (m; JSON `x`, `y`, `z`).
+    #[serde(serialize_with = "xyz")]
     pub xyz: [f64; 3],
-    /// The correction, roll-pitch-yaw (rad).
+    /// The correction, roll-pitch-yaw (rad; JSON `roll`, `pitch`, `yaw`).
+    #[serde(serialize_with = "rpy")]
     pub rpy: [f64; 3],
     /// How many of the six directions the rows determine.
     pub determined: usize,
+}
+
+fn xyz<S: serde::Serializer>(v: &[f64; 3], s: S) -> std::result::Result<S::Ok, S::Error> {
+    crate::serde_labels::labelled(v, ["x", "y", "z"], s)
+}
+
+fn rpy<S: serde::Serializer>(v: &[f64; 3], s: S) -> std::result::Result<S::Ok, S::Error> {
+    crate::serde_labels::labelled(v, ["roll", "pitch", "yaw"], s)
 }
 
 impl VerifySession {
