@@ -10,6 +10,7 @@
 mod calibrate;
 mod fk;
 mod measurements;
+mod trust;
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -33,18 +34,22 @@ pub(crate) fn to_py(error: treecal::Error) -> PyErr {
 const KEYWORDS: &[(&str, &str)] = &[
     ("add-tool-links", "add_tool_links"),
     ("angle-unit", "angle_unit"),
+    ("calibration", "calibration"),
+    ("frame", "frame"),
     ("gravity-frame", "gravity_frame"),
     ("identify-stiffness", "identify_stiffness"),
     ("ignore-columns", "ignore_columns"),
     ("joint-length-unit", "joint_length_unit"),
     ("joints", "joints"),
     ("length-unit", "length_unit"),
+    ("max-error", "max_error"),
     ("measurement-frame", "measurement_frame"),
     ("measurements", "measurements"),
     ("out", "out_dir"),
     ("plan", "plan"),
     ("plan-file", "plan"),
     ("position-sigma", "position_sigma"),
+    ("registration", "registration"),
     ("robot", "robot"),
     ("robust", "robust"),
     ("rotation-sigma", "rotation_sigma"),
@@ -96,5 +101,7 @@ fn _treecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fk::fk, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate, m)?)?;
     m.add_class::<calibrate::PyCalibration>()?;
+    m.add_function(wrap_pyfunction!(trust::verify, m)?)?;
+    m.add_function(wrap_pyfunction!(trust::compare, m)?)?;
     Ok(())
 }

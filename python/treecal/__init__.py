@@ -21,8 +21,11 @@ __all__ = [
     "Calibration",
     "Measurements",
     "TreecalError",
+    "Verification",
     "calibrate",
+    "compare",
     "fk",
+    "verify",
     "__version__",
 ]
 
@@ -407,3 +410,85 @@ def calibrate(
         add_tool_links=_flag(add_tool_links, "add_tool_links"),
     )
     return Calibration(inner)
+
+
+class Verification:
+    """The outcome of :func:`verify`: ``report`` (report.json as a dict), ``markdown``
+    (report.md) and ``passed`` (the RMS position error within `max_error`, or no tolerance)."""
+
+    def __init__(self, report_json: str, markdown: str, passed: bool) -> None:
+        self.report: Dict[str, Any] = json.loads(report_json)
+        self.markdown: str = markdown
+        self.passed: bool = passed
+
+    def __repr__(self) -> str:
+        rms = self.report["summary"]["rms_position_mm"]
+        return f"<treecal.Verification {len(self.report['rows'])} rows, RMS {rms:.3f} mm, passed={self.passed}>"
+
+
+def verify(
+    measurements: Optional[MeasurementsLike] = None,
+    *,
+    calibration: Optional[PathLike] = None,
+    robot: Optional[PathLike] = None,
+    registration: Optional[PathLike] = None,
+    stiffness: Optional[PathLike] = None,
+    frame: str = "fit",
+    max_error: Optional[float] = None,
+    tools: Optional[Sequence[str]] = None,
+    length_unit: Optional[str] = None,
+    angle_unit: Optional[str] = None,
+    joint_length_unit: Optional[str] = None,
+    gravity_frame: str = "measurement",
+    out_dir: Optional[PathLike] = None,
+) -> Verification:
+    """Scores a deployed calibration on fresh `measurements` (``treecal verify``).
+
+    `calibration` is a ``treecal calibrate`` output folder (its calibrated.urdf,
+    registration.yaml, stiffness.yaml and the calibrated ranges of report.json); `robot`,
+    `registration`, `stiffness` override its files. `frame` is "fit" (the measurement frame
+    refitted, 6 parameters per session), "registration" (as written: calibrate's validation
+    figures) or "base". `max_error` (mm) is the tolerance on the RMS position error; a failed
+    verdict does not raise (see :attr:`Verification.passed`). With `out_dir` the files are
+    written there like ``--out``.
+    """
+    if measurements is None:
+        raise TreecalError("verify: measurements= is required (a CSV path or treecal.Measurements)")
+    report_json, markdown, passed = _native(
+        _treecal.verify,
+        measurements=_measurement_source(measurements, "measurements"),
+        calibration=None if calibration is None else _path(calibration, "calibration"),
+        robot=None if robot is None else _path(robot, "robot"),
+        registration=None if registration is None else _path(registration, "registration"),
+        stiffness=None if stiffness is None else _path(stiffness, "stiffness"),
+        frame=_text(frame, "frame"),
+        max_error=None if max_error is None else _float(max_error, "max_error"),
+        tools=None if tools is None else _strings(tools, "tools"),
+        length_unit=_optional_text(length_unit, "length_unit"),
+        angle_unit=_optional_text(angle_unit, "angle_unit"),
+        joint_length_unit=_optional_text(joint_length_unit, "joint_length_unit"),
+        gravity_frame=_text(gravity_frame, "gravity_frame"),
+        out_dir=None if out_dir is None else _path(out_dir, "out_dir"),
+    )
+    return Verification(report_json, markdown, passed)
+
+
+def compare(
+    a: PathLike,
+    b: PathLike,
+    *,
+    k: float = 3.0,
+    out_dir: Optional[PathLike] = None,
+) -> Dict[str, Any]:
+    """Compares two ``treecal calibrate`` output folders (``treecal compare``): returns
+    report.json as a dict (``moved``: parameters beyond `k` combined σ; ``displacement``: the
+    predicted tool displacement; ``validation``: both folders' figures). With `out_dir` the
+    files are written there."""
+    report_json, _markdown = _native(
+        _treecal.compare,
+        a=_path(a, "a"),
+        b=_path(b, "b"),
+        k=_float(k, "k"),
+        out_dir=None if out_dir is None else _path(out_dir, "out_dir"),
+    )
+    return json.loads(report_json)

@@ -56,3 +56,22 @@ def calibrate(
     strict: bool,
     add_tool_links: bool,
 ) -> Calibration: ...
+
+def verify(
+    *,
+    measurements: Union[str, Dict[str, Any]],
+    calibration: Optional[str],
+    robot: Optional[str],
+    registration: Optional[str],
+    stiffness: Optional[str],
+    frame: str,
+    max_error: Optional[float],
+    tools: Optional[List[str]],
+    length_unit: Optional[str],
+    angle_unit: Optional[str],
+    joint_length_unit: Optional[str],
+    gravity_frame: str,
+    out_dir: Optional[str],
+) -> Tuple[str, str, bool]: ...
+
+def compare(a: str, b: str, *, k: float, out_dir: Optional[str]) -> Tuple[str, str]: ...

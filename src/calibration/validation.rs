@@ -75,50 +75,102 @@ fn chain_dofs(model: &McpcModel, tool: usize) -> Vec<(usize, bool)> {
     dofs
 }
 
-/// The stratum of every validation measurement (in order), judged on the joints of its tool's
-/// chain against the identification measurements of the same tool.
-pub fn strata(
-    model: &McpcModel,
-    identification: &[Measurement],
-    validation: &[Measurement],
-) -> Vec<Stratum> {
-    validation
-        .iter()
-        .map(|m| {
-            let dofs = chain_dofs(model, m.tool);
-            let same_tool: Vec<&Measurement> =
-                identification.iter().filter(|i| i.tool == m.tool).collect();
-            let value = |x: &Measurement, dof: usize| x.q.get(dof).copied().unwrap_or(0.0);
-            let repeats = same_tool.iter().any(|i| {
-                dofs.iter().all(|&(d, angle)| {
-                    let tolerance = if angle { REPEAT_ANGLE } else { REPEAT_LENGTH };
-                    (value(i, d) - value(m, d)).abs() <= tolerance
-                })
-            });
-            if repeats {
-                return Stratum::Repeat;
-            }
-            let inside = !same_tool.is_empty()
-                && dofs.iter().all(|&(d, angle)| {
+/// The identification postures of one tool, on the independent joints of its chain: what a
+/// validation row of that tool is judged against.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChainPostures {
+    /// The configuration index of each joint of the chain, with whether it is an angle.
+    pub dofs: Vec<(usize, bool)>,
+    /// Per identification row of the tool, its value of each joint of `dofs` (rad, m).
+    pub postures: Vec<Vec<f64>>,
+}
+
+impl ChainPostures {
+    /// The smallest and largest identification value of each joint of the chain (the
+    /// calibrated ranges; infinite without postures).
+    pub fn ranges(&self) -> Vec<(f64, f64)> {
+        (0..self.dofs.len())
+            .map(|k| {
+                self.postures
+                    .iter()
+                    .map(|p| p[k])
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                        (l.min(v), h.max(v))
+                    })
+            })
+            .collect()
+    }
+
+    /// Where a configuration `q` of this tool lies: a repeat of a posture, inside the ranges
+    /// (within the margins) or outside them.
+    pub fn stratum(&self, q: &[f64]) -> Stratum {
+        let value = |dof: usize| q.get(dof).copied().unwrap_or(0.0);
+        let repeats = self.postures.iter().any(|posture| {
+            self.dofs.iter().zip(posture).all(|(&(d, angle), &p)| {
+                let tolerance = if angle { REPEAT_ANGLE } else { REPEAT_LENGTH };
+                (p - value(d)).abs() <= tolerance
+            })
+        });
+        if repeats {
+            return Stratum::Repeat;
+        }
+        let inside = !self.postures.is_empty()
+            && self
+                .dofs
+                .iter()
+                .zip(self.ranges())
+                .all(|(&(d, angle), (low, high))| {
                     let margin = if angle {
                         INSIDE_MARGIN_ANGLE
                     } else {
                         INSIDE_MARGIN_LENGTH
                     };
-                    let (low, high) = same_tool
-                        .iter()
-                        .map(|i| value(i, d))
-                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                            (l.min(v), h.max(v))
-                        });
-                    let v = value(m, d);
+                    let v = value(d);
                     v >= low - margin && v <= high + margin
                 });
-            if inside {
-                Stratum::Inside
-            } else {
-                Stratum::Outside
-            }
+        if inside {
+            Stratum::Inside
+        } else {
+            Stratum::Outside
+        }
+    }
+}
+
+/// The identification postures of every tool of `model` (in tool order): what
+/// [`strata`] judges against, and what `calibrate` records for `treecal verify`.
+pub fn chain_postures(model: &McpcModel, identification: &[Measurement]) -> Vec<ChainPostures> {
+    (0..model.tools().len())
+        .map(|tool| {
+            let dofs = chain_dofs(model, tool);
+            let postures = identification
+                .iter()
+                .filter(|m| m.tool == tool)
+                .map(|m| {
+                    dofs.iter()
+                        .map(|&(d, _)| m.q.get(d).copied().unwrap_or(0.0))
+                        .collect()
+                })
+                .collect();
+            ChainPostures { dofs, postures }
+        })
+        .collect()
+}
+
+/// The stratum of every validation measurement (in order), judged on the joints of its tool's
+/// chain against the identification measurements of the same tool
+/// ([`ChainPostures::stratum`]).
+pub fn strata(
+    model: &McpcModel,
+    identification: &[Measurement],
+    validation: &[Measurement],
+) -> Vec<Stratum> {
+    let chains = chain_postures(model, identification);
+    validation
+        .iter()
+        .map(|m| match chains.get(m.tool) {
+            Some(chain) => chain.stratum(&m.q),
+            // A tool the model does not know: nothing to judge against.
+            None => Stratum::Outside,
         })
         .collect()
 }

@@ -20,6 +20,7 @@ pub mod paired_csv;
 pub mod params;
 pub mod plan;
 pub mod poses_csv;
+pub mod provenance;
 pub mod registration;
 pub mod ros_joint_state;
 pub mod stiffness;

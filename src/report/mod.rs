@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod check;
 pub mod html;
 pub mod html_chart;
+pub mod compare;
 pub mod inspect;
 pub mod outliers;
 pub mod pairing;
@@ -13,6 +14,7 @@ pub mod sessions;
 pub mod simulate;
 pub mod stiffness;
 pub mod strata;
+pub mod verify;
 
 pub use calibrate::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file, ArmReport,

@@ -61,21 +61,53 @@ fn figures(stratum: &str, description: &str, errors: &[f64]) -> StratumFigures {
     }
 }
 
+/// One validation row as the strata see it.
+#[derive(Debug, Clone)]
+pub struct StrataRow {
+    /// The row's id.
+    pub id: String,
+    /// Its index in the validation data.
+    pub index: usize,
+    /// The tool observed.
+    pub tool: String,
+    /// Its stratum.
+    pub stratum: Option<Stratum>,
+    /// Its position error (mm).
+    pub position_mm: f64,
+    /// Whether the robust loss names it an outlier.
+    pub outlier: bool,
+}
+
 impl ValidationStrata {
     /// The strata of the validation `arms` (every row carries its stratum); `None` without
     /// validation rows.
     pub fn of(arms: &[ArmReport]) -> Option<Self> {
-        let rows: Vec<(&ArmReport, &super::calibrate::RowErrors)> = arms
+        let rows: Vec<StrataRow> = arms
             .iter()
-            .flat_map(|a| a.rows.iter().map(move |r| (a, r)))
+            .flat_map(|a| {
+                a.rows.iter().map(move |r| StrataRow {
+                    id: r.id.clone(),
+                    index: r.index,
+                    tool: a.tool.clone(),
+                    stratum: r.stratum,
+                    position_mm: r.position_mm.after,
+                    outlier: r.outlier,
+                })
+            })
             .collect();
+        Self::of_rows(&rows)
+    }
+
+    /// The strata of any scored rows (`calibrate`'s validation, `treecal verify`); `None`
+    /// without rows.
+    pub fn of_rows(rows: &[StrataRow]) -> Option<Self> {
         if rows.is_empty() {
             return None;
         }
         let errors = |keep: &dyn Fn(Option<Stratum>) -> bool| -> Vec<f64> {
             rows.iter()
-                .filter(|(_, r)| keep(r.stratum))
-                .map(|(_, r)| r.position_mm.after)
+                .filter(|r| keep(r.stratum))
+                .map(|r| r.position_mm)
                 .collect()
         };
         let mut strata = vec![figures("all", "every validation row", &errors(&|_| true))];
@@ -88,13 +120,13 @@ impl ValidationStrata {
         }
         let worst = rows
             .iter()
-            .max_by(|a, b| a.1.position_mm.after.total_cmp(&b.1.position_mm.after))
-            .map(|(arm, row)| WorstRow {
+            .max_by(|a, b| a.position_mm.total_cmp(&b.position_mm))
+            .map(|row| WorstRow {
                 id: row.id.clone(),
                 index: row.index,
-                tool: arm.tool.clone(),
+                tool: row.tool.clone(),
                 stratum: row.stratum,
-                position_mm: row.position_mm.after,
+                position_mm: row.position_mm,
                 outlier: row.outlier,
             });
         Some(Self { strata, worst })

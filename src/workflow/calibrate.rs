@@ -18,7 +18,7 @@ use crate::io::{check_output_folder, replace_folder, write_atomically, AngleUnit
 use std::path::{Path, PathBuf};
 
 /// The files [`Calibration::write`] writes besides the SVG plots.
-pub const OUTPUT_FILES: [&str; 8] = [
+pub const OUTPUT_FILES: [&str; 9] = [
     "calibrated.urdf",
     "params.yaml",
     "report.md",
@@ -27,6 +27,7 @@ pub const OUTPUT_FILES: [&str; 8] = [
     super::calibrate_artifact::REGISTRATION_FILE,
     super::calibrate_artifact::COMPENSATED_URDF,
     "joint_errors.yaml",
+    super::provenance::PROVENANCE_FILE,
 ];
 
 /// Whether a file name is one `calibrate` writes (a previous output may be replaced).
@@ -220,6 +221,7 @@ pub struct Calibration {
 /// Calibrates: reads the inputs, identifies the parameters (and the stiffness if asked),
 /// checks the result, exports the URDF and renders the reports. Writes nothing.
 pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
+    let started = super::provenance::Started::now();
     check_config(config)?;
     let loaded = Loaded::new(config)?;
     let mut notes = loaded.robot.notes();
@@ -234,6 +236,21 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
         &mut notes,
     )?;
     notes.extend(outputs.verdict.reasons.iter().map(Note::from));
+    // For `treecal verify`: the calibrated ranges, and where the folder came from.
+    super::postures::add_to_report(
+        loaded.robot.tree(),
+        &result.run.report.model,
+        &data.measurements,
+        &mut outputs.report,
+        &mut outputs.files,
+    )?;
+    let provenance = super::provenance::calibrate_record(config, started)?;
+    super::provenance::attach(
+        &provenance,
+        "report.json",
+        &mut outputs.report,
+        &mut outputs.files,
+    )?;
     Ok(Calibration {
         verdict: outputs.verdict,
         notes,

@@ -60,7 +60,7 @@ pub(super) enum CompensationFile<'a> {
 
 impl CompensationFile<'_> {
     /// How the report names it.
-    fn name(&self) -> String {
+    pub fn name(&self) -> String {
         match self {
             CompensationFile::Source(source) => source.origin(),
             CompensationFile::Written(_) => "stiffness.yaml".into(),
@@ -78,35 +78,57 @@ impl CompensationFile<'_> {
 
 /// How the outputs are scored: the URDF text, the frame it sits in, the exported link of each
 /// model tool, and the flexibility (stiffness and gravity frame) to predict deflections with.
-struct Scoring<'a> {
-    loaded: &'a Loaded,
-    world_from_base: Pose,
-    export: &'a ExportReport,
+/// `calibrate` scores its validation rows with it, `treecal verify` fresh rows (one code path).
+pub(super) struct Scoring<'a> {
+    pub loaded: &'a Loaded,
+    pub world_from_base: Pose,
+    /// Per model tool, the written link scored: the added `<tool>_calibrated` or
+    /// `<tool>_marker` link when there is one, else the tool link.
+    pub scored_links: Vec<String>,
+}
+
+/// Per model tool of `loaded`, the link `export` scores (see [`Scoring::scored_links`]).
+fn exported_links(loaded: &Loaded, export: &ExportReport) -> Vec<String> {
+    let tree = loaded.robot.tree();
+    loaded
+        .nominal
+        .tools()
+        .iter()
+        .map(|t| {
+            let name = &tree.link(t.link).name;
+            export
+                .added_links
+                .iter()
+                .find(|a| &a.tool == name)
+                .map_or_else(|| name.clone(), |a| a.link.clone())
+        })
+        .collect()
+}
+
+/// A row's position error (mm) and, for a measured pose, orientation error (deg) against the
+/// predicted pose `pose` (both in the measurement frame).
+pub(super) fn row_errors(measurement: &Measurement, pose: &Pose) -> (f64, Option<f64>) {
+    match &measurement.observation {
+        Observation::Pose(measured) => (
+            (measured.translation.vector - pose.translation.vector).norm() * 1e3,
+            Some(measured.rotation.angle_to(&pose.rotation).to_degrees()),
+        ),
+        Observation::Position(p) => ((p - pose.translation.vector).norm() * 1e3, None),
+    }
 }
 
 impl Scoring<'_> {
-    /// The exported link scored for the model's tool `tool`: the added `<tool>_calibrated`
-    /// link when the export added one, else the tool link.
-    fn scored_link(&self, tool: usize) -> String {
-        let tree = self.loaded.robot.tree();
-        let name = &tree.link(self.loaded.nominal.tools()[tool].link).name;
-        self.export
-            .added_links
-            .iter()
-            .find(|a| &a.tool == name)
-            .map_or_else(|| name.clone(), |a| a.link.clone())
-    }
-
-    /// The validation error of the URDF text `urdf` (the files named `files`), rigid or with
-    /// `flexibility`'s stiffness and gravity predicting the deflections.
-    fn score(
+    /// The pose of every row's scored link predicted by the URDF text `urdf` (the files named
+    /// `files`) in the measurement frame, rigid or with `compensation`'s stiffness and
+    /// `gravity` predicting the deflections.
+    pub fn predict(
         &self,
         urdf: &str,
         files: &str,
         measurements: &[Measurement],
         compensation: Option<&CompensationFile<'_>>,
         gravity: GravityFrame,
-    ) -> Result<ArtifactScore> {
+    ) -> Result<Vec<Pose>> {
         let import = parse_urdf(urdf, files)?;
         let tree = &import.tree;
         let original = self.loaded.robot.tree();
@@ -116,8 +138,10 @@ impl Scoring<'_> {
             .iter()
             .map(|t| tree.link_id(&original.link(t.link).name))
             .collect::<Result<Vec<_>>>()?;
-        let scored = (0..tools.len())
-            .map(|t| tree.link_id(&self.scored_link(t)))
+        let scored = self
+            .scored_links
+            .iter()
+            .map(|name| tree.link_id(name))
             .collect::<Result<Vec<_>>>()?;
         let deflected = match compensation {
             Some(file) => {
@@ -136,38 +160,49 @@ impl Scoring<'_> {
         };
         // The link fixed in the world (the root unless a reference link was chosen).
         let reference = tree.link_id(&original.link(self.loaded.branches.reference).name)?;
+        measurements
+            .iter()
+            .map(|m| {
+                let q: Vec<f64> = dof_of.iter().map(|&d| m.q[d]).collect();
+                let mut link_pose = tree.link_pose(scored[m.tool], &q)?;
+                if reference != tree.root() {
+                    link_pose = tree.link_pose(reference, &q)?.inverse() * link_pose;
+                }
+                Ok(match &deflected {
+                    None => self.world_from_base * link_pose,
+                    Some((model, flexibility)) => {
+                        let tool = model
+                            .tool_of_link(tool_links[m.tool])
+                            .ok_or_else(|| invalid(files, "a measured tool is not a tool"))?;
+                        let deflected = flexibility
+                            .for_payload(m.payload)?
+                            .deflected_tool_poses(tree, model, &q)?[tool];
+                        // The scored link rides rigidly on the tool link.
+                        let tool_from_scored =
+                            tree.link_pose(tool_links[m.tool], &q)?.inverse() * link_pose;
+                        deflected * tool_from_scored
+                    }
+                })
+            })
+            .collect()
+    }
+
+    /// The validation error of the URDF text `urdf` (the files named `files`), rigid or with
+    /// `compensation` predicting the deflections.
+    fn score(
+        &self,
+        urdf: &str,
+        files: &str,
+        measurements: &[Measurement],
+        compensation: Option<&CompensationFile<'_>>,
+        gravity: GravityFrame,
+    ) -> Result<ArtifactScore> {
+        let predicted = self.predict(urdf, files, measurements, compensation, gravity)?;
         let (mut position, mut orientation) = (Vec::new(), Vec::new());
-        for m in measurements {
-            let q: Vec<f64> = dof_of.iter().map(|&d| m.q[d]).collect();
-            let mut link_pose = tree.link_pose(scored[m.tool], &q)?;
-            if reference != tree.root() {
-                link_pose = tree.link_pose(reference, &q)?.inverse() * link_pose;
-            }
-            let pose = match &deflected {
-                None => self.world_from_base * link_pose,
-                Some((model, flexibility)) => {
-                    let tool = model
-                        .tool_of_link(tool_links[m.tool])
-                        .ok_or_else(|| invalid(files, "a measured tool is not a tool"))?;
-                    let deflected = flexibility
-                        .for_payload(m.payload)?
-                        .deflected_tool_poses(tree, model, &q)?[tool];
-                    // The scored link rides rigidly on the tool link.
-                    let tool_from_scored =
-                        tree.link_pose(tool_links[m.tool], &q)?.inverse() * link_pose;
-                    deflected * tool_from_scored
-                }
-            };
-            match &m.observation {
-                Observation::Pose(measured) => {
-                    position
-                        .push((measured.translation.vector - pose.translation.vector).norm() * 1e3);
-                    orientation.push(measured.rotation.angle_to(&pose.rotation).to_degrees());
-                }
-                Observation::Position(p) => {
-                    position.push((p - pose.translation.vector).norm() * 1e3);
-                }
-            }
+        for (m, pose) in measurements.iter().zip(&predicted) {
+            let (p, o) = row_errors(m, pose);
+            position.push(p);
+            orientation.extend(o);
         }
         Ok(ArtifactScore {
             files: files.to_owned(),
@@ -350,7 +385,7 @@ pub(super) fn assess(
     let scoring = Scoring {
         loaded,
         world_from_base: frame,
-        export,
+        scored_links: exported_links(loaded, export),
     };
     // Rows of other sessions are placed in the training frame, as the run scored them.
     let validation = &crate::calibration::sessions::validation_in_training_frames(
@@ -394,8 +429,9 @@ pub(super) fn assess(
                 &options,
             )?;
             let rigid_scoring = Scoring {
-                export: &rigid_export,
-                ..scoring
+                scored_links: exported_links(loaded, &rigid_export),
+                loaded,
+                world_from_base: frame,
             };
             let rigid_alone =
                 rigid_scoring.score(&rigid_export.urdf, &alone_name, validation, None, gravity)?;

@@ -12,6 +12,7 @@ mod calibrate_steps;
 pub mod check;
 pub mod checker;
 pub mod checks;
+pub mod compare;
 pub mod cross_validation;
 pub mod export;
 pub mod fk;
@@ -20,10 +21,13 @@ pub mod model_choice;
 pub mod note;
 pub mod pair;
 pub mod plan;
+pub mod postures;
 pub mod progress;
+pub mod provenance;
 pub mod simulate;
 mod simulate_camera;
 pub mod source;
+pub mod verify;
 
 pub use calibrate::{
     calibrate, CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, ParameterRow,
@@ -35,3 +39,4 @@ pub use note::{Note, NoteLevel};
 pub use pair::{pair, PairConfig, Pairing};
 pub use progress::{no_progress, Progress, ProgressFn};
 pub use source::{LoadedRobot, MeasurementSource, PlanSource, RobotSource, StiffnessSource};
+pub use verify::{verify, Verification, VerifyConfig, VerifyFrame};

@@ -202,6 +202,7 @@ pub fn simulate_with_progress(
     config: &SimulateConfig,
     progress: ProgressFn<'_>,
 ) -> Result<Simulation> {
+    let started = super::provenance::Started::now();
     validate(config)?;
     if config.observation != ObservationChoice::Tracker {
         return super::simulate_camera::simulate_camera(config, progress);
@@ -260,7 +261,7 @@ pub fn simulate_with_progress(
         &summary,
     );
     let labelled = crate::report::simulation_results(tree.name(), config.seed, &reports, &summary);
-    let results = serde_json::to_value(&labelled).map_err(|e| crate::Error::InvalidData {
+    let mut results = serde_json::to_value(&labelled).map_err(|e| crate::Error::InvalidData {
         origin: "results.json".into(),
         message: e.to_string(),
     })?;
@@ -271,6 +272,22 @@ pub fn simulate_with_progress(
         ("results.json".to_owned(), to_json(&results)?.into_bytes()),
     ];
     files.extend(plots(reports.first())?);
+    let inputs: Vec<PathBuf> = [
+        config.robot.path(),
+        config.stiffness.as_ref().and_then(StiffnessSource::path),
+    ]
+    .into_iter()
+    .flatten()
+    .map(Path::to_owned)
+    .collect();
+    let record = super::provenance::record(
+        "simulate",
+        super::provenance::settings_text(config),
+        &inputs,
+        &[("master", config.seed)],
+        started,
+    )?;
+    super::provenance::attach(&record, "results.json", &mut results, &mut files)?;
     let measurements_csv = match (config.measurement_format, reports.first()) {
         (Some(format), Some(first)) => Some(measurements_csv(format, tree, &nominal, first)?),
         _ => None,

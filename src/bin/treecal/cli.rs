@@ -92,6 +92,12 @@ pub enum Command {
     /// Pair a joint-state log (CSV or ROS 2 bag in MCAP) with a tracker log: find the clock
     /// offset from the motion and the static plateaus, write the measurement CSV and a report.
     Pair(PairArgs),
+    /// Verify a deployed calibration on fresh measurements: per-row and summary errors, the
+    /// strata against the calibrated ranges, the worst row, a verdict against --max-error.
+    Verify(crate::cli_trust::VerifyArgs),
+    /// Compare two calibrations: parameters moved beyond k combined σ, the predicted tool
+    /// displacement, the validation figures side by side.
+    Compare(crate::cli_trust::CompareArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -793,11 +799,11 @@ fn parse_pose_file(text: &str) -> Result<PathBuf, String> {
     Ok(PathBuf::from(text))
 }
 
-fn parse_length_unit(text: &str) -> Result<treecal::io::LengthUnit, String> {
+pub(crate) fn parse_length_unit(text: &str) -> Result<treecal::io::LengthUnit, String> {
     text.parse().map_err(|e: treecal::Error| e.to_string())
 }
 
-fn parse_angle_unit(text: &str) -> Result<treecal::io::AngleUnit, String> {
+pub(crate) fn parse_angle_unit(text: &str) -> Result<treecal::io::AngleUnit, String> {
     text.parse().map_err(|e: treecal::Error| e.to_string())
 }
 

@@ -7,6 +7,8 @@ mod calibrate;
 mod check;
 mod checks;
 mod cli;
+mod cli_trust;
+mod compare;
 mod export;
 mod fk;
 mod from_mcpc;
@@ -17,6 +19,7 @@ mod plan;
 mod progress;
 mod simulate;
 mod to_mcpc;
+mod verify;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -34,6 +37,8 @@ fn main() -> ExitCode {
         cli::Command::Check(a) => check::run(a),
         cli::Command::Plan(a) => plan::run(a),
         cli::Command::Pair(a) => pair::run(a),
+        cli::Command::Verify(a) => verify::run(a),
+        cli::Command::Compare(a) => compare::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,264 @@
+//! The report of `treecal verify` (report.json, report.md, errors.svg): a deployed
+//! calibration scored on fresh rows.
+
+use super::plot::{error_plot_svg, ErrorPlot, Series};
+use super::strata::ValidationStrata;
+use crate::calibration::validation::Stratum;
+use crate::calibration::ErrorSummary;
+use crate::error::Result;
+use crate::math::{rpy_from_rotation, Pose};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// report.json's `schema_version` for verify.
+pub const VERIFY_SCHEMA: &str = "treecal-verify/1";
+
+/// One fresh row scored.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VerifyRow {
+    /// The row's id.
+    pub id: String,
+    /// Its index among the rows.
+    #[serde(skip)]
+    pub index: usize,
+    /// The tool observed.
+    pub tool: String,
+    /// Its session, if the file names one.
+    pub session: Option<String>,
+    /// Position error (mm).
+    pub position_mm: f64,
+    /// Orientation error (deg), for measured poses.
+    pub orientation_deg: Option<f64>,
+    /// Where it lies against the calibrated ranges (`None`: no calibration record).
+    pub stratum: Option<Stratum>,
+}
+
+/// A session's refitted measurement frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VerifySession {
+    /// The session (`None`: rows without a session label).
+    pub name: Option<String>,
+    /// Its rows.
+    pub rows: usize,
+    /// The refit's correction of the starting frame (the registration, else the root): how
+    /// far the tracker moved, translation (mm).
+    pub moved_mm: f64,
+    /// The same, rotation (deg).
+    pub turned_deg: f64,
+    /// The correction, xyz (m; JSON `x`, `y`, `z`).
+    #[serde(serialize_with = "xyz")]
+    pub xyz: [f64; 3],
+    /// The correction, roll-pitch-yaw (rad; JSON `roll`, `pitch`, `yaw`).
+    #[serde(serialize_with = "rpy")]
+    pub rpy: [f64; 3],
+    /// How many of the six directions the rows determine.
+    pub determined: usize,
+}
+
+fn xyz<S: serde::Serializer>(v: &[f64; 3], s: S) -> std::result::Result<S::Ok, S::Error> {
+    crate::serde_labels::labelled(v, ["x", "y", "z"], s)
+}
+
+fn rpy<S: serde::Serializer>(v: &[f64; 3], s: S) -> std::result::Result<S::Ok, S::Error> {
+    crate::serde_labels::labelled(v, ["roll", "pitch", "yaw"], s)
+}
+
+impl VerifySession {
+    /// A session with its refitted `correction`.
+    pub fn new(name: Option<String>, rows: usize, correction: &Pose, determined: usize) -> Self {
+        Self {
+            name,
+            rows,
+            moved_mm: correction.translation.vector.norm() * 1e3,
+            turned_deg: correction.rotation.angle().to_degrees(),
+            xyz: correction.translation.vector.into(),
+            rpy: rpy_from_rotation(&correction.rotation),
+            determined,
+        }
+    }
+}
+
+/// What was verified and how.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VerifyContext {
+    /// The robot's name.
+    pub robot: String,
+    /// The files used, e.g. `out/calibrated.urdf + out/registration.yaml`.
+    pub files: String,
+    /// The fresh measurements.
+    pub measurements: String,
+    /// `fit`, `registration` or `base`.
+    pub frame: String,
+    /// Parameters refitted: six per session with `fit`, else none.
+    pub refitted_parameters: usize,
+    /// The refitted sessions (`fit` only).
+    pub sessions: Vec<VerifySession>,
+    /// Whether the rows were sorted into strata (the calibration's record was found).
+    pub strata_judged: bool,
+}
+
+/// The verdict against `--max-error`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VerifyVerdict {
+    /// The tolerance on the RMS position error over all rows (mm); `None`: none given.
+    pub max_error_mm: Option<f64>,
+    /// The RMS position error over all rows (mm).
+    pub rms_position_mm: f64,
+    /// Whether it is within the tolerance (true without one).
+    pub passed: bool,
+}
+
+impl VerifyVerdict {
+    /// In one sentence.
+    pub fn sentence(&self) -> String {
+        match self.max_error_mm {
+            Some(max) => format!(
+                "verdict: {} (RMS position error {:.3} mm {} --max-error {max} mm)",
+                if self.passed { "passed" } else { "failed" },
+                self.rms_position_mm,
+                if self.passed { "within" } else { "above" },
+            ),
+            None => format!(
+                "RMS position error {:.3} mm (no --max-error: no verdict)",
+                self.rms_position_mm
+            ),
+        }
+    }
+}
+
+/// report.json of `treecal verify`.
+#[derive(Debug, Clone, Serialize)]
+pub struct VerifyReport {
+    /// [`VERIFY_SCHEMA`].
+    pub schema_version: &'static str,
+    /// What was verified.
+    pub context: VerifyContext,
+    /// The verdict.
+    pub verdict: VerifyVerdict,
+    /// Every row together.
+    pub summary: ErrorSummary,
+    /// By stratum, with the worst row (`None` without the calibration's record).
+    pub strata: Option<ValidationStrata>,
+    /// Every row.
+    pub rows: Vec<VerifyRow>,
+    /// The provenance file of the folder.
+    pub provenance: String,
+}
+
+impl VerifyReport {
+    /// The report of `rows`, judged against `max_error_mm`.
+    pub fn new(context: VerifyContext, rows: Vec<VerifyRow>, max_error_mm: Option<f64>) -> Self {
+        let summary = crate::workflow::verify::summary_of(&rows);
+        let strata = crate::workflow::verify::strata_of(&rows);
+        let rms = summary.rms_position_mm;
+        Self {
+            schema_version: VERIFY_SCHEMA,
+            context,
+            verdict: VerifyVerdict {
+                max_error_mm,
+                rms_position_mm: rms,
+                passed: max_error_mm.is_none_or(|max| rms <= max),
+            },
+            summary,
+            strata,
+            rows,
+            provenance: String::new(),
+        }
+    }
+
+    /// The worst row: id, tool and position error (mm).
+    pub fn worst(&self) -> Option<&VerifyRow> {
+        self.rows
+            .iter()
+            .max_by(|a, b| a.position_mm.total_cmp(&b.position_mm))
+    }
+
+    /// report.md.
+    pub fn markdown(&self) -> String {
+        let c = &self.context;
+        let mut out = String::new();
+        let _ = writeln!(out, "# Verification of robot '{}'\n", c.robot);
+        let _ = writeln!(out, "- Deployed files: {}", c.files);
+        let _ = writeln!(
+            out,
+            "- Fresh measurements: {} ({} rows)",
+            c.measurements,
+            self.rows.len()
+        );
+        let _ = writeln!(out, "- Measurement frame: {}", frame_words(c));
+        let _ = writeln!(out, "- **{}**\n", self.verdict.sentence());
+        let s = &self.summary;
+        let _ = writeln!(
+            out,
+            "| rows | RMS (mm) | max (mm) | mean (mm) | RMS (deg) | max (deg) |"
+        );
+        let _ = writeln!(out, "|---|---|---|---|---|---|");
+        let deg = |v: Option<f64>| v.map_or_else(|| "—".to_owned(), |v| format!("{v:.4}"));
+        let _ = writeln!(
+            out,
+            "| {} | {:.4} | {:.4} | {:.4} | {} | {} |\n",
+            self.rows.len(),
+            s.rms_position_mm,
+            s.max_position_mm,
+            s.mean_position_mm,
+            deg(s.rms_orientation_deg),
+            deg(s.max_orientation_deg)
+        );
+        match &self.strata {
+            Some(strata) => out.push_str(&strata.markdown()),
+            None => {
+                if let Some(w) = self.worst() {
+                    let _ = writeln!(
+                        out,
+                        "Worst row: {} ({}): {:.4} mm.\n",
+                        w.id, w.tool, w.position_mm
+                    );
+                }
+                let _ = writeln!(out, "No calibration record (report.json with `identification_postures`): the rows are not sorted into repeat / inside / outside the calibrated ranges.\n");
+            }
+        }
+        for session in &c.sessions {
+            let _ = writeln!(
+                out,
+                "- Session {}: {} rows, frame refitted by {:.3} mm and {:.4}° ({} of 6 directions determined)",
+                session.name.as_deref().unwrap_or("(unnamed)"),
+                session.rows,
+                session.moved_mm,
+                session.turned_deg,
+                session.determined
+            );
+        }
+        let _ = writeln!(
+            out,
+            "\nPer-row position error: errors.svg. Provenance: {}.",
+            self.provenance
+        );
+        out
+    }
+
+    /// errors.svg: the position error of every row (x axis: the row ids).
+    pub fn plot(&self) -> Result<String> {
+        error_plot_svg(&ErrorPlot {
+            title: format!("{}: position error per row (verify)", self.context.robot),
+            y_label: "position error (mm)".into(),
+            series: vec![Series {
+                label: "deployed calibration".into(),
+                values: self.rows.iter().map(|r| r.position_mm).collect(),
+            }],
+            x_labels: self.rows.iter().map(|r| r.id.clone()).collect(),
+        })
+    }
+}
+
+fn frame_words(c: &VerifyContext) -> String {
+    match c.frame.as_str() {
+        "fit" => format!(
+            "refitted to the fresh rows, the geometry fixed: {} parameter(s) ({} per session, {} session(s)); nothing else is fitted",
+            c.refitted_parameters,
+            crate::calibration::sessions::FRAME_BLOCK_PARAMETERS,
+            c.sessions.len()
+        ),
+        "registration" => "the calibration's registration as written (nothing refitted)".into(),
+        _ => "the URDF's root link frame (nothing refitted)".into(),
+    }
+}

@@ -1,0 +1,346 @@
+//! `compare`: two `calibrate` output folders of one robot (two dates, or two model choices on
+//! the same data) → the parameters that moved beyond k combined standard deviations, the tool
+//! displacement the two calibrated URDFs predict over a configuration set, and the validation
+//! figures side by side (docs/workflows.md, "Compare").
+
+use super::postures::RecordedPostures;
+use super::provenance::Started;
+use super::verify::{read_postures, scored_link};
+use crate::calibration::fit_rigid_transform;
+use crate::error::{Error, Result};
+use crate::io::read_registration;
+use crate::math::{Pose, Vec3};
+use crate::report::compare::{
+    CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures,
+};
+use crate::tree::KinematicTree;
+use crate::urdf::parse_urdf;
+use std::path::{Path, PathBuf};
+
+/// The files [`Comparison::write`] writes.
+pub const COMPARE_FILES: [&str; 4] = [
+    "report.md",
+    "report.json",
+    "displacement.svg",
+    "provenance.yaml",
+];
+
+/// Two calibrations to compare.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompareConfig {
+    /// The first calibrate output folder (the reference).
+    pub a: PathBuf,
+    /// The second.
+    pub b: PathBuf,
+    /// A parameter moved when `|b − a| > k·√(σa² + σb²)` [default: 3].
+    pub k: f64,
+}
+
+impl Default for CompareConfig {
+    fn default() -> Self {
+        Self {
+            a: PathBuf::new(),
+            b: PathBuf::new(),
+            k: 3.0,
+        }
+    }
+}
+
+/// The outcome of a comparison.
+#[derive(Debug, Clone)]
+pub struct Comparison {
+    /// report.json's content.
+    pub report: CompareReport,
+    /// report.md.
+    pub markdown: String,
+    /// Every output file.
+    pub files: Vec<(String, Vec<u8>)>,
+    /// The files read.
+    pub inputs: Vec<PathBuf>,
+}
+
+impl Comparison {
+    /// Replaces the folder `out` with the output files; refuses a folder holding an input or
+    /// files that are not a previous compare output.
+    pub fn write(&self, out: &Path) -> Result<()> {
+        let inputs: Vec<&Path> = self.inputs.iter().map(PathBuf::as_path).collect();
+        super::checks::check_outputs(&[super::checks::Output::Folder(out)], &inputs)?;
+        crate::io::check_output_folder(out, &|name| COMPARE_FILES.contains(&name))?;
+        crate::io::replace_folder(out, &self.files)
+    }
+}
+
+fn invalid(origin: &Path, message: impl Into<String>) -> Error {
+    Error::InvalidData {
+        origin: origin.display().to_string(),
+        message: message.into(),
+    }
+}
+
+/// One parameter as report.json lists it.
+#[derive(Debug, Clone, serde::Deserialize)]
+struct Parameter {
+    name: String,
+    unit: String,
+    calibrated: f64,
+    std_dev: Option<f64>,
+}
+
+/// One calibration folder as read.
+struct Folder {
+    dir: PathBuf,
+    report: serde_json::Value,
+    parameters: Vec<Parameter>,
+    tree: KinematicTree,
+    world_from_base: Pose,
+    postures: Option<RecordedPostures>,
+    inputs: Vec<PathBuf>,
+}
+
+impl Folder {
+    fn read(dir: &Path) -> Result<Self> {
+        if !dir.is_dir() {
+            return Err(invalid(
+                dir,
+                "not a folder: give two `treecal calibrate` output folders",
+            ));
+        }
+        let report_path = dir.join("report.json");
+        let urdf_path = dir.join("calibrated.urdf");
+        for path in [&report_path, &urdf_path] {
+            if !path.is_file() {
+                return Err(invalid(
+                    path,
+                    "missing: not a calibrate output folder with a usable verdict",
+                ));
+            }
+        }
+        let text = crate::io::read_text(&report_path, crate::limits::MAX_CSV_BYTES)?;
+        let report: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| invalid(&report_path, e.to_string()))?;
+        let parameters: Vec<Parameter> = report
+            .get("parameters")
+            .map(|v| serde_json::from_value(v.clone()))
+            .transpose()
+            .map_err(|e| invalid(&report_path, format!("parameters: {e}")))?
+            .unwrap_or_default();
+        let urdf = crate::limits::read_text(&urdf_path, crate::limits::MAX_URDF_BYTES)?;
+        let tree = parse_urdf(&urdf, &urdf_path.display().to_string())?.tree;
+        let registration = dir.join(super::calibrate_artifact::REGISTRATION_FILE);
+        let mut inputs = vec![report_path.clone(), urdf_path];
+        let world_from_base = if registration.is_file() {
+            inputs.push(registration.clone());
+            read_registration(&registration)?
+        } else {
+            Pose::identity()
+        };
+        Ok(Self {
+            dir: dir.to_owned(),
+            postures: read_postures(&report_path)?,
+            report,
+            parameters,
+            tree,
+            world_from_base,
+            inputs,
+        })
+    }
+
+    /// The validation figures of report.json.
+    fn figures(&self) -> ValidationFigures {
+        let number = |path: &[&str]| {
+            path.iter()
+                .try_fold(&self.report, |v, key| v.get(key))
+                .and_then(serde_json::Value::as_f64)
+        };
+        let stratum = |name: &str| {
+            self.report
+                .get("validation_strata")
+                .and_then(|s| s.get("strata"))
+                .and_then(serde_json::Value::as_array)
+                .and_then(|rows| {
+                    rows.iter()
+                        .find(|r| r.get("stratum").and_then(|s| s.as_str()) == Some(name))
+                })
+                .and_then(|r| r.get("rms_position_mm"))
+                .and_then(serde_json::Value::as_f64)
+        };
+        ValidationFigures {
+            folder: self.dir.display().to_string(),
+            verdict: self
+                .report
+                .get("verdict")
+                .and_then(|v| v.get("status"))
+                .and_then(|s| s.as_str())
+                .unwrap_or("—")
+                .to_owned(),
+            urdf_alone_rms_mm: number(&["artifact", "urdf_alone", "errors", "rms_position_mm"]),
+            urdf_alone_max_mm: number(&["artifact", "urdf_alone", "errors", "max_position_mm"]),
+            registered_nominal_rms_mm: number(&[
+                "artifact",
+                "registered_nominal",
+                "errors",
+                "rms_position_mm",
+            ]),
+            repeat_rms_mm: stratum("repeat"),
+            inside_rms_mm: stratum("inside"),
+            outside_rms_mm: stratum("outside"),
+        }
+    }
+}
+
+/// The parameters of `b` that moved from `a`'s by more than `k` combined σ, largest first
+/// (in σ); parameters without a σ in either folder are not judged.
+fn moved(a: &[Parameter], b: &[Parameter], k: f64) -> (Vec<MovedParameter>, usize) {
+    let mut judged = 0;
+    let mut moved: Vec<MovedParameter> = a
+        .iter()
+        .filter_map(|pa| {
+            let pb = b.iter().find(|p| p.name == pa.name)?;
+            let sigma = pa.std_dev?.hypot(pb.std_dev?);
+            judged += 1;
+            let change = pb.calibrated - pa.calibrated;
+            (sigma > 0.0 && change.abs() > k * sigma).then(|| MovedParameter {
+                name: pa.name.clone(),
+                unit: pa.unit.clone(),
+                a: pa.calibrated,
+                b: pb.calibrated,
+                change,
+                combined_std_dev: sigma,
+                sigmas: change.abs() / sigma,
+            })
+        })
+        .collect();
+    moved.sort_by(|x, y| y.sigmas.total_cmp(&x.sigmas));
+    (moved, judged)
+}
+
+/// The configurations of both folders' recorded identification postures, per tool link name.
+fn configurations(a: &Folder, b: &Folder) -> Vec<(String, Vec<(String, f64)>)> {
+    let mut out = Vec::new();
+    for folder in [a, b] {
+        let Some(recorded) = &folder.postures else {
+            continue;
+        };
+        for tool in &recorded.tools {
+            for posture in &tool.postures {
+                let joints = posture.iter().map(|(n, v)| (n.clone(), *v)).collect();
+                out.push((tool.tool.clone(), joints));
+            }
+        }
+    }
+    out
+}
+
+/// The position of `tool`'s calibrated frame in `folder`'s measurement frame at `joints`.
+fn tool_position(folder: &Folder, tool: &str, joints: &[(String, f64)]) -> Result<Vec3> {
+    let tree = &folder.tree;
+    let mut q = vec![0.0; tree.dofs().len()];
+    for (name, value) in joints {
+        if let Some(d) = tree
+            .dofs()
+            .iter()
+            .position(|&j| &tree.joint(j).name == name)
+        {
+            q[d] = *value;
+        }
+    }
+    let link = tree.link_id(&scored_link(tree, tree.link_id(tool)?))?;
+    Ok((folder.world_from_base * tree.link_pose(link, &q)?)
+        .translation
+        .vector)
+}
+
+/// The displacement between the two calibrations' predictions at every configuration: as
+/// deployed (each URDF with its registration), and after the best rigid alignment of B's
+/// predictions onto A's (what no re-registration of the tracker removes).
+fn displacement(a: &Folder, b: &Folder) -> Result<Option<Displacement>> {
+    let configurations = configurations(a, b);
+    if configurations.is_empty() {
+        return Ok(None);
+    }
+    let mut pa = Vec::new();
+    let mut pb = Vec::new();
+    for (tool, joints) in &configurations {
+        pa.push(tool_position(a, tool, joints)?);
+        pb.push(tool_position(b, tool, joints)?);
+    }
+    let aligned = fit_rigid_transform(&pb, &pa).unwrap_or_else(Pose::identity);
+    let rows = configurations
+        .iter()
+        .zip(pa.iter().zip(&pb))
+        .map(|((tool, _), (x, y))| DisplacementRow {
+            tool: tool.clone(),
+            deployed_mm: (y - x).norm() * 1e3,
+            aligned_mm: (aligned.transform_point(&(*y).into()).coords - x).norm() * 1e3,
+        })
+        .collect();
+    Ok(Some(Displacement::of(rows)))
+}
+
+/// Compares two calibrate output folders. Writes nothing.
+pub fn compare(config: &CompareConfig) -> Result<Comparison> {
+    let started = Started::now();
+    if !(config.k.is_finite() && config.k > 0.0) {
+        return Err(Error::InvalidData {
+            origin: "--k".into(),
+            message: format!(
+                "{} must be a positive number of standard deviations",
+                config.k
+            ),
+        });
+    }
+    let a = Folder::read(&config.a)?;
+    let b = Folder::read(&config.b)?;
+    if a.tree.name() != b.tree.name() {
+        return Err(invalid(
+            &config.b,
+            format!(
+                "robot '{}' is not robot '{}' of {}",
+                b.tree.name(),
+                a.tree.name(),
+                config.a.display()
+            ),
+        ));
+    }
+    let (moved, judged) = moved(&a.parameters, &b.parameters, config.k);
+    let mut report = CompareReport {
+        schema_version: crate::report::compare::COMPARE_SCHEMA,
+        robot: a.tree.name().to_owned(),
+        k: config.k,
+        parameters_judged: judged,
+        moved,
+        displacement: displacement(&a, &b)?,
+        validation: [a.figures(), b.figures()],
+        provenance: super::provenance::PROVENANCE_FILE.into(),
+    };
+    let inputs: Vec<PathBuf> = a.inputs.iter().chain(&b.inputs).cloned().collect();
+    let record = super::provenance::record(
+        "compare",
+        super::provenance::settings_text(config),
+        &inputs,
+        &[],
+        started,
+    )?;
+    report.provenance = super::provenance::PROVENANCE_FILE.into();
+    let markdown = report.markdown();
+    let mut files = vec![
+        ("report.md".to_owned(), markdown.clone().into_bytes()),
+        (
+            "report.json".to_owned(),
+            crate::io::to_json(&report)?.into_bytes(),
+        ),
+    ];
+    if let Some(svg) = report.plot()? {
+        files.push(("displacement.svg".to_owned(), svg.into_bytes()));
+    }
+    files.push((
+        super::provenance::PROVENANCE_FILE.to_owned(),
+        record.to_yaml()?.into_bytes(),
+    ));
+    Ok(Comparison {
+        report,
+        markdown,
+        files,
+        inputs,
+    })
+}

@@ -1,0 +1,206 @@
+//! The identification postures a calibration used, recorded in its report.json
+//! (`"identification_postures"`) so that `treecal verify` judges fresh rows against the same
+//! calibrated ranges, with the same code ([`ChainPostures::stratum`]), months later.
+
+use crate::calibration::validation::{chain_postures, ChainPostures};
+use crate::error::{Error, Result};
+use crate::kinematics::McpcModel;
+use crate::measurement::Measurement;
+use crate::tree::KinematicTree;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// The report.json key.
+pub const POSTURES_KEY: &str = "identification_postures";
+
+/// One joint of a tool's chain and its calibrated range.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedJoint {
+    /// The joint's URDF name.
+    pub name: String,
+    /// `revolute` (rad) or `prismatic` (m).
+    pub kind: String,
+    /// The smallest identification value (rad, m).
+    pub min: f64,
+    /// The largest identification value (rad, m).
+    pub max: f64,
+}
+
+/// One tool's identification postures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedTool {
+    /// The tool link.
+    pub tool: String,
+    /// The independent joints of its chain, with their calibrated ranges.
+    pub joints: Vec<RecordedJoint>,
+    /// Per identification row, the value of each joint of `joints` by name (rad, m).
+    pub postures: Vec<BTreeMap<String, f64>>,
+}
+
+/// Every tool's postures (report.json `"identification_postures"`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedPostures {
+    /// `rad` and `m`.
+    pub units: String,
+    /// Per model tool.
+    pub tools: Vec<RecordedTool>,
+}
+
+/// The record of `identification` for `model` of `tree`.
+pub fn record(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    identification: &[Measurement],
+) -> RecordedPostures {
+    let chains = chain_postures(model, identification);
+    let tools = model
+        .tools()
+        .iter()
+        .zip(&chains)
+        .map(|(tool, chain)| {
+            let joints: Vec<RecordedJoint> = chain
+                .dofs
+                .iter()
+                .zip(chain.ranges())
+                .map(|(&(dof, angle), (min, max))| RecordedJoint {
+                    name: tree.joint(tree.dofs()[dof]).name.clone(),
+                    kind: if angle { "revolute" } else { "prismatic" }.into(),
+                    min,
+                    max,
+                })
+                .collect();
+            let postures = chain
+                .postures
+                .iter()
+                .map(|posture| {
+                    joints
+                        .iter()
+                        .zip(posture)
+                        .map(|(joint, &value)| (joint.name.clone(), value))
+                        .collect()
+                })
+                .collect();
+            RecordedTool {
+                tool: tree.link(tool.link).name.clone(),
+                joints,
+                postures,
+            }
+        })
+        .collect();
+    RecordedPostures {
+        units: "revolute joints rad, prismatic joints m".into(),
+        tools,
+    }
+}
+
+/// The recorded postures of each tool of `model` (of `tree`), in `model`'s configuration
+/// indices; `None` for a tool the record does not have. An error names a recorded joint the
+/// robot lacks.
+pub fn chains_of(
+    recorded: &RecordedPostures,
+    tree: &KinematicTree,
+    model: &McpcModel,
+    origin: &str,
+) -> Result<Vec<Option<ChainPostures>>> {
+    model
+        .tools()
+        .iter()
+        .map(|tool| {
+            let name = &tree.link(tool.link).name;
+            let Some(record) = recorded.tools.iter().find(|t| &t.tool == name) else {
+                return Ok(None);
+            };
+            let dofs = record
+                .joints
+                .iter()
+                .map(|joint| {
+                    let dof = tree
+                        .dofs()
+                        .iter()
+                        .position(|&j| tree.joint(j).name == joint.name)
+                        .ok_or_else(|| Error::InvalidData {
+                            origin: format!("{origin}: {POSTURES_KEY}"),
+                            message: format!(
+                                "joint '{}' of tool '{name}' is not a joint of the robot verified: verify the calibration's own URDF",
+                                joint.name
+                            ),
+                        })?;
+                    Ok((dof, joint.kind == "revolute"))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let postures = record
+                .postures
+                .iter()
+                .map(|posture| {
+                    record
+                        .joints
+                        .iter()
+                        .map(|joint| {
+                            posture.get(&joint.name).copied().ok_or_else(|| Error::InvalidData {
+                                origin: format!("{origin}: {POSTURES_KEY}"),
+                                message: format!(
+                                    "a posture of tool '{name}' has no value of joint '{}'",
+                                    joint.name
+                                ),
+                            })
+                        })
+                        .collect::<Result<Vec<f64>>>()
+                })
+                .collect::<Result<Vec<_>>>()?;
+            Ok(Some(ChainPostures { dofs, postures }))
+        })
+        .collect()
+}
+
+/// Sets `key` of the report.json object `report` to `value`, before its `stiffness` block
+/// (which stays last).
+pub(super) fn insert_key(report: &mut serde_json::Value, key: &str, value: serde_json::Value) {
+    if let serde_json::Value::Object(map) = report {
+        let stiffness = map.shift_remove("stiffness");
+        map.insert(key.to_owned(), value);
+        if let Some(stiffness) = stiffness {
+            map.insert("stiffness".into(), stiffness);
+        }
+    }
+}
+
+/// Sets `key` to `value` in `report` (the parsed form of the JSON file `file` among `files`)
+/// and in that file.
+pub(super) fn set_report_key(
+    report: &mut serde_json::Value,
+    files: &mut [(String, Vec<u8>)],
+    file: &str,
+    key: &str,
+    value: serde_json::Value,
+) -> Result<()> {
+    insert_key(report, key, value.clone());
+    for (name, bytes) in files.iter_mut() {
+        if name == file {
+            let mut written: serde_json::Value =
+                serde_json::from_slice(bytes).map_err(|e| Error::InvalidData {
+                    origin: file.into(),
+                    message: e.to_string(),
+                })?;
+            insert_key(&mut written, key, value.clone());
+            *bytes = crate::io::to_json(&written)?.into_bytes();
+        }
+    }
+    Ok(())
+}
+
+/// Records the identification postures of a calibration in its report.json.
+pub(super) fn add_to_report(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    identification: &[Measurement],
+    report: &mut serde_json::Value,
+    files: &mut [(String, Vec<u8>)],
+) -> Result<()> {
+    let value = serde_json::to_value(record(tree, model, identification)).map_err(|e| {
+        Error::InvalidData {
+            origin: "report.json".into(),
+            message: e.to_string(),
+        }
+    })?;
+    set_report_key(report, files, "report.json", POSTURES_KEY, value)
+}

@@ -1,0 +1,528 @@
+//! `verify`: a calibration as deployed (its URDF, with its registration and compensation
+//! file when it has them) scored on fresh measurements: per-row and summary errors, the strata
+//! of the rows against the calibrated ranges, the worst row, and a verdict against a tolerance.
+//!
+//! One code path with `calibrate`'s validation: the predictions are
+//! [`super::calibrate_artifact::Scoring::predict`]'s, the row errors
+//! [`super::calibrate_artifact::row_errors`], the strata
+//! [`crate::calibration::validation::ChainPostures::stratum`] on the postures report.json
+//! records, the figures [`crate::report::strata::ValidationStrata::of_rows`]. Only the
+//! nuisance a fresh session needs is refitted: its measurement frame (six parameters per
+//! session), or nothing with [`VerifyFrame::Registration`] (docs/workflows.md, "Verify").
+
+use super::calibrate::{CalibrateConfig, GravityFrame};
+use super::calibrate_artifact::{row_errors, CompensationFile, Scoring, REGISTRATION_FILE};
+use super::calibrate_steps::Loaded;
+use super::note::Note;
+use super::postures::{chains_of, RecordedPostures, POSTURES_KEY};
+use super::source::{MeasurementSource, RobotSource, StiffnessSource};
+use crate::calibration::sessions::{fit_session_frame, Sessions, FRAME_BLOCK_PARAMETERS};
+use crate::calibration::validation::{ChainPostures, Stratum};
+use crate::calibration::{ErrorSummary, IdentificationOptions};
+use crate::error::{Error, Result};
+use crate::io::{read_registration, AngleUnit, LengthUnit, MeasurementReadOptions};
+use crate::math::Pose;
+use crate::measurement::Measurement;
+use crate::report::strata::{StrataRow, ValidationStrata};
+use crate::report::verify::{VerifyReport, VerifyRow, VerifySession};
+use crate::tree::KinematicTree;
+use std::path::{Path, PathBuf};
+
+/// The files [`Verification::write`] writes.
+pub const VERIFY_FILES: [&str; 4] = ["report.md", "report.json", "errors.svg", "provenance.yaml"];
+
+/// How the measurement frame of the fresh rows is found.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum VerifyFrame {
+    /// Refitted per session (six parameters each), the geometry fixed: a tracker set up
+    /// anew.
+    #[default]
+    Fit,
+    /// The calibration's registration as written: nothing refitted (the tracker not moved).
+    Registration,
+    /// The rows are in the URDF's root link frame: nothing refitted.
+    Base,
+}
+
+impl VerifyFrame {
+    /// `fit`, `registration` or `base`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            VerifyFrame::Fit => "fit",
+            VerifyFrame::Registration => "registration",
+            VerifyFrame::Base => "base",
+        }
+    }
+}
+
+/// Everything a verification needs; `Default` holds the CLI's defaults (the measurements and
+/// the calibration or the robot must be set).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VerifyConfig {
+    /// A `calibrate` output folder: its calibrated.urdf, registration.yaml, stiffness.yaml
+    /// (when written) and report.json (the calibrated ranges) are used unless given below.
+    pub calibration: Option<PathBuf>,
+    /// The deployed URDF [default: the calibration's calibrated.urdf, or with a compensation
+    /// file its calibrated_compensated.urdf when there is one].
+    pub robot: Option<PathBuf>,
+    /// The registration (the URDF root in the measurement frame) [default: the calibration's
+    /// registration.yaml when there is one].
+    pub registration: Option<PathBuf>,
+    /// The compensation (stiffness) file [default: the calibration's stiffness.yaml when
+    /// there is one, else rigid].
+    pub stiffness: Option<StiffnessSource>,
+    /// The fresh measurements.
+    pub measurements: MeasurementSource,
+    /// Tool links [default: the measured tools].
+    pub tools: Option<Vec<String>>,
+    /// Unit of lengths in the measurements [default: as stated, else m].
+    pub length_unit: Option<LengthUnit>,
+    /// Unit of revolute joint values [default: as stated, else rad].
+    pub angle_unit: Option<AngleUnit>,
+    /// Unit of prismatic joint values [default: the length unit].
+    pub joint_length_unit: Option<LengthUnit>,
+    /// How the measurement frame is found.
+    pub frame: VerifyFrame,
+    /// The frame of the stiffness file's gravity vector.
+    pub gravity_frame: GravityFrame,
+    /// Position noise (m) weighting the frame fit of measured poses.
+    pub position_sigma: f64,
+    /// Rotation noise (rad) weighting the frame fit of measured poses.
+    pub rotation_sigma: f64,
+    /// The largest acceptable RMS position error over all rows (mm) [default: no verdict].
+    pub max_error_mm: Option<f64>,
+}
+
+impl Default for VerifyConfig {
+    fn default() -> Self {
+        Self {
+            calibration: None,
+            robot: None,
+            registration: None,
+            stiffness: None,
+            measurements: MeasurementSource::default(),
+            tools: None,
+            length_unit: None,
+            angle_unit: None,
+            joint_length_unit: None,
+            frame: VerifyFrame::Fit,
+            gravity_frame: GravityFrame::Measurement,
+            position_sigma: crate::calibration::DEFAULT_POSITION_SIGMA,
+            rotation_sigma: crate::calibration::DEFAULT_ROTATION_SIGMA,
+            max_error_mm: None,
+        }
+    }
+}
+
+/// The outcome of a verification.
+#[derive(Debug, Clone)]
+pub struct Verification {
+    /// report.json's content.
+    pub report: VerifyReport,
+    /// report.md.
+    pub markdown: String,
+    /// What the CLI prints on stderr.
+    pub notes: Vec<Note>,
+    /// Every output file: `(name, bytes)`.
+    pub files: Vec<(String, Vec<u8>)>,
+    /// The input files it read (the writers refuse to replace them).
+    pub inputs: Vec<PathBuf>,
+}
+
+impl Verification {
+    /// Whether the RMS position error is within `--max-error` (true without a tolerance).
+    pub fn passed(&self) -> bool {
+        self.report.verdict.passed
+    }
+
+    /// Replaces the folder `out` with the output files; refuses a folder holding an input or
+    /// files that are not a previous verify output.
+    pub fn write(&self, out: &Path) -> Result<()> {
+        let inputs: Vec<&Path> = self.inputs.iter().map(PathBuf::as_path).collect();
+        super::checks::check_outputs(&[super::checks::Output::Folder(out)], &inputs)?;
+        crate::io::check_output_folder(out, &is_output_file)?;
+        crate::io::replace_folder(out, &self.files)
+    }
+}
+
+/// Whether a file name is one `verify` writes.
+pub fn is_output_file(name: &str) -> bool {
+    VERIFY_FILES.contains(&name)
+}
+
+/// The files a verification reads, resolved from the calibration folder where not given.
+#[derive(Debug, Clone)]
+struct Resolved {
+    robot: PathBuf,
+    registration: Option<PathBuf>,
+    stiffness: Option<StiffnessSource>,
+    report: Option<PathBuf>,
+}
+
+fn invalid(origin: &str, message: impl Into<String>) -> Error {
+    Error::InvalidData {
+        origin: origin.to_owned(),
+        message: message.into(),
+    }
+}
+
+fn resolve(config: &VerifyConfig) -> Result<Resolved> {
+    let existing = |name: &str| {
+        config
+            .calibration
+            .as_ref()
+            .map(|dir| dir.join(name))
+            .filter(|p| p.is_file())
+    };
+    if let Some(dir) = &config.calibration {
+        if !dir.is_dir() {
+            return Err(invalid(
+                &dir.display().to_string(),
+                "not a folder: give the output folder of `treecal calibrate` (--out)",
+            ));
+        }
+    }
+    let stiffness = config
+        .stiffness
+        .clone()
+        .or_else(|| existing("stiffness.yaml").map(StiffnessSource::File));
+    let robot = match (&config.robot, &stiffness) {
+        (Some(path), _) => path.clone(),
+        (None, Some(_)) => existing(super::calibrate_artifact::COMPENSATED_URDF)
+            .or_else(|| existing("calibrated.urdf"))
+            .ok_or_else(|| no_robot(config))?,
+        (None, None) => existing("calibrated.urdf").ok_or_else(|| no_robot(config))?,
+    };
+    Ok(Resolved {
+        robot,
+        registration: config
+            .registration
+            .clone()
+            .or_else(|| existing(REGISTRATION_FILE)),
+        stiffness,
+        report: existing("report.json"),
+    })
+}
+
+fn no_robot(config: &VerifyConfig) -> Error {
+    match &config.calibration {
+        Some(dir) => invalid(
+            &dir.display().to_string(),
+            "holds no calibrated.urdf (a failed verdict writes none): give the deployed URDF with --robot",
+        ),
+        None => invalid(
+            "verify",
+            "no robot: give --calibration (a calibrate output folder) or --robot (the deployed URDF)",
+        ),
+    }
+}
+
+/// The recorded identification postures of a calibration's report.json.
+pub(crate) fn read_postures(path: &Path) -> Result<Option<RecordedPostures>> {
+    let origin = path.display().to_string();
+    let text = crate::io::read_text(path, crate::limits::MAX_YAML_BYTES * 16)?;
+    let json: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| invalid(&origin, e.to_string()))?;
+    json.get(POSTURES_KEY)
+        .map(|v| serde_json::from_value(v.clone()).map_err(|e| invalid(&origin, e.to_string())))
+        .transpose()
+}
+
+/// Verifies: reads the deployed files and the fresh rows, predicts every row, refits the
+/// measurement frame when asked, and renders the reports. Writes nothing.
+pub fn verify(config: &VerifyConfig) -> Result<Verification> {
+    let started = super::provenance::Started::now();
+    super::checks::sigmas(config.position_sigma, config.rotation_sigma)?;
+    if let Some(max) = config.max_error_mm.filter(|m| !(m.is_finite() && *m > 0.0)) {
+        return Err(invalid(
+            "--max-error",
+            format!("{max} must be a positive number of mm"),
+        ));
+    }
+    let files = resolve(config)?;
+    let calibrate_config = CalibrateConfig {
+        robot: RobotSource::File(files.robot.clone()),
+        measurements: config.measurements.clone(),
+        tools: config.tools.clone(),
+        ..CalibrateConfig::default()
+    };
+    let loaded = Loaded::new(&calibrate_config)?;
+    let mut notes = loaded.robot.notes();
+    notes.extend(loaded.points.note());
+    let tree = loaded.robot.tree();
+    let options = MeasurementReadOptions {
+        length_unit: config.length_unit,
+        angle_unit: config.angle_unit,
+        joint_length_unit: config.joint_length_unit,
+        ignore_columns: Vec::new(),
+        strict_limits: false,
+        tool: config
+            .tools
+            .as_ref()
+            .filter(|t| t.len() == 1)
+            .map(|t| t[0].trim().to_owned()),
+    };
+    let set = config.measurements.read(tree, &loaded.nominal, &options)?;
+    notes.extend(set.warnings.iter().map(Note::warning));
+    notes.extend(set.notes.iter().map(Note::info));
+    let frame = measurement_frame(config, &files)?;
+    let names = file_names(&files, frame.1.is_some());
+    let compensation = files.stiffness.as_ref().map(CompensationFile::Source);
+    let scoring = Scoring {
+        loaded: &loaded,
+        world_from_base: frame.1.unwrap_or_else(Pose::identity),
+        scored_links: scored_links(tree, &loaded),
+    };
+    let predicted = scoring.predict(
+        &loaded.robot.text,
+        &names,
+        &set.measurements,
+        compensation.as_ref(),
+        config.gravity_frame,
+    )?;
+    let (predicted, sessions) = refit(config, &set.measurements, predicted);
+    let chains = match &files.report {
+        Some(path) => match read_postures(path)? {
+            Some(recorded) => Some(chains_of(
+                &recorded,
+                tree,
+                &loaded.nominal,
+                &path.display().to_string(),
+            )?),
+            None => None,
+        },
+        None => None,
+    };
+    if chains.is_none() {
+        notes.push(Note::info(
+            "no calibration record (report.json with identification_postures): the rows are not sorted into strata; give --calibration with the calibrate output folder",
+        ));
+    }
+    let rows = scored_rows(&loaded, &set, &predicted, chains.as_deref());
+    let report = VerifyReport::new(
+        crate::report::verify::VerifyContext {
+            robot: tree.name().to_owned(),
+            files: names,
+            measurements: config.measurements.origin(),
+            frame: config.frame.as_str().to_owned(),
+            refitted_parameters: sessions.len() * FRAME_BLOCK_PARAMETERS,
+            sessions,
+            strata_judged: chains.is_some(),
+        },
+        rows,
+        config.max_error_mm,
+    );
+    finish(config, &files, report, notes, started)
+}
+
+/// The measurement frame: the registration (asked, or to start the fit from), or none.
+fn measurement_frame(
+    config: &VerifyConfig,
+    files: &Resolved,
+) -> Result<(VerifyFrame, Option<Pose>)> {
+    match (config.frame, &files.registration) {
+        (VerifyFrame::Base, _) => Ok((VerifyFrame::Base, None)),
+        (frame, Some(path)) => Ok((frame, Some(read_registration(path)?))),
+        (VerifyFrame::Fit, None) => Ok((VerifyFrame::Fit, None)),
+        (VerifyFrame::Registration, None) => Err(invalid(
+            "--frame registration",
+            "no registration: the calibration folder holds no registration.yaml (its frame was the robot's root frame: use --frame base) and none was given with --registration",
+        )),
+    }
+}
+
+/// How the report names the files used, e.g. `calibrated.urdf + registration.yaml`.
+fn file_names(files: &Resolved, registered: bool) -> String {
+    let name = |p: &Path| p.display().to_string();
+    let mut text = name(&files.robot);
+    if let (true, Some(path)) = (registered, &files.registration) {
+        text.push_str(&format!(" + {}", name(path)));
+    }
+    if let Some(stiffness) = &files.stiffness {
+        text.push_str(&format!(" + {}", stiffness.origin()));
+    }
+    text
+}
+
+/// Per model tool, the link of the deployed URDF that carries the calibrated tool frame
+/// ([`scored_link`]).
+fn scored_links(tree: &KinematicTree, loaded: &Loaded) -> Vec<String> {
+    loaded
+        .nominal
+        .tools()
+        .iter()
+        .map(|tool| scored_link(tree, tool.link))
+        .collect()
+}
+
+/// The link of a written URDF that carries the calibrated frame of tool link `tool`: a fixed
+/// leaf `<tool>_calibrated` or `<tool>_marker` below it when the export added one, else the
+/// tool link (`calibrate` names the same links from its export report).
+pub(crate) fn scored_link(tree: &KinematicTree, tool: crate::tree::LinkId) -> String {
+    let name = tree.link(tool).name.clone();
+    ["calibrated", "marker"]
+        .iter()
+        .map(|suffix| format!("{name}_{suffix}"))
+        .find(|added| {
+            tree.link_id(added).is_ok_and(|id| {
+                let link = tree.link(id);
+                link.child_joints.is_empty()
+                    && link
+                        .parent_joint
+                        .is_some_and(|j| tree.joint(j).parent == tool)
+            })
+        })
+        .unwrap_or(name)
+}
+
+/// With [`VerifyFrame::Fit`], each session's frame refitted to its rows (the geometry fixed)
+/// and applied to the predictions; the sessions with their frames.
+fn refit(
+    config: &VerifyConfig,
+    measurements: &[Measurement],
+    mut predicted: Vec<Pose>,
+) -> (Vec<Pose>, Vec<VerifySession>) {
+    if config.frame != VerifyFrame::Fit {
+        return (predicted, Vec::new());
+    }
+    let options = IdentificationOptions {
+        position_sigma: config.position_sigma,
+        rotation_sigma: config.rotation_sigma,
+        ..IdentificationOptions::default()
+    };
+    let groups = Sessions::of(measurements);
+    let mut sessions = Vec::new();
+    for (s, name) in groups.names.iter().enumerate() {
+        let rows: Vec<usize> = (0..measurements.len())
+            .filter(|&i| groups.of[i] == s)
+            .collect();
+        let (correction, determined) = fit_session_frame(
+            &rows.iter().map(|&i| predicted[i]).collect::<Vec<_>>(),
+            &rows.iter().map(|&i| &measurements[i]).collect::<Vec<_>>(),
+            &[],
+            &options,
+        );
+        for &i in &rows {
+            predicted[i] = correction * predicted[i];
+        }
+        sessions.push(VerifySession::new(
+            name.clone(),
+            rows.len(),
+            &correction,
+            determined,
+        ));
+    }
+    (predicted, sessions)
+}
+
+/// Every row scored, with its stratum when the calibration's postures are known.
+fn scored_rows(
+    loaded: &Loaded,
+    set: &crate::io::MeasurementSet,
+    predicted: &[Pose],
+    chains: Option<&[Option<ChainPostures>]>,
+) -> Vec<VerifyRow> {
+    let tree = loaded.robot.tree();
+    set.measurements
+        .iter()
+        .zip(predicted)
+        .enumerate()
+        .map(|(i, (m, pose))| {
+            let (position_mm, orientation_deg) = row_errors(m, pose);
+            let stratum: Option<Stratum> = chains.map(|c| match c.get(m.tool) {
+                Some(Some(chain)) => chain.stratum(&m.q),
+                _ => Stratum::Outside,
+            });
+            VerifyRow {
+                id: set.ids[i].clone(),
+                index: i,
+                tool: tree.link(loaded.nominal.tools()[m.tool].link).name.clone(),
+                session: m.session.clone(),
+                position_mm,
+                orientation_deg,
+                stratum,
+            }
+        })
+        .collect()
+}
+
+/// The strata rows of `rows`.
+pub(crate) fn strata_rows(rows: &[VerifyRow]) -> Vec<StrataRow> {
+    rows.iter()
+        .map(|r| StrataRow {
+            id: r.id.clone(),
+            index: r.index,
+            tool: r.tool.clone(),
+            stratum: r.stratum,
+            position_mm: r.position_mm,
+            outlier: false,
+        })
+        .collect()
+}
+
+/// The summary of `rows` ([`ErrorSummary::of`], as `calibrate`'s artifact figures).
+pub(crate) fn summary_of(rows: &[VerifyRow]) -> ErrorSummary {
+    let position: Vec<f64> = rows.iter().map(|r| r.position_mm).collect();
+    let orientation: Vec<f64> = rows.iter().filter_map(|r| r.orientation_deg).collect();
+    ErrorSummary::of(&position, &orientation)
+}
+
+/// The strata of `rows` ([`ValidationStrata::of_rows`]); `None` without strata.
+pub(crate) fn strata_of(rows: &[VerifyRow]) -> Option<ValidationStrata> {
+    rows.iter()
+        .any(|r| r.stratum.is_some())
+        .then(|| ValidationStrata::of_rows(&strata_rows(rows)))
+        .flatten()
+}
+
+/// Renders the files and the provenance.
+fn finish(
+    config: &VerifyConfig,
+    files: &Resolved,
+    mut report: VerifyReport,
+    mut notes: Vec<Note>,
+    started: super::provenance::Started,
+) -> Result<Verification> {
+    let mut inputs: Vec<PathBuf> = vec![files.robot.clone()];
+    inputs.extend(files.registration.clone());
+    inputs.extend(
+        files
+            .stiffness
+            .as_ref()
+            .and_then(|s| s.path().map(Path::to_owned)),
+    );
+    inputs.extend(config.measurements.path().map(Path::to_owned));
+    inputs.extend(files.report.clone());
+    let mut settings = config.clone();
+    if let MeasurementSource::Table(table) = &config.measurements {
+        settings.measurements = MeasurementSource::Csv(PathBuf::from(&table.origin));
+    }
+    let provenance = super::provenance::record(
+        "verify",
+        super::provenance::settings_text(&settings),
+        &inputs,
+        &[],
+        started,
+    )?;
+    report.provenance = super::provenance::PROVENANCE_FILE.to_owned();
+    notes.push(Note::info(report.verdict.sentence()));
+    let markdown = report.markdown();
+    let json = crate::io::to_json(&report)?;
+    let svg = report.plot()?;
+    let files = vec![
+        ("report.md".to_owned(), markdown.clone().into_bytes()),
+        ("report.json".to_owned(), json.into_bytes()),
+        ("errors.svg".to_owned(), svg.into_bytes()),
+        (
+            super::provenance::PROVENANCE_FILE.to_owned(),
+            provenance.to_yaml()?.into_bytes(),
+        ),
+    ];
+    Ok(Verification {
+        report,
+        markdown,
+        notes,
+        files,
+        inputs,
+    })
+}
