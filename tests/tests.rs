@@ -49,7 +49,7 @@ mod tutorial;
 mod urdf_import;
 mod urdf_tolerant;
 mod verdict;
-mod whole_body;
 mod verify;
+mod whole_body;
 mod workflow;
 mod workflow_sim;

@@ -3,9 +3,9 @@
 pub mod artifact;
 pub mod calibrate;
 pub mod check;
+pub mod compare;
 pub mod html;
 pub mod html_chart;
-pub mod compare;
 pub mod inspect;
 pub mod outliers;
 pub mod pairing;
