@@ -296,6 +296,9 @@ pub fn add_measured_points(
 }
 
 /// Measurements: a CSV file (docs/file-formats.md) or arrays.
+// One value per workflow configuration, never in a collection: boxing the table would only
+// add an indirection to every constructor.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum MeasurementSource {
     /// A measurement CSV.
