@@ -3,8 +3,8 @@
 //! of the rows against the calibrated ranges, the worst row, and a verdict against a tolerance.
 //!
 //! One code path with `calibrate`'s validation: the predictions are
-//! [`super::calibrate_artifact::Scoring::predict`]'s, the row errors
-//! [`super::calibrate_artifact::row_errors`], the strata
+//! `calibrate_artifact::Scoring::predict`'s, the row errors
+//! `calibrate_artifact::row_errors`, the strata
 //! [`crate::calibration::validation::ChainPostures::stratum`] on the postures report.json
 //! records, the figures [`crate::report::strata::ValidationStrata::of_rows`]. Only the
 //! nuisance a fresh session needs is refitted: its measurement frame (six parameters per
