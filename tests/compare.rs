@@ -72,6 +72,7 @@ fn two_sessions_calibrations_list_moved_parameters_and_the_displacement() {
     );
     for file in [
         "report.md",
+        "report.html",
         "report.json",
         "displacement.svg",
         "provenance.yaml",

@@ -243,9 +243,20 @@ fn max_error_decides_the_exit_code() {
     let passed = run("10", "v10");
     assert_success(&passed, "verify --max-error 10");
     assert!(passed.stdout.contains("verdict: passed"), "{passed}");
-    for file in ["report.md", "report.json", "errors.svg", "provenance.yaml"] {
+    for file in [
+        "report.md",
+        "report.html",
+        "report.json",
+        "errors.svg",
+        "provenance.yaml",
+    ] {
         assert!(dir.path().join("v10").join(file).is_file(), "{file}");
     }
+    let html = std::fs::read_to_string(dir.path().join("v2/report.html")).unwrap();
+    assert!(
+        html.contains("failed") && html.contains("<svg"),
+        "the page shows the verdict and the plot"
+    );
 }
 
 #[test]

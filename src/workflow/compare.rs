@@ -18,8 +18,9 @@ use crate::urdf::parse_urdf;
 use std::path::{Path, PathBuf};
 
 /// The files [`Comparison::write`] writes.
-pub const COMPARE_FILES: [&str; 4] = [
+pub const COMPARE_FILES: [&str; 5] = [
     "report.md",
+    "report.html",
     "report.json",
     "displacement.svg",
     "provenance.yaml",
@@ -330,7 +331,13 @@ pub fn compare(config: &CompareConfig) -> Result<Comparison> {
             crate::io::to_json(&report)?.into_bytes(),
         ),
     ];
-    if let Some(svg) = report.plot()? {
+    let plot = report.plot()?;
+    let plots: Vec<&str> = plot.iter().map(String::as_str).collect();
+    files.push((
+        "report.html".to_owned(),
+        crate::report::html_page::markdown_page("treecal compare", &markdown, &plots).into_bytes(),
+    ));
+    if let Some(svg) = plot {
         files.push(("displacement.svg".to_owned(), svg.into_bytes()));
     }
     files.push((

@@ -29,7 +29,13 @@ use crate::tree::KinematicTree;
 use std::path::{Path, PathBuf};
 
 /// The files [`Verification::write`] writes.
-pub const VERIFY_FILES: [&str; 4] = ["report.md", "report.json", "errors.svg", "provenance.yaml"];
+pub const VERIFY_FILES: [&str; 5] = [
+    "report.md",
+    "report.html",
+    "report.json",
+    "errors.svg",
+    "provenance.yaml",
+];
 
 /// How the measurement frame of the fresh rows is found.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -509,8 +515,10 @@ fn finish(
     let markdown = report.markdown();
     let json = crate::io::to_json(&report)?;
     let svg = report.plot()?;
+    let html = crate::report::html_page::markdown_page("treecal verify", &markdown, &[&svg]);
     let files = vec![
         ("report.md".to_owned(), markdown.clone().into_bytes()),
+        ("report.html".to_owned(), html.into_bytes()),
         ("report.json".to_owned(), json.into_bytes()),
         ("errors.svg".to_owned(), svg.into_bytes()),
         (
