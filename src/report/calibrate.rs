@@ -657,17 +657,12 @@ pub fn calibration_markdown(
 
 /// The held-out accuracy in mm, whatever σ was declared: every validation row, the
 /// registered nominal robot, and what the written URDF gives alone.
-fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
-    let Some(all) = summary
-        .validation_strata
-        .as_ref()
-        .and_then(|s| s.strata.first())
-    else {
-        return;
-    };
-    let Some(rms) = all.rms_position_mm else {
-        return;
-    };
+/// The held-out headline: the RMS position error over every validation row (mm), the row
+/// count, and the registered nominal robot's RMS over the same rows (mm); `None` without
+/// validation figures.
+pub(super) fn held_out_headline(summary: &CalibrationSummary) -> Option<(f64, usize, f64)> {
+    let all = summary.validation_strata.as_ref()?.strata.first()?;
+    let rms = all.rms_position_mm?;
     let before: Vec<f64> = summary
         .validation
         .iter()
@@ -675,10 +670,17 @@ fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
         .collect();
     let before_rms =
         (before.iter().map(|v| v * v).sum::<f64>() / before.len().max(1) as f64).sqrt();
+    Some((rms, all.observations, before_rms))
+}
+
+fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
+    let Some((rms, observations, before_rms)) = held_out_headline(summary) else {
+        return;
+    };
     let _ = write!(
         out,
         "**Held-out accuracy:** RMS position error {rms:.3} mm over all {} validation rows (before: {before_rms:.3} mm, the registered nominal robot)",
-        all.observations
+        observations
     );
     if let Some(alone) = summary
         .artifact

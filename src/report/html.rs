@@ -65,7 +65,8 @@ pub struct HtmlReport<'a> {
     pub scene: &'a Scene,
 }
 
-const STYLE: &str = include_str!("html_style.css");
+/// The pages' style sheet (also `html_page`'s).
+pub(super) const STYLE: &str = include_str!("html_style.css");
 const VIEWER: &str = include_str!("html_viewer.js");
 
 /// Escapes text for HTML content and attribute values.
@@ -79,12 +80,17 @@ pub fn escape(text: &str) -> String {
 
 /// Escaped text with markdown `code` spans as `<code>`.
 fn inline(text: &str) -> String {
+    inline_with(text, escape)
+}
+
+/// Text with markdown `code` spans as escaped `<code>`, the rest rendered by `plain`.
+pub(super) fn inline_with(text: &str, plain: impl Fn(&str) -> String) -> String {
     let mut out = String::new();
     for (i, part) in text.split('`').enumerate() {
         if i % 2 == 1 {
             let _ = write!(out, "<code>{}</code>", escape(part));
         } else {
-            out.push_str(&escape(part));
+            out.push_str(&plain(part));
         }
     }
     out
@@ -154,21 +160,11 @@ fn verdict_html(out: &mut String, s: &CalibrationSummary) {
         }
         out.push_str("</ul>\n");
     }
-    if let Some(all) = s.validation_strata.as_ref().and_then(|v| v.strata.first()) {
-        if let Some(rms) = all.rms_position_mm {
-            let before: Vec<f64> = s
-                .validation
-                .iter()
-                .flat_map(|a| a.rows.iter().map(|r| r.position_mm.before))
-                .collect();
-            let before_rms =
-                (before.iter().map(|v| v * v).sum::<f64>() / before.len().max(1) as f64).sqrt();
-            let _ = writeln!(
-                out,
-                "<p class=\"headline\"><strong>Held-out accuracy:</strong> RMS position error {rms:.3} mm over all {} validation rows (before: {before_rms:.3} mm, the registered nominal robot).</p>",
-                all.observations
-            );
-        }
+    if let Some((rms, observations, before_rms)) = super::calibrate::held_out_headline(s) {
+        let _ = writeln!(
+            out,
+            "<p class=\"headline\"><strong>Held-out accuracy:</strong> RMS position error {rms:.3} mm over all {observations} validation rows (before: {before_rms:.3} mm, the registered nominal robot).</p>"
+        );
     }
     out.push_str("</section>\n");
 }

@@ -3,10 +3,8 @@
 //! markdown's headings, paragraphs, lists and tables as HTML and the SVG plots inline. Nothing is
 //! loaded from anywhere.
 
-use super::html::escape;
+use super::html::{escape, inline_with, STYLE};
 use std::fmt::Write;
-
-const STYLE: &str = include_str!("html_style.css");
 
 /// The page titled `title` holding `markdown` (the report.md text) and then `plots` (SVG
 /// documents, inline).
@@ -99,21 +97,17 @@ fn table(out: &mut String, rows: &[&str]) {
 
 /// Escaped text with markdown `code` spans as `<code>` and `**bold**` as `<strong>`.
 fn inline(text: &str) -> String {
-    let mut out = String::new();
-    for (i, part) in text.split('`').enumerate() {
-        if i % 2 == 1 {
-            let _ = write!(out, "<code>{}</code>", escape(part));
-        } else {
-            for (j, piece) in escape(part).split("**").enumerate() {
-                if j % 2 == 1 {
-                    let _ = write!(out, "<strong>{piece}</strong>");
-                } else {
-                    out.push_str(piece);
-                }
+    inline_with(text, |part| {
+        let mut out = String::new();
+        for (j, piece) in escape(part).split("**").enumerate() {
+            if j % 2 == 1 {
+                let _ = write!(out, "<strong>{piece}</strong>");
+            } else {
+                out.push_str(piece);
             }
         }
-    }
-    out
+        out
+    })
 }
 
 fn strip_xml_declaration(svg: &str) -> &str {
