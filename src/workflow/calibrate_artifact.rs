@@ -160,6 +160,14 @@ impl Scoring<'_> {
         };
         // The link fixed in the world (the root unless a reference link was chosen).
         let reference = tree.link_id(&original.link(self.loaded.branches.reference).name)?;
+        if reference != tree.root() && deflected.is_some() {
+            // The compensated prediction below is rooted at the URDF root; scoring it against
+            // rows measured from another link would mix frames and report wrong figures.
+            return Err(invalid(
+                files,
+                "a compensation (stiffness) file with a reference link other than the URDF root cannot be scored yet: leave out the stiffness file or the reference link",
+            ));
+        }
         measurements
             .iter()
             .map(|m| {
