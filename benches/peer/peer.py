@@ -20,14 +20,19 @@ joint values:
              every joint placement's six parameters; treecal's Jacobian has 4 or 2 per frame
              and 6 per tool)
 
-Pinocchio is called from Python; the time of the Python-to-C++ call itself is measured on an
-empty model (no joints, same arguments) and subtracted, which leaves an estimate of the C++
-time. Both the raw and the corrected ratios are printed (ratio = Pinocchio time / treecal
-time: above 1 means treecal is faster). Each figure is taken over many rounds of about 2 ms,
-as the median and as the minimum (on a shared machine, the round nobody interrupted);
-treecal and Pinocchio are alternated R times (default 3) and the median over alternations
-printed, so load from other processes affects both alike.
-Requires tests/oracle/requirements.txt. See docs/performance.md.
+Pinocchio is timed twice. **C++** (the figures to compare): `pinocchio_peer.cpp`, compiled
+here with g++ -O3 against the headers and libraries the `pin` wheel ships, makes the same calls
+on the same reduced model into preallocated outputs, with no Python in the loop. **Python** (labelled
+as such): the calls from Python, which include the binding's own work (argument conversion, and
+for the regressor a 6 x 6*njoints copy to numpy per call). The earlier estimate "Python time minus
+the call cost on an empty model" missed that binding work and overstated Pinocchio's time; it is no
+longer printed. Ratios are Pinocchio time / treecal time: above 1 means treecal is faster. Each
+figure is taken over many rounds of about 2 ms, as the median and as the minimum (on a shared
+machine, the round nobody interrupted); treecal, Pinocchio C++ and Pinocchio Python are alternated
+R times (default 3) and the median over alternations printed, so load from other processes affects
+all alike.
+Requires tests/oracle/requirements.txt, benches/peer/requirements.txt (Eigen and urdfdom headers
+for the C++ side) and g++. See docs/performance.md.
 """
 
 import json
@@ -35,6 +40,8 @@ import os
 import statistics
 import subprocess
 import sys
+import sysconfig
+import tempfile
 import time
 
 import numpy as np
@@ -103,11 +110,6 @@ def pinocchio_side(robot, side, rounds):
         pin.forwardKinematics(model, data, q)
         for frame, p in zip(tools, positions):
             error = max(error, np.abs(pin.updateFramePlacement(model, data, frame).translation - p).max())
-    # The Python-to-C++ call cost: the same calls on a model without joints.
-    empty = pin.Model()
-    empty.addFrame(pin.Frame("tool", 0, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))
-    empty_data = empty.createData()
-    empty_q = [pin.neutral(empty)] * len(qs)
     world = pin.ReferenceFrame.WORLD
 
     def fk(m, d, frames):
@@ -132,14 +134,63 @@ def pinocchio_side(robot, side, rounds):
         "jacobian_both_tools": timing_ns(rounds, qs, regressor(model, data, both)),
         "jacobian_one_tool": timing_ns(rounds, qs, regressor(model, data, one)),
     }
-    empty_frames = [1] * len(both)
-    overhead = {
-        "fk_both_tools": timing_ns(rounds, empty_q, fk(empty, empty_data, empty_frames)),
-        "fk_one_tool": timing_ns(rounds, empty_q, fk(empty, empty_data, empty_frames[:1])),
-        "jacobian_both_tools": timing_ns(rounds, empty_q, regressor(empty, empty_data, empty_frames)),
-        "jacobian_one_tool": timing_ns(rounds, empty_q, regressor(empty, empty_data, empty_frames[:1])),
-    }
-    return model, times, overhead, error
+    return model, times, error
+
+
+PREFIX = os.path.join(sysconfig.get_paths()["purelib"], "cmeel.prefix")
+CPP_SOURCE = os.path.join(ROOT, "benches", "peer", "pinocchio_peer.cpp")
+CPP_BINARY = os.path.join(ROOT, "target", "peer", "pinocchio_peer")
+
+
+def build_cpp():
+    """Compile pinocchio_peer.cpp against the pin wheel (once; again when the source changes)."""
+    if os.path.exists(CPP_BINARY) and os.path.getmtime(CPP_BINARY) >= os.path.getmtime(CPP_SOURCE):
+        return CPP_BINARY
+    os.makedirs(os.path.dirname(CPP_BINARY), exist_ok=True)
+    include = os.path.join(PREFIX, "include")
+    lib = os.path.join(PREFIX, "lib")
+    defines = [
+        "PINOCCHIO_WITH_URDFDOM", "PINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION=3",
+        "PINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION=0", "PINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION=0",
+        "BOOST_MPL_LIMIT_LIST_SIZE=30", "BOOST_MPL_LIMIT_VECTOR_SIZE=30",
+        "BOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", "BOOST_FUSION_INVOKE_MAX_ARITY=12",
+    ]
+    command = (
+        ["g++", "-O3", "-DNDEBUG", "-std=c++17", "-w"]
+        + ["-I" + os.path.join(include, d) for d in ("", "eigen3", "urdfdom_headers")]
+        + ["-D" + d for d in defines]
+        + [CPP_SOURCE, "-o", CPP_BINARY, "-L" + lib, "-Wl,-rpath," + lib]
+        + ["-l" + l for l in ("pinocchio_parsers", "pinocchio_default", "urdfdom_model",
+                              "boost_filesystem", "boost_serialization")]
+    )
+    print("building the C++ side (a few minutes, once): %s" % " ".join(command[:6]), file=sys.stderr)
+    subprocess.run(command, check=True)
+    return CPP_BINARY
+
+
+def pinocchio_cpp_side(binary, side, rounds):
+    """Times of the C++ calls ({operation: [median, minimum]}) and its tool position error."""
+    with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
+        f.write("urdf %s\n" % side["robot"])
+        f.write("joints %s\n" % " ".join(side["joints"]))
+        f.write("tools %s\n" % " ".join(side["tools"]))
+        f.write("rounds %d\n" % rounds)
+        for values, positions in zip(side["values"], side["tool_positions"]):
+            numbers = list(values) + [c for p in positions for c in p]
+            f.write("config %s\n" % " ".join(repr(float(v)) for v in numbers))
+        path = f.name
+    try:
+        out = subprocess.run([binary, path], check=True, capture_output=True, text=True).stdout
+    finally:
+        os.unlink(path)
+    times, error = {}, None
+    for line in out.splitlines():
+        words = line.split()
+        if words[0] == "max_position_error":
+            error = float(words[1])
+        elif words[0] != "model":
+            times[words[0]] = [float(words[1]), float(words[2])]
+    return times, error
 
 
 def main():
@@ -155,27 +206,31 @@ def main():
             binary = os.path.abspath(args.pop(0))
         else:
             robot = os.path.abspath(arg)
+    binary_cpp = build_cpp()
     runs = []
     for _ in range(repeat):
         side = treecal_side(robot, rounds, binary)
-        runs.append((side, pinocchio_side(side["robot"], side, rounds)))
-    side, (model, _, _, error) = runs[-1]
+        cpp_times, cpp_error = pinocchio_cpp_side(binary_cpp, side, rounds)
+        model, py_times, py_error = pinocchio_side(side["robot"], side, rounds)
+        runs.append((side, cpp_times, py_times))
+    side = runs[-1][0]
     print("robot: %s" % side["robot"])
     print("tools: %s; MCPC parameters: %d; reduced Pinocchio model: %d joints (nq %d), regressor 6 x %d"
           % (", ".join(side["tools"]), side["parameters"], model.njoints - 1, model.nq, 6 * (model.njoints - 1)))
-    print("tool positions, treecal vs Pinocchio: max difference %.1e m" % error)
+    print("tool positions, treecal vs Pinocchio: max difference %.1e m (C++), %.1e m (Python)"
+          % (cpp_error, py_error))
     print("pinocchio %s, %d configurations, %d rounds x %d alternations (medians)"
           % (pin.__version__, len(side["values"]), rounds, repeat))
     for statistic, which in (("median", 0), ("minimum", 1)):
         print("%s of the rounds:" % statistic)
-        print("%-22s %12s %14s %14s %10s %10s" % (
-            "operation", "treecal ns", "pinocchio ns", "call cost ns", "ratio raw", "ratio C++"))
+        print("%-22s %12s %14s %14s %11s %14s" % (
+            "operation", "treecal ns", "pinocchio C++", "ratio C++", "pin Python", "ratio Python"))
         for name in ["fk_both_tools", "fk_one_tool", "jacobian_both_tools", "jacobian_one_tool"]:
             ours = statistics.median(r[0]["ns"][name][which] for r in runs)
-            theirs = statistics.median(r[1][1][name][which] for r in runs)
-            overhead = statistics.median(r[1][2][name][which] for r in runs)
-            print("%-22s %12.1f %14.1f %14.1f %10.2f %10.2f" % (
-                name, ours, theirs, overhead, theirs / ours, (theirs - overhead) / ours))
+            cpp = statistics.median(r[1][name][which] for r in runs)
+            python = statistics.median(r[2][name][which] for r in runs)
+            print("%-22s %12.1f %14.1f %14.2f %11.1f %14.2f" % (
+                name, ours, cpp, cpp / ours, python, python / ours))
         as_poses = statistics.median(r[0]["ns"]["fk_both_tools_as_poses"][which] for r in runs)
         print("treecal fk_both_tools as Isometry3 poses (quaternions, allocated Vec): %.1f ns" % as_poses)
         iteration = statistics.median(r[0]["ns"]["gn_iteration_200x2"][which] for r in runs)
