@@ -63,6 +63,9 @@ pub const MAX_POSES: usize = 100_000;
 /// Largest field of a CSV file (bytes), checked while the text is scanned, before any record
 /// is built: a joint value, name or label is a few dozen bytes.
 pub const MAX_CSV_FIELD_BYTES: usize = 64 << 10;
+/// Longest record (a row, its quoted line breaks included) of a CSV read as a stream (bytes):
+/// `treecal fk` holds one record at a time.
+pub const MAX_CSV_RECORD_BYTES: usize = 16 << 20;
 /// Most stages of a calibration plan: each stage is a whole calibration (the paper's plan has
 /// two).
 pub const MAX_PLAN_STAGES: usize = 32;

@@ -290,6 +290,7 @@ fn fk_equals_the_cli() {
             joint_names: names.clone(),
             joints: rows.clone(),
             angle_unit: unit,
+            first_row: 0,
         })
         .unwrap();
         let lines: Vec<&str> = run.stdout.lines().skip(1).collect();
@@ -319,6 +320,7 @@ fn fk_names_unknown_and_implied_joints() {
         joint_names: names.iter().map(|s| s.to_string()).collect(),
         joints: rows,
         angle_unit: AngleUnit::Radian,
+        first_row: 0,
     };
     let error = fk(&config(&["left_jiont1"], vec![vec![0.1]]))
         .unwrap_err()

@@ -9,7 +9,7 @@ use treecal::workflow::{FkConfig, RobotSource};
 /// `root_from_tip` of `tip` for each row of `joints` (columns named by `joint_names`), as
 /// row-major 4×4 matrices flattened to 16 values.
 #[pyfunction]
-#[pyo3(signature = (robot, tip, joint_names, joints, angle_unit = "rad"))]
+#[pyo3(signature = (robot, tip, joint_names, joints, angle_unit = "rad", first_row = 0))]
 pub fn fk(
     py: Python<'_>,
     robot: Option<PathBuf>,
@@ -17,6 +17,7 @@ pub fn fk(
     joint_names: Vec<String>,
     joints: Vec<Vec<f64>>,
     angle_unit: &str,
+    first_row: usize,
 ) -> PyResult<Vec<Vec<f64>>> {
     let config = FkConfig {
         robot: RobotSource::from_path(robot),
@@ -24,6 +25,7 @@ pub fn fk(
         joint_names,
         joints,
         angle_unit: parse_unit(Some(angle_unit))?.unwrap_or_default(),
+        first_row,
     };
     let poses = py
         .detach(|| treecal::workflow::fk(&config))

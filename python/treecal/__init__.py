@@ -146,6 +146,10 @@ def _unique(names: List[str], name: str) -> None:
         seen[key] = index
 
 
+#: Rows per call of the native `fk` (`fk` passes longer tables in chunks of this many rows).
+_FK_CHUNK_ROWS = 65536
+
+
 def fk(
     robot: Optional[PathLike],
     tip: str,
@@ -182,15 +186,21 @@ def fk(
             raise TreecalError(
                 f"fk: joints has {rows.shape[1]} columns but joint_names names {len(names)}"
             )
-    flat = _native(
-        _treecal.fk,
-        robot=_robot_path(robot),
-        tip=_text(tip, "tip"),
-        joint_names=names,
-        joints=rows.tolist(),
-        angle_unit=_text(angle_unit, "angle_unit"),
-    )
-    poses = np.asarray(flat, dtype=np.float64).reshape(-1, 4, 4)
+    # In chunks: only one chunk's rows exist as Python lists at a time (a 10⁷-row table as one
+    # list of lists took 12.6 GiB); the result is written into one preallocated array.
+    poses = np.empty((rows.shape[0], 4, 4), dtype=np.float64)
+    for start in range(0, max(rows.shape[0], 1), _FK_CHUNK_ROWS):
+        chunk = rows[start : start + _FK_CHUNK_ROWS]
+        flat = _native(
+            _treecal.fk,
+            robot=_robot_path(robot),
+            tip=_text(tip, "tip"),
+            joint_names=names,
+            joints=chunk.tolist(),
+            angle_unit=_text(angle_unit, "angle_unit"),
+            first_row=start,
+        )
+        poses[start : start + chunk.shape[0]] = np.asarray(flat, dtype=np.float64).reshape(-1, 4, 4)
     return poses[0] if single else poses
 
 

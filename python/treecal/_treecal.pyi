@@ -30,6 +30,7 @@ def fk(
     joint_names: List[str],
     joints: List[List[float]],
     angle_unit: str = "rad",
+    first_row: int = 0,
 ) -> List[List[float]]: ...
 
 def calibrate(

@@ -232,9 +232,7 @@ fn chunk_products(
     let options = if problem.options.observation_weights.is_empty() {
         problem.options
     } else {
-        sliced = problem
-            .options
-            .for_measurements(&range.clone().collect::<Vec<_>>());
+        sliced = problem.options.for_range(range.clone());
         &sliced
     };
     let lin = linearise(

@@ -56,6 +56,42 @@ impl IdentificationOptions {
         }
         options
     }
+
+    /// The same options for the contiguous measurements `range` (a chunk of the normal
+    /// equations): as [`Self::for_measurements`], but the weights are copied for the range
+    /// only — never the whole weight vector per chunk, which made large problems quadratic.
+    pub fn for_range(&self, range: std::ops::Range<usize>) -> Self {
+        let Self {
+            max_iterations,
+            position_sigma,
+            rotation_sigma,
+            rank_tolerance,
+            step_tolerance,
+            cost_tolerance,
+            observation_weights,
+            robust,
+            frozen,
+            prior,
+        } = self;
+        Self {
+            max_iterations: *max_iterations,
+            position_sigma: *position_sigma,
+            rotation_sigma: *rotation_sigma,
+            rank_tolerance: *rank_tolerance,
+            step_tolerance: *step_tolerance,
+            cost_tolerance: *cost_tolerance,
+            observation_weights: if observation_weights.is_empty() {
+                Vec::new()
+            } else {
+                range
+                    .map(|i| observation_weights.get(i).copied().unwrap_or(1.0))
+                    .collect()
+            },
+            robust: robust.clone(),
+            frozen: frozen.clone(),
+            prior: prior.clone(),
+        }
+    }
 }
 
 impl Default for IdentificationOptions {

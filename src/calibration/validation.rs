@@ -102,24 +102,100 @@ impl ChainPostures {
     }
 
     /// Where a configuration `q` of this tool lies: a repeat of a posture, inside the ranges
-    /// (within the margins) or outside them.
+    /// (within the margins) or outside them. For many configurations, [`Self::index`] once.
     pub fn stratum(&self, q: &[f64]) -> Stratum {
-        let value = |dof: usize| q.get(dof).copied().unwrap_or(0.0);
-        let repeats = self.postures.iter().any(|posture| {
-            self.dofs.iter().zip(posture).all(|(&(d, angle), &p)| {
-                let tolerance = if angle { REPEAT_ANGLE } else { REPEAT_LENGTH };
-                (p - value(d)).abs() <= tolerance
+        self.index().stratum(q)
+    }
+
+    /// The postures prepared for many [`PostureIndex::stratum`] look-ups.
+    pub fn index(&self) -> PostureIndex<'_> {
+        let ranges = self.ranges();
+        // The joint that spreads the postures over the most tolerances: sorted along it, a
+        // repeat is searched among the few postures near `q` on that joint.
+        let key = (0..self.dofs.len())
+            .max_by(|&a, &b| {
+                let spread =
+                    |k: usize| (ranges[k].1 - ranges[k].0) / repeat_tolerance(self.dofs[k].1);
+                spread(a).total_cmp(&spread(b))
             })
-        });
+            .unwrap_or(0);
+        let mut order: Vec<usize> = (0..self.postures.len()).collect();
+        if !self.dofs.is_empty() {
+            order.sort_by(|&a, &b| self.postures[a][key].total_cmp(&self.postures[b][key]));
+        }
+        let keys = order
+            .iter()
+            .map(|&i| self.postures[i].get(key).copied().unwrap_or(0.0))
+            .collect();
+        PostureIndex {
+            chain: self,
+            ranges,
+            key,
+            order,
+            keys,
+        }
+    }
+}
+
+fn repeat_tolerance(angle: bool) -> f64 {
+    if angle {
+        REPEAT_ANGLE
+    } else {
+        REPEAT_LENGTH
+    }
+}
+
+/// [`ChainPostures`] prepared for many look-ups ([`ChainPostures::index`]): the ranges computed
+/// once, the postures sorted along one joint. Each look-up is logarithmic in the number of
+/// postures (plus the postures near `q` on that joint), with the same result as a scan of all.
+#[derive(Debug, Clone)]
+pub struct PostureIndex<'a> {
+    chain: &'a ChainPostures,
+    ranges: Vec<(f64, f64)>,
+    /// The position in `chain.dofs` of the joint the postures are sorted along.
+    key: usize,
+    /// Posture indices, sorted by their value of the key joint.
+    order: Vec<usize>,
+    /// Those values, in the same order.
+    keys: Vec<f64>,
+}
+
+impl PostureIndex<'_> {
+    /// Where a configuration `q` of this tool lies ([`ChainPostures::stratum`]).
+    pub fn stratum(&self, q: &[f64]) -> Stratum {
+        let chain = self.chain;
+        let value = |dof: usize| q.get(dof).copied().unwrap_or(0.0);
+        let repeats_posture = |posture: &Vec<f64>| {
+            chain
+                .dofs
+                .iter()
+                .zip(posture)
+                .all(|(&(d, angle), &p)| (p - value(d)).abs() <= repeat_tolerance(angle))
+        };
+        let repeats = if chain.dofs.is_empty() {
+            !chain.postures.is_empty()
+        } else {
+            // A window twice the tolerance wide on the key joint holds every candidate; the
+            // full test decides, exactly as a scan of every posture would.
+            let (dof, angle) = chain.dofs[self.key];
+            let v = value(dof);
+            let reach = 2.0 * repeat_tolerance(angle);
+            let start = self.keys.partition_point(|&k| k < v - reach);
+            self.keys[start..]
+                .iter()
+                .zip(&self.order[start..])
+                .take_while(|(&k, _)| k <= v + reach)
+                .any(|(_, &i)| repeats_posture(&chain.postures[i]))
+        };
         if repeats {
             return Stratum::Repeat;
         }
-        let inside = !self.postures.is_empty()
-            && self
+        let inside = !chain.postures.is_empty()
+            && chain
                 .dofs
                 .iter()
-                .zip(self.ranges())
-                .all(|(&(d, angle), (low, high))| {
+                .zip(&self.ranges)
+                .all(|(&(d, angle), &(low, high))| {
                     let margin = if angle {
                         INSIDE_MARGIN_ANGLE
                     } else {
@@ -165,10 +241,11 @@ pub fn strata(
     validation: &[Measurement],
 ) -> Vec<Stratum> {
     let chains = chain_postures(model, identification);
+    let indices: Vec<PostureIndex<'_>> = chains.iter().map(ChainPostures::index).collect();
     validation
         .iter()
-        .map(|m| match chains.get(m.tool) {
-            Some(chain) => chain.stratum(&m.q),
+        .map(|m| match indices.get(m.tool) {
+            Some(index) => index.stratum(&m.q),
             // A tool the model does not know: nothing to judge against.
             None => Stratum::Outside,
         })

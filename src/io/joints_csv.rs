@@ -199,28 +199,56 @@ pub fn configurations(
     angle_scale: f64,
     origin: &str,
 ) -> Result<(Vec<Vec<f64>>, ColumnMapping)> {
-    let mut mapping = ColumnMapping::default();
-    for (column, name) in table.headers.iter().enumerate() {
-        match tree.joint_id(name) {
-            Ok(joint) => match tree.joint(joint).actuation {
-                Actuation::Independent(dof) => mapping.joints.push((column, dof.0)),
-                Actuation::Mimic { .. } => mapping.implied.push((
-                    column,
-                    format!("'{name}' is a mimic joint; its value follows its master"),
-                )),
-                Actuation::None => mapping
-                    .implied
-                    .push((column, format!("'{name}' is a fixed joint"))),
-            },
-            Err(_) => mapping.unmatched.push(column),
-        }
-    }
+    let mapping = ColumnMapping::new(&table.headers, tree);
     let mut configurations = Vec::with_capacity(table.records.len());
     for (line, fields) in &table.records {
+        configurations.push(mapping.configuration(
+            tree,
+            &table.headers,
+            (*line, fields),
+            angle_scale,
+            origin,
+        )?);
+    }
+    Ok((configurations, mapping))
+}
+
+impl ColumnMapping {
+    /// Which columns of `headers` are joints of `tree`, implied joints, or neither.
+    pub fn new(headers: &[String], tree: &KinematicTree) -> Self {
+        let mut mapping = ColumnMapping::default();
+        for (column, name) in headers.iter().enumerate() {
+            match tree.joint_id(name) {
+                Ok(joint) => match tree.joint(joint).actuation {
+                    Actuation::Independent(dof) => mapping.joints.push((column, dof.0)),
+                    Actuation::Mimic { .. } => mapping.implied.push((
+                        column,
+                        format!("'{name}' is a mimic joint; its value follows its master"),
+                    )),
+                    Actuation::None => mapping
+                        .implied
+                        .push((column, format!("'{name}' is a fixed joint"))),
+                },
+                Err(_) => mapping.unmatched.push(column),
+            }
+        }
+        mapping
+    }
+
+    /// The configuration (SI) of one row `(line, fields)`; a value that is not a finite
+    /// number or beyond its magnitude limit is an error naming `origin:line:column`.
+    pub fn configuration(
+        &self,
+        tree: &KinematicTree,
+        headers: &[String],
+        (line, fields): (usize, &[String]),
+        angle_scale: f64,
+        origin: &str,
+    ) -> Result<Vec<f64>> {
         let mut q = tree.zero_configuration();
-        for &(column, dof) in &mapping.joints {
+        for &(column, dof) in &self.joints {
             let text = &fields[column];
-            let place = || format!("{origin}:{line}:{}", table.headers[column]);
+            let place = || format!("{origin}:{line}:{}", headers[column]);
             let value: f64 = text.parse().map_err(|_| Error::InvalidData {
                 origin: place(),
                 message: format!("'{}' is not a number", limits::cut(text)),
@@ -233,9 +261,8 @@ pub fn configurations(
             }
             q[dof] = joint_value(tree, dof, value, angle_scale, place)?;
         }
-        configurations.push(q);
+        Ok(q)
     }
-    Ok((configurations, mapping))
 }
 
 /// The value of independent joint `dof` in SI: a revolute or continuous value times
@@ -258,24 +285,28 @@ pub fn joint_value(
 /// The table with `x,y,z,r11,…,r33` of each row's pose appended (metres, full precision).
 pub fn append_poses(table: &CsvTable, poses: &[Pose]) -> Result<String> {
     let mut header = table.headers.clone();
-    header.extend(
-        [
-            "x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33",
-        ]
-        .map(String::from),
-    );
+    header.extend(POSE_COLUMNS.map(String::from));
     let mut rows = vec![header];
     for ((_, fields), pose) in table.records.iter().zip(poses) {
         let mut row = fields.clone();
-        let t = pose.translation.vector;
-        let r = pose.rotation.to_rotation_matrix();
-        row.extend([t.x, t.y, t.z].iter().map(|v| format!("{v}")));
-        for i in 0..3 {
-            for j in 0..3 {
-                row.push(format!("{}", r[(i, j)]));
-            }
-        }
+        row.extend(pose_fields(pose));
         rows.push(row);
     }
     super::csv_text(&rows, "output")
+}
+
+/// The columns [`append_poses`] appends.
+pub const POSE_COLUMNS: [&str; 12] = [
+    "x", "y", "z", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33",
+];
+
+/// A pose as the [`POSE_COLUMNS`] fields: the translation (m), then the rotation matrix row by
+/// row, at full precision.
+pub fn pose_fields(pose: &Pose) -> impl Iterator<Item = String> {
+    let t = pose.translation.vector;
+    let r = pose.rotation.to_rotation_matrix();
+    [t.x, t.y, t.z]
+        .into_iter()
+        .chain((0..3).flat_map(move |i| (0..3).map(move |j| r[(i, j)])))
+        .map(|v| format!("{v}"))
 }

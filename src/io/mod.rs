@@ -9,6 +9,7 @@ pub mod detections_csv;
 pub mod joint_log;
 pub mod joint_log_mcap;
 pub mod joints_csv;
+mod joints_stream;
 pub mod mcpc_table;
 pub mod measurement_table;
 pub mod measurements_csv;
@@ -33,8 +34,10 @@ mod yaml;
 pub use bounded::{read_bytes, read_text};
 pub use joint_log::{parse_joint_log_csv, read_joint_log, JointLog, JointLogOptions};
 pub use joints_csv::{
-    append_poses, configurations, joint_value, parse_csv, ColumnMapping, CsvTable,
+    append_poses, configurations, joint_value, parse_csv, pose_fields, ColumnMapping, CsvTable,
+    POSE_COLUMNS,
 };
+pub use joints_stream::{open_csv_records, CsvRecords};
 pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
 pub use measurement_table::{MeasurementTable, ObservationRows};
 pub use measurements_csv::{
@@ -69,6 +72,7 @@ pub use units::{
 };
 pub use write::{
     check_output_dir, check_output_file, check_output_folder, replace_folder, write_atomically,
+    write_atomically_with,
 };
 
 use crate::error::{Error, Result};

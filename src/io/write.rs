@@ -8,6 +8,20 @@ use std::path::Path;
 
 /// Writes `contents` to a temporary file next to `path`, then renames it over `path`.
 pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<()> {
+    write_atomically_with(path, &mut |file| {
+        file.write_all(contents).map_err(|source| Error::Io {
+            path: path.to_owned(),
+            source,
+        })
+    })
+}
+
+/// As [`write_atomically`], with the contents written by `write` (streamed through a
+/// buffer); an error from `write` removes the temporary file and leaves `path` untouched.
+pub fn write_atomically_with(
+    path: &Path,
+    write: &mut dyn FnMut(&mut dyn Write) -> Result<()>,
+) -> Result<()> {
     let io = |source| Error::Io {
         path: path.to_owned(),
         source,
@@ -25,16 +39,17 @@ pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<()> {
         .unwrap_or_default();
     let temporary = directory.join(format!(".{file_name}.{}.tmp", std::process::id()));
     let result = (|| {
-        let mut file = std::fs::File::create(&temporary)?;
-        file.write_all(contents)?;
-        file.sync_all()?;
-        std::fs::rename(&temporary, path)
+        let file = std::fs::File::create(&temporary).map_err(io)?;
+        let mut buffered = std::io::BufWriter::new(file);
+        write(&mut buffered)?;
+        let file = buffered.into_inner().map_err(|e| io(e.into_error()))?;
+        file.sync_all().map_err(io)?;
+        std::fs::rename(&temporary, path).map_err(io)
     })();
-    if let Err(source) = result {
+    if result.is_err() {
         let _ = std::fs::remove_file(&temporary);
-        return Err(io(source));
     }
-    Ok(())
+    result
 }
 
 /// Checks, before anything is computed, that `folder` can receive a new set of outputs: it has

@@ -5,9 +5,13 @@
 use super::note::Note;
 use super::source::RobotSource;
 use crate::error::{Error, Result};
-use crate::io::{append_poses, configurations, joint_value, parse_csv, AngleUnit};
+use crate::io::{
+    append_poses, configurations, joint_value, open_csv_records, parse_csv, pose_fields, AngleUnit,
+    ColumnMapping, POSE_COLUMNS,
+};
 use crate::math::Pose;
 use crate::tree::{Actuation, KinematicTree, LinkId};
+use std::io::Write;
 use std::path::PathBuf;
 
 /// Joint values in memory.
@@ -23,6 +27,9 @@ pub struct FkConfig {
     pub joints: Vec<Vec<f64>>,
     /// Unit of revolute and continuous values (prismatic values are metres).
     pub angle_unit: AngleUnit,
+    /// The 0-based index of `joints`' first row in the caller's table (messages name rows
+    /// from it): a caller that passes a long table in chunks keeps the rows' numbers.
+    pub first_row: usize,
 }
 
 /// `root_from_tip` of every configuration. An unknown or repeated joint name, a mimic or fixed
@@ -55,7 +62,7 @@ pub fn fk(config: &FkConfig) -> Result<Vec<Pose>> {
     for (row, values) in config.joints.iter().enumerate() {
         if values.len() != dofs.len() {
             return Err(Error::InvalidData {
-                origin: format!("joints, row {}", row + 1),
+                origin: format!("joints, row {}", config.first_row + row + 1),
                 message: format!(
                     "{} values for {} joint names; give one value per name",
                     values.len(),
@@ -66,7 +73,7 @@ pub fn fk(config: &FkConfig) -> Result<Vec<Pose>> {
         let mut q = tree.zero_configuration();
         for ((&dof, &value), name) in dofs.iter().zip(values).zip(&config.joint_names) {
             q[dof] = joint_value(tree, dof, value, scale, || {
-                format!("joints, row {}, joint '{name}'", row + 1)
+                format!("joints, row {}, joint '{name}'", config.first_row + row + 1)
             })?;
         }
         rows.push(q);
@@ -137,10 +144,25 @@ pub fn fk_csv(config: &FkCsvConfig) -> Result<FkTable> {
     let text = crate::limits::read_text(&config.joints, crate::limits::MAX_CSV_BYTES)?;
     let table = parse_csv(&text, &origin)?;
     let (rows, mapping) = configurations(&table, tree, config.angle_unit.in_radians(), &origin)?;
+    notes.extend(mapping_notes(&mapping, &table.headers, tree, &origin));
+    let poses = poses(tree, tip, &rows)?;
+    let csv = append_poses(&table, &poses)?;
+    Ok(FkTable { poses, csv, notes })
+}
+
+/// The notes on a joint CSV's columns: those matching no joint (passed through) and those
+/// naming an implied joint (not used).
+fn mapping_notes(
+    mapping: &ColumnMapping,
+    headers: &[String],
+    tree: &KinematicTree,
+    origin: &str,
+) -> Vec<Note> {
+    let mut notes = Vec::new();
     for column in &mapping.unmatched {
         notes.push(Note::info(format!(
             "column '{}' of {origin} matches no joint of '{}'; passed through unchanged",
-            table.headers[*column],
+            headers[*column],
             tree.name()
         )));
     }
@@ -149,7 +171,70 @@ pub fn fk_csv(config: &FkCsvConfig) -> Result<FkTable> {
             "{origin}: {reason}; the column is not used"
         )));
     }
-    let poses = poses(tree, tip, &rows)?;
-    let csv = append_poses(&table, &poses)?;
-    Ok(FkTable { poses, csv, notes })
+    notes
+}
+
+/// What [`fk_csv_stream`] did: the rows written and the notes of [`FkTable::notes`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FkStreamSummary {
+    /// Data rows written.
+    pub rows: usize,
+    /// Loader warnings and the columns not used, in order.
+    pub notes: Vec<Note>,
+}
+
+/// [`fk_csv`] in memory bounded by one row: writes to `output` the same bytes as
+/// [`FkTable::csv`]. The file is read twice: first every row is checked (so an error writes
+/// nothing), then each row is written with its pose as it is computed.
+pub fn fk_csv_stream(config: &FkCsvConfig, output: &mut dyn Write) -> Result<FkStreamSummary> {
+    let robot = config.robot.load()?;
+    let tree = robot.tree();
+    let tip = tree.link_id(&config.tip)?;
+    let origin = config.joints.display().to_string();
+    let scale = config.angle_unit.in_radians();
+    // First pass: every row checked, nothing written.
+    let mut records = open_csv_records(&config.joints)?;
+    let headers = records.headers().to_vec();
+    let mapping = ColumnMapping::new(&headers, tree);
+    let mut rows = 0;
+    while let Some((line, fields)) = records.next_record()? {
+        let q = mapping.configuration(tree, &headers, (line, &fields), scale, &origin)?;
+        tree.link_pose(tip, &q)?;
+        rows += 1;
+    }
+    // Second pass: each row written as it is computed.
+    let mut records = open_csv_records(&config.joints)?;
+    let mut writer = csv::Writer::from_writer(output);
+    writer
+        .write_record(headers.iter().map(String::as_str).chain(POSE_COLUMNS))
+        .map_err(output_error)?;
+    while let Some((line, fields)) = records.next_record()? {
+        let q = mapping.configuration(tree, &headers, (line, &fields), scale, &origin)?;
+        let pose = tree.link_pose(tip, &q)?;
+        writer
+            .write_record(fields.iter().cloned().chain(pose_fields(&pose)))
+            .map_err(output_error)?;
+    }
+    writer.flush().map_err(|source| Error::Io {
+        path: "output".into(),
+        source,
+    })?;
+    let mut notes = robot.notes();
+    notes.extend(mapping_notes(&mapping, &headers, tree, &origin));
+    Ok(FkStreamSummary { rows, notes })
+}
+
+/// A failed write of the output: an I/O error stays one (a closed pipe is recognisable).
+fn output_error(error: csv::Error) -> Error {
+    let message = error.to_string();
+    match error.into_kind() {
+        csv::ErrorKind::Io(source) => Error::Io {
+            path: "output".into(),
+            source,
+        },
+        _ => Error::InvalidData {
+            origin: "output".into(),
+            message,
+        },
+    }
 }

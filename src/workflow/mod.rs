@@ -33,7 +33,7 @@ pub use calibrate::{
     calibrate, CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, ParameterRow,
 };
 pub use export::{export, Export, ExportConfig};
-pub use fk::{fk, fk_csv, FkConfig, FkCsvConfig, FkTable};
+pub use fk::{fk, fk_csv, fk_csv_stream, FkConfig, FkCsvConfig, FkStreamSummary, FkTable};
 pub use model::{from_mcpc, inspect, to_mcpc, Inspection, McpcTableText, ModelConfig};
 pub use note::{Note, NoteLevel};
 pub use pair::{pair, PairConfig, Pairing};

@@ -429,14 +429,19 @@ fn scored_rows(
     chains: Option<&[Option<ChainPostures>]>,
 ) -> Vec<VerifyRow> {
     let tree = loaded.robot.tree();
+    let indices: Option<Vec<_>> = chains.map(|c| {
+        c.iter()
+            .map(|chain| chain.as_ref().map(ChainPostures::index))
+            .collect()
+    });
     set.measurements
         .iter()
         .zip(predicted)
         .enumerate()
         .map(|(i, (m, pose))| {
             let (position_mm, orientation_deg) = row_errors(m, pose);
-            let stratum: Option<Stratum> = chains.map(|c| match c.get(m.tool) {
-                Some(Some(chain)) => chain.stratum(&m.q),
+            let stratum: Option<Stratum> = indices.as_ref().map(|c| match c.get(m.tool) {
+                Some(Some(index)) => index.stratum(&m.q),
                 _ => Stratum::Outside,
             });
             VerifyRow {

@@ -1,0 +1,306 @@
+//! A joint-value CSV read record by record, in memory bounded by one record
+//! ([`CsvRecords`]), for `treecal fk` on files of any length. It accepts what
+//! [`super::parse_csv`] accepts and names the same lines: `#` comment lines and blank lines
+//! skipped, fields trimmed, line breaks `\n`, `\r\n` or a lone `\r`, a byte-order mark
+//! ignored, quoted fields (also over several lines).
+
+use crate::error::{Error, Result};
+use crate::limits::{
+    check_count, MAX_CSV_BYTES, MAX_CSV_COLUMNS, MAX_CSV_FIELD_BYTES, MAX_CSV_RECORD_BYTES,
+    MAX_CSV_ROWS,
+};
+use std::collections::VecDeque;
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+
+/// Opens the CSV file at `path` as a stream of records (its header read).
+pub fn open_csv_records(path: &Path) -> Result<CsvRecords<BufReader<std::fs::File>>> {
+    let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    CsvRecords::open(BufReader::new(file), &path.display().to_string())
+}
+
+/// The records of a CSV stream: [`Self::open`] reads the header, [`Self::next_record`] the
+/// data rows with their 1-based lines.
+pub struct CsvRecords<R> {
+    lines: PhysicalLines<R>,
+    origin: String,
+    headers: Vec<String>,
+    header_line: usize,
+    rows: usize,
+}
+
+impl<R: BufRead> CsvRecords<R> {
+    /// Reads up to and including the header row (the first record that is not blank): an
+    /// empty file or a repeated column name is an error naming `origin`.
+    pub fn open(reader: R, origin: &str) -> Result<Self> {
+        let mut records = Self {
+            lines: PhysicalLines::new(reader, origin),
+            origin: origin.to_owned(),
+            headers: Vec::new(),
+            header_line: 0,
+            rows: 0,
+        };
+        let (line, headers) = records.next_fields()?.ok_or_else(|| Error::InvalidData {
+            origin: origin.to_owned(),
+            message: "the file is empty; it needs a header row naming joints".into(),
+        })?;
+        let mut seen = std::collections::HashSet::with_capacity(headers.len());
+        for name in &headers {
+            if !seen.insert(name.as_str()) {
+                return Err(Error::InvalidData {
+                    origin: format!("{origin}:{line}"),
+                    message: format!("column '{name}' appears twice in the header"),
+                });
+            }
+        }
+        records.headers = headers;
+        records.header_line = line;
+        Ok(records)
+    }
+
+    /// The column names, trimmed.
+    pub fn headers(&self) -> &[String] {
+        &self.headers
+    }
+
+    /// The 1-based line of the header row.
+    pub fn header_line(&self) -> usize {
+        self.header_line
+    }
+
+    /// The next data row `(line, fields)`, `None` at the end; a row with another number of
+    /// fields than the header, or beyond [`MAX_CSV_ROWS`], is an error naming its line.
+    pub fn next_record(&mut self) -> Result<Option<(usize, Vec<String>)>> {
+        let Some((line, fields)) = self.next_fields()? else {
+            return Ok(None);
+        };
+        if fields.len() != self.headers.len() {
+            return Err(Error::InvalidData {
+                origin: format!("{}:{line}", self.origin),
+                message: format!(
+                    "row has {} fields but the header has {}",
+                    fields.len(),
+                    self.headers.len()
+                ),
+            });
+        }
+        self.rows += 1;
+        if self.rows > MAX_CSV_ROWS {
+            check_count(
+                self.rows,
+                MAX_CSV_ROWS,
+                &format!("{}:{line}", self.origin),
+                "data rows",
+            )?;
+        }
+        Ok(Some((line, fields)))
+    }
+
+    /// The next record that is neither blank nor a comment, as trimmed fields.
+    fn next_fields(&mut self) -> Result<Option<(usize, Vec<String>)>> {
+        while let Some((line, text)) = self.lines.next_record()? {
+            if text.first() == Some(&b'#') {
+                continue;
+            }
+            let fields = self.fields(line, &text)?;
+            if !fields.iter().all(String::is_empty) {
+                return Ok(Some((line, fields)));
+            }
+        }
+        Ok(None)
+    }
+
+    fn fields(&self, line: usize, text: &[u8]) -> Result<Vec<String>> {
+        let place = || format!("{}:{line}", self.origin);
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .from_reader(text);
+        let mut record = csv::StringRecord::new();
+        let read = reader
+            .read_record(&mut record)
+            .map_err(|e| Error::InvalidData {
+                origin: place(),
+                message: format!("not readable as CSV: {e}"),
+            })?;
+        if !read {
+            return Ok(Vec::new());
+        }
+        if record.len() > MAX_CSV_COLUMNS {
+            check_count(record.len(), MAX_CSV_COLUMNS, &place(), "columns")?;
+        }
+        if let Some(position) = record.iter().position(|f| f.len() > MAX_CSV_FIELD_BYTES) {
+            return Err(Error::InvalidData {
+                origin: place(),
+                message: format!(
+                    "field {} has {} bytes, more than the limit of {MAX_CSV_FIELD_BYTES} \
+                     (docs/file-formats.md, \"Limits\")",
+                    position + 1,
+                    record[position].len()
+                ),
+            });
+        }
+        Ok(record.iter().map(str::to_owned).collect())
+    }
+}
+
+/// Physical lines of a byte stream (`\n`, `\r\n` or a lone `\r` end one), joined into
+/// records while a quoted field is open; each line and record is bounded.
+struct PhysicalLines<R> {
+    reader: R,
+    origin: String,
+    /// The 1-based number of the next line to hand out.
+    line: usize,
+    /// Lines already split off the last read (a lone `\r` inside it).
+    pending: VecDeque<Vec<u8>>,
+    bytes: u64,
+    started: bool,
+}
+
+impl<R: BufRead> PhysicalLines<R> {
+    fn new(reader: R, origin: &str) -> Self {
+        Self {
+            reader,
+            origin: origin.to_owned(),
+            line: 1,
+            pending: VecDeque::new(),
+            bytes: 0,
+            started: false,
+        }
+    }
+
+    /// The next record's first line and its text (its lines joined by `\n` while a quote is
+    /// open), without the line break.
+    fn next_record(&mut self) -> Result<Option<(usize, Vec<u8>)>> {
+        let first = self.line;
+        let Some(mut text) = self.next_line()? else {
+            return Ok(None);
+        };
+        while quote_open(&text) {
+            let Some(more) = self.next_line()? else {
+                break;
+            };
+            text.push(b'\n');
+            text.extend_from_slice(&more);
+            if text.len() > MAX_CSV_RECORD_BYTES {
+                return Err(self.too_long(first, "record"));
+            }
+        }
+        Ok(Some((first, text)))
+    }
+
+    fn next_line(&mut self) -> Result<Option<Vec<u8>>> {
+        if self.pending.is_empty() && !self.read_more()? {
+            return Ok(None);
+        }
+        self.line += 1;
+        Ok(self.pending.pop_front())
+    }
+
+    /// Reads up to the next `\n` and splits what it read at lone `\r`s; false at the end.
+    fn read_more(&mut self) -> Result<bool> {
+        let mut buffer = Vec::new();
+        let limit = MAX_CSV_RECORD_BYTES as u64 + 1;
+        let read = <&mut R as std::io::Read>::take(&mut self.reader, limit)
+            .read_until(b'\n', &mut buffer)
+            .map_err(|source| Error::Io {
+                path: self.origin.clone().into(),
+                source,
+            })?;
+        if read == 0 {
+            return Ok(false);
+        }
+        self.bytes += read as u64;
+        if self.bytes > MAX_CSV_BYTES {
+            return Err(Error::InvalidData {
+                origin: self.origin.clone(),
+                message: format!(
+                    "the file is longer than the limit of {MAX_CSV_BYTES} bytes \
+                     (docs/file-formats.md, \"Limits\")"
+                ),
+            });
+        }
+        if buffer.len() as u64 >= limit && buffer.last() != Some(&b'\n') {
+            return Err(self.too_long(self.line, "line"));
+        }
+        if !self.started {
+            self.started = true;
+            if buffer.starts_with(b"\xEF\xBB\xBF") {
+                buffer.drain(..3);
+            }
+        }
+        if buffer.last() == Some(&b'\n') {
+            buffer.pop();
+            if buffer.last() == Some(&b'\r') {
+                buffer.pop();
+            }
+        }
+        self.pending
+            .extend(buffer.split(|&b| b == b'\r').map(<[u8]>::to_vec));
+        Ok(true)
+    }
+
+    fn too_long(&self, line: usize, what: &str) -> Error {
+        Error::InvalidData {
+            origin: format!("{}:{line}", self.origin),
+            message: format!(
+                "the {what} is longer than the limit of {MAX_CSV_RECORD_BYTES} bytes \
+                 (docs/file-formats.md, \"Limits\")"
+            ),
+        }
+    }
+}
+
+/// Whether `text` ends inside a quoted field (an odd number of `"`: an escaped `""` counts
+/// twice).
+fn quote_open(text: &[u8]) -> bool {
+    text.iter().filter(|&&b| b == b'"').count() % 2 == 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rows(text: &str) -> Result<(Vec<String>, Vec<(usize, Vec<String>)>)> {
+        let mut records = CsvRecords::open(text.as_bytes(), "t.csv")?;
+        let mut rows = Vec::new();
+        while let Some(row) = records.next_record()? {
+            rows.push(row);
+        }
+        Ok((records.headers().to_vec(), rows))
+    }
+
+    /// The streamed records equal the whole-text parser's, lines included.
+    #[test]
+    fn streamed_records_equal_the_whole_text_parser() {
+        for text in [
+            "a,b\n1,2\n3,4\n",
+            "\u{feff}# c\n\n a , b \r\n1,2\r\n\r\n# x\r\n3,4",
+            "a,b\r1,2\r\r3,4\r",
+            "a,\"b\nc\"\n1,\"2\n\"\n# comment\n3,4\n",
+            "a,b\n,\n1,2\n",
+        ] {
+            let table = super::super::parse_csv(text, "t.csv").unwrap();
+            let (headers, records) = rows(text).unwrap();
+            assert_eq!(headers, table.headers, "{text:?}");
+            assert_eq!(records, table.records, "{text:?}");
+        }
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let error = rows("a,b\n1,2\n1\n").unwrap_err().to_string();
+        assert!(
+            error.contains("t.csv:3") && error.contains("1 fields"),
+            "{error}"
+        );
+        let error = rows("# only\n\n").unwrap_err().to_string();
+        assert!(error.contains("empty"), "{error}");
+        let error = rows("a,a\n").unwrap_err().to_string();
+        assert!(error.contains("appears twice"), "{error}");
+    }
+}
