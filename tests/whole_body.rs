@@ -86,7 +86,6 @@ fn errors(calibrated: &Path, truth: &KinematicTree, fresh: &[Vec<f64>]) -> Vec<(
 }
 
 #[test]
-#[ignore = "issue 31, not done: from NAO's sole the fit stops at 15 mm RMS (rank 116 of 120: the root's placement between the chains is a gauge freedom the first frames' parameters only partly span; not converged in 50 iterations)"]
 fn a_humanoid_calibrates_from_its_sole() {
     let path = nao();
     let original = std::fs::read_to_string(&path).unwrap();
@@ -226,7 +225,6 @@ links:
 /// `simulate`, `check` and `plan` on the repository's humanoid standing on its left foot,
 /// with tools on both hands, the head and the right foot.
 #[test]
-#[ignore = "issue 31, not done: simulate from the humanoid's foot leaves 15–30 mm (rigid) and the compensated fit diverges"]
 fn simulate_check_and_plan_from_a_foot() {
     use treecal::workflow::check::{check, CheckConfig};
     use treecal::workflow::plan::{plan, PlanConfig};
