@@ -20,7 +20,7 @@
 //! such). See `docs/mcpc.md`, "Reference link".
 
 use crate::kinematics::{McpcModel, ParameterOwner};
-use crate::tree::Actuation;
+use crate::tree::{Actuation, KinematicTree};
 use nalgebra::DMatrix;
 
 /// Configurations the structural null space is computed at.
@@ -139,4 +139,34 @@ fn structural_null_space(model: &McpcModel, free: &[usize]) -> DMatrix<f64> {
         basis.set_column(c, &v_t.row(i).transpose());
     }
     basis
+}
+
+/// What a reference link hides, in words, for `check`, `plan`, `simulate` and the verdict
+/// notes (`None` without a reference chain): the measurement frame absorbs the reference link's
+/// own placement, and the root link's placement between the chains is a gauge freedom fixed by
+/// the named parameters keeping their URDF values.
+pub fn gauge_summary(model: &McpcModel, tree: &KinematicTree) -> Option<String> {
+    let reference = model.reference()?;
+    if model.reference_chain().is_empty() {
+        return None;
+    }
+    let all: Vec<usize> = (0..model.parameter_count()).collect();
+    let kept = reference_gauge(model, &all);
+    let names: Vec<String> = kept
+        .iter()
+        .map(|&p| model.parameter_name(tree, p))
+        .collect();
+    let link = &tree.link(reference.link).name;
+    let root = &tree.link(tree.root()).name;
+    let mut text = format!(
+        "measured from '{link}', the measurement frame's six parameters are fitted with the geometry (they absorb where '{link}' sits after its last joint, which no measurement relative to it can see)"
+    );
+    if !names.is_empty() {
+        text += &format!(
+            "; where the root link '{root}' sits between the chains is invisible too ({} directions of the parameters change no pose relative to '{link}'), so {} keep their URDF values",
+            names.len(),
+            names.join(", ")
+        );
+    }
+    Some(text)
 }
