@@ -210,6 +210,43 @@ fn a_humanoid_calibrates_from_its_sole() {
             "{tool}: {orientation}°"
         );
     }
+    // `export` rebuilds the same model from params.yaml when told the reference link.
+    let exported = dir.path().join("exported.urdf");
+    let run = treecal(&[
+        "export",
+        "--robot",
+        path_str(&path),
+        "--params",
+        path_str(&out.join("params.yaml")),
+        "--tools",
+        &TOOLS.join(","),
+        "--reference-link",
+        REFERENCE,
+        "--out",
+        path_str(&exported),
+    ]);
+    assert_success(&run, "export from the sole");
+    for (tool, (position, _)) in TOOLS.iter().zip(errors(&exported, &true_tree, &fresh)) {
+        assert!(position <= 0.05, "export: {tool}: {position} mm");
+    }
+    // Stiffness identification from a sole is refused with what to do.
+    let run = treecal(&[
+        "calibrate",
+        "--robot",
+        path_str(&path),
+        "--measurements",
+        path_str(&csv),
+        "--reference-link",
+        REFERENCE,
+        "--identify-stiffness",
+        "--out",
+        path_str(&dir.path().join("stiff")),
+    ]);
+    assert!(!run.success, "{run}");
+    assert!(
+        run.stderr.contains("needs the URDF root") && run.stderr.contains("--stiffness"),
+        "{run}"
+    );
     eprintln!("NAO from its left sole:\n{}", table.join("\n"));
 }
 
