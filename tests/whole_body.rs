@@ -86,7 +86,6 @@ fn errors(calibrated: &Path, truth: &KinematicTree, fresh: &[Vec<f64>]) -> Vec<(
 }
 
 #[test]
-#[ignore = "issue 31, not done: from NAO's sole the fit stops at 15 mm RMS (rank 116 of 120: the root's placement between the chains is a gauge freedom the first frames' parameters only partly span; not converged in 50 iterations)"]
 fn a_humanoid_calibrates_from_its_sole() {
     let path = nao();
     let original = std::fs::read_to_string(&path).unwrap();
@@ -211,6 +210,43 @@ fn a_humanoid_calibrates_from_its_sole() {
             "{tool}: {orientation}°"
         );
     }
+    // `export` rebuilds the same model from params.yaml when told the reference link.
+    let exported = dir.path().join("exported.urdf");
+    let run = treecal(&[
+        "export",
+        "--robot",
+        path_str(&path),
+        "--params",
+        path_str(&out.join("params.yaml")),
+        "--tools",
+        &TOOLS.join(","),
+        "--reference-link",
+        REFERENCE,
+        "--out",
+        path_str(&exported),
+    ]);
+    assert_success(&run, "export from the sole");
+    for (tool, (position, _)) in TOOLS.iter().zip(errors(&exported, &true_tree, &fresh)) {
+        assert!(position <= 0.05, "export: {tool}: {position} mm");
+    }
+    // Stiffness identification from a sole is refused with what to do.
+    let run = treecal(&[
+        "calibrate",
+        "--robot",
+        path_str(&path),
+        "--measurements",
+        path_str(&csv),
+        "--reference-link",
+        REFERENCE,
+        "--identify-stiffness",
+        "--out",
+        path_str(&dir.path().join("stiff")),
+    ]);
+    assert!(!run.success, "{run}");
+    assert!(
+        run.stderr.contains("needs the URDF root") && run.stderr.contains("--stiffness"),
+        "{run}"
+    );
     eprintln!("NAO from its left sole:\n{}", table.join("\n"));
 }
 
@@ -223,18 +259,43 @@ links:
   default: {ea_n: 4.420e7, ei_y_nm2: 2.485e4, ei_z_nm2: 2.485e4, gi_p_nm2: 1.846e4}
 ";
 
+/// The same humanoid a million times stiffer: rigid for every purpose (`simulate` needs a
+/// stiffness file).
+const RIGID_HUMANOID_STIFFNESS: &str = "gravity_m_per_s2: [0, 0, -9.81]
+self_weight: true
+joints:
+  default: {bending_nm_per_rad: 5e9, torsion_nm_per_rad: 5e9}
+links:
+  default: {ea_n: 4.420e13, ei_y_nm2: 2.485e10, ei_z_nm2: 2.485e10, gi_p_nm2: 1.846e10}
+";
+
 /// `simulate`, `check` and `plan` on the repository's humanoid standing on its left foot,
-/// with tools on both hands, the head and the right foot.
+/// with tools on both hands, the head and the right foot: a rigid truth (the staged plan)
+/// is recovered to the tracker's noise floor.
 #[test]
-#[ignore = "issue 31, not done: simulate from the humanoid's foot leaves 15–30 mm (rigid) and the compensated fit diverges"]
 fn simulate_check_and_plan_from_a_foot() {
+    simulate_check_and_plan(RIGID_HUMANOID_STIFFNESS, 0.1);
+}
+
+/// The same with the paper's compliant joints: the compensated fit from the foot is not at the
+/// noise floor yet (0.8–1.5 mm staged, 0.09–0.16 mm simultaneous; from the root 0.02–0.04 mm).
+/// The deflection model is not invariant under the root's gauge freedom: the root link's mass
+/// and the loads it passes on are placed by the six root-side parameters kept at their URDF
+/// values, which the truth perturbs (docs/mcpc.md, "Reference link").
+#[test]
+#[ignore = "issue 31, not done: compensated fit from a foot 0.8–1.5 mm (the flexibility model depends on the root's gauge)"]
+fn simulate_from_a_foot_with_compliant_joints() {
+    simulate_check_and_plan(HUMANOID_STIFFNESS, 0.1);
+}
+
+fn simulate_check_and_plan(stiffness_yaml: &str, limit_mm: f64) {
     use treecal::workflow::check::{check, CheckConfig};
     use treecal::workflow::plan::{plan, PlanConfig};
     use treecal::workflow::simulate::{simulate, SimulateConfig};
     use treecal::workflow::source::{RobotSource, StiffnessSource};
     let dir = tempfile::tempdir().unwrap();
     let stiffness = dir.path().join("stiffness.yaml");
-    std::fs::write(&stiffness, HUMANOID_STIFFNESS).unwrap();
+    std::fs::write(&stiffness, stiffness_yaml).unwrap();
     let humanoid = RobotSource::File(robot("humanoid/humanoid.urdf"));
     let tools: Vec<String> = ["l_hand", "r_hand", "head", "r_foot"]
         .map(str::to_owned)
@@ -270,7 +331,7 @@ fn simulate_check_and_plan_from_a_foot() {
         ));
         // The simulated tracker's noise floor is about 0.04 mm (docs/simulation.md).
         assert!(
-            compensated.mean < 0.1,
+            compensated.mean < limit_mm,
             "{}: {} mm after compensation\n{}",
             arm.arm,
             compensated.mean,
@@ -279,11 +340,19 @@ fn simulate_check_and_plan_from_a_foot() {
     }
     assert_eq!(table.len(), 4);
     eprintln!("humanoid from its left foot:\n{}", table.join("\n"));
-    for joint in ["l_ankle_roll", "l_hip_yaw", "neck_pitch", "r_knee"] {
+    // The simulate report has no parameter table: the notes name the branches (legs and
+    // neck calibrated) and the support leg's joints crossed from the foot.
+    let notes: Vec<String> = outcome.notes.iter().map(|n| n.to_string()).collect();
+    for expected in [
+        "coupled 'coupled' (6 joints)",
+        "head 'head'",
+        "leg 'r_foot' (6 joints)",
+        "l_ankle_roll",
+        "l_hip_yaw",
+    ] {
         assert!(
-            outcome.markdown.contains(joint),
-            "{joint}\n{}",
-            outcome.markdown
+            notes.iter().any(|n| n.contains(expected)),
+            "{expected}\n{notes:?}"
         );
     }
 

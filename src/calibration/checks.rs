@@ -34,11 +34,16 @@ pub const VALIDATION_WARNING: f64 = 3.0;
 /// The same ratio above this is a failure.
 pub const VALIDATION_FAILED: f64 = 30.0;
 
-/// Every check of a finished calibration, in order: the position-only note; per stage
+/// Every check of a finished calibration, in order: the position-only and reference-gauge
+/// notes; per stage
 /// redundancy, σ̂, rank, conditioning (these two not after a failed σ̂) and convergence; then
 /// the validation checks.
 pub fn assess(run: &CalibrationRun, tree: &KinematicTree) -> Vec<Finding> {
     let mut findings: Vec<Finding> = position_only(run).into_iter().collect();
+    findings.extend(
+        super::gauge::gauge_summary(&run.report.model, tree)
+            .map(|text| Finding::note("reference-gauge", text)),
+    );
     for stage in &run.report.stages {
         let scale = residual_scale(stage);
         // Residuals of a mistake (units, swapped tools) wreck the linearisation too: rank and

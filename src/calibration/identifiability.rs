@@ -512,6 +512,9 @@ pub fn analyse(
             (model.clone(), rows.to_vec(), free, names, 0)
         }
     };
+    // From a reference link the root's placement is a gauge freedom, fixed as calibrate does.
+    let gauge = super::gauge::reference_gauge(&analysed, &free);
+    let free: Vec<usize> = free.into_iter().filter(|p| !gauge.contains(p)).collect();
     let weighted = weighted_jacobian(&analysed, &analysed_rows, observation, &free, options)?;
     let scales = column_scales(&weighted);
     let (values, v_t) = singular_decomposition(scale_columns(&weighted, &scales));

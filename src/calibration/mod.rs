@@ -5,6 +5,8 @@
 //! - [`identifiability`]: rank, condition number, observability indices O1–O5 and the
 //!   unidentifiable parameter combinations of a set of configurations, before measuring.
 //! - [`frame`]: which measurement frame (root, fitted, known), and the unit-scale check.
+//! - [`gauge`]: the root's placement, invisible from a reference link, and the parameters
+//!   that fix it.
 //! - [`initial_guess`](mod@initial_guess): closed-form measurement frame and tool frames to start from.
 //! - [`run`]: a calibration from measured data end to end (hold-out, initial guess, plan,
 //!   uncertainties, errors before and after per arm).
@@ -29,6 +31,7 @@ pub mod baseline;
 pub mod checks;
 pub mod columns;
 pub mod frame;
+pub mod gauge;
 mod hold_out;
 pub mod identifiability;
 pub mod initial_guess;

@@ -1,6 +1,7 @@
 //! Calibration plans: which parameters are identified from which measurements, in which order
 //! (paper section 5.3.1). A plan is data; the paper's staging is the [`Plan::staged`] preset.
 
+use super::gauge::reference_gauge;
 use super::options::IdentificationOptions;
 use super::predictor::{Deflected, DeflectedWithDerivative, Rigid};
 use super::solver::{identify, IdentificationReport};
@@ -94,6 +95,12 @@ pub struct StageReport {
     /// cannot see them: the orientation (α, β, γ) of a tool measured by positions only. They
     /// keep their starting values ([`position_only_orientations`]).
     pub kept: Vec<usize>,
+    /// Parameters (same indexing) kept at their starting values to fix the root's placement,
+    /// which a reference link other than the root leaves free ([`reference_gauge`]).
+    pub gauge: Vec<usize>,
+    /// Whether the stage's own model has the six measurement-frame parameters last (a
+    /// coupled stage measured from a reference link).
+    pub frame_parameters: bool,
 }
 
 impl StageReport {
@@ -102,10 +109,11 @@ impl StageReport {
     /// the torso frames first and then six parameters per locked-arm tool.
     pub fn full_model_parameters(&self) -> usize {
         if self.locked_tools > 0 {
+            let frame = if self.frame_parameters { 6 } else { 0 };
             self.identification
                 .parameters
                 .len()
-                .saturating_sub(6 * self.locked_tools)
+                .saturating_sub(6 * self.locked_tools + frame)
         } else {
             usize::MAX
         }
@@ -292,10 +300,12 @@ pub fn calibrate(
                             .iter()
                             .map(|f| f.kind.parameter_count())
                             .sum();
-                        let free: Vec<usize> = (0..stage_model.parameter_count())
+                        let mut free: Vec<usize> = (0..stage_model.parameter_count())
                             .filter(|p| !kept.contains(p))
                             .filter(|p| !(*p < shared && options.frozen.contains(p)))
                             .collect();
+                        let gauge = reference_gauge(&stage_model, &free);
+                        free.retain(|p| !gauge.contains(p));
                         let reduced = IdentificationOptions {
                             prior: options.prior.as_ref().map(|prior| {
                                 prior.for_reduced_model(shared, stage_model.parameter_count())
@@ -323,6 +333,11 @@ pub fn calibrate(
                         }
                         current.set_parameters(&values)?;
                         stage_model.set_parameters(&identification.parameters)?;
+                        if stage_model.has_frame_parameters() {
+                            // From a reference link the stage fits the measurement frame too.
+                            current.set_measurement_frame(&stage_model.world_from_base());
+                        }
+                        let frame_parameters = stage_model.has_frame_parameters();
                         previous_coupled[index] = Some((stage_model, stage_data, locked_tools));
                         let change = values
                             .iter()
@@ -340,19 +355,23 @@ pub fn calibrate(
                                 name: stage.name.clone(),
                                 measurements: data.len(),
                                 locked_tools,
+                                frame_parameters,
                                 identification,
                                 kept,
+                                gauge,
                             };
                         }
                     }
                 }
                 ParameterSet::Arms | ParameterSet::All => {
                     let kept = position_only_orientations(&current, data);
-                    let free: Vec<usize> =
+                    let mut free: Vec<usize> =
                         stage_parameters(&current, &coupled_frames, stage.parameters)
                             .into_iter()
                             .filter(|p| !kept.contains(p) && !options.frozen.contains(p))
                             .collect();
+                    let gauge = reference_gauge(&current, &free);
+                    free.retain(|p| !gauge.contains(p));
                     let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
                         .as_ref()
                         .map(|o| selected.iter().map(|&i| o[i]).collect());
@@ -380,8 +399,10 @@ pub fn calibrate(
                         name: stage.name.clone(),
                         measurements: data.len(),
                         locked_tools: 0,
+                        frame_parameters: false,
                         identification,
                         kept,
+                        gauge,
                     }
                 }
             };

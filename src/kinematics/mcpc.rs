@@ -721,6 +721,25 @@ impl McpcModel {
         }
     }
 
+    /// Moves the measurement frame to `world_from_base` through its parameters (relative to
+    /// the frame they were created at, unlike [`Self::set_world_from_base`], which restarts
+    /// them at zero); without frame parameters, sets the constant frame.
+    pub fn set_measurement_frame(&mut self, world_from_base: &Pose) {
+        let Some(parameters) = self.frame_parameters.as_mut() else {
+            self.set_world_from_base(world_from_base);
+            return;
+        };
+        let target = Transform::from_pose(world_from_base);
+        let relative = target.rotation * parameters.reference.rotation.transpose();
+        // relative = Rx(a)·Ry(b)·Rz(c): b = asin(r02), a = atan2(−r12, r22), c = atan2(−r01, r00).
+        let b = relative[(0, 2)].clamp(-1.0, 1.0).asin();
+        let a = (-relative[(1, 2)]).atan2(relative[(2, 2)]);
+        let c = (-relative[(0, 1)]).atan2(relative[(0, 0)]);
+        let t = target.translation - parameters.reference.translation;
+        parameters.values = [a, b, c, t.x, t.y, t.z];
+        self.world_from_base = parameters.effective();
+    }
+
     /// [`Self::world_from_base`] in the fast form.
     pub(crate) fn world_from_base_transform(&self) -> &Transform {
         &self.world_from_base

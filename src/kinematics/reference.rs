@@ -60,6 +60,14 @@ impl McpcModel {
     /// Fixes `reference` in the world instead of the root (`None`: the root). Forward
     /// kinematics and Jacobians are then relative to the reference link, whose pose in the
     /// measurement frame is [`McpcModel::world_from_base`].
+    ///
+    /// With a reference link behind a movable joint the measurement frame becomes six parameters
+    /// ([`McpcModel::with_frame_parameters`], appended last): the reference
+    /// link's own placement after its last joint is not a parameter, so the world-fixed frame
+    /// is what absorbs it (the reference end of the chain plays the part a tool frame plays
+    /// at a tool). Without it the ankle axis of a sole would be pinned where the closed-form
+    /// frame put it. The root link's placement between the chains is then a six-dimensional
+    /// gauge freedom, which [`crate::calibration::gauge`] fixes.
     pub fn set_reference(&mut self, reference: Option<ReferenceLink>) -> Result<()> {
         let Some(reference) = reference else {
             self.reference = None;
@@ -80,6 +88,9 @@ impl McpcModel {
             current = self.frames()[frame].parent;
         }
         chain.reverse();
+        if !chain.is_empty() && self.frame_parameters.is_none() {
+            *self = self.with_frame_parameters();
+        }
         self.reference = Some(ReferenceChain {
             last_from_link: Transform::from_pose(&reference.last_from_link),
             reference,

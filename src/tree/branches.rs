@@ -237,7 +237,7 @@ impl Branches {
         };
         let hidden = names(&tree.path_from_root(shared));
         let mut text = format!(
-            "reference link '{name}': every measurement is relative to it, so its own placement is absorbed by the world-fixed measurement frame (not a parameter)"
+            "reference link '{name}': every measurement is relative to it, so its own placement is absorbed by the world-fixed measurement frame"
         );
         if !hidden.is_empty() {
             text += &format!(

@@ -88,7 +88,19 @@ impl Loaded {
             config.reference_link.as_deref(),
             &config.measurements,
         )?;
-        let nominal = McpcModel::from_tree(robot.tree(), &branches)?;
+        let tree = robot.tree();
+        if config.identify_stiffness && branches.reference != tree.root() {
+            return Err(invalid(
+                "--identify-stiffness",
+                format!(
+                    "stiffness identification needs the URDF root '{}' as the reference link: the flexibility model's loads flow to the root, not into the sole '{}' the robot stands on, so compliances fitted from it would be wrong; calibrate from '{}' with a given --stiffness file (its deflections are then approximate, docs/mcpc.md \"Reference link\"), or identify the stiffness from data measured relative to the root",
+                    tree.link(tree.root()).name,
+                    tree.link(branches.reference).name,
+                    tree.link(branches.reference).name,
+                ),
+            ));
+        }
+        let nominal = McpcModel::from_tree(tree, &branches)?;
         Ok(Self {
             robot,
             branches,

@@ -174,6 +174,7 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
     let model = McpcModel::from_tree(tree, &branches)?;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
+    notes.extend(crate::calibration::gauge::gauge_summary(&model, tree).map(Note::info));
     let requested = requested_plan(&config.plan)?;
     let rows = rows(
         config,

@@ -21,6 +21,9 @@ pub struct ExportConfig {
     pub parameters: PathBuf,
     /// Tool links ending the arms: the ones the parameters were calibrated with.
     pub tools: Option<Vec<String>>,
+    /// The link the parameters were calibrated from (`None`: the URDF root). Needed when it is
+    /// not the root: the paths from it (up a supporting leg) are part of the model only then.
+    pub reference_link: Option<String>,
     /// Add a fixed `<tool>_calibrated` link where a tool origin cannot be expressed by its
     /// joint (docs/export.md) instead of failing.
     pub add_tool_links: bool,
@@ -54,7 +57,11 @@ pub fn export(config: &ExportConfig) -> Result<Export> {
         tools => tools.clone(),
     };
     let tree = robot.tree();
-    let branches = branches(&robot.import, tools.as_deref(), None)?;
+    let branches = branches(
+        &robot.import,
+        tools.as_deref(),
+        config.reference_link.as_deref(),
+    )?;
     let mut model = McpcModel::from_tree(tree, &branches)?;
     let parameters = read_parameters(&config.parameters, tree, &model)?;
     // A file for another branch selection misses every parameter: name a few, count the rest.

@@ -166,6 +166,7 @@ pub fn plan_with_progress(config: &PlanConfig, progress: ProgressFn<'_>) -> Resu
     let model = McpcModel::from_tree(tree, &branches)?;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
+    notes.extend(crate::calibration::gauge::gauge_summary(&model, tree).map(Note::info));
     let checker = collision_checker(
         &config.robot,
         tree,

@@ -221,6 +221,7 @@ pub fn simulate_with_progress(
     let nominal = McpcModel::from_tree(tree, &branches)?;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
+    notes.extend(crate::calibration::gauge::gauge_summary(&nominal, tree).map(Note::info));
     let stiffness = stiffness(config, tree, &nominal)?;
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
     let model_flexibility = truth_flexibility.scaled(1.0 / config.model_stiffness_scale)?;

@@ -478,6 +478,11 @@ pub struct ExportArgs {
     /// the parameters were calibrated with.
     #[arg(long, value_delimiter = ',', value_name = "LINK,LINK")]
     pub tools: Option<Vec<String>>,
+    /// The reference link the parameters were calibrated from (`calibrate --reference-link`):
+    /// without it the joints up the supporting leg are not in the model and keep their URDF
+    /// values [default: the URDF root].
+    #[arg(long, value_name = "LINK")]
+    pub reference_link: Option<String>,
     /// The URDF file to write (written atomically; `--output` is accepted too).
     #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.urdf")]
     pub output: PathBuf,

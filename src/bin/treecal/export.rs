@@ -16,6 +16,7 @@ pub fn run(args: ExportArgs) -> Result<()> {
         robot: RobotSource::from_path(args.robot.clone()),
         parameters: args.params.clone(),
         tools: args.tools.clone(),
+        reference_link: args.reference_link.clone(),
         add_tool_links: args.add_tool_links,
     })?;
     for note in &exported.notes {
