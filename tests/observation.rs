@@ -231,6 +231,7 @@ fn noise_free_offsets_frames_and_norms() {
     let noise = Noise {
         position: 1e-4,
         rotation: 1e-3,
+        ..Noise::default()
     };
     for template in [
         Observation::Position(Vec3::zeros()),
