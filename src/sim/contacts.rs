@@ -100,8 +100,12 @@ pub struct ContactScene {
     /// Nuisance values the fit frees (the face offset, which aliases the plane height exactly,
     /// and the known bar length are held).
     pub free_nuisance: Vec<usize>,
-    /// One measurement per contact configuration.
+    /// One measurement per contact configuration (configurations as recorded).
     pub measurements: Vec<Measurement>,
+    /// The same contacts at their exact configurations (no encoder noise).
+    pub exact: Vec<Measurement>,
+    /// Held-out contacts of every kind at their exact configurations (validation).
+    pub validation: Vec<Measurement>,
 }
 
 /// The contacts of `kinds` made by `truth` (tools 0 and 1), `per_kind` configurations each.
@@ -149,7 +153,8 @@ pub fn contact_scene(
             0.05 + rng.random_range(-0.02..0.02),
         ]
     };
-    let points: Vec<usize> = (0..tools.min(2))
+    let needs_points = settings.kinds.iter().any(|k| *k != ContactChoice::Flush);
+    let points: Vec<usize> = (0..if needs_points { tools.min(2) } else { 0 })
         .map(|t| {
             let values = point(rng);
             add(
@@ -162,7 +167,8 @@ pub fn contact_scene(
         })
         .collect();
     let limits = limits_of(tree);
-    let mut measurements = Vec::new();
+    let (mut measurements, mut exact, mut validation) = (Vec::new(), Vec::new(), Vec::new());
+    let held_out = (settings.per_kind / 4).max(5);
     for &kind in &settings.kinds {
         let seed = random_configuration(&limits, rng);
         let contact = match kind {
@@ -255,7 +261,7 @@ pub fn contact_scene(
                 })?,
             _ => seed,
         };
-        for _ in 0..settings.per_kind {
+        for index in 0..settings.per_kind + held_out {
             let q = (0..100)
                 .find_map(|_| {
                     let start: Vec<f64> = seed
@@ -278,20 +284,28 @@ pub fn contact_scene(
                     v + settings.encoder_sigma * n
                 })
                 .collect();
-            measurements.push(Measurement {
+            let row = |q: Vec<f64>| Measurement {
                 tool: 0,
-                q: recorded,
+                q,
                 observation: Observation::Contact(contact),
                 stage: None,
                 payload: None,
                 session: None,
-            });
+            };
+            if index < settings.per_kind {
+                measurements.push(row(recorded));
+                exact.push(row(q));
+            } else {
+                validation.push(row(q));
+            }
         }
     }
     Ok(ContactScene {
         nuisance,
         free_nuisance: free,
         measurements,
+        exact,
+        validation,
     })
 }
 
@@ -391,7 +405,14 @@ pub struct ContactTrial {
     pub free: Vec<usize>,
     /// Rank of the scaled Jacobian at the solution.
     pub rank: usize,
-    /// Largest error (m or rad) of the estimate's part in the observable subspace.
+    /// Largest residual (m or rad) of held-out contacts made by the true robot, predicted by
+    /// the noise-free fit (what the contacts determine: 0 when the fit recovered it).
+    pub noise_free_held_out: f64,
+    /// The same for the fit with encoder noise.
+    pub held_out: f64,
+    /// Largest error (m or rad) in the observable subspace of the noisy data's fit started
+    /// from the noise-free fit's solution (the truth's representative along the directions
+    /// the contacts cannot see), against that solution.
     pub observable_error: f64,
     /// `√(eᵀ C⁺ e / rank)` of the observable error against the fit's covariance (1: as
     /// predicted).
@@ -450,9 +471,18 @@ pub fn run_contact_trial(
         tilt_sigma: sigma,
         ..IdentificationOptions::default()
     };
-    let report = identify_with_nuisance(
-        nominal,
-        &start,
+    let fit = |measurements: &[Measurement]| {
+        identify_with_nuisance(nominal, &start, measurements, None, &Rigid, &free, &options)
+    };
+    let exact = fit(&scene.exact)?;
+    let report = fit(&scene.measurements)?;
+    // The noise's effect alone: the noisy data fitted from the noise-free solution (minimum-norm
+    // steps then move in the observable directions only, where the covariance applies).
+    let mut reference_model = nominal.clone();
+    reference_model.set_parameters(&exact.parameters)?;
+    let noisy = identify_with_nuisance(
+        &reference_model,
+        &exact.nuisance,
         &scene.measurements,
         None,
         &Rigid,
@@ -460,37 +490,38 @@ pub fn run_contact_trial(
         &options,
     )?;
     let mut estimate = nominal.clone();
-    estimate.set_parameters(&report.parameters)?;
+    estimate.set_parameters(&noisy.parameters)?;
     let (jacobian, _) = weighted_jacobian(
         &estimate,
-        &report.nuisance,
+        &noisy.nuisance,
         &scene.measurements,
         &Rigid,
         &free,
         &options,
     )?;
-    let truth_values: Vec<f64> = truth
-        .parameters()
-        .into_iter()
-        .chain(scene.nuisance.values())
-        .collect();
-    let estimate_values: Vec<f64> = report
-        .parameters
-        .iter()
-        .copied()
-        .chain(report.nuisance.values())
-        .collect();
+    let values = |r: &IdentificationReport| -> Vec<f64> {
+        r.parameters
+            .iter()
+            .copied()
+            .chain(r.nuisance.values())
+            .collect()
+    };
+    let (reference, estimated) = (values(&exact), values(&noisy));
     let error = DVector::from_iterator(
         free.len(),
-        free.iter().map(|&p| estimate_values[p] - truth_values[p]),
+        free.iter().map(|&p| estimated[p] - reference[p]),
     );
     let (rank, observable_error, consistency) = observable_part(
         &jacobian,
         &error,
         options.rank_tolerance,
-        report.residual_scale,
+        noisy.residual_scale,
     );
+    let noise_free_held_out = held_out_residual(nominal, &exact, &scene.validation)?;
+    let held_out = held_out_residual(nominal, &report, &scene.validation)?;
     Ok(ContactTrial {
+        noise_free_held_out,
+        held_out,
         report,
         free,
         rank,
@@ -539,4 +570,24 @@ fn observable_part(
     }
     let observable = projected.component_div(&scales).amax();
     (rank, observable, (chi / rank.max(1) as f64).sqrt())
+}
+
+/// The largest residual of the held-out contacts `validation` under the fitted robot and
+/// nuisance of `report` (`nominal` gives the model's structure).
+pub fn held_out_residual(
+    nominal: &McpcModel,
+    report: &IdentificationReport,
+    validation: &[Measurement],
+) -> Result<f64> {
+    let mut model = nominal.clone();
+    model.set_parameters(&report.parameters)?;
+    let mut largest: f64 = 0.0;
+    for m in validation {
+        if let Observation::Contact(contact) = &m.observation {
+            for value in violation(&model, &report.nuisance, contact, &m.q)? {
+                largest = largest.max(value.abs());
+            }
+        }
+    }
+    Ok(largest)
 }
