@@ -140,7 +140,7 @@ fn markdown(
     for (k, t) in trials.iter().enumerate() {
         let _ = writeln!(
             text,
-            "| {} | {} | {} | {} | {:.2e} | {:.2e} | {:.2e} | {:.2} | {:.3} |",
+            "| {} | {} | {} | {} | {:.2e} | {:.2e} | {:.2e} | {} | {:.3} |",
             k + 1,
             t.report.rows,
             t.free.len(),
@@ -148,14 +148,18 @@ fn markdown(
             t.noise_free_held_out,
             t.held_out,
             t.observable_error,
-            t.consistency,
+            if settings.encoder_sigma > 0.0 {
+                format!("{:.2}", t.consistency)
+            } else {
+                "—".to_owned()
+            },
             t.report.residual_scale,
         );
     }
     text.push_str(
         "\nResiduals are heights, gaps and lengths in m and tilts in rad. \"error / \
          covariance\" is √(eᵀC⁺e / rank) of the noisy fit's error in the observable subspace \
-         against its covariance C (1: as predicted; NaN without noise).\n",
+         against its covariance C (1: as predicted; — without noise).\n",
     );
     text
 }

@@ -33,7 +33,9 @@ fn observations(
     if instruments.len() > 1 || (!instruments.is_empty() && !contacts.is_empty()) {
         return Err(treecal::Error::InvalidData {
             origin: "--observation".into(),
-            message: "give one instrument (tracker, camera, mixed, rigid-tracker) or a list of                       contacts (flush, plane, touch, bar); contacts mixed with an instrument                       are not simulated yet"
+            message: "give one instrument (tracker, camera, mixed, rigid-tracker) or a list \
+                      of contacts (flush, plane, touch, bar); contacts mixed with an \
+                      instrument are not simulated yet"
                 .into(),
         });
     }
