@@ -12,14 +12,114 @@ pub enum Observation {
     Pose(Pose),
     /// The position of one target fixed on the tool (a single laser-tracker reflector).
     Position(Vec3),
+    /// A contact: the tool's face flush with a plane, its contact point on a plane, touching
+    /// another tool's contact point, or a known or fitted distance from it. No instrument
+    /// reading: the contact itself is the measurement (its measured value is zero).
+    Contact(Contact),
 }
 
 impl Observation {
-    /// Rows this observation contributes to the identification problem (6 or 3).
+    /// Rows this observation contributes to the identification problem (6, 3, or a
+    /// contact's 3 or 1).
     pub fn rows(&self) -> usize {
         match self {
             Observation::Pose(_) => 6,
             Observation::Position(_) => 3,
+            Observation::Contact(contact) => contact.rows(),
+        }
+    }
+}
+
+/// A plane a contact lies in: a nuisance block of three values (its height `h` (m) along its
+/// normal and two tilts `a`, `b` (rad) about its nominal frame's x and y axes), about a
+/// nominal frame. The plane is `{x : n·(x − o) = h}` with `n` the z axis of
+/// `nominal·Rx(a)·Ry(b)` and `o` the nominal origin (all in the measurement frame: the
+/// reference link's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactPlane {
+    /// The nuisance block holding `[h, a, b]`.
+    pub block: usize,
+    /// The nominal plane frame (its z axis the nominal normal).
+    pub nominal: Pose,
+}
+
+/// A contact face on a tool: a nuisance block of three values (its offset `d` (m) along its
+/// normal and two tilts `a`, `b` (rad) about its nominal frame's x and y axes) about a
+/// nominal frame in the tool frame. The face's normal is the z axis `m` of
+/// `nominal·Rx(a)·Ry(b)`, its point `f = o + d·m` (tool frame); its in-plane position and
+/// yaw carry nothing for a flush contact and are not parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactFace {
+    /// The nuisance block holding `[d, a, b]`.
+    pub block: usize,
+    /// The nominal face frame in the tool frame.
+    pub nominal: Pose,
+}
+
+/// One contact (the measured tool is [`Measurement::tool`]); contact points are nuisance
+/// blocks of three values (x, y, z (m) in their tool's frame), a bar's length a block of one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Contact {
+    /// The tool's face lies flush in a plane: 3 equations (height, 2 tilts).
+    Flush {
+        /// The plane.
+        plane: ContactPlane,
+        /// The tool's contact face.
+        face: ContactFace,
+    },
+    /// The tool's contact point lies in a plane: 1 equation (height).
+    Point {
+        /// The plane.
+        plane: ContactPlane,
+        /// The nuisance block of the tool's contact point.
+        point: usize,
+    },
+    /// The tool's contact point coincides with another tool's: 3 equations (gap x, y, z).
+    Touch {
+        /// The nuisance block of the tool's contact point.
+        point: usize,
+        /// The other tool.
+        tool2: usize,
+        /// The nuisance block of the other tool's contact point.
+        point2: usize,
+    },
+    /// The tool's contact point lies a bar's length from another tool's: 1 equation.
+    Distance {
+        /// The nuisance block of the tool's contact point.
+        point: usize,
+        /// The other tool.
+        tool2: usize,
+        /// The nuisance block of the other tool's contact point.
+        point2: usize,
+        /// The nuisance block of the bar's length (one value, fixed when known).
+        length: usize,
+    },
+}
+
+impl Contact {
+    /// Equations this contact contributes: 3 (flush, touch) or 1 (point, distance).
+    pub fn rows(&self) -> usize {
+        match self {
+            Contact::Flush { .. } | Contact::Touch { .. } => 3,
+            Contact::Point { .. } | Contact::Distance { .. } => 1,
+        }
+    }
+
+    /// `flush`, `point`, `touch` or `distance`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Contact::Flush { .. } => "flush",
+            Contact::Point { .. } => "point",
+            Contact::Touch { .. } => "touch",
+            Contact::Distance { .. } => "distance",
+        }
+    }
+
+    /// The other tool of a touch or a distance.
+    pub fn second_tool(&self) -> Option<usize> {
+        match self {
+            Contact::Touch { tool2, .. } | Contact::Distance { tool2, .. } => Some(*tool2),
+            _ => None,
         }
     }
 }

@@ -145,6 +145,7 @@ fn rms_mm(model: &McpcModel, data: &[Measurement]) -> f64 {
             let measured = match &m.observation {
                 Observation::Pose(pose) => pose.translation.vector,
                 Observation::Position(p) => *p,
+                Observation::Contact(_) => unreachable!("tracker rows only"),
             };
             let p = model.tool_poses(&m.q)[m.tool].translation.vector;
             (measured - p).norm_squared()
@@ -172,7 +173,7 @@ fn before_is_the_registered_nominal_robot() {
                     observation: Observation::Position(pose.translation.vector),
                     ..m
                 },
-                Observation::Position(_) => m,
+                Observation::Position(_) | Observation::Contact(_) => m,
             })
             .collect()
     };

@@ -231,6 +231,7 @@ fn noise_free_offsets_frames_and_norms() {
     let noise = Noise {
         position: 1e-4,
         rotation: 1e-3,
+        ..Noise::default()
     };
     for template in [
         Observation::Position(Vec3::zeros()),
@@ -253,7 +254,8 @@ fn noise_free_offsets_frames_and_norms() {
         let unit: Vec<f64> = kind.row_kinds().iter().map(|k| noise.sigma(*k)).collect();
         let norm = standardized_norm(kind, &unit, &noise);
         assert!((norm - (kind.rows() as f64).sqrt()).abs() < 1e-12);
-        let [position, rotation] = norms_by_row_kind(kind, &unit);
+        let norms = norms_by_row_kind(kind, &unit);
+        let (position, rotation) = (norms[0], norms[1]);
         assert!((position.expect("position rows") - 3f64.sqrt() * 1e-4).abs() < 1e-15);
         assert_eq!(rotation.is_some(), kind.rows() == 6);
     }

@@ -8,6 +8,7 @@ mod camera;
 mod cli;
 mod collision;
 mod compare;
+mod contacts;
 mod corpus;
 mod deploy;
 mod export;

@@ -29,7 +29,41 @@ pub fn weighted_residual(
     predictor: &dyn Predictor,
     options: &IdentificationOptions,
 ) -> Result<DVector<f64>> {
-    Ok(linearise(model, measurements, None, predictor, &[], options, false)?.residual)
+    Ok(linearise(
+        model,
+        Nuisance::none(),
+        measurements,
+        None,
+        predictor,
+        &[],
+        options,
+        false,
+    )?
+    .residual)
+}
+
+/// The weighted Jacobian `W·J` over the `free` parameters (flat indices: the model's, then
+/// `nuisance`'s values) and the weighted residual at `model` and `nuisance`: what the solver
+/// linearises, for analyses outside it (simulation's observable subspace, tests).
+pub fn weighted_jacobian(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    measurements: &[Measurement],
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+) -> Result<(DMatrix<f64>, DVector<f64>)> {
+    let lin = linearise(
+        model,
+        nuisance,
+        measurements,
+        None,
+        predictor,
+        free,
+        options,
+        true,
+    )?;
+    Ok((lin.jacobian, lin.residual))
 }
 
 /// The stacked residual `W·r` and, `with_jacobian`, its Jacobian `W·J` over the `free`
@@ -37,8 +71,10 @@ pub fn weighted_residual(
 /// residual and Jacobian rows from the robot state the predictor evaluated (once per
 /// configuration and payload, shared by the rows measured there), and each row is multiplied
 /// by `√w_i / σ` of its row kind.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn linearise(
     model: &McpcModel,
+    nuisance: &Nuisance,
     measurements: &[Measurement],
     offsets: Option<&[Vector6<f64>]>,
     predictor: &dyn Predictor,
@@ -76,7 +112,7 @@ pub(super) fn linearise(
             tool: m.tool,
             tools,
             offset: offsets.map(|o| &o[index]),
-            nuisance: Nuisance::none(),
+            nuisance,
         };
         // Multiplying by exactly 1.0 keeps unweighted problems bit for bit as before.
         let observation = options
@@ -104,6 +140,7 @@ pub(super) fn linearise(
 /// rotation rows) at `model`, over the measurements not left out.
 pub(super) fn residual_rms(
     model: &McpcModel,
+    nuisance: &Nuisance,
     measurements: &[Measurement],
     offsets: Option<&[Vector6<f64>]>,
     predictor: &dyn Predictor,
@@ -125,11 +162,12 @@ pub(super) fn residual_rms(
             tool: m.tool,
             tools: Tools::Poses(&predicted),
             offset: offsets.map(|o| &o[index]),
-            nuisance: Nuisance::none(),
+            nuisance,
         };
         error.resize(kind.rows(), 0.0);
         kind.residual(&state, &mut error)?;
-        let [position_squares, rotation_squares] = squares_by_row_kind(kind, &error);
+        let squares = squares_by_row_kind(kind, &error);
+        let (position_squares, rotation_squares) = (squares[0], squares[1]);
         position += position_squares.unwrap_or(0.0);
         if let Some(squares) = rotation_squares {
             rotation += squares;

@@ -76,8 +76,9 @@ pub use sessions::{
     SessionsReport,
 };
 pub use solver::{
-    identify, Combination, Deflected, DeflectedWithDerivative, IdentificationOptions,
-    IdentificationReport, Predictor, Rigid, Termination,
+    identify, identify_with_nuisance, weighted_jacobian, Combination, Deflected,
+    DeflectedWithDerivative, IdentificationOptions, IdentificationReport, Predictor, Rigid,
+    Termination,
 };
 pub use stiffness::{
     analyse_compliance, calibrate_with_stiffness, identified_stiffness, identify_stiffness,

@@ -17,6 +17,7 @@
 //! See `docs/identification.md` and `docs/performance.md`.
 
 use super::linearise::linearise;
+use super::observation::Nuisance;
 use super::options::IdentificationOptions;
 use super::predictor::Predictor;
 use crate::error::Result;
@@ -222,6 +223,7 @@ pub(super) struct Problem<'a> {
 /// The products of one chunk.
 fn chunk_products(
     model: &McpcModel,
+    nuisance: &Nuisance,
     problem: &Problem<'_>,
     range: Range<usize>,
     products: Products,
@@ -237,6 +239,7 @@ fn chunk_products(
     };
     let lin = linearise(
         model,
+        nuisance,
         &problem.measurements[range.clone()],
         problem.offsets.map(|o| &o[range.clone()]),
         problem.predictor,
@@ -271,8 +274,20 @@ fn chunk_products(
 
 /// `JᵀWJ`, `JᵀWr`, `½‖r‖²` (and `R` on request) of `problem` at `model`, streamed over
 /// chunks in parallel and added in a fixed order (deterministic on any number of threads).
+#[cfg(test)]
 pub(super) fn accumulate(
     model: &McpcModel,
+    problem: &Problem<'_>,
+    products: Products,
+) -> Result<NormalEquations> {
+    accumulate_with(model, Nuisance::none(), problem, products)
+}
+
+/// [`accumulate`] at nuisance values `nuisance` (the free columns past the model's parameters
+/// are its values).
+pub(super) fn accumulate_with(
+    model: &McpcModel,
+    nuisance: &Nuisance,
     problem: &Problem<'_>,
     products: Products,
 ) -> Result<NormalEquations> {
@@ -280,7 +295,7 @@ pub(super) fn accumulate(
     for window in chunks(problem.measurements).chunks(WINDOW) {
         let parts: Vec<Result<NormalEquations>> = window
             .par_iter()
-            .map(|range| chunk_products(model, problem, range.clone(), products))
+            .map(|range| chunk_products(model, nuisance, problem, range.clone(), products))
             .collect();
         for part in parts {
             let part = part?;
@@ -292,7 +307,7 @@ pub(super) fn accumulate(
     }
     let mut total = total.unwrap_or_else(|| NormalEquations::zeros(problem.free.len(), products));
     if let Some(prior) = problem.prior {
-        add_prior(&mut total, model, problem.free, prior);
+        add_prior(&mut total, model, nuisance, problem.free, prior);
     }
     let columns = total.gradient.len().max(problem.free.len());
     if let Some(factor) = total.factor.as_mut() {
@@ -307,10 +322,12 @@ pub(super) fn accumulate(
 fn add_prior(
     total: &mut NormalEquations,
     model: &McpcModel,
+    nuisance: &Nuisance,
     free: &[usize],
     prior: &super::prior::PriorRows,
 ) {
-    let values = model.parameters();
+    let mut values = model.parameters();
+    values.extend(nuisance.values());
     let with_normal = total.normal.nrows() == free.len() && !free.is_empty();
     let mut rows = Vec::new();
     for (k, &p) in free.iter().enumerate() {
@@ -318,7 +335,10 @@ fn add_prior(
         if weight <= 0.0 {
             continue;
         }
-        let difference = prior.centers[k] - values[p];
+        let Some(&value) = values.get(p) else {
+            continue;
+        };
+        let difference = prior.centers[k] - value;
         total.cost += 0.5 * weight * difference * difference;
         if with_normal {
             total.normal[(k, k)] += weight;
@@ -464,6 +484,7 @@ mod tests {
     ) -> (Linearisation, NormalEquations) {
         let stacked = linearise(
             model,
+            Nuisance::none(),
             problem.measurements,
             None,
             &Rigid,

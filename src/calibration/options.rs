@@ -14,6 +14,14 @@ pub struct IdentificationOptions {
     pub position_sigma: f64,
     /// Expected rotation error of a measurement (rad): rotation rows are divided by it.
     pub rotation_sigma: f64,
+    /// Expected error of a contact's height above its plane (m).
+    pub height_sigma: f64,
+    /// Expected error of a contact face's tilt against its plane (rad).
+    pub tilt_sigma: f64,
+    /// Expected error of a coordinate of a touch's gap (m).
+    pub gap_sigma: f64,
+    /// Expected error of a distance between two contact points (m).
+    pub length_sigma: f64,
     /// Singular values below this times the largest are treated as zero (unidentifiable).
     pub rank_tolerance: f64,
     /// Stop when the scaled step is below this (relative to the scaled parameters + 1).
@@ -41,6 +49,10 @@ impl IdentificationOptions {
         Noise {
             position: self.position_sigma,
             rotation: self.rotation_sigma,
+            height: self.height_sigma,
+            tilt: self.tilt_sigma,
+            gap: self.gap_sigma,
+            length: self.length_sigma,
         }
     }
 
@@ -100,6 +112,10 @@ impl Default for IdentificationOptions {
             max_iterations: 50,
             position_sigma: 1e-4,
             rotation_sigma: 1e-4,
+            height_sigma: super::observation::DEFAULT_CONTACT_SIGMAS[0],
+            tilt_sigma: super::observation::DEFAULT_CONTACT_SIGMAS[1],
+            gap_sigma: super::observation::DEFAULT_CONTACT_SIGMAS[2],
+            length_sigma: super::observation::DEFAULT_CONTACT_SIGMAS[3],
             rank_tolerance: 1e-8,
             step_tolerance: 1e-12,
             cost_tolerance: 1e-8,

@@ -242,7 +242,8 @@ pub fn residuals(
         };
         error.resize(kind.rows(), 0.0);
         kind.residual(&state, &mut error)?;
-        let [position, rotation] = norms_by_row_kind(kind, &error);
+        let norms = norms_by_row_kind(kind, &error);
+        let (position, rotation) = (norms[0], norms[1]);
         out.push(Residual {
             position: position.unwrap_or(0.0),
             rotation,

@@ -278,6 +278,8 @@ fn weighted_error(
             let d = p - predicted.translation.vector;
             Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
         }
+        // A contact is not in a session's measurement frame: no rows in the session block.
+        Observation::Contact(_) => Vector6::zeros(),
     };
     for k in 0..6 {
         error[k] /= sigma[k / 3];

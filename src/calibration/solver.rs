@@ -18,14 +18,14 @@ use super::linear_algebra::{
     eigen_decomposition, floored_scales, qr_svd, scale_columns, well_conditioned, WELL_CONDITIONED,
 };
 use super::linearise::{residual_rms, rows_of};
-use super::normal_equations::{accumulate, NormalEquations, Problem, Products};
-use super::observation::kind_of;
+use super::normal_equations::{accumulate_with, NormalEquations, Problem, Products};
+use super::observation::{kind_of, Nuisance};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;
 use nalgebra::{DMatrix, DVector, Vector6};
 
-pub use super::linearise::weighted_residual;
+pub use super::linearise::{weighted_jacobian, weighted_residual};
 pub use super::options::IdentificationOptions;
 pub use super::predictor::{
     Deflected, DeflectedWithDerivative, Predictor, Rigid, CORRECTION_RADIUS,
@@ -62,6 +62,30 @@ impl Combination {
             .collect::<Vec<_>>()
             .join(" with ")
     }
+
+    /// [`Self::describe`] for a fit with nuisance parameters: indices past the model's
+    /// parameters are named by `nuisance` (e.g. `plane day1 height (+0.71)`).
+    pub fn describe_with(
+        &self,
+        model: &McpcModel,
+        tree: &crate::tree::KinematicTree,
+        nuisance: &Nuisance,
+    ) -> String {
+        let count = model.parameter_count();
+        self.terms
+            .iter()
+            .map(|(p, w)| {
+                let name = match p.checked_sub(count) {
+                    Some(k) => nuisance
+                        .value_name(k)
+                        .unwrap_or_else(|| format!("nuisance {k}")),
+                    None => model.parameter_name(tree, *p),
+                };
+                format!("{name} ({w:+.2})")
+            })
+            .collect::<Vec<_>>()
+            .join(" with ")
+    }
 }
 
 /// What the identification did and found.
@@ -69,7 +93,10 @@ impl Combination {
 pub struct IdentificationReport {
     /// The identified parameters (whole vector; parameters not free are unchanged).
     pub parameters: Vec<f64>,
-    /// Indices of the parameters that were free.
+    /// The nuisance parameters at the solution (empty unless [`identify_with_nuisance`]).
+    pub nuisance: Nuisance,
+    /// Indices of the parameters that were free (flat: the model's parameters, then the
+    /// nuisance values).
     pub free: Vec<usize>,
     /// Accepted iterations.
     pub iterations: usize,
@@ -125,8 +152,41 @@ pub fn identify(
     free: &[usize],
     options: &IdentificationOptions,
 ) -> Result<IdentificationReport> {
-    validate(model, measurements, offsets, free, options)?;
-    let prior_rows = prior_rows(model, measurements, offsets, predictor, free, options)?;
+    identify_with_nuisance(
+        model,
+        Nuisance::none(),
+        measurements,
+        offsets,
+        predictor,
+        free,
+        options,
+    )
+}
+
+/// [`identify`] with nuisance parameters of the measurement kinds (contacts' planes,
+/// contact points, bar lengths): the solver's parameter vector is the model's parameters
+/// followed by `nuisance`'s values, and `free` indexes it (free or fixed like the model's
+/// parameters). The report's `parameters` are the model's, its `nuisance` the fitted values.
+pub fn identify_with_nuisance(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+) -> Result<IdentificationReport> {
+    validate(model, nuisance, measurements, offsets, free, options)?;
+    let prior_rows = if nuisance.is_empty() {
+        prior_rows(model, measurements, offsets, predictor, free, options)?
+    } else {
+        // A prior that follows the residual scale refits without it: not with nuisance.
+        options
+            .prior
+            .as_ref()
+            .map(|prior| prior.rows(free, 1.0))
+            .filter(|rows| rows.count() > 0)
+    };
     // JᵀWJ and JᵀWr streamed over the configurations (`normal_equations`), with the triangle
     // R of J too once a problem has proved rank-deficient.
     let problem = Problem {
@@ -137,7 +197,7 @@ pub fn identify(
         options,
         prior: prior_rows.as_ref(),
     };
-    let descent = descend(model, &problem)?;
+    let descent = descend(model, nuisance, &problem)?;
     summarise(descent, &problem)
 }
 
@@ -145,6 +205,8 @@ pub fn identify(
 struct Descent {
     /// The model at the solution.
     model: McpcModel,
+    /// The nuisance parameters at the solution.
+    nuisance: Nuisance,
     /// Its parameters.
     parameters: Vec<f64>,
     /// Cost before the first and after each accepted iteration.
@@ -161,11 +223,13 @@ struct Descent {
 
 /// The damped Gauss–Newton iteration from `model` (eq. (27)–(29)): minimum-norm steps over
 /// the retained singular directions, damped (Levenberg–Marquardt) until the cost decreases.
-fn descend(model: &McpcModel, problem: &Problem<'_>) -> Result<Descent> {
+fn descend(model: &McpcModel, nuisance: &Nuisance, problem: &Problem<'_>) -> Result<Descent> {
     let (free, options) = (problem.free, problem.options);
     let mut current = model.clone();
+    let mut current_nuisance = nuisance.clone();
     let mut parameters = current.parameters();
-    let mut lin = accumulate(&current, problem, Products::Normal)?;
+    parameters.extend(nuisance.values());
+    let mut lin = accumulate_with(&current, &current_nuisance, problem, Products::Normal)?;
     let mut cost = lin.cost;
     let mut costs = vec![cost];
     let mut damping = 0.0;
@@ -186,7 +250,12 @@ fn descend(model: &McpcModel, problem: &Problem<'_>) -> Result<Descent> {
             "identification: the weighted Jacobian and residual",
         )?;
         let analysis = analyse(&mut lin, options.rank_tolerance, || {
-            accumulate(&current, problem, Products::NormalAndFactor)
+            accumulate_with(
+                &current,
+                &current_nuisance,
+                problem,
+                Products::NormalAndFactor,
+            )
         })?;
         // Converged when the full Gauss–Newton step is negligible against the parameters.
         let scaled_parameters = free
@@ -202,8 +271,8 @@ fn descend(model: &McpcModel, problem: &Problem<'_>) -> Result<Descent> {
             final_analysis = Some(analysis);
             break;
         }
-        let Some((candidate, trial, trial_cost)) = first_decrease(
-            &current,
+        let Some(((candidate, candidate_nuisance), trial, trial_cost)) = first_decrease(
+            (&current, &current_nuisance),
             &parameters,
             problem,
             &analysis,
@@ -218,6 +287,7 @@ fn descend(model: &McpcModel, problem: &Problem<'_>) -> Result<Descent> {
         };
         let previous = cost;
         current = candidate;
+        current_nuisance = candidate_nuisance;
         parameters = trial;
         cost = trial_cost;
         costs.push(cost);
@@ -235,10 +305,12 @@ fn descend(model: &McpcModel, problem: &Problem<'_>) -> Result<Descent> {
         } else {
             Products::Normal
         };
-        lin = accumulate(&current, problem, products)?;
+        lin = accumulate_with(&current, &current_nuisance, problem, products)?;
     }
+    parameters.truncate(current.parameter_count());
     Ok(Descent {
         model: current,
+        nuisance: current_nuisance,
         parameters,
         costs,
         iterations,
@@ -275,15 +347,17 @@ fn damped_step(analysis: &Analysis, rank_tolerance: f64, damping: f64) -> DVecto
 /// The first of up to 40 ever more damped steps from `current` that lowers the cost below
 /// `cost`: the model there, its parameters and its cost; `None` when none does. `damping` is
 /// left where the accepted step was taken (or where the attempts gave up).
+#[allow(clippy::type_complexity)]
 fn first_decrease(
-    current: &McpcModel,
+    (current, nuisance): (&McpcModel, &Nuisance),
     parameters: &[f64],
     problem: &Problem<'_>,
     analysis: &Analysis,
     full_step: &DVector<f64>,
     cost: f64,
     damping: &mut f64,
-) -> Result<Option<(McpcModel, Vec<f64>, f64)>> {
+) -> Result<Option<((McpcModel, Nuisance), Vec<f64>, f64)>> {
+    let count = current.parameter_count();
     let sigma_max = analysis.singular_values.iter().copied().fold(0.0, f64::max);
     for _attempt in 0..40 {
         let step_scaled = if *damping == 0.0 {
@@ -297,10 +371,13 @@ fn first_decrease(
             trial[p] += step[k];
         }
         let mut candidate = current.clone();
-        candidate.set_parameters(&trial)?;
-        let trial_cost = accumulate(&candidate, problem, Products::Cost)?.cost;
+        candidate.set_parameters(&trial[..count])?;
+        let mut candidate_nuisance = nuisance.clone();
+        candidate_nuisance.set_values(&trial[count..])?;
+        let trial_cost =
+            accumulate_with(&candidate, &candidate_nuisance, problem, Products::Cost)?.cost;
         if trial_cost < cost {
-            return Ok(Some((candidate, trial, trial_cost)));
+            return Ok(Some(((candidate, candidate_nuisance), trial, trial_cost)));
         }
         *damping = if *damping == 0.0 {
             1e-6 * sigma_max * sigma_max
@@ -317,6 +394,7 @@ fn summarise(descent: Descent, problem: &Problem<'_>) -> Result<IdentificationRe
     let (free, options, measurements) = (problem.free, problem.options, problem.measurements);
     let Descent {
         model: current,
+        nuisance,
         parameters,
         costs,
         iterations,
@@ -329,7 +407,7 @@ fn summarise(descent: Descent, problem: &Problem<'_>) -> Result<IdentificationRe
     let analysis = match analysis {
         Some(analysis) => analysis,
         None => analyse(&mut lin, options.rank_tolerance, || {
-            accumulate(&current, problem, Products::NormalAndFactor)
+            accumulate_with(&current, &nuisance, problem, Products::NormalAndFactor)
         })?,
     };
     let mut order: Vec<usize> = (0..analysis.singular_values.len()).collect();
@@ -358,6 +436,7 @@ fn summarise(descent: Descent, problem: &Problem<'_>) -> Result<IdentificationRe
         .collect();
     let (residual_rms_position, residual_rms_rotation) = residual_rms(
         &current,
+        &nuisance,
         measurements,
         problem.offsets,
         problem.predictor,
@@ -400,6 +479,7 @@ fn summarise(descent: Descent, problem: &Problem<'_>) -> Result<IdentificationRe
         standard_deviations,
         identifiable,
         parameters,
+        nuisance,
         free: free.to_vec(),
         iterations,
         costs,
@@ -559,6 +639,7 @@ pub(crate) fn combination(direction: &DVector<f64>, free: &[usize]) -> Combinati
 
 fn validate(
     model: &McpcModel,
+    nuisance: &Nuisance,
     measurements: &[Measurement],
     offsets: Option<&[Vector6<f64>]>,
     free: &[usize],
@@ -576,10 +657,10 @@ fn validate(
             "position_sigma and rotation_sigma must be positive".into()
         ));
     }
-    let count = model.parameter_count();
+    let count = model.parameter_count() + nuisance.len();
     if let Some(&p) = free.iter().find(|&&p| p >= count) {
         return Err(bad(format!(
-            "free parameter {p} does not exist (the model has {count})"
+            "free parameter {p} does not exist (the model and its nuisance have {count})"
         )));
     }
     let observation_weights = &options.observation_weights;
@@ -608,6 +689,16 @@ fn validate(
         }
     }
     for (index, m) in measurements.iter().enumerate() {
+        let second = match &m.observation {
+            crate::measurement::Observation::Contact(contact) => contact.second_tool(),
+            _ => None,
+        };
+        if let Some(tool) = second.filter(|&t| t >= model.tools().len()) {
+            return Err(bad(format!(
+                "measurement {index} names a second tool {tool} of {}",
+                model.tools().len()
+            )));
+        }
         if m.tool >= model.tools().len() {
             return Err(bad(format!(
                 "measurement {index} names tool {} of {}",

@@ -965,6 +965,8 @@ pub fn measurements_to_csv_with(
                 row.extend([t.x, t.y, t.z, q.w, q.i, q.j, q.k].map(text));
             }
             Observation::Position(p) => row.extend((p / length).iter().map(|v| text(*v))),
+            // Contacts have no tracker columns: they are written to a contacts CSV.
+            Observation::Contact(_) => {}
         }
         if payloads {
             row.push(m.payload.map(text).unwrap_or_default());

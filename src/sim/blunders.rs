@@ -45,6 +45,8 @@ fn bumped(observation: &Observation, size: f64, rng: &mut ChaCha8Rng) -> Observa
     let offset = direction.normalize() * size;
     match observation {
         Observation::Position(p) => Observation::Position(p + offset),
+        // A contact has no reading to bump.
+        Observation::Contact(contact) => Observation::Contact(*contact),
         Observation::Pose(pose) => {
             let mut targets = targets_on(pose);
             let which = (rand::RngExt::random::<u32>(rng) % 3) as usize;

@@ -114,6 +114,8 @@ pub(super) fn row_errors(measurement: &Measurement, pose: &Pose) -> (f64, Option
             Some(measured.rotation.angle_to(&pose.rotation).to_degrees()),
         ),
         Observation::Position(p) => ((p - pose.translation.vector).norm() * 1e3, None),
+        // Contacts are scored by height and tilt (issue 29), not as tool positions.
+        Observation::Contact(_) => (0.0, None),
     }
 }
 
@@ -263,6 +265,7 @@ fn rigid_equivalent(
             let observation = match m.observation {
                 Observation::Pose(_) => Observation::Pose(pose),
                 Observation::Position(_) => Observation::Position(pose.translation.vector),
+                Observation::Contact(contact) => Observation::Contact(contact),
             };
             Ok(Measurement {
                 observation,

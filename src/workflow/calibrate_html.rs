@@ -92,6 +92,8 @@ fn scene(loaded: &Loaded, data: &Data, result: &Identified, summary: &Calibratio
             let measured = match &m.observation {
                 Observation::Pose(pose) => pose.translation.vector,
                 Observation::Position(point) => *point,
+                // A contact measures no point: drawn at its prediction.
+                Observation::Contact(_) => predicted,
             };
             let tool = &model.tools()[m.tool];
             configurations.push(SceneConfiguration {

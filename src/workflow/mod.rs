@@ -26,6 +26,7 @@ pub mod progress;
 pub mod provenance;
 pub mod simulate;
 mod simulate_camera;
+mod simulate_contacts;
 pub mod source;
 pub mod verify;
 

@@ -359,6 +359,8 @@ pub fn position_errors(
             Ok(match &m.observation {
                 Observation::Pose(p) => (p.translation.vector - predicted).norm(),
                 Observation::Position(p) => (p - predicted).norm(),
+                // Contacts are not tool positions (issue 29): no position error.
+                Observation::Contact(_) => 0.0,
             })
         })
         .collect()

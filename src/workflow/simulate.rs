@@ -129,6 +129,11 @@ pub struct SimulateConfig {
     pub world_board: bool,
     /// Whether the camera's intrinsics are estimated with the robot.
     pub estimate_intrinsics: bool,
+    /// Contacts to simulate instead of `observation` (issue 29; `docs/contacts.md`): each kind
+    /// with `poses + torso_poses` configurations; empty: none.
+    pub contacts: Vec<crate::sim::contacts::ContactChoice>,
+    /// σ of the encoder noise on the recorded configurations of a contact simulation (rad).
+    pub encoder_noise: f64,
 }
 
 impl Default for SimulateConfig {
@@ -166,6 +171,8 @@ impl Default for SimulateConfig {
             pixel_sigma: 0.5,
             world_board: true,
             estimate_intrinsics: false,
+            contacts: Vec::new(),
+            encoder_noise: 0.0,
         }
     }
 }
@@ -204,6 +211,10 @@ pub fn simulate_with_progress(
 ) -> Result<Simulation> {
     let started = super::provenance::Started::now();
     validate(config)?;
+    if !config.contacts.is_empty() {
+        crate::limits::check_range(config.encoder_noise, (0.0, 0.1), "--encoder-noise", "rad")?;
+        return super::simulate_contacts::simulate_contacts(config, progress);
+    }
     if config.observation != ObservationChoice::Tracker {
         return super::simulate_camera::simulate_camera(config, progress);
     }

@@ -256,6 +256,7 @@ impl SecondRobot {
                 let p = match &m.observation {
                     Observation::Pose(p) => p.translation.vector,
                     Observation::Position(p) => *p,
+                    Observation::Contact(_) => unreachable!("tracker rows only"),
                 };
                 (p - back.transform_point(&p.into()).coords).norm_squared()
             })
@@ -273,7 +274,7 @@ impl SecondRobot {
                     observation: Observation::Position(p.translation.vector),
                     ..m.clone()
                 },
-                Observation::Position(_) => m.clone(),
+                Observation::Position(_) | Observation::Contact(_) => m.clone(),
             })
             .collect()
     }

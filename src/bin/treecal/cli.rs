@@ -312,9 +312,15 @@ pub struct SimulateArgs {
     /// What is observed: `tracker` (the paper's experiment), `camera` (a camera on the
     /// coupled branch's last link sees a board on each tool and one in the world; rigid robot;
     /// --poses + --torso-poses configurations), `mixed` (camera and tracker, each with its
-    /// σ) or `rigid-tracker` (the tracker at the camera simulation's configurations).
-    #[arg(long, value_enum, default_value = "tracker")]
-    pub observation: ObservationArg,
+    /// σ) or `rigid-tracker` (the tracker at the camera simulation's configurations); or a
+    /// comma list of contacts (docs/contacts.md): `flush` (the first tool's face flush with a
+    /// plane), `plane` (its contact point on a plane), `touch` (the first two tools' contact
+    /// points touch), `bar` (they hold a 0.3 m bar), --poses + --torso-poses configurations each.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "tracker")]
+    pub observation: Vec<ObservationArg>,
+    /// Encoder noise σ on the recorded configurations of a contact simulation (rad).
+    #[arg(long, default_value_t = 0.0, value_name = "RAD")]
+    pub encoder_noise: f64,
     /// The camera's link (--observation camera|mixed) [default: the coupled branch's last link].
     #[arg(long, value_name = "LINK")]
     pub camera_link: Option<String>,
@@ -340,6 +346,14 @@ pub enum ObservationArg {
     Mixed,
     /// The tracker at the camera simulation's configurations (rigid robot).
     RigidTracker,
+    /// A tool's face flush with a plane (contact).
+    Flush,
+    /// A tool's contact point on a plane (contact).
+    Plane,
+    /// Two tools' contact points touching (contact).
+    Touch,
+    /// Two tools' contact points holding a bar (contact).
+    Bar,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -3,12 +3,48 @@
 use crate::cli::{MeasurementFormat, ObservationArg, PlanChoice, PosesFrom, SimulateArgs};
 use crate::progress::Display;
 use treecal::io::write_atomically;
+use treecal::sim::contacts::ContactChoice;
 use treecal::workflow::simulate::{self, simulate_with_progress, SimulateConfig};
 use treecal::workflow::source::{PlanSource, RobotSource, StiffnessSource};
 use treecal::Result;
 
-fn config(args: SimulateArgs) -> SimulateConfig {
-    SimulateConfig {
+/// The contacts and the one instrument (tracker, camera) of `--observation`'s list; mixtures
+/// of contacts with an instrument are not simulated yet.
+fn observations(
+    list: &[ObservationArg],
+) -> Result<(simulate::ObservationChoice, Vec<ContactChoice>)> {
+    let mut contacts = Vec::new();
+    let mut instruments = Vec::new();
+    for item in list {
+        match item {
+            ObservationArg::Flush => contacts.push(ContactChoice::Flush),
+            ObservationArg::Plane => contacts.push(ContactChoice::Plane),
+            ObservationArg::Touch => contacts.push(ContactChoice::Touch),
+            ObservationArg::Bar => contacts.push(ContactChoice::Bar),
+            ObservationArg::Tracker => instruments.push(simulate::ObservationChoice::Tracker),
+            ObservationArg::Camera => instruments.push(simulate::ObservationChoice::Camera),
+            ObservationArg::Mixed => instruments.push(simulate::ObservationChoice::Mixed),
+            ObservationArg::RigidTracker => {
+                instruments.push(simulate::ObservationChoice::RigidTracker)
+            }
+        }
+    }
+    contacts.dedup();
+    if instruments.len() > 1 || (!instruments.is_empty() && !contacts.is_empty()) {
+        return Err(treecal::Error::InvalidData {
+            origin: "--observation".into(),
+            message: "give one instrument (tracker, camera, mixed, rigid-tracker) or a list \
+                      of contacts (flush, plane, touch, bar); contacts mixed with an \
+                      instrument are not simulated yet"
+                .into(),
+        });
+    }
+    Ok((instruments.first().copied().unwrap_or_default(), contacts))
+}
+
+fn config(args: SimulateArgs) -> Result<SimulateConfig> {
+    let (observation, contacts) = observations(&args.observation)?;
+    Ok(SimulateConfig {
         robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
         package_paths: args.package_path,
         collision_check: args.collision_check.into(),
@@ -47,23 +83,20 @@ fn config(args: SimulateArgs) -> SimulateConfig {
                 MeasurementFormat::Tracker => simulate::MeasurementFormat::Tracker,
             }
         }),
-        observation: match args.observation {
-            ObservationArg::Tracker => simulate::ObservationChoice::Tracker,
-            ObservationArg::Camera => simulate::ObservationChoice::Camera,
-            ObservationArg::Mixed => simulate::ObservationChoice::Mixed,
-            ObservationArg::RigidTracker => simulate::ObservationChoice::RigidTracker,
-        },
+        observation,
         camera_link: args.camera_link,
         pixel_sigma: args.pixel_sigma,
         world_board: !args.no_world_board,
         estimate_intrinsics: args.estimate_intrinsics,
-    }
+        contacts,
+        encoder_noise: args.encoder_noise,
+    })
 }
 
 pub fn run(args: SimulateArgs) -> Result<()> {
     let out = args.out.clone();
     let measurements = args.write_measurements.clone();
-    let config = config(args);
+    let config = config(args)?;
     simulate::check_outputs(&config, &out, measurements.as_deref())?;
     let display = Display::new("simulate", config.trials > 1);
     let outcome = simulate_with_progress(&config, &|p| display.update(p));

@@ -20,8 +20,11 @@
 //! [`MeasurementKind::jacobian`] is `J = ∂predicted/∂θ` (so `∂r/∂θ ≈ −J`); the solver steps
 //! by `Δθ = (JᵀWJ)⁻¹JᵀWr`.
 
+mod contact;
 mod pose;
 mod position;
+
+pub use contact::contact_violation;
 
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ToolJacobian};
@@ -39,17 +42,48 @@ pub enum RowKind {
     /// A rotation coordinate (rad, a component of the rotation vector), weighed by
     /// [`Noise::rotation`].
     Rotation,
+    /// A contact's height above its plane (m; a flush face or a contact point), weighed by
+    /// [`Noise::height`].
+    Height,
+    /// A contact face's tilt against its plane (rad, the sine of the angle about one of the
+    /// plane's in-plane axes), weighed by [`Noise::tilt`].
+    Tilt,
+    /// A coordinate of the gap between two contact points that touch (m), weighed by
+    /// [`Noise::gap`].
+    Gap,
+    /// The error of a distance between two contact points (m, a bar), weighed by
+    /// [`Noise::length`].
+    Length,
 }
 
 impl RowKind {
     /// Every row kind, in the order residual summaries list them.
-    pub const ALL: [RowKind; 2] = [RowKind::Position, RowKind::Rotation];
+    pub const ALL: [RowKind; 6] = [
+        RowKind::Position,
+        RowKind::Rotation,
+        RowKind::Height,
+        RowKind::Tilt,
+        RowKind::Gap,
+        RowKind::Length,
+    ];
 
-    /// `position` or `rotation`.
+    /// `position`, `rotation`, `height`, `tilt`, `gap` or `length`.
     pub fn name(self) -> &'static str {
         match self {
             RowKind::Position => "position",
             RowKind::Rotation => "rotation",
+            RowKind::Height => "height",
+            RowKind::Tilt => "tilt",
+            RowKind::Gap => "gap",
+            RowKind::Length => "length",
+        }
+    }
+
+    /// The unit of a row: `m` or `rad`.
+    pub fn unit(self) -> &'static str {
+        match self {
+            RowKind::Rotation | RowKind::Tilt => "rad",
+            _ => "m",
         }
     }
 }
@@ -62,6 +96,34 @@ pub struct Noise {
     pub position: f64,
     /// σ of a rotation coordinate (rad).
     pub rotation: f64,
+    /// σ of a contact's height above its plane (m).
+    pub height: f64,
+    /// σ of a contact face's tilt against its plane (rad).
+    pub tilt: f64,
+    /// σ of a coordinate of the gap between two touching contact points (m).
+    pub gap: f64,
+    /// σ of a distance between two contact points (m).
+    pub length: f64,
+}
+
+/// The contact σ's every command assumes unless told otherwise: height 1 mm, tilt 0.01 rad,
+/// touch gap 1 mm, bar length 1 mm.
+pub const DEFAULT_CONTACT_SIGMAS: [f64; 4] = [1e-3, 1e-2, 1e-3, 1e-3];
+
+impl Default for Noise {
+    /// The default tracker σ's (`DEFAULT_POSITION_SIGMA`, `DEFAULT_ROTATION_SIGMA`) and
+    /// [`DEFAULT_CONTACT_SIGMAS`].
+    fn default() -> Self {
+        let [height, tilt, gap, length] = DEFAULT_CONTACT_SIGMAS;
+        Self {
+            position: super::DEFAULT_POSITION_SIGMA,
+            rotation: super::DEFAULT_ROTATION_SIGMA,
+            height,
+            tilt,
+            gap,
+            length,
+        }
+    }
 }
 
 impl Noise {
@@ -70,6 +132,10 @@ impl Noise {
         match kind {
             RowKind::Position => self.position,
             RowKind::Rotation => self.rotation,
+            RowKind::Height => self.height,
+            RowKind::Tilt => self.tilt,
+            RowKind::Gap => self.gap,
+            RowKind::Length => self.length,
         }
     }
 
@@ -82,9 +148,11 @@ impl Noise {
 /// Parameters outside the robot model that some measurement kinds need: camera intrinsics
 /// and extrinsics, board poses, plane poses, a bar's length. They come in named blocks and are
 /// numbered after the model's own parameters: flat index `model.parameter_count() + k` is the
-/// `k`-th nuisance value (blocks in order). Today's kinds have none of their own: their
-/// nuisance parameters — the measurement frame and the tool offsets — are part of the MCPC
-/// parameter vector ([`crate::kinematics::ParameterOwner`]).
+/// `k`-th nuisance value (blocks in order). Tracked points and frames have none of their own:
+/// their nuisance parameters — the measurement frame and the tool offsets — are part of the
+/// MCPC parameter vector ([`crate::kinematics::ParameterOwner`]). Contacts have planes,
+/// contact points and faces, bar lengths ([`crate::measurement::Contact`]); the solver steps
+/// them with the model's parameters ([`crate::calibration::solver::identify_with_nuisance`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Nuisance {
     /// The blocks, in flat-index order.
@@ -134,6 +202,60 @@ impl Nuisance {
             .iter()
             .flat_map(|b| b.values.iter().copied())
             .collect()
+    }
+
+    /// Replaces all values (blocks in order); an error when `values` has another length.
+    pub fn set_values(&mut self, values: &[f64]) -> Result<()> {
+        if values.len() != self.len() {
+            return Err(Error::InvalidData {
+                origin: "nuisance parameters".into(),
+                message: format!("{} values given for {}", values.len(), self.len()),
+            });
+        }
+        let mut rest = values;
+        for block in &mut self.blocks {
+            let (head, tail) = rest.split_at(block.values.len());
+            block.values.copy_from_slice(head);
+            rest = tail;
+        }
+        Ok(())
+    }
+
+    /// The name of nuisance value `k` (0-based among the nuisance values), e.g.
+    /// `plane day1 height`; `None` past the end.
+    pub fn value_name(&self, k: usize) -> Option<String> {
+        let mut start = 0;
+        for block in &self.blocks {
+            if k < start + block.values.len() {
+                let name = block
+                    .parameter_names
+                    .get(k - start)
+                    .map_or("?", String::as_str);
+                return Some(format!("{} {}", block.name, name));
+            }
+            start += block.values.len();
+        }
+        None
+    }
+
+    /// The block named `name`, if any.
+    pub fn block(&self, name: &str) -> Option<usize> {
+        self.blocks.iter().position(|b| b.name == name)
+    }
+
+    /// Block `block`'s values, or an error naming the missing block (a contact that names a
+    /// block this nuisance does not have).
+    pub fn block_values(&self, block: usize) -> Result<&[f64]> {
+        self.blocks
+            .get(block)
+            .map(|b| b.values.as_slice())
+            .ok_or_else(|| Error::InvalidData {
+                origin: "nuisance parameters".into(),
+                message: format!(
+                    "block {block} does not exist ({} blocks)",
+                    self.blocks.len()
+                ),
+            })
     }
 }
 
@@ -263,6 +385,7 @@ pub fn kind_of(observation: &Observation) -> &dyn MeasurementKind {
     match observation {
         Observation::Position(point) => point as &dyn MeasurementKind,
         Observation::Pose(frame) => frame as &dyn MeasurementKind,
+        Observation::Contact(contact) => contact as &dyn MeasurementKind,
     }
 }
 
