@@ -462,3 +462,55 @@ fn simulated_joint_errors_are_chosen_by_cross_validation_and_recovered() {
         &["arm_7_joint"],
     );
 }
+
+/// The training file reads back as written: pose rows as poses (roll-pitch-yaw in degrees),
+/// rows with every orientation cell empty as positions, with one note; a row with only some
+/// orientation cells empty is an error naming its line and the column.
+#[test]
+fn a_pose_file_with_position_only_rows_reads_each_row_as_written() {
+    let robot = second_robot(2028);
+    let dir = tempfile::tempdir().unwrap();
+    let (kept, _) = robot.split(7);
+    let path = dir.path().join("training.csv");
+    write_training(&robot, &kept, &path);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let options = treecal::io::MeasurementReadOptions {
+        tool: Some(TOOL.into()),
+        ..Default::default()
+    };
+    let set =
+        treecal::io::parse_measurements(&text, "training", &robot.tree, &robot.nominal, &options)
+            .unwrap();
+    assert_eq!(set.measurements.len(), kept.len());
+    for (read, &i) in set.measurements.iter().zip(&kept) {
+        let truth = &robot.measurements[i];
+        match (&read.observation, &truth.observation) {
+            (Observation::Pose(a), Observation::Pose(b)) => {
+                assert!((a.translation.vector - b.translation.vector).norm() < 1e-6);
+                assert!(a.rotation.angle_to(&b.rotation) < 1e-6);
+            }
+            (Observation::Position(a), Observation::Position(b)) => {
+                assert!((a - b).norm() < 1e-6)
+            }
+            other => panic!("row {}: {other:?}", robot.ids[i]),
+        }
+        assert_eq!(read.session, truth.session);
+    }
+    assert!(
+        set.notes
+            .iter()
+            .any(|n| n.contains("28 row(s) have empty roll,pitch,yaw")),
+        "{:?}",
+        set.notes
+    );
+    // One orientation cell given, two empty: an error at that row, not a position.
+    let broken = text.replacen(",,,0.3\n", ",,1.0,0.3\n", 1);
+    let error =
+        treecal::io::parse_measurements(&broken, "training", &robot.tree, &robot.nominal, &options)
+            .unwrap_err()
+            .to_string();
+    assert!(
+        error.contains("training:") && error.contains("roll") && error.contains("missing"),
+        "{error}"
+    );
+}
