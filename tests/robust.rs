@@ -216,7 +216,8 @@ fn the_example_names_a_bumped_row_and_keeps_its_result() {
     assert!(
         warnings[0]
             .contains("1 of 52 identification and 0 of 8 validation measurements are outliers")
-            && warnings[0].ends_with("rows: 21"),
+            && warnings[0].contains("rows: 21 (weight 0.")
+            && warnings[0].ends_with(" mm off)"),
         "{text}"
     );
     assert_eq!(robust["verdict"]["status"], "warning", "{text}");
@@ -256,7 +257,7 @@ fn a_validation_blunder_is_named_marked_and_still_counted() {
     assert_eq!(outliers[0]["id"], "40");
     assert_eq!(outliers[0]["set"], "validation");
     assert!(text.contains("| 40 | validation |"), "{text}");
-    assert!(text.contains("rows: 40 (validation)"), "{text}");
+    assert!(text.contains("rows: 40 (validation, "), "{text}");
     let count = |v: &Value| -> u64 {
         v["validation"]
             .as_array()

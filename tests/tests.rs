@@ -43,6 +43,7 @@ mod reference_link;
 mod report_html;
 mod report_json;
 mod robust;
+mod second_robot;
 mod sessions;
 mod simulate;
 mod stiffness;

@@ -275,6 +275,7 @@ pub(super) fn measurements_from_table(
     };
     let mut first_line_of_id: HashMap<String, usize> = HashMap::new();
     let mut repeats = Repeats::new(columns.id);
+    let mut position_rows: Vec<String> = Vec::new();
     for (row, (line, fields)) in table.records.iter().enumerate() {
         let line = *line;
         let row_id = match columns.id.map(|column| fields[column].as_str()) {
@@ -428,8 +429,20 @@ pub(super) fn measurements_from_table(
                 },
             });
         }
-        let mut values = Vec::with_capacity(columns.observed.len());
-        for &column in &columns.observed {
+        // A pose layout's row without any orientation cell is a position (a session measured
+        // with single markers, in the same file as the 6-DoF rows).
+        let position_only = matches!(
+            columns.observation,
+            ObservationKind::Pose | ObservationKind::RollPitchYaw | ObservationKind::RotationMatrix
+        ) && columns.observed[3..].iter().all(|&c| fields[c].is_empty());
+        let (kind, observed) = if position_only {
+            position_rows.push(row_id.clone());
+            (ObservationKind::Position, &columns.observed[..3])
+        } else {
+            (columns.observation, &columns.observed[..])
+        };
+        let mut values = Vec::with_capacity(observed.len());
+        for &column in observed {
             let (scale, unit, quantity) = match column_quantity(&table.headers[column]) {
                 ColumnQuantity::Length => {
                     (length.in_metres(), length.symbol(), Some(Quantity::Length))
@@ -448,11 +461,9 @@ pub(super) fn measurements_from_table(
             });
         }
         let observation =
-            observation(columns.observation, &values).map_err(|(columns, message)| {
-                Error::InvalidData {
-                    origin: at(columns),
-                    message,
-                }
+            observation(kind, &values).map_err(|(columns, message)| Error::InvalidData {
+                origin: at(columns),
+                message,
             })?;
         set.measurements.push(Measurement {
             payload,
@@ -474,7 +485,21 @@ pub(super) fn measurements_from_table(
     )?);
     angles_look_like_radians(&set, tree, units.angle, origin)?;
     set.warnings.extend(repeats.warning(origin, places));
+    if let Some(note) = position_only_note(&position_rows, columns.observation, origin) {
+        set.notes.push(note);
+    }
     Ok(set)
+}
+
+/// The note on the rows of a pose file read as positions (every orientation cell empty).
+fn position_only_note(rows: &[String], kind: ObservationKind, origin: &str) -> Option<String> {
+    let first = rows.first()?;
+    let orientation = kind.columns()[3..].join(",");
+    Some(format!(
+        "{origin}: {} row(s) have empty {orientation} and are read as positions of the measured point (first: '{}'); the other rows are full poses",
+        rows.len(),
+        crate::limits::cut(first)
+    ))
 }
 
 /// A joint value outside its URDF limits, as read.

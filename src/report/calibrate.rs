@@ -766,20 +766,35 @@ pub fn calibration_plots(arms: &[ArmReport], set: &str) -> Result<Vec<(String, S
             column(&|r| r.orientation_deg.map(|o| o.before)),
             column(&|r| r.orientation_deg.map(|o| o.after)),
         ];
+        // Rows observing a position only (a mixed file) have no orientation error: the
+        // orientation plot is labelled by the rows that have one.
+        let oriented: Vec<String> = ids
+            .iter()
+            .zip(&arm.rows)
+            .filter(|(_, r)| r.orientation_deg.is_some())
+            .map(|(id, _)| id.clone())
+            .collect();
+        let title = format!(
+            "on the {set} configurations{}",
+            if marked {
+                " (* outlier, still counted)"
+            } else {
+                ""
+            }
+        );
+        let labels = ["before calibration", "after calibration"];
+        let stem = format!("{}_{set}", arm.arm);
+        let none = [Vec::new(), Vec::new()];
+        plots.extend(arm_error_plots_by_id(
+            &arm.arm, &stem, &title, &labels, &ids, &position, &none,
+        )?);
         plots.extend(arm_error_plots_by_id(
             &arm.arm,
-            &format!("{}_{set}", arm.arm),
-            &format!(
-                "on the {set} configurations{}",
-                if marked {
-                    " (* outlier, still counted)"
-                } else {
-                    ""
-                }
-            ),
-            &["before calibration", "after calibration"],
-            &ids,
-            &position,
+            &stem,
+            &title,
+            &labels,
+            &oriented,
+            &none,
             &orientation,
         )?);
     }

@@ -7,7 +7,7 @@ use super::collision::CollisionChecker;
 use super::noise::{observe, NoiseModel, Targets};
 use super::planning::{plan_poses, PlanningOptions, PlanningStage};
 use super::sampling::{sample_configurations, SamplingOptions};
-use super::truth::{true_model, ErrorRanges};
+use super::truth::{true_model, with_joint_errors, ErrorRanges, JointErrorRanges};
 use crate::calibration::stiffness::{
     calibrate_with_stiffness, ComplianceEstimate, Fitted, StiffnessOptions,
 };
@@ -39,6 +39,9 @@ pub struct SimulationOptions {
     pub validation_poses: usize,
     /// Parameter errors of the true robot.
     pub errors: ErrorRanges,
+    /// Joint-angle errors of the true robot beyond its geometry (harmonics, backlash); the
+    /// calibrations do not model them.
+    pub joint_errors: JointErrorRanges,
     /// Tracker noise.
     pub noise: NoiseModel,
     /// Targets per tool.
@@ -74,6 +77,7 @@ impl Default for SimulationOptions {
             locks: 2,
             validation_poses: 20,
             errors: ErrorRanges::default(),
+            joint_errors: JointErrorRanges::default(),
             noise: NoiseModel::at901(),
             targets: Targets::Three,
             plan: Plan::staged(),
@@ -215,6 +219,40 @@ fn stages_json<S: serde::Serializer>(
     ))
 }
 
+/// One joint's true joint-angle errors (`kinematics::joint_errors`; rad).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TruthJointError {
+    /// The joint.
+    pub joint: String,
+    /// `a` of `a·sin q`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sine: Option<f64>,
+    /// `b` of `b·cos q`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cosine: Option<f64>,
+    /// Half the dead band.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub backlash: Option<f64>,
+}
+
+/// The joint-angle errors of `truth` by joint name.
+fn truth_joint_errors(tree: &KinematicTree, truth: &McpcModel) -> Vec<TruthJointError> {
+    truth
+        .frames()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, frame)| {
+            let [_, sine, cosine, backlash] = truth.joint_error_values(i);
+            (sine.is_some() || backlash.is_some()).then(|| TruthJointError {
+                joint: tree.joint(frame.joint).name.clone(),
+                sine,
+                cosine,
+                backlash,
+            })
+        })
+        .collect()
+}
+
 /// One simulated calibration.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TrialReport {
@@ -237,6 +275,9 @@ pub struct TrialReport {
     pub stiffness: Option<Vec<ComplianceEstimate>>,
     /// The blunders injected and the outliers each calibration named.
     pub blunders: BlunderReport,
+    /// The true robot's joint-angle errors (rad), per revolute joint that has one.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub truth_joint_errors: Vec<TruthJointError>,
     /// The simulated measurements (torso stage, then arms stage).
     #[serde(skip)]
     pub measurements: Vec<Measurement>,
@@ -265,6 +306,7 @@ pub fn run_trial(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let tree = setup.tree;
     let truth = true_model(setup.nominal, &options.errors, &mut rng)?;
+    let truth = with_joint_errors(&truth, tree, &options.joint_errors, &mut rng)?;
     let sampling = SamplingOptions::default();
 
     let identification_options = identification_options(&options.noise, options.targets);
@@ -528,6 +570,7 @@ fn finish_trial(
         compensated_run: summary(&compensated),
         stiffness: identified.map(|(_, r)| r.estimates),
         blunders,
+        truth_joint_errors: truth_joint_errors(tree, truth),
         measurements,
         notes: compensated
             .notes

@@ -68,3 +68,74 @@ pub fn true_model(
     truth.set_parameters(&values)?;
     Ok(truth)
 }
+
+/// Joint-angle errors of the true robot beyond its geometry (`kinematics::joint_errors`):
+/// `θ = q + a·sin q + b·cos q + h·sign(τ)` on every revolute joint.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct JointErrorRanges {
+    /// First-harmonic errors: `a` and `b` uniform in ±this (rad); 0: none.
+    pub harmonics: f64,
+    /// Backlash, half the dead band: `h` uniform in [this/2, this] (rad; a real dead band is
+    /// never negative); 0: none. Needs the URDF's inertials (the gravity torque signs).
+    pub backlash: f64,
+}
+
+impl JointErrorRanges {
+    /// Whether the truth has any joint-angle error.
+    pub fn any(&self) -> bool {
+        self.harmonics > 0.0 || self.backlash > 0.0
+    }
+}
+
+/// `truth` with random joint-angle errors of `ranges` on every revolute joint (unchanged when
+/// `ranges` has none); the backlash signs follow the gravity torques of `tree`'s inertials at
+/// `truth`. The ranges must be finite, ≥ 0 and within [`MAX_ANGLE`].
+pub fn with_joint_errors(
+    truth: &McpcModel,
+    tree: &crate::tree::KinematicTree,
+    ranges: &JointErrorRanges,
+    rng: &mut ChaCha8Rng,
+) -> Result<McpcModel> {
+    use crate::kinematics::{GravitySigns, JointErrorTerms, ParameterKind};
+    for (name, range) in [
+        ("harmonic", ranges.harmonics),
+        ("backlash", ranges.backlash),
+    ] {
+        if !(range.is_finite() && (0.0..=MAX_ANGLE).contains(&range)) {
+            return Err(Error::InvalidData {
+                origin: "simulation".into(),
+                message: format!(
+                    "the {name} joint error {range} rad must be a number from 0 to {MAX_ANGLE:e}"
+                ),
+            });
+        }
+    }
+    if !ranges.any() {
+        return Ok(truth.clone());
+    }
+    let terms = JointErrorTerms {
+        offsets: false,
+        harmonics: ranges.harmonics > 0.0,
+        backlash: ranges.backlash > 0.0,
+    };
+    let gravity = if terms.backlash {
+        Some(GravitySigns::new(tree, truth)?)
+    } else {
+        None
+    };
+    let mut model = truth.with_joint_errors(terms, gravity)?;
+    let mut values = model.parameters();
+    for (value, (_, kind)) in values.iter_mut().zip(model.parameter_layout()) {
+        match kind {
+            ParameterKind::Sine | ParameterKind::Cosine => {
+                *value = rng.random_range(-ranges.harmonics..ranges.harmonics);
+            }
+            ParameterKind::Backlash => {
+                *value = rng.random_range(0.5 * ranges.backlash..ranges.backlash);
+            }
+            _ => {}
+        }
+    }
+    model.set_parameters(&values)?;
+    Ok(model)
+}

@@ -97,8 +97,13 @@ fn summary(
         let rows: Vec<String> = outliers
             .iter()
             .map(|o| match o.set {
-                DataSet::Identification => o.id.clone(),
-                DataSet::Validation => format!("{} (validation)", o.id),
+                DataSet::Identification => format!(
+                    "{} (weight {:.3}, {:.2} mm off)",
+                    o.id, o.weight, o.residual_mm
+                ),
+                DataSet::Validation => {
+                    format!("{} (validation, {:.2} mm off)", o.id, o.residual_mm)
+                }
             })
             .collect();
         // One stderr line: the first rows, and how many in all (report.md lists every one).

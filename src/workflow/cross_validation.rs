@@ -183,8 +183,16 @@ fn evaluate(
             }
             (held, train)
         };
-        let outcome = run_model(&calibration, spec.significant, &train, &[])
-            .and_then(|run| position_errors(&calibration, &run, &held));
+        // A held-out row of a later session is predicted in that session's frame as the
+        // fold's fit found it (every session has training rows: folds split postures, not
+        // sessions); in the first session's frame the moved frames would swamp the model.
+        let outcome = run_model(&calibration, spec.significant, &train, &[]).and_then(|run| {
+            let held = crate::calibration::sessions::validation_in_training_frames(
+                &held,
+                run.sessions.as_ref(),
+            );
+            position_errors(&calibration, &run, &held)
+        });
         match outcome {
             Ok(found) => errors.extend(found),
             Err(error) => {

@@ -102,6 +102,10 @@ pub struct SimulateConfig {
     pub angle_error: f64,
     /// Half-width of the true robot's length errors (m).
     pub length_error: f64,
+    /// Half-width of the true robot's first-harmonic joint-angle errors (rad; 0: none).
+    pub truth_harmonics: f64,
+    /// Largest half dead band of the true robot's backlash (rad; 0: none).
+    pub truth_backlash: f64,
     /// Payload at every tool (kg), overriding the stiffness file.
     pub payload: Option<f64>,
     /// Payloads (kg at every tool) the identification poses are measured at, in turn (empty:
@@ -158,6 +162,8 @@ impl Default for SimulateConfig {
             plan: PlanSource::Auto,
             angle_error: 0.05,
             length_error: 0.05,
+            truth_harmonics: 0.0,
+            truth_backlash: 0.0,
             payload: None,
             payloads: Vec::new(),
             joint_stiffness: None,
@@ -358,6 +364,12 @@ fn invalid(flag: &str, message: String) -> Error {
 
 /// The settings' ranges and counts ([`crate::limits`]), named by their flags.
 fn validate(config: &SimulateConfig) -> Result<()> {
+    for (value, flag) in [
+        (config.truth_harmonics, "--truth-harmonics"),
+        (config.truth_backlash, "--truth-backlash"),
+    ] {
+        limits::check_range(value, (0.0, 0.5), flag, "rad")?;
+    }
     limits::check_range(
         config.angle_error,
         (0.0, std::f64::consts::PI),
@@ -525,6 +537,10 @@ fn options(config: &SimulateConfig, noise: NoiseModel) -> Result<SimulationOptio
             angle: config.angle_error,
             length: config.length_error,
         },
+        joint_errors: crate::sim::truth::JointErrorRanges {
+            harmonics: config.truth_harmonics,
+            backlash: config.truth_backlash,
+        },
         noise,
         targets: if config.targets == 1 {
             Targets::One
@@ -585,6 +601,15 @@ fn header(
         config.model_stiffness_scale,
         options.robust,
     );
+    let header = if options.joint_errors.any() {
+        header
+            + &format!(
+                " The true robot's joints turn with first-harmonic errors up to ±{} rad and backlash up to {} rad (half the dead band), which the calibrations do not model.",
+                config.truth_harmonics, config.truth_backlash
+            )
+    } else {
+        header
+    };
     if config.identify_stiffness {
         header + " Compliances identified jointly with the geometry (prior: the model's stiffness, ±50 %)."
     } else {

@@ -278,6 +278,15 @@ pub struct SimulateArgs {
     /// Half-width of the true robot's length errors (m).
     #[arg(long, default_value_t = 0.05)]
     pub length_error: f64,
+    /// First-harmonic joint-angle errors of the true robot: `a·sin q + b·cos q` on every
+    /// revolute joint, a and b uniform in ±this (rad) [default: none].
+    #[arg(long, default_value_t = 0.0, value_name = "RAD")]
+    pub truth_harmonics: f64,
+    /// Backlash of the true robot: half the dead band of every revolute joint, uniform in
+    /// [this/2, this] (rad), signed by the gravity torque (needs the URDF's inertials)
+    /// [default: none].
+    #[arg(long, default_value_t = 0.0, value_name = "RAD")]
+    pub truth_backlash: f64,
     /// Payload at every tool (kg), overriding the stiffness file.
     #[arg(long)]
     pub payload: Option<f64>,

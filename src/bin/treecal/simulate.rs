@@ -67,6 +67,8 @@ fn config(args: SimulateArgs) -> Result<SimulateConfig> {
         },
         angle_error: args.angle_error,
         length_error: args.length_error,
+        truth_harmonics: args.truth_harmonics,
+        truth_backlash: args.truth_backlash,
         payload: args.payload,
         payloads: args.payloads.clone().unwrap_or_default(),
         joint_stiffness: args.joint_stiffness,
