@@ -425,3 +425,121 @@ fn camera_identifiability_names_the_torso_only_without_the_world_board() {
         }
     }
 }
+
+/// Detections of the camera file's boards at `configurations`, as a CSV: every corner the
+/// nominal robot shows in the image.
+fn detections_csv(
+    robot: &SimulatedRobot,
+    rig: &Rig,
+    model: &McpcModel,
+    configurations: &[Vec<f64>],
+    with_pole: bool,
+) -> String {
+    let names: Vec<&str> = robot
+        .tree
+        .dofs()
+        .iter()
+        .map(|&j| robot.tree.joint(j).name.as_str())
+        .collect();
+    let mut csv = format!("id,camera,target,corner,u,v,{}\n", names.join(","));
+    for (c, q) in configurations.iter().enumerate() {
+        let poses = model.tool_poses(q);
+        let joints: Vec<String> = q.iter().map(|v| format!("{v}")).collect();
+        for view in views_at(rig, q) {
+            let target = &rig.targets[view.target];
+            if target.name == "pole" && !with_pole {
+                continue;
+            }
+            let pixels = treecal::camera::predict_pixels(
+                rig,
+                &view,
+                &poses,
+                &rig.cameras[0].intrinsics,
+                true,
+            );
+            for ((k, _), pixel) in view.points.iter().zip(pixels) {
+                if let Ok(p) = pixel {
+                    csv.push_str(&format!(
+                        "c{c},head,{},{k},{},{},{}\n",
+                        target.name,
+                        p.x,
+                        p.y,
+                        joints.join(",")
+                    ));
+                }
+            }
+        }
+    }
+    csv
+}
+
+/// `check --camera --detections` on files: the pole board fixed in the world determines the
+/// torso; without its rows the torso is named as seen only relative to the camera.
+#[test]
+fn check_camera_files_name_the_torso_without_the_pole() {
+    use rand::SeedableRng;
+    use treecal::workflow::check_camera::{check_camera, CameraCheckConfig};
+    use treecal::workflow::source::RobotSource;
+    let robot = simulated_robonaut();
+    let contents =
+        treecal::io::camera_yaml::parse_camera_file(CAMERA_FILE, "cameras.yaml", &robot.tree)
+            .unwrap();
+    let (rig, model) = Rig::build(
+        &robot.tree,
+        &robot.nominal,
+        &contents.cameras,
+        &contents.targets,
+    )
+    .unwrap();
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5);
+    let configurations: Vec<Vec<f64>> = (0..40)
+        .flat_map(|k| {
+            let t = k as f64;
+            treecal::sim::sampling::sample_configurations(
+                &robot.tree,
+                Some(&robot.checker),
+                1,
+                &mut rng,
+                &treecal::sim::sampling::SamplingOptions::default(),
+                &[(0, 0.15 * (1.3 * t).sin()), (1, 0.15 * (0.7 * t).cos())],
+            )
+            .unwrap()
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let camera_file = dir.path().join("cameras.yaml");
+    std::fs::write(&camera_file, CAMERA_FILE).unwrap();
+    let mut reports = Vec::new();
+    for with_pole in [true, false] {
+        let detections = dir.path().join(format!("detections-{with_pole}.csv"));
+        std::fs::write(
+            &detections,
+            detections_csv(&robot, &rig, &model, &configurations, with_pole),
+        )
+        .unwrap();
+        let outcome = check_camera(&CameraCheckConfig {
+            robot: RobotSource::File(crate::common::robot("robonaut/robonaut.urdf")),
+            tools: None,
+            camera_file: camera_file.clone(),
+            detections,
+            pixel_sigma: 0.5,
+        })
+        .unwrap();
+        eprintln!("{}", outcome.text);
+        reports.push(outcome.report);
+    }
+    let torso = |r: &treecal::camera::CameraIdentifiability| {
+        r.findings
+            .iter()
+            .any(|f| f.contains("relative to the camera"))
+    };
+    assert!(
+        !reports[0]
+            .undetermined
+            .iter()
+            .any(|n| n.starts_with("torso_joint")),
+        "{:?}",
+        reports[0]
+    );
+    assert!(torso(&reports[1]), "{:?}", reports[1]);
+}

@@ -56,7 +56,22 @@ pub fn camera_identifiability(
         .iter()
         .filter(|name| coupled.iter().any(|j| name.starts_with(&format!("{j} "))))
         .collect();
-    if !torso.is_empty() {
+    // A target rigid on the base (a board fixed in the world) relates the camera to the root.
+    let anchored = !problem.tracker.is_empty()
+        || problem.views.iter().any(|v| {
+            model.tools()[problem.rig.targets[v.target].tool]
+                .parent
+                .is_none()
+        });
+    if !torso.is_empty() && anchored {
+        findings.push(format!(
+            "the coupled branch ({}) does not move enough in these images: {} of its \
+             parameters stay at their nominal values although a target fixed in the world is \
+             seen; add images at other angles of these joints with that target in view",
+            coupled.join(", "),
+            torso.len()
+        ));
+    } else if !torso.is_empty() {
         findings.push(format!(
             "the coupled branch ({}) is seen only relative to the camera: no board fixed in \
              the world (and no tracker row) is observed through it, so {} of its parameters \
