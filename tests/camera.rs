@@ -316,3 +316,230 @@ fn the_camera_file_and_detections_are_read_with_named_errors() {
         .to_string();
     assert!(error.contains("line 3"), "{error}");
 }
+
+/// A head camera behind a neck: with the default tools (the arms), the neck joints that move
+/// the camera are calibrated too (issue 31), said in a note, and the camera calibration
+/// still recovers the arms (noise-free).
+#[test]
+fn a_head_cameras_neck_is_calibrated_with_the_default_tools() {
+    use treecal::workflow::simulate::{ObservationChoice, SimulateConfig};
+    use treecal::workflow::source::RobotSource;
+    let outcome = treecal::workflow::simulate::simulate(&SimulateConfig {
+        robot: RobotSource::File(crate::common::robot("humanoid/humanoid.urdf")),
+        observation: ObservationChoice::Camera,
+        camera_link: Some("camera".into()),
+        pixel_sigma: 0.0,
+        noise: "0".into(),
+        poses: 30,
+        torso_poses: 0,
+        validation_poses: 10,
+        trials: 1,
+        ..SimulateConfig::default()
+    })
+    .unwrap();
+    let note = outcome
+        .notes
+        .iter()
+        .map(ToString::to_string)
+        .find(|n| n.contains("camera's link 'camera'"))
+        .unwrap_or_else(|| panic!("no note on the neck: {:?}", outcome.notes));
+    assert!(
+        note.contains("neck_yaw") && note.contains("neck_pitch"),
+        "{note}"
+    );
+    let report = &outcome.camera_reports[0];
+    assert!(report.before_mean_position_mm > 10.0, "{report:?}");
+    assert!(report.max_position_mm < 1e-3, "{report:?}");
+}
+
+/// `check` for camera data: with the world board every parameter is determined and nothing
+/// is said; without it the coupled branch is named, in words, as seen only relative to the
+/// camera.
+#[test]
+fn camera_identifiability_names_the_torso_only_without_the_world_board() {
+    use rand::SeedableRng;
+    use treecal::camera::{camera_identifiability, CameraProblem, Unknown};
+    let robot = simulated_robonaut();
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(3);
+    let torso: Vec<(usize, f64)> = robot
+        .branches
+        .coupled
+        .dofs(&robot.tree)
+        .into_iter()
+        .map(|d| (d, 0.0))
+        .collect();
+    let mut configurations = Vec::new();
+    for k in 0..20 {
+        let fixed: Vec<(usize, f64)> = torso
+            .iter()
+            .map(|&(d, _)| (d, 0.25 * ((k as f64) * 1.3 + d as f64).sin()))
+            .collect();
+        configurations.extend(
+            treecal::sim::sampling::sample_configurations(
+                &robot.tree,
+                Some(&robot.checker),
+                1,
+                &mut rng,
+                &treecal::sim::sampling::SamplingOptions::default(),
+                &fixed,
+            )
+            .unwrap(),
+        );
+    }
+    for world_board in [true, false] {
+        let options = CameraRigOptions {
+            world_board: world_board
+                .then(|| CameraRigOptions::default().world_board)
+                .flatten(),
+            ..Default::default()
+        };
+        let (rig, model) = rig(&robot, &options);
+        let views: Vec<View> = configurations
+            .iter()
+            .flat_map(|q| views_at(&rig, q))
+            .collect();
+        let extra: Vec<usize> = (0..rig.extra.len())
+            .filter(|&e| !rig.extra[e].1)
+            .flat_map(|e| rig.extra_parameters(&model, e))
+            .collect();
+        let problem = CameraProblem {
+            rig: &rig,
+            views: &views,
+            tracker: &[],
+            unknowns: (0..model.parameter_count())
+                .filter(|p| !extra.contains(p))
+                .map(Unknown::Parameter)
+                .collect(),
+        };
+        let check =
+            camera_identifiability(&robot.tree, &robot.branches, &model, &problem, 0.5).unwrap();
+        if world_board {
+            assert!(check.findings.is_empty(), "{check:?}");
+            assert_eq!(check.rank, check.unknowns, "{check:?}");
+        } else {
+            assert!(
+                check.findings[0].contains("torso_joint1, torso_joint2")
+                    && check.findings[0].contains("relative to the camera"),
+                "{check:?}"
+            );
+        }
+    }
+}
+
+/// Detections of the camera file's boards at `configurations`, as a CSV: every corner the
+/// nominal robot shows in the image.
+fn detections_csv(
+    robot: &SimulatedRobot,
+    rig: &Rig,
+    model: &McpcModel,
+    configurations: &[Vec<f64>],
+    with_pole: bool,
+) -> String {
+    let names: Vec<&str> = robot
+        .tree
+        .dofs()
+        .iter()
+        .map(|&j| robot.tree.joint(j).name.as_str())
+        .collect();
+    let mut csv = format!("id,camera,target,corner,u,v,{}\n", names.join(","));
+    for (c, q) in configurations.iter().enumerate() {
+        let poses = model.tool_poses(q);
+        let joints: Vec<String> = q.iter().map(|v| format!("{v}")).collect();
+        for view in views_at(rig, q) {
+            let target = &rig.targets[view.target];
+            if target.name == "pole" && !with_pole {
+                continue;
+            }
+            let pixels = treecal::camera::predict_pixels(
+                rig,
+                &view,
+                &poses,
+                &rig.cameras[0].intrinsics,
+                true,
+            );
+            for ((k, _), pixel) in view.points.iter().zip(pixels) {
+                if let Ok(p) = pixel {
+                    csv.push_str(&format!(
+                        "c{c},head,{},{k},{},{},{}\n",
+                        target.name,
+                        p.x,
+                        p.y,
+                        joints.join(",")
+                    ));
+                }
+            }
+        }
+    }
+    csv
+}
+
+/// `check --camera --detections` on files: the pole board fixed in the world determines the
+/// torso; without its rows the torso is named as seen only relative to the camera.
+#[test]
+fn check_camera_files_name_the_torso_without_the_pole() {
+    use rand::SeedableRng;
+    use treecal::workflow::check_camera::{check_camera, CameraCheckConfig};
+    use treecal::workflow::source::RobotSource;
+    let robot = simulated_robonaut();
+    let contents =
+        treecal::io::camera_yaml::parse_camera_file(CAMERA_FILE, "cameras.yaml", &robot.tree)
+            .unwrap();
+    let (rig, model) = Rig::build(
+        &robot.tree,
+        &robot.nominal,
+        &contents.cameras,
+        &contents.targets,
+    )
+    .unwrap();
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5);
+    let configurations: Vec<Vec<f64>> = (0..40)
+        .flat_map(|k| {
+            let t = k as f64;
+            treecal::sim::sampling::sample_configurations(
+                &robot.tree,
+                Some(&robot.checker),
+                1,
+                &mut rng,
+                &treecal::sim::sampling::SamplingOptions::default(),
+                &[(0, 0.15 * (1.3 * t).sin()), (1, 0.15 * (0.7 * t).cos())],
+            )
+            .unwrap()
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let camera_file = dir.path().join("cameras.yaml");
+    std::fs::write(&camera_file, CAMERA_FILE).unwrap();
+    let mut reports = Vec::new();
+    for with_pole in [true, false] {
+        let detections = dir.path().join(format!("detections-{with_pole}.csv"));
+        std::fs::write(
+            &detections,
+            detections_csv(&robot, &rig, &model, &configurations, with_pole),
+        )
+        .unwrap();
+        let outcome = check_camera(&CameraCheckConfig {
+            robot: RobotSource::File(crate::common::robot("robonaut/robonaut.urdf")),
+            tools: None,
+            camera_file: camera_file.clone(),
+            detections,
+            pixel_sigma: 0.5,
+        })
+        .unwrap();
+        eprintln!("{}", outcome.text);
+        reports.push(outcome.report);
+    }
+    let torso = |r: &treecal::camera::CameraIdentifiability| {
+        r.findings
+            .iter()
+            .any(|f| f.contains("relative to the camera"))
+    };
+    assert!(
+        !reports[0]
+            .undetermined
+            .iter()
+            .any(|n| n.starts_with("torso_joint")),
+        "{:?}",
+        reports[0]
+    );
+    assert!(torso(&reports[1]), "{:?}", reports[1]);
+}

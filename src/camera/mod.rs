@@ -8,9 +8,11 @@
 //! - [`rig`]: cameras and targets mounted on the MCPC model as extra tool frames, so that their
 //!   poses and pose Jacobians come from the robot's own kinematics.
 //! - [`observation`]: one image of one target, its predicted pixels and their Jacobians.
+//! - [`check`]: what a camera data set determines, before fitting, said in words.
 //! - [`fit`] and [`calibrate_camera`]: the joint fit of the robot, the rig's poses and the
 //!   intrinsics from pixels, mixed with tracker rows if there are any.
 
+pub mod check;
 pub mod fit;
 pub mod model;
 pub mod observation;
@@ -18,6 +20,7 @@ pub mod rig;
 mod solve;
 pub mod target;
 
+pub use check::{camera_identifiability, CameraIdentifiability};
 pub use fit::{CameraFitOptions, CameraFitReport, CameraProblem, RejectedPoint, Unknown};
 pub use model::{Intrinsics, Projection, Rejection, INTRINSIC_COUNT, INTRINSIC_NAMES};
 pub use observation::{linearise_view, predict_pixels, View, ViewPrediction};

@@ -8,7 +8,8 @@
 //! tool's frame: the tool's own six parameters already move it, so a separate pose would be
 //! the same unknown twice. The rig's [`Rig::robot_model`] drops the extra tools again.
 
-use super::model::Intrinsics;
+use super::fit::Unknown;
+use super::model::{Intrinsics, INTRINSIC_COUNT};
 use super::target::TargetShape;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool};
@@ -178,6 +179,52 @@ impl Rig {
     pub fn extra_parameters(&self, augmented: &McpcModel, extra: usize) -> Range<usize> {
         let offset = augmented.tool_parameter_offset(self.robot_tools + extra);
         offset..offset + 6
+    }
+
+    /// The robot tools on a camera's link (a head named as a tool so that its neck joints are
+    /// calibrated): the camera's extrinsics already place that link's frame, so their tool
+    /// parameters are not fitted (and a simulation puts no board on them nor scores them).
+    pub fn camera_carriers(&self, augmented: &McpcModel) -> Vec<usize> {
+        let tools = augmented.tools();
+        (0..self.robot_tools)
+            .filter(|&t| {
+                self.cameras
+                    .iter()
+                    .any(|c| tools[c.tool].link == tools[t].link)
+            })
+            .collect()
+    }
+
+    /// The unknowns of a fit of `augmented`: every robot parameter but the camera carriers'
+    /// tool parameters and, with views, the estimated camera and target poses and the
+    /// estimated intrinsics.
+    pub fn unknowns(&self, augmented: &McpcModel, with_views: bool) -> Vec<Unknown> {
+        let fixed: Vec<usize> = (0..self.extra.len())
+            .flat_map(|e| self.extra_parameters(augmented, e))
+            .chain(self.camera_carriers(augmented).into_iter().flat_map(|t| {
+                let offset = augmented.tool_parameter_offset(t);
+                offset..offset + 6
+            }))
+            .collect();
+        let mut unknowns: Vec<Unknown> = (0..augmented.parameter_count())
+            .filter(|p| !fixed.contains(p))
+            .map(Unknown::Parameter)
+            .collect();
+        if with_views {
+            for (e, (_, free)) in self.extra.iter().enumerate() {
+                if *free {
+                    unknowns.extend(self.extra_parameters(augmented, e).map(Unknown::Parameter));
+                }
+            }
+            for (camera, spec) in self.cameras.iter().enumerate() {
+                if spec.estimate_intrinsics {
+                    unknowns.extend(
+                        (0..INTRINSIC_COUNT).map(|index| Unknown::Intrinsic { camera, index }),
+                    );
+                }
+            }
+        }
+        unknowns
     }
 
     /// The augmented model's index of robot-model parameter `index` (the extra tools' six

@@ -51,9 +51,14 @@ pub struct CameraSimulationOptions {
     pub pixel_sigma: f64,
     /// Tracker noise (tracker and mixed).
     pub tracker_noise: NoiseModel,
-    /// The coupled branch's joints are drawn within ± this of zero (rad) so that the camera
-    /// sees the world board in a good share of the configurations.
+    /// The coupled branch's joints are drawn within ± this of zero (rad); with
+    /// `world_board_always`, those in which the camera does not see the world board are
+    /// dropped, so the torso angles spread as far as the board stays in view.
     pub torso_spread: f64,
+    /// Whether every identification configuration must show the world board (when there is
+    /// one) besides its tool board: the world board is all that determines the coupled
+    /// branch, so a configuration without it tells nothing about the torso.
+    pub world_board_always: bool,
     /// The master seed.
     pub seed: u64,
 }
@@ -67,7 +72,8 @@ impl Default for CameraSimulationOptions {
             errors: ErrorRanges::default(),
             pixel_sigma: 0.5,
             tracker_noise: NoiseModel::at901(),
-            torso_spread: 0.4,
+            torso_spread: 1.0,
+            world_board_always: true,
             seed: 0,
         }
     }
@@ -136,7 +142,8 @@ pub fn run_camera_trial(
     let seed = trial_seed(options.seed, trial);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let truth = camera_truth(setup, options, &mut rng)?;
-    let configurations = visible_configurations(setup, &truth, options, &mut rng)?;
+    let configurations =
+        visible_configurations(setup, &truth, options, options.configurations, &mut rng)?;
     let validation = sample_configurations(
         setup.tree,
         setup.checker,
@@ -168,7 +175,7 @@ pub fn run_camera_trial(
         rig: setup.rig,
         views: &views,
         tracker: &tracker,
-        unknowns: unknowns(setup, !views.is_empty()),
+        unknowns: setup.rig.unknowns(setup.augmented, !views.is_empty()),
     };
     let fit_options = fit_options(options);
     let report = calibrate_camera(setup.augmented, &problem, &fit_options)?;
@@ -232,12 +239,14 @@ fn camera_truth(
     Ok(truth)
 }
 
-/// Identification configurations in which the true robot shows the camera at least one
-/// whole board facing it: the coupled branch within ±`torso_spread`, the rest anywhere.
+/// `count` configurations in which `model` (the truth, or the nominal robot for a planner's
+/// pool) shows the camera at least one whole board facing it: the coupled branch within
+/// ±`torso_spread`, the rest anywhere.
 fn visible_configurations(
     setup: &CameraSetup<'_>,
-    truth: &McpcModel,
+    model: &McpcModel,
     options: &CameraSimulationOptions,
+    count: usize,
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<Vec<f64>>> {
     let tree = setup.tree;
@@ -246,10 +255,10 @@ fn visible_configurations(
     let tool_targets: Vec<usize> = (0..setup.rig.targets.len())
         .filter(|&t| setup.rig.targets[t].tool < setup.rig.robot_tools)
         .collect();
-    let mut accepted = Vec::with_capacity(options.configurations);
-    let attempts = 500 * options.configurations.max(1);
+    let mut accepted = Vec::with_capacity(count);
+    let attempts = 500 * count.max(1);
     for _ in 0..attempts {
-        if accepted.len() == options.configurations {
+        if accepted.len() == count {
             return Ok(accepted);
         }
         let fixed: Vec<(usize, f64)> = torso
@@ -283,11 +292,15 @@ fn visible_configurations(
         .remove(0);
         // Each configuration shows the tool boards in turn (every tool is seen as often),
         // and whatever else is in view.
-        let visible = visible_targets(setup.rig, truth, &q, options);
+        let visible = visible_targets(setup.rig, model, &q, options);
         let wanted = tool_targets
             .get(accepted.len() % tool_targets.len().max(1))
             .copied();
-        if visible.iter().any(|v| wanted.is_none_or(|t| v.target == t)) {
+        let world = (0..setup.rig.targets.len())
+            .find(|&t| setup.rig.targets[t].tool >= setup.rig.robot_tools);
+        let world_seen = !options.world_board_always
+            || world.is_none_or(|w| visible.iter().any(|v| v.target == w));
+        if world_seen && visible.iter().any(|v| wanted.is_none_or(|t| v.target == t)) {
             accepted.push(q);
         }
     }
@@ -297,13 +310,13 @@ fn visible_configurations(
             "only {} of {} configurations in {attempts} draws show the camera a whole board; \
              choose another camera link or a smaller board",
             accepted.len(),
-            options.configurations
+            count
         ),
     })
 }
 
-/// The targets wholly visible at `q` on the true robot, with their exact pixels.
-fn visible_targets(
+/// The targets wholly visible at `q` on `truth`, with their exact pixels.
+pub(super) fn visible_targets(
     rig: &Rig,
     truth: &McpcModel,
     q: &[f64],
@@ -332,11 +345,19 @@ fn visible_targets(
                     .map(|k| (k, Vector2::zeros()))
                     .collect(),
             };
+            // A board is detected in part (as a ChArUco board is) when enough of its corners
+            // are in the image; only those corners are detected.
             let pixels = predict_pixels(rig, &view, &poses, &camera.intrinsics, true);
-            if pixels.iter().all(|p| p.is_ok()) {
-                for ((_, pixel), predicted) in view.points.iter_mut().zip(pixels) {
-                    *pixel = predicted.unwrap_or_else(|_| Vector2::zeros());
-                }
+            let total = pixels.len();
+            view.points = view
+                .points
+                .iter()
+                .zip(pixels)
+                .filter_map(|((k, _), pixel)| pixel.ok().map(|p| (*k, p)))
+                .collect();
+            let needed = ((options.rig.min_detected_fraction * total as f64).ceil() as usize)
+                .clamp(1, total.max(1));
+            if view.points.len() >= needed {
                 views.push(view);
             }
         }
@@ -381,8 +402,12 @@ fn tracker_rows(
     rng: &mut ChaCha8Rng,
 ) -> Vec<Measurement> {
     let mut rows = Vec::new();
+    let carriers = rig.camera_carriers(truth);
     for q in configurations {
         for (tool, pose) in truth.tool_poses(q).iter().take(rig.robot_tools).enumerate() {
+            if carriers.contains(&tool) {
+                continue;
+            }
             rows.push(Measurement {
                 tool,
                 q: q.clone(),
@@ -394,35 +419,6 @@ fn tracker_rows(
         }
     }
     rows
-}
-
-/// Every robot parameter, the estimated rig poses (with views) and estimated intrinsics.
-fn unknowns(setup: &CameraSetup<'_>, with_views: bool) -> Vec<Unknown> {
-    let rig = setup.rig;
-    let model = setup.augmented;
-    let extra: Vec<usize> = (0..rig.extra.len())
-        .flat_map(|e| rig.extra_parameters(model, e))
-        .collect();
-    let mut unknowns: Vec<Unknown> = (0..model.parameter_count())
-        .filter(|p| !extra.contains(p))
-        .map(Unknown::Parameter)
-        .collect();
-    if with_views {
-        for (e, (_, free)) in rig.extra.iter().enumerate() {
-            if *free {
-                unknowns.extend(rig.extra_parameters(model, e).map(Unknown::Parameter));
-            }
-        }
-        for (camera, spec) in rig.cameras.iter().enumerate() {
-            if spec.estimate_intrinsics {
-                unknowns.extend(
-                    (0..crate::camera::INTRINSIC_COUNT)
-                        .map(|index| Unknown::Intrinsic { camera, index }),
-                );
-            }
-        }
-    }
-    unknowns
 }
 
 /// Validation figures of a fit.
@@ -444,6 +440,7 @@ fn judge(
     validation: &[Vec<f64>],
 ) -> Result<Judged> {
     let tools = setup.rig.robot_tools;
+    let carriers = setup.rig.camera_carriers(setup.augmented);
     let (mut before, mut after, mut orientation, mut predicted) =
         (Vec::new(), Vec::new(), Vec::new(), 0.0);
     let columns: Vec<Option<usize>> = report
@@ -458,7 +455,7 @@ fn judge(
         let actual = truth.tool_poses(q);
         let nominal = setup.augmented.tool_poses(q);
         let fitted = report.model.tool_jacobians(q);
-        for tool in 0..tools {
+        for tool in (0..tools).filter(|t| !carriers.contains(t)) {
             let d = |p: &crate::math::Pose| {
                 (actual[tool].translation.vector - p.translation.vector).norm() * 1e3
             };

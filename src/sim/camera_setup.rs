@@ -38,6 +38,10 @@ pub struct CameraRigOptions {
     /// Largest angle between a board's face normal and the direction to the camera at which
     /// it is detected (rad).
     pub max_view_angle: f64,
+    /// Smallest share of a board's corners in the image for the board to be detected (only
+    /// those corners are): 1 asks for whole boards; below it, boards are detected in part as
+    /// ChArUco boards are.
+    pub min_detected_fraction: f64,
 }
 
 impl Default for CameraRigOptions {
@@ -61,10 +65,11 @@ impl Default for CameraRigOptions {
                 columns: 10,
                 spacing: 0.06,
             }),
-            world_board_distance: 1.5,
+            world_board_distance: 0.8,
             estimate_world_board: false,
             estimate_intrinsics: false,
             max_view_angle: 60f64.to_radians(),
+            min_detected_fraction: 0.5,
         }
     }
 }
@@ -127,6 +132,13 @@ pub fn camera_rig(
                 counts[*tool] += 1;
             }
         }
+        // A tool that carries the camera (a head named as a tool so that its neck is
+        // calibrated) is never in view of it.
+        for (tool, spec) in nominal.tools().iter().enumerate() {
+            if spec.link == link {
+                counts[tool] = usize::MAX / 4;
+            }
+        }
         let least = counts.iter().copied().min().unwrap_or(0);
         least * (SURVEY_CONFIGURATIONS * counts.len() + 1) + counts.iter().sum::<usize>()
     });
@@ -138,6 +150,9 @@ pub fn camera_rig(
     let world_from_camera = world_from_link * link_from_camera;
     let mut targets = Vec::new();
     for (tool, spec) in nominal.tools().iter().enumerate() {
+        if spec.link == link {
+            continue;
+        }
         // The face normal (−z of the board, tool frame) facing the camera most often.
         let cos_max = options.max_view_angle.cos();
         let facing = best_direction(|normal| {

@@ -10,6 +10,7 @@ mod calibrate_html;
 mod calibrate_outputs;
 mod calibrate_steps;
 pub mod check;
+pub mod check_camera;
 pub mod checker;
 pub mod checks;
 pub mod compare;

@@ -37,7 +37,16 @@ pub(super) fn simulate_camera(
     notes.extend(robot.notes());
     let import = robot.import;
     let tree = &import.tree;
-    let branches = branches(&import, config.tools.as_deref(), None)?;
+    let camera_link = match &config.camera_link {
+        Some(name) => Some(tree.link_id(name)?),
+        None => None,
+    };
+    let mut branches = branches(&import, config.tools.as_deref(), None)?;
+    if let (None, Some(link)) = (&config.tools, camera_link) {
+        if let Some(extended) = with_camera_link(tree, &branches, link, &mut notes)? {
+            branches = extended;
+        }
+    }
     let nominal = McpcModel::from_tree(tree, &branches)?;
     let checker = collision_checker(
         &config.robot,
@@ -46,10 +55,6 @@ pub(super) fn simulate_camera(
         config.collision_check,
         &mut notes,
     )?;
-    let camera_link = match &config.camera_link {
-        Some(name) => Some(tree.link_id(name)?),
-        None => None,
-    };
     let rig_options = CameraRigOptions {
         camera_link,
         world_board: if config.world_board {
@@ -154,6 +159,42 @@ pub(super) fn simulate_camera(
     })
 }
 
+/// With the default tools, a camera on a link moved by joints on no branch (a head camera
+/// behind its neck) would see the boards through joints the model does not have: the
+/// branches are detected again with the camera's link as one more observed link, so that
+/// those joints are calibrated (issue 31), and a note says so. `None` when every joint that
+/// moves the camera is already on a branch.
+pub(super) fn with_camera_link(
+    tree: &crate::KinematicTree,
+    branches: &crate::Branches,
+    link: crate::tree::LinkId,
+    notes: &mut Vec<Note>,
+) -> Result<Option<crate::Branches>> {
+    let calibrated: Vec<_> = std::iter::once(&branches.coupled)
+        .chain(&branches.arms)
+        .flat_map(|b| b.joints.iter().copied())
+        .collect();
+    let missing: Vec<String> = tree
+        .path_from_root(link)
+        .into_iter()
+        .filter(|&j| tree.joint(j).kind.is_movable() && !calibrated.contains(&j))
+        .map(|j| tree.joint(j).name.clone())
+        .collect();
+    if missing.is_empty() {
+        return Ok(None);
+    }
+    let mut tools = branches.tools();
+    tools.push(link);
+    let extended = crate::detect_branches_from(tree, Some(&tools), branches.reference)?;
+    notes.push(Note::info(format!(
+        "the camera's link '{}' is moved by {}, on no branch of the default tools: they are \
+         calibrated too, the link observed through the camera (its extrinsics place it)",
+        tree.link(link).name,
+        missing.join(", ")
+    )));
+    Ok(Some(extended))
+}
+
 fn mean(values: impl Iterator<Item = f64>) -> f64 {
     let values: Vec<f64> = values.collect();
     values.iter().sum::<f64>() / values.len().max(1) as f64
@@ -184,8 +225,9 @@ fn header(
     let tool_board = shapes.first().map_or_else(String::new, board_size);
     format!(
         "Robot '{robot}', {} trial(s), seed {}; observation: {mode:?}; {} identification \
-         configurations (each showing the camera at least one whole board within {:.0}° of \
-         facing it; torso joints within ±{:.2} rad), {} validation configurations over the \
+         configurations (each showing the camera a tool board{}, each board detected when at \
+         least {:.0} % of its corners are in the image and it is within {:.0}° of facing the \
+         camera; torso joints drawn within ±{:.2} rad), {} validation configurations over the \
          whole joint ranges; errors ±{} rad, ±{} m (robot and camera mounting); camera \
          {:.0} × {:.0} px, fx {:.1} px, distortion {:?}, {} above the {} link, intrinsics {}; \
          a board of {tool_board} on each tool; {world}; pixel noise σ {} px; tracker noise {} \
@@ -193,6 +235,12 @@ fn header(
         config.trials,
         config.seed,
         options.configurations,
+        if options.world_board_always && options.rig.world_board.is_some() {
+            " and the world board"
+        } else {
+            ""
+        },
+        options.rig.min_detected_fraction * 100.0,
         options.rig.max_view_angle.to_degrees(),
         options.torso_spread,
         options.validation_poses,

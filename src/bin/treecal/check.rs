@@ -2,6 +2,7 @@
 
 use crate::cli::{AngleUnit, CheckArgs, Format, PlanChoice};
 use treecal::workflow::check::{check, CheckConfig};
+use treecal::workflow::check_camera::{check_camera, CameraCheckConfig};
 use treecal::workflow::source::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
 use treecal::Result;
 
@@ -39,6 +40,24 @@ fn config(args: CheckArgs) -> CheckConfig {
 
 pub fn run(args: CheckArgs) -> Result<()> {
     let format = args.format;
+    if let (Some(camera_file), Some(detections)) = (args.camera.clone(), args.detections.clone()) {
+        let outcome = check_camera(&CameraCheckConfig {
+            robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
+            tools: args.tools,
+            camera_file,
+            detections,
+            pixel_sigma: args.pixel_sigma,
+        })?;
+        for note in &outcome.notes {
+            crate::output::note(note);
+        }
+        let text = match format {
+            Format::Text => outcome.text,
+            Format::Yaml => treecal::io::to_yaml(&outcome.report)?,
+            Format::Json => treecal::io::to_json(&outcome.report)?,
+        };
+        return crate::output::print(&text);
+    }
     let outcome = check(&config(args))?;
     for note in &outcome.notes {
         crate::output::note(note);

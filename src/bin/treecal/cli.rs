@@ -598,6 +598,16 @@ pub struct CheckArgs {
     /// Relative uncertainty of the prior stiffness (0.5: ±50 %).
     #[arg(long, default_value_t = 0.5)]
     pub stiffness_prior: f64,
+    /// Camera file (cameras and targets, docs/file-formats.md): with --detections, say what
+    /// the camera detections determine instead of analysing poses (docs/camera.md, section 5).
+    #[arg(long, value_name = "FILE", requires = "detections")]
+    pub camera: Option<PathBuf>,
+    /// Camera detections CSV (with --camera).
+    #[arg(long, value_name = "FILE", requires = "camera")]
+    pub detections: Option<PathBuf>,
+    /// Pixel noise σ of a detected point (px), with --camera.
+    #[arg(long, default_value_t = 0.5, value_name = "PX")]
+    pub pixel_sigma: f64,
 }
 
 /// `--model`.
