@@ -47,6 +47,7 @@ fn write_training(robot: &SecondRobot, rows: &[usize], path: &Path) {
                 )
             }
             Observation::Position(p) => (*p, ",,".to_string()),
+            Observation::Contact(_) => unreachable!("the second robot is measured by mocap"),
         };
         text.push_str(&format!(
             "{},{},{},{:.4},{:.4},{:.4},{rpy},0.3\n",

@@ -367,7 +367,11 @@ pub(super) fn assess(
         None => world_from_base,
     };
     let registered = registered_nominal(identified);
-    let unobservable = fitted.then(|| unobservable_base(loaded, identified, data));
+    // From a reference link behind joints (a sole), what the frame absorbs is that link's
+    // placement, not the root's: the `reference-gauge` note says it, this one would mislead.
+    let measured_from_root = run.report.model.reference_chain().is_empty();
+    let unobservable =
+        (fitted && measured_from_root).then(|| unobservable_base(loaded, identified, data));
     let mut findings: Vec<Finding> = unobservable.iter().map(unobservable_finding).collect();
     let mut report = ArtifactReport {
         registration: registration.as_ref().map(|_| REGISTRATION_FILE.to_owned()),
