@@ -107,7 +107,7 @@ impl IdentificationOptions {
                     .map(|i| observation_weights.get(i).copied().unwrap_or(1.0))
                     .collect()
             },
-            robust: robust.clone(),
+            robust: *robust,
             frozen: frozen.clone(),
             prior: prior.clone(),
         }

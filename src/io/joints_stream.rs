@@ -265,7 +265,9 @@ fn quote_open(text: &[u8]) -> bool {
 mod tests {
     use super::*;
 
-    fn rows(text: &str) -> Result<(Vec<String>, Vec<(usize, Vec<String>)>)> {
+    type Row = (usize, Vec<String>);
+
+    fn rows(text: &str) -> Result<(Vec<String>, Vec<Row>)> {
         let mut records = CsvRecords::open(text.as_bytes(), "t.csv")?;
         let mut rows = Vec::new();
         while let Some(row) = records.next_record()? {
