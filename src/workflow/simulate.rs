@@ -205,6 +205,35 @@ pub struct Simulation {
     pub camera_reports: Vec<crate::sim::camera::CameraTrialReport>,
 }
 
+impl Simulation {
+    /// A simulation without tracker trials (camera, contacts): summary.md and results.json
+    /// are its files, `camera_reports` its trials (empty for contacts).
+    pub(super) fn without_tracker_trials(
+        notes: Vec<Note>,
+        results: serde_json::Value,
+        markdown: String,
+        camera_reports: Vec<crate::sim::camera::CameraTrialReport>,
+    ) -> Result<Self> {
+        let files = vec![
+            ("summary.md".to_owned(), markdown.clone().into_bytes()),
+            (
+                "results.json".to_owned(),
+                crate::io::to_json(&results)?.into_bytes(),
+            ),
+        ];
+        Ok(Simulation {
+            notes,
+            reports: Vec::new(),
+            summary: crate::sim::monte_carlo::summarise(&[]),
+            results,
+            markdown,
+            files,
+            measurements_csv: None,
+            camera_reports,
+        })
+    }
+}
+
 /// Runs the simulation; writes nothing.
 pub fn simulate(config: &SimulateConfig) -> Result<Simulation> {
     simulate_with_progress(config, &no_progress)

@@ -6,7 +6,6 @@ use super::simulate::{ObservationChoice, SimulateConfig, Simulation};
 use super::source::branches;
 use super::{Note, Progress, ProgressFn};
 use crate::camera::TargetShape;
-use crate::io::to_json;
 use crate::sim::camera::{
     board_size, run_camera_trial, CameraSetup, CameraSimulationOptions, CameraTrialReport,
     ObservationMode,
@@ -143,20 +142,7 @@ pub(super) fn simulate_camera(
         "mean_predicted_rms_position_mm": mean(reports.iter().map(|r| r.predicted_rms_position_mm)),
         "mean_rms_position_mm": mean(reports.iter().map(|r| r.rms_position_mm)),
     });
-    let files = vec![
-        ("summary.md".to_owned(), markdown.clone().into_bytes()),
-        ("results.json".to_owned(), to_json(&results)?.into_bytes()),
-    ];
-    Ok(Simulation {
-        notes,
-        reports: Vec::new(),
-        summary: crate::sim::monte_carlo::summarise(&[]),
-        results,
-        markdown,
-        files,
-        measurements_csv: None,
-        camera_reports: reports,
-    })
+    Simulation::without_tracker_trials(notes, results, markdown, reports)
 }
 
 /// With the default tools, a camera on a link moved by joints on no branch (a head camera

@@ -4,7 +4,6 @@
 use super::simulate::{SimulateConfig, Simulation};
 use super::source::branches;
 use super::{Note, Progress, ProgressFn};
-use crate::io::to_json;
 use crate::sim::contacts::{run_contact_trial, ContactSimulation, ContactTrial};
 use crate::sim::experiment::trial_seed;
 use crate::sim::truth::ErrorRanges;
@@ -104,20 +103,7 @@ pub(super) fn simulate_contacts(
         "encoder_sigma": settings.encoder_sigma,
         "trials": rows,
     });
-    let files = vec![
-        ("summary.md".to_owned(), markdown.clone().into_bytes()),
-        ("results.json".to_owned(), to_json(&results)?.into_bytes()),
-    ];
-    Ok(Simulation {
-        notes,
-        reports: Vec::new(),
-        summary: crate::sim::monte_carlo::summarise(&[]),
-        results,
-        markdown,
-        files,
-        measurements_csv: None,
-        camera_reports: Vec::new(),
-    })
+    Simulation::without_tracker_trials(notes, results, markdown, Vec::new())
 }
 
 /// summary.md: one row per trial.
