@@ -139,8 +139,12 @@ fn benchmarks(c: &mut Criterion) {
     c.bench_function("jacobian_both_tools_robonaut", |b| {
         b.iter(|| model.tool_jacobians(black_box(&q)))
     });
-    // Caller-provided buffers, one tool's chain only (issue 14).
     let mut chain = treecal::kinematics::ChainFrames::default();
+    let mut jacobians = Vec::new();
+    c.bench_function("jacobian_both_tools_into_robonaut", |b| {
+        b.iter(|| model.tool_jacobians_into(black_box(&q), &mut chain, &mut jacobians))
+    });
+    // Caller-provided buffers, one tool's chain only (issue 14).
     let mut jacobian = nalgebra::DMatrix::zeros(6, model.parameter_count());
     c.bench_function("jacobian_one_tool_into_robonaut", |b| {
         b.iter(|| model.tool_jacobian_into(0, black_box(&q), &mut chain, &mut jacobian))

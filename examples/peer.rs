@@ -159,6 +159,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut chain = ChainFrames::default();
     let mut forward = ForwardFrames::default();
     let mut jacobian = DMatrix::zeros(6, model.parameter_count());
+    let mut jacobians = Vec::new();
     let timings = [
         (
             "fk_both_tools",
@@ -181,6 +182,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
         (
             "jacobian_both_tools",
+            timing_ns(rounds, &configurations, |q| {
+                model.tool_jacobians_into(q, &mut chain, &mut jacobians);
+                black_box(&jacobians);
+            }),
+        ),
+        (
+            "jacobian_both_tools_allocating",
             timing_ns(rounds, &configurations, |q| {
                 black_box(model.tool_jacobians(q));
             }),

@@ -37,6 +37,16 @@ fn check(model: &McpcModel, q: &[f64], what: &str) {
         let single = model.tool_jacobian(tool, q);
         assert_eq!(single.jacobian, jacobian.jacobian);
     }
+    // The buffered form, reused across a second configuration (stale entries overwritten).
+    let mut chain = treecal::kinematics::ChainFrames::default();
+    let mut jacobians = Vec::new();
+    let other: Vec<f64> = q.iter().map(|v| 0.3 - v).collect();
+    model.tool_jacobians_into(&other, &mut chain, &mut jacobians);
+    model.tool_jacobians_into(q, &mut chain, &mut jacobians);
+    assert_eq!(jacobians.len(), analytic.len());
+    for (buffered, jacobian) in jacobians.iter().zip(&analytic) {
+        assert_eq!(buffered, &jacobian.jacobian, "{what}: tool_jacobians_into");
+    }
 }
 
 #[test]

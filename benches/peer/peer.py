@@ -233,6 +233,8 @@ def main():
                 name, ours, cpp, cpp / ours, python, python / ours))
         as_poses = statistics.median(r[0]["ns"]["fk_both_tools_as_poses"][which] for r in runs)
         print("treecal fk_both_tools as Isometry3 poses (quaternions, allocated Vec): %.1f ns" % as_poses)
+        allocating = statistics.median(r[0]["ns"]["jacobian_both_tools_allocating"][which] for r in runs)
+        print("treecal jacobian_both_tools allocating its matrices (tool_jacobians): %.1f ns" % allocating)
         iteration = statistics.median(r[0]["ns"]["gn_iteration_200x2"][which] for r in runs)
         print("one Gauss-Newton iteration (%d parameters, 200 configurations x %d tools): %.0f us wall"
               % (side["parameters"], side["tool_count"], iteration / 1e3))

@@ -237,13 +237,36 @@ impl McpcModel {
             self.set_chain_frame(frame, chain);
         }
         self.set_chain_tool(tool, chain);
+        self.reset_jacobian(jacobian);
+        self.fill_tool_jacobian(tool, chain, jacobian);
+        chain.tools[tool].to_pose()
+    }
+
+    /// [`McpcModel::tool_jacobians`] into caller-provided buffers (no allocation once they
+    /// have their size): `jacobians` gets one 6 × parameter_count matrix per tool, overwritten;
+    /// the tool poses are `chain.tools`. Shared frames are computed once.
+    pub fn tool_jacobians_into(
+        &self,
+        q: &[f64],
+        chain: &mut ChainFrames,
+        jacobians: &mut Vec<DMatrix<f64>>,
+    ) {
+        self.chain_frames_into(q, chain);
+        jacobians.resize_with(self.tools().len(), || DMatrix::zeros(0, 0));
+        for (tool, jacobian) in jacobians.iter_mut().enumerate() {
+            self.reset_jacobian(jacobian);
+            self.fill_tool_jacobian(tool, chain, jacobian);
+        }
+    }
+
+    /// Sizes `jacobian` to 6 × parameter_count and zeroes it.
+    fn reset_jacobian(&self, jacobian: &mut DMatrix<f64>) {
         if jacobian.shape() != (6, self.parameter_count()) {
             *jacobian = DMatrix::zeros(6, self.parameter_count());
         } else {
-            jacobian.fill(0.0);
+            // The contiguous slice: `DMatrix::fill` walks the matrix element by element.
+            jacobian.as_mut_slice().fill(0.0);
         }
-        self.fill_tool_jacobian(tool, chain, jacobian);
-        chain.tools[tool].to_pose()
     }
 
     /// Poses and Jacobians of every tool at configuration `q`; shared frames computed once
