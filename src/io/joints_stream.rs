@@ -30,6 +30,7 @@ pub struct CsvRecords<R> {
     headers: Vec<String>,
     header_line: usize,
     rows: usize,
+    splitter: FieldSplitter,
 }
 
 impl<R: BufRead> CsvRecords<R> {
@@ -42,6 +43,7 @@ impl<R: BufRead> CsvRecords<R> {
             headers: Vec::new(),
             header_line: 0,
             rows: 0,
+            splitter: FieldSplitter::default(),
         };
         let (line, headers) = records.next_fields()?.ok_or_else(|| Error::InvalidData {
             origin: origin.to_owned(),
@@ -113,38 +115,95 @@ impl<R: BufRead> CsvRecords<R> {
         Ok(None)
     }
 
-    fn fields(&self, line: usize, text: &[u8]) -> Result<Vec<String>> {
+    fn fields(&mut self, line: usize, text: &[u8]) -> Result<Vec<String>> {
         let place = || format!("{}:{line}", self.origin);
-        let mut reader = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .trim(csv::Trim::All)
-            .flexible(true)
-            .from_reader(text);
-        let mut record = csv::StringRecord::new();
-        let read = reader
-            .read_record(&mut record)
-            .map_err(|e| Error::InvalidData {
-                origin: place(),
-                message: format!("not readable as CSV: {e}"),
-            })?;
-        if !read {
-            return Ok(Vec::new());
+        let fields = self.splitter.split(text);
+        if fields.len() > MAX_CSV_COLUMNS {
+            check_count(fields.len(), MAX_CSV_COLUMNS, &place(), "columns")?;
         }
-        if record.len() > MAX_CSV_COLUMNS {
-            check_count(record.len(), MAX_CSV_COLUMNS, &place(), "columns")?;
-        }
-        if let Some(position) = record.iter().position(|f| f.len() > MAX_CSV_FIELD_BYTES) {
-            return Err(Error::InvalidData {
+        let mut record = Vec::with_capacity(fields.len());
+        for (position, field) in fields.iter().enumerate() {
+            let field = std::str::from_utf8(field).map_err(|e| Error::InvalidData {
                 origin: place(),
                 message: format!(
-                    "field {} has {} bytes, more than the limit of {MAX_CSV_FIELD_BYTES} \
-                     (docs/file-formats.md, \"Limits\")",
-                    position + 1,
-                    record[position].len()
+                    "not readable as CSV: field {} is not UTF-8 ({e}); save the file as UTF-8",
+                    position + 1
                 ),
-            });
+            })?;
+            let field = field.trim();
+            if field.len() > MAX_CSV_FIELD_BYTES {
+                return Err(Error::InvalidData {
+                    origin: place(),
+                    message: format!(
+                        "field {} has {} bytes, more than the limit of {MAX_CSV_FIELD_BYTES} \
+                         (docs/file-formats.md, \"Limits\")",
+                        position + 1,
+                        field.len()
+                    ),
+                });
+            }
+            record.push(field.to_owned());
         }
-        Ok(record.iter().map(str::to_owned).collect())
+        Ok(record)
+    }
+}
+
+/// Splits one record's text into its fields (quotes removed), with one CSV parser and its
+/// buffers kept across records: building a parser costs far more than parsing a short row.
+struct FieldSplitter {
+    parser: csv_core::Reader,
+    output: Vec<u8>,
+    ends: Vec<usize>,
+}
+
+impl Default for FieldSplitter {
+    fn default() -> Self {
+        Self {
+            // `new` builds the parser's state machine (`Reader::default` does not).
+            parser: csv_core::Reader::new(),
+            output: Vec::new(),
+            ends: Vec::new(),
+        }
+    }
+}
+
+impl FieldSplitter {
+    /// The fields of `text` (one record without its line break) as byte slices. The parser's
+    /// field ends count from the start of the record's output, across calls.
+    fn split(&mut self, text: &[u8]) -> Vec<&[u8]> {
+        self.parser.reset();
+        // Unquoting never lengthens a field, and a record has at most one field per byte + 1.
+        self.output.resize(text.len() + 1, 0);
+        self.ends.resize(text.len() + 2, 0);
+        let (mut input, mut written, mut fields) = (text, 0, 0);
+        loop {
+            let (result, read, out, ends) = self.parser.read_record(
+                input,
+                &mut self.output[written..],
+                &mut self.ends[fields..],
+            );
+            (input, written, fields) = (&input[read..], written + out, fields + ends);
+            match result {
+                // An empty input tells the parser the record has ended.
+                csv_core::ReadRecordResult::InputEmpty => input = &[],
+                csv_core::ReadRecordResult::OutputFull => {
+                    self.output.resize(2 * self.output.len() + 1, 0)
+                }
+                csv_core::ReadRecordResult::OutputEndsFull => {
+                    self.ends.resize(2 * self.ends.len() + 1, 0)
+                }
+                csv_core::ReadRecordResult::Record | csv_core::ReadRecordResult::End => break,
+            }
+        }
+        let mut start = 0;
+        self.ends[..fields]
+            .iter()
+            .map(|&end| {
+                let field = &self.output[start..end];
+                start = end;
+                field
+            })
+            .collect()
     }
 }
 
