@@ -419,6 +419,8 @@ pub struct ContactTrial {
     pub consistency: f64,
     /// The true nuisance values.
     pub truth_nuisance: Nuisance,
+    /// The simulated contacts (the true nuisance, training and held-out rows).
+    pub scene: ContactScene,
 }
 
 /// The free model parameters of a contact fit: every joint frame's (tools' offsets alias the
@@ -527,7 +529,8 @@ pub fn run_contact_trial(
         rank,
         observable_error,
         consistency,
-        truth_nuisance: scene.nuisance,
+        truth_nuisance: scene.nuisance.clone(),
+        scene,
     })
 }
 
