@@ -93,6 +93,7 @@ pub(super) fn simulate_contacts(
                 "rows": t.report.rows,
                 "free": t.free.len(),
                 "rank": t.rank,
+                "linear_rank": t.linear_rank,
                 "noise_free_held_out": t.noise_free_held_out,
                 "held_out": t.held_out,
                 "observable_error": t.observable_error,
@@ -289,8 +290,8 @@ fn markdown(
         "# Contact simulation: {robot}\n\nContacts: {} ({} configurations each, held-out \
          contacts of the true robot for validation); encoder noise σ = {:e} rad.\n\n\
          | trial | rows | unknowns | rank | held-out residual, noise-free | held-out residual \
-         | observable error vs noise-free fit | error / covariance | σ̂ |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+         | observable error vs noise-free fit | directions compared | error / covariance | σ̂ \
+         |\n|---|---|---|---|---|---|---|---|---|---|\n",
         names.join(", "),
         settings.per_kind,
         settings.encoder_sigma,
@@ -298,7 +299,7 @@ fn markdown(
     for (k, t) in trials.iter().enumerate() {
         let _ = writeln!(
             text,
-            "| {} | {} | {} | {} | {:.2e} | {:.2e} | {:.2e} | {} | {:.3} |",
+            "| {} | {} | {} | {} | {:.2e} | {:.2e} | {:.2e} | {} | {} | {:.3} |",
             k + 1,
             t.report.rows,
             t.free.len(),
@@ -306,6 +307,7 @@ fn markdown(
             t.noise_free_held_out,
             t.held_out,
             t.observable_error,
+            t.linear_rank,
             if settings.encoder_sigma > 0.0 {
                 format!("{:.2}", t.consistency)
             } else {
@@ -317,7 +319,9 @@ fn markdown(
     text.push_str(
         "\nResiduals are heights, gaps and lengths in m and tilts in rad. \"error / \
          covariance\" is √(eᵀC⁺e / rank) of the noisy fit's error in the observable subspace \
-         against its covariance C (1: as predicted; — without noise).\n",
+         against its covariance C (1: as predicted; — without noise), over the directions \
+         compared: those whose standard deviation is below 1 cm or 10 mrad (weaker ones are \
+         not linear over their spread).\n",
     );
     text
 }
