@@ -379,16 +379,24 @@ pub fn contact_report(
     let _ = writeln!(
         md,
         "{} equations, {} unknowns (joint frames and nuisance), rank {}, σ̂ = {:.3} (the \
-         residuals against the setup's σ's), {} iterations ({:?}). Training: {} before, {} \
-         after.\n",
+         residuals against the setup's σ's), {} iterations ({:?}).\n",
         after.rows,
         fit.free.len(),
         after.rank,
         after.residual_scale,
         after.iterations,
         after.termination,
-        scores.training[0].overall.cells(),
-        scores.training[1].overall.cells(),
+    );
+    md.push_str(header);
+    let _ = writeln!(
+        md,
+        "| registered nominal robot, training contacts | {} |",
+        scores.training[0].overall.cells()
+    );
+    let _ = writeln!(
+        md,
+        "| calibrated, training contacts | {} |\n",
+        scores.training[1].overall.cells()
     );
     md.push_str(&planes_markdown(problem, fit));
     md.push_str(&unobservable_markdown(tree, problem, fit));
