@@ -277,3 +277,171 @@ fn flush_names_the_height_offset_alias() {
         "{named:?}"
     );
 }
+
+/// NAO from the repository's shared robots (`TREECAL_SHARED_DIR`, `../shared`, `/work/shared`).
+fn shared_nao() -> Option<std::path::PathBuf> {
+    let mut candidates = Vec::new();
+    if let Some(dir) = std::env::var_os("TREECAL_SHARED_DIR") {
+        candidates.push(std::path::PathBuf::from(dir).join("robots/nao/nao.urdf"));
+    }
+    candidates.push(common::repo().join("../shared/robots/nao/nao.urdf"));
+    candidates.push("/work/shared/robots/nao/nao.urdf".into());
+    candidates.into_iter().find(|c| c.is_file())
+}
+
+fn report_json(dir: &std::path::Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("report.json")).expect("report.json");
+    serde_json::from_str(&text).expect("report.json parses")
+}
+
+/// A standing humanoid (NAO on its left sole) presses its left gripper flush on a table: the
+/// lab's files that `simulate` writes (the table's nominal 0.3 m off) calibrate through the CLI,
+/// the held-out heights beat the registered nominal robot, one URDF is exported.
+#[test]
+fn flush_contacts_of_a_standing_humanoid_round_trip_through_the_cli() {
+    let Some(nao) = shared_nao() else {
+        eprintln!("skipped: the shared NAO URDF is not there");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (sim, cal) = (dir.path().join("sim"), dir.path().join("cal"));
+    let nao = common::cli::path_str(&nao).to_owned();
+    let run = common::cli::treecal(&[
+        "simulate",
+        "--robot",
+        &nao,
+        "--tools",
+        "l_gripper,r_gripper",
+        "--reference-link",
+        "l_sole",
+        "--observation",
+        "flush",
+        "--trials",
+        "1",
+        "--poses",
+        "60",
+        "--out",
+        common::cli::path_str(&sim),
+    ]);
+    common::cli::assert_success(&run, "simulate flush on NAO");
+    let setup = std::fs::read_to_string(sim.join("contact-setup.yaml")).unwrap();
+    assert!(setup.contains("reference_link: l_sole"), "{setup}");
+    let csv = std::fs::read_to_string(sim.join("contacts.csv")).unwrap();
+    assert!(csv.starts_with("# units:"), "{csv}");
+    assert!(csv.contains("id,session,kind,tool,spot,tool2,"), "{csv}");
+    let run = common::cli::treecal(&[
+        "calibrate",
+        "--robot",
+        &nao,
+        "--contacts",
+        common::cli::path_str(&sim.join("contacts.csv")),
+        "--contact-setup",
+        common::cli::path_str(&sim.join("contact-setup.yaml")),
+        "--validation",
+        common::cli::path_str(&sim.join("contacts-validation.csv")),
+        "--out",
+        common::cli::path_str(&cal),
+    ]);
+    common::cli::assert_success(&run, "calibrate --contacts on NAO");
+    for needle in [
+        "registered nominal robot (only the nuisance fitted)",
+        "height RMS / max (mm)",
+        "tilt RMS / max (°)",
+        "Diagnostic: a plane refitted",
+        "alias exactly",
+    ] {
+        assert!(run.stdout.contains(needle), "{needle}\n{}", run.stdout);
+    }
+    assert!(!run.stdout.contains("position error"), "{}", run.stdout);
+    let json = report_json(&cal);
+    assert_eq!(json["usable"], true, "{json}");
+    let held = &json["held_out"]["training_plane"];
+    let before = held["before"]["height_mm"]["rms"].as_f64().unwrap();
+    let after = held["after"]["height_mm"]["rms"].as_f64().unwrap();
+    // Noise-free contacts: the calibrated robot predicts them exactly; the nominal one does not.
+    assert!(after < 1e-3, "held-out height after {after} mm");
+    assert!(before > 1.0, "held-out height before {before} mm");
+    assert!(cal.join("calibrated.urdf").is_file());
+}
+
+/// Contacts files with mistakes: errors name the file, line and column, and what to do.
+#[test]
+fn contact_files_with_mistakes_are_errors_naming_the_place() {
+    use treecal::io::contacts_csv::parse_contacts;
+    use treecal::io::contacts_yaml::parse_contact_setup;
+    let (tree, _) = robonaut();
+    let error = |text: &str| {
+        parse_contacts(text, "c.csv", &tree)
+            .unwrap_err()
+            .to_string()
+    };
+    let message = error("id,session,tool,torso_joint1\n1,day1,left,0.1\n");
+    assert!(
+        message.contains("c.csv:1") && message.contains("'kind'"),
+        "{message}"
+    );
+    let message = error("id,session,kind,tool,torso_joint1\n1,day1,flsh,left,0.1\n");
+    assert!(
+        message.contains("c.csv:2:kind") && message.contains("'flush'"),
+        "{message}"
+    );
+    let message = error("id,session,kind,tool,torso_joint1\n1,day1,touch,left,0.1\n");
+    assert!(
+        message.contains("c.csv:2") && message.contains("tool2"),
+        "{message}"
+    );
+    let message = error("id,session,kind,tool,torso_joint1\n1,day1,flush,left,abc\n");
+    assert!(message.contains("c.csv:2:torso_joint1"), "{message}");
+    let table = parse_contacts(
+        "# units: angle=deg\nid,session,kind,tool,stamp,torso_joint1\n1,day1,flush,left,5,90\n",
+        "c.csv",
+        &tree,
+    )
+    .unwrap();
+    assert!((table.rows[0].q[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    assert_eq!(table.ignored_columns, vec!["stamp".to_owned()]);
+    let message = parse_contact_setup("tools:\n  left:\n    lnk: a\n", "s.yaml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("s.yaml:") && message.contains("'link'"),
+        "{message}"
+    );
+    let message = parse_contact_setup("tools: {}\n", "s.yaml")
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("no tool"), "{message}");
+}
+
+/// The contacts CSV refers to a session without a plane in the setup: the error names the
+/// line and says what to add.
+#[test]
+fn a_session_without_a_plane_is_an_error_naming_the_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("c.csv");
+    let setup = dir.path().join("s.yaml");
+    std::fs::write(
+        &csv,
+        "id,session,kind,tool,torso_joint1\n1,day2,flush,left,0.1\n2,day2,flush,left,0.2\n",
+    )
+    .unwrap();
+    std::fs::write(
+        &setup,
+        "tools:\n  left:\n    link: left_tool\n    face: {xyz: [0, 0, 0.05]}\nplanes:\n  day1: {xyz: [0.5, 0, 0]}\n",
+    )
+    .unwrap();
+    let run = common::cli::treecal(&[
+        "calibrate",
+        "--contacts",
+        common::cli::path_str(&csv),
+        "--contact-setup",
+        common::cli::path_str(&setup),
+        "--out",
+        common::cli::path_str(&dir.path().join("out")),
+    ]);
+    common::cli::assert_error(
+        &run,
+        &["c.csv:2", "day2", "day1", "add its nominal plane"],
+        "a session without a plane",
+    );
+}

@@ -4,6 +4,8 @@
 pub mod bounded;
 pub mod camera_yaml;
 mod collada;
+pub mod contacts_csv;
+pub mod contacts_yaml;
 mod csv_scan;
 pub mod detections_csv;
 pub mod joint_log;

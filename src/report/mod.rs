@@ -4,6 +4,7 @@ pub mod artifact;
 pub mod calibrate;
 pub mod check;
 pub mod compare;
+pub mod contacts;
 pub mod html;
 pub mod html_chart;
 pub mod html_page;

@@ -410,6 +410,9 @@ pub struct ContactTrial {
     pub noise_free_held_out: f64,
     /// The same for the fit with encoder noise.
     pub held_out: f64,
+    /// Directions of the noisy fit compared with its covariance: those whose standard
+    /// deviation is below [`LINEAR_STD`] (the fit is linear over their spread).
+    pub linear_rank: usize,
     /// Largest error (m or rad) in the observable subspace of the noisy data's fit started
     /// from the noise-free fit's solution (the truth's representative along the directions
     /// the contacts cannot see), against that solution.
@@ -419,6 +422,8 @@ pub struct ContactTrial {
     pub consistency: f64,
     /// The true nuisance values.
     pub truth_nuisance: Nuisance,
+    /// The simulated contacts (the true nuisance, training and held-out rows).
+    pub scene: ContactScene,
 }
 
 /// The free model parameters of a contact fit: every joint frame's (tools' offsets alias the
@@ -480,13 +485,30 @@ pub fn run_contact_trial(
     // steps then move in the observable directions only, where the covariance applies).
     let mut reference_model = nominal.clone();
     reference_model.set_parameters(&exact.parameters)?;
+    // What the contacts cannot see is a curved set (e.g. the plane turning with the torso
+    // about the base): steps along it are not linear, so an error measured across it is not
+    // the covariance's. The noisy fit frees one independent set of columns (as many as the
+    // rank, the rest held at the noise-free solution): no step leaves the observable
+    // directions.
+    let (at_exact, _) = weighted_jacobian(
+        &reference_model,
+        &exact.nuisance,
+        &scene.measurements,
+        &Rigid,
+        &free,
+        &options,
+    )?;
+    let independent: Vec<usize> = independent_columns(&at_exact, options.rank_tolerance)
+        .into_iter()
+        .map(|k| free[k])
+        .collect();
     let noisy = identify_with_nuisance(
         &reference_model,
         &exact.nuisance,
         &scene.measurements,
         None,
         &Rigid,
-        &free,
+        &independent,
         &options,
     )?;
     let mut estimate = nominal.clone();
@@ -496,7 +518,7 @@ pub fn run_contact_trial(
         &noisy.nuisance,
         &scene.measurements,
         &Rigid,
-        &free,
+        &independent,
         &options,
     )?;
     let values = |r: &IdentificationReport| -> Vec<f64> {
@@ -508,10 +530,10 @@ pub fn run_contact_trial(
     };
     let (reference, estimated) = (values(&exact), values(&noisy));
     let error = DVector::from_iterator(
-        free.len(),
-        free.iter().map(|&p| estimated[p] - reference[p]),
+        independent.len(),
+        independent.iter().map(|&p| estimated[p] - reference[p]),
     );
-    let (rank, observable_error, consistency) = observable_part(
+    let (_, linear_rank, observable_error, consistency) = observable_part(
         &jacobian,
         &error,
         options.rank_tolerance,
@@ -524,12 +546,64 @@ pub fn run_contact_trial(
         held_out,
         report,
         free,
-        rank,
+        rank: exact.rank,
+        linear_rank,
         observable_error,
         consistency,
-        truth_nuisance: scene.nuisance,
+        truth_nuisance: scene.nuisance.clone(),
+        scene,
     })
 }
+
+/// An independent set of columns of `jacobian` as large as its rank (the singular values above
+/// `tolerance` times the largest, columns scaled to unit norm as the solver does), chosen
+/// greedily by the largest norm left after projecting out the columns chosen before; in
+/// increasing order. Deterministic.
+pub fn independent_columns(jacobian: &DMatrix<f64>, tolerance: f64) -> Vec<usize> {
+    let mut columns: Vec<DVector<f64>> = jacobian
+        .column_iter()
+        .map(|c| {
+            let norm = c.norm();
+            if norm > 0.0 {
+                c / norm
+            } else {
+                c.into_owned()
+            }
+        })
+        .collect();
+    let scaled = DMatrix::from_columns(&columns);
+    let singular = scaled.singular_values();
+    let largest = singular.max();
+    let rank = singular
+        .iter()
+        .filter(|&&s| s > tolerance * largest)
+        .count();
+    let mut chosen = Vec::with_capacity(rank);
+    for _ in 0..rank {
+        let Some((best, _)) = columns
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !chosen.contains(k))
+            .map(|(k, c)| (k, c.norm()))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            break;
+        };
+        let basis = columns[best].normalize();
+        for column in &mut columns {
+            let along = basis.dot(column);
+            column.axpy(-along, &basis, 1.0);
+        }
+        chosen.push(best);
+    }
+    chosen.sort_unstable();
+    chosen
+}
+
+/// The largest standard deviation (m, rad) of a direction whose error is compared with the
+/// covariance: weaker directions (a few nearly unobservable combinations of a flush fit, which
+/// the encoder noise moves by centimetres to metres) are not linear over their spread.
+pub const LINEAR_STD: f64 = 1e-2;
 
 /// Rank, largest observable error and its consistency with `σ̂²(JᵀJ)⁺`, from the SVD of the
 /// column-scaled weighted Jacobian (the solver's rank decision).
@@ -538,7 +612,7 @@ fn observable_part(
     error: &DVector<f64>,
     tolerance: f64,
     scale: f64,
-) -> (usize, f64, f64) {
+) -> (usize, usize, f64, f64) {
     let norms: Vec<f64> = jacobian.column_iter().map(|c| c.norm()).collect();
     let floor = norms.iter().copied().fold(0.0, f64::max) * 1e-6;
     let scales = DVector::from_iterator(
@@ -553,23 +627,34 @@ fn observable_part(
     }
     let svd = scaled.svd(false, true);
     let Some(v_t) = svd.v_t else {
-        return (0, f64::NAN, f64::NAN);
+        return (0, 0, f64::NAN, f64::NAN);
     };
     let largest = svd.singular_values.max();
     let scaled_error = error.component_mul(&scales);
     let mut projected = DVector::zeros(error.len());
-    let (mut rank, mut chi) = (0, 0.0);
+    let (mut rank, mut compared, mut chi) = (0, 0, 0.0);
     for (i, &sigma) in svd.singular_values.iter().enumerate() {
+        let v = v_t.row(i).transpose();
+        // The direction's standard deviation in parameter units (m, rad): beyond
+        // LINEAR_STD the fit is not linear there and the covariance does not apply.
+        let spread = v.component_div(&scales).amax() * scale / sigma;
         if sigma > tolerance * largest {
             rank += 1;
-            let v = v_t.row(i).transpose();
+        }
+        if sigma > tolerance * largest && spread < LINEAR_STD {
+            compared += 1;
             let along = v.dot(&scaled_error);
             projected += v * along;
             chi += (along * sigma / scale).powi(2);
         }
     }
     let observable = projected.component_div(&scales).amax();
-    (rank, observable, (chi / rank.max(1) as f64).sqrt())
+    (
+        rank,
+        compared,
+        observable,
+        (chi / compared.max(1) as f64).sqrt(),
+    )
 }
 
 /// The largest residual of the held-out contacts `validation` under the fitted robot and

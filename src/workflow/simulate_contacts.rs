@@ -4,11 +4,19 @@
 use super::simulate::{SimulateConfig, Simulation};
 use super::source::branches;
 use super::{Note, Progress, ProgressFn};
-use crate::sim::contacts::{run_contact_trial, ContactSimulation, ContactTrial};
+use crate::io::contacts_csv::{contacts_to_csv, ContactKind, ContactRow};
+use crate::io::contacts_yaml::{
+    contact_setup_to_yaml, BarSetup, ContactSetup, FreeSetup, PoseEntry, SigmaSetup, ToolSetup,
+};
+use crate::math::Pose;
+use crate::measurement::{Contact, Measurement, Observation};
+use crate::sim::contacts::{run_contact_trial, ContactScene, ContactSimulation, ContactTrial};
 use crate::sim::experiment::trial_seed;
 use crate::sim::truth::ErrorRanges;
 use crate::{McpcModel, Result};
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -85,6 +93,7 @@ pub(super) fn simulate_contacts(
                 "rows": t.report.rows,
                 "free": t.free.len(),
                 "rank": t.rank,
+                "linear_rank": t.linear_rank,
                 "noise_free_held_out": t.noise_free_held_out,
                 "held_out": t.held_out,
                 "observable_error": t.observable_error,
@@ -103,7 +112,171 @@ pub(super) fn simulate_contacts(
         "encoder_sigma": settings.encoder_sigma,
         "trials": rows,
     });
-    Simulation::without_tracker_trials(notes, results, markdown, Vec::new())
+    let mut simulation = Simulation::without_tracker_trials(notes, results, markdown, Vec::new())?;
+    if let Some(first) = trials.first() {
+        simulation.files.extend(lab_files(
+            tree,
+            &nominal,
+            &first.scene,
+            config.reference_link.as_deref(),
+        )?);
+    }
+    Ok(simulation)
+}
+
+/// How far the setup file's nominal planes are from the true ones: along the normal (m), in
+/// the plane (m) and tilted (rad) — a lab's rough nominal (the TALOS data's are 0.29 m off).
+const SETUP_PLANE_ERROR: (f64, f64, f64) = (0.3, 0.1, 0.05);
+
+/// How far the setup file's contact points are from the true ones (m, each coordinate).
+const SETUP_POINT_ERROR: f64 = 0.01;
+
+/// Trial 1's contacts as a lab would write them: contacts.csv (training, configurations as
+/// recorded), contacts-validation.csv (held out, exact) and contact-setup.yaml (the nominal
+/// faces, points and planes, the planes [`SETUP_PLANE_ERROR`] off), for `calibrate --contacts`.
+fn lab_files(
+    tree: &crate::tree::KinematicTree,
+    model: &McpcModel,
+    scene: &ContactScene,
+    reference: Option<&str>,
+) -> Result<Vec<(String, Vec<u8>)>> {
+    let tool_name = |tool: usize| tree.link(model.tools()[tool].link).name.clone();
+    let session = |block: usize| {
+        scene.nuisance.blocks[block]
+            .name
+            .trim_start_matches("plane ")
+            .to_owned()
+    };
+    let mut setup = ContactSetup {
+        reference_link: reference.map(str::to_owned),
+        tools: BTreeMap::new(),
+        planes: BTreeMap::new(),
+        bar: None,
+        free: FreeSetup::default(),
+        sigma: SigmaSetup::default(),
+    };
+    let rows_of = |rows: &[Measurement], setup: &mut ContactSetup| -> Result<Vec<ContactRow>> {
+        let mut out = Vec::new();
+        for (k, m) in rows.iter().enumerate() {
+            let Observation::Contact(contact) = &m.observation else {
+                continue;
+            };
+            let name = tool_name(m.tool);
+            let entry = setup
+                .tools
+                .entry(name.clone())
+                .or_insert_with(|| ToolSetup {
+                    link: name.clone(),
+                    face: None,
+                    point: None,
+                });
+            let (kind, plane, tool2) = match *contact {
+                Contact::Flush { plane, face } => {
+                    entry.face = Some(PoseEntry::of(&face.nominal));
+                    (ContactKind::Flush, Some(plane), None)
+                }
+                Contact::Point { plane, point } => {
+                    entry.point = Some(rough_point(scene.nuisance.block_values(point)?, k));
+                    (ContactKind::Point, Some(plane), None)
+                }
+                Contact::Touch {
+                    point,
+                    tool2,
+                    point2,
+                }
+                | Contact::Distance {
+                    point,
+                    tool2,
+                    point2,
+                    ..
+                } => {
+                    entry.point = Some(rough_point(scene.nuisance.block_values(point)?, 0));
+                    let other = tool_name(tool2);
+                    let second = setup
+                        .tools
+                        .entry(other.clone())
+                        .or_insert_with(|| ToolSetup {
+                            link: other.clone(),
+                            face: None,
+                            point: None,
+                        });
+                    second.point = Some(rough_point(scene.nuisance.block_values(point2)?, 1));
+                    let kind = if matches!(contact, Contact::Touch { .. }) {
+                        ContactKind::Touch
+                    } else {
+                        ContactKind::Distance
+                    };
+                    (kind, None, Some(other))
+                }
+            };
+            if let Contact::Distance { length, .. } = contact {
+                setup.bar = Some(BarSetup {
+                    length: scene.nuisance.block_values(*length)?[0],
+                    free: false,
+                });
+            }
+            let session_name = match plane {
+                Some(plane) => {
+                    let name = session(plane.block);
+                    setup
+                        .planes
+                        .entry(name.clone())
+                        .or_insert_with(|| PoseEntry::of(&rough_plane(&plane.nominal)));
+                    name
+                }
+                None => "self".to_owned(),
+            };
+            out.push(ContactRow {
+                line: 0,
+                id: format!("c{}", k + 1),
+                session: session_name,
+                kind,
+                tool: name,
+                spot: None,
+                tool2,
+                q: m.q.clone(),
+            });
+        }
+        Ok(out)
+    };
+    let training = rows_of(&scene.measurements, &mut setup)?;
+    let validation = rows_of(&scene.validation, &mut setup)?;
+    let joints: Vec<String> = tree
+        .dofs()
+        .iter()
+        .map(|&j| tree.joint(j).name.clone())
+        .collect();
+    Ok(vec![
+        (
+            "contacts.csv".to_owned(),
+            contacts_to_csv(&training, &joints).into_bytes(),
+        ),
+        (
+            "contacts-validation.csv".to_owned(),
+            contacts_to_csv(&validation, &joints).into_bytes(),
+        ),
+        (
+            "contact-setup.yaml".to_owned(),
+            contact_setup_to_yaml(&setup)?.into_bytes(),
+        ),
+    ])
+}
+
+/// A true contact point as a lab's nominal: [`SETUP_POINT_ERROR`] off, deterministic.
+fn rough_point(values: &[f64], salt: usize) -> [f64; 3] {
+    let sign = |k: usize| if (k + salt) % 2 == 0 { 1.0 } else { -1.0 };
+    [0, 1, 2].map(|k| values[k] + SETUP_POINT_ERROR * sign(k))
+}
+
+/// A true plane as a lab's nominal: moved along its normal and in the plane, and tilted
+/// ([`SETUP_PLANE_ERROR`]).
+fn rough_plane(plane: &Pose) -> Pose {
+    let (along, across, tilt) = SETUP_PLANE_ERROR;
+    let moved = plane.rotation * Vector3::new(across, 0.0, along);
+    Pose::from_parts(
+        Translation3::from(plane.translation.vector + moved),
+        plane.rotation * UnitQuaternion::from_euler_angles(tilt, 0.0, 0.0),
+    )
 }
 
 /// summary.md: one row per trial.
@@ -117,8 +290,8 @@ fn markdown(
         "# Contact simulation: {robot}\n\nContacts: {} ({} configurations each, held-out \
          contacts of the true robot for validation); encoder noise σ = {:e} rad.\n\n\
          | trial | rows | unknowns | rank | held-out residual, noise-free | held-out residual \
-         | observable error vs noise-free fit | error / covariance | σ̂ |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+         | observable error vs noise-free fit | directions compared | error / covariance | σ̂ \
+         |\n|---|---|---|---|---|---|---|---|---|---|\n",
         names.join(", "),
         settings.per_kind,
         settings.encoder_sigma,
@@ -126,7 +299,7 @@ fn markdown(
     for (k, t) in trials.iter().enumerate() {
         let _ = writeln!(
             text,
-            "| {} | {} | {} | {} | {:.2e} | {:.2e} | {:.2e} | {} | {:.3} |",
+            "| {} | {} | {} | {} | {:.2e} | {:.2e} | {:.2e} | {} | {} | {:.3} |",
             k + 1,
             t.report.rows,
             t.free.len(),
@@ -134,6 +307,7 @@ fn markdown(
             t.noise_free_held_out,
             t.held_out,
             t.observable_error,
+            t.linear_rank,
             if settings.encoder_sigma > 0.0 {
                 format!("{:.2}", t.consistency)
             } else {
@@ -145,7 +319,9 @@ fn markdown(
     text.push_str(
         "\nResiduals are heights, gaps and lengths in m and tilts in rad. \"error / \
          covariance\" is √(eᵀC⁺e / rank) of the noisy fit's error in the observable subspace \
-         against its covariance C (1: as predicted; — without noise).\n",
+         against its covariance C (1: as predicted; — without noise), over the directions \
+         compared: those whose standard deviation is below 1 cm or 10 mrad (weaker ones are \
+         not linear over their spread).\n",
     );
     text
 }

@@ -4,6 +4,7 @@
 use crate::cli::{
     CalibrateArgs, GravityFrame, JointErrorArg, MeasurementFrame, ModelArg, PlanArg, PlanChoice,
 };
+use std::path::Path;
 use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, PlanSource, RobotSource,
@@ -12,6 +13,9 @@ use treecal::workflow::{
 use treecal::{Error, Result};
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
+    if let (Some(contacts), Some(setup)) = (&args.contacts, &args.contact_setup) {
+        return run_contacts(&args, contacts, setup);
+    }
     let config = config(&args);
     // The output folder is replaced as a whole at the end: refuse one that holds an input or
     // is not a previous output before computing anything.
@@ -44,7 +48,7 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
     };
     CalibrateConfig {
         robot: RobotSource::from_path(args.robot.clone()),
-        measurements: MeasurementSource::Csv(args.measurements.clone()),
+        measurements: MeasurementSource::Csv(args.measurements.clone().unwrap_or_default()),
         validation: args.validation.clone().map(MeasurementSource::Csv),
         stiffness: args.stiffness.clone().map(StiffnessSource::File),
         tools: args.tools.clone(),
@@ -89,4 +93,36 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
         },
         cv: args.cv,
     }
+}
+
+/// `calibrate --contacts C.csv --contact-setup S.yaml` (issue 29).
+fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<()> {
+    use treecal::workflow::calibrate_contacts::{
+        calibrate_contacts, ContactCalibrateConfig, CONTACT_OUTPUTS,
+    };
+    treecal::io::check_output_folder(&args.out, &|name| CONTACT_OUTPUTS.contains(&name))?;
+    let calibration = calibrate_contacts(&ContactCalibrateConfig {
+        robot: RobotSource::from_path(args.robot.clone()),
+        contacts: contacts.to_owned(),
+        setup: setup.to_owned(),
+        validation: args.validation.clone(),
+        reference_link: args.reference_link.clone(),
+    })?;
+    for note in &calibration.notes {
+        crate::output::note(note);
+    }
+    calibration.write(&args.out)?;
+    crate::output::print(&calibration.report_markdown)?;
+    crate::output::note(format_args!("wrote {}", args.out.display()));
+    if !calibration.usable() {
+        return Err(Error::InvalidData {
+            origin: "calibration".into(),
+            message: format!(
+                "the calibrated robot does not predict the held-out contacts better than the \
+                 registered nominal robot (see {}); calibrated.urdf was not written",
+                args.out.join("report.md").display()
+            ),
+        });
+    }
+    Ok(())
 }

@@ -684,8 +684,22 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "K")]
     pub cv: Option<usize>,
     /// Measurement CSV (one row per tool observation).
-    #[arg(long, value_name = "M.csv")]
-    pub measurements: PathBuf,
+    #[arg(long, value_name = "M.csv", required_unless_present = "contacts")]
+    pub measurements: Option<PathBuf>,
+    /// Contacts CSV (docs/contacts.md, docs/file-formats.md): calibrate from contacts — faces
+    /// flush on a plane, points on a plane, touches, a bar — instead of --measurements; with
+    /// --contact-setup. --validation then takes held-out contacts.
+    #[arg(
+        long,
+        value_name = "C.csv",
+        requires = "contact_setup",
+        conflicts_with = "measurements"
+    )]
+    pub contacts: Option<PathBuf>,
+    /// The contacts' setup (YAML): reference link, tools with their nominal contact faces and
+    /// points, each session's nominal plane, the bar, what is fitted.
+    #[arg(long, value_name = "S.yaml", requires = "contacts")]
+    pub contact_setup: Option<PathBuf>,
     /// Validation measurements (same format) [default: hold out a seeded fifth].
     #[arg(long, value_name = "V.csv")]
     pub validation: Option<PathBuf>,

@@ -1,0 +1,500 @@
+//! The report of `calibrate --contacts` (issue 29): held-out contacts scored with the training
+//! session's plane (primary) and with a plane refitted to them (diagnostic), the registered
+//! nominal robot (only the nuisance fitted) as "before"; heights, gaps and lengths in mm, tilts
+//! in degrees — contact rows are never called position errors.
+
+use crate::calibration::{identify_with_nuisance, IdentificationOptions, Nuisance, Rigid};
+use crate::error::Result;
+use crate::io::contacts_csv::ContactKind;
+use crate::kinematics::McpcModel;
+use crate::math::{Pose, Vec3};
+use crate::measurement::{Contact, Measurement, Observation};
+use crate::tree::KinematicTree;
+use crate::workflow::calibrate_contacts::{
+    contact_violations, plane_start, ContactFit, ContactProblem,
+};
+use serde_json::json;
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+
+/// Contact violations of one kind of equation, in report units.
+#[derive(Debug, Clone, Default)]
+pub struct Errors {
+    /// Heights above the plane (mm).
+    pub heights: Vec<f64>,
+    /// Tilts of the face against the plane (degrees).
+    pub tilts: Vec<f64>,
+    /// Touch gaps (mm, the gap's length).
+    pub gaps: Vec<f64>,
+    /// Bar length errors (mm).
+    pub lengths: Vec<f64>,
+}
+
+fn rms(values: &[f64]) -> Option<f64> {
+    (!values.is_empty())
+        .then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())
+}
+
+fn max_abs(values: &[f64]) -> Option<f64> {
+    values.iter().map(|v| v.abs()).reduce(f64::max)
+}
+
+impl Errors {
+    fn add(&mut self, contact: &Contact, violation: &[f64]) {
+        match contact {
+            Contact::Flush { .. } => {
+                self.heights.push(violation[0] * 1e3);
+                let sine = violation[1].hypot(violation[2]).min(1.0);
+                self.tilts.push(sine.asin().to_degrees());
+            }
+            Contact::Point { .. } => self.heights.push(violation[0] * 1e3),
+            Contact::Touch { .. } => self
+                .gaps
+                .push(Vec3::new(violation[0], violation[1], violation[2]).norm() * 1e3),
+            Contact::Distance { .. } => self.lengths.push(violation[0] * 1e3),
+        }
+    }
+
+    /// The number of contacts.
+    pub fn count(&self) -> usize {
+        self.heights.len().max(self.tilts.len()) + self.gaps.len() + self.lengths.len()
+    }
+
+    /// The primary figure: height RMS, else gap RMS, else length RMS (mm).
+    pub fn primary(&self) -> Option<f64> {
+        rms(&self.heights)
+            .or_else(|| rms(&self.gaps))
+            .or_else(|| rms(&self.lengths))
+    }
+
+    fn json(&self) -> serde_json::Value {
+        let pair = |v: &[f64]| json!({"count": v.len(), "rms": rms(v), "max": max_abs(v)});
+        json!({
+            "height_mm": pair(&self.heights),
+            "tilt_deg": pair(&self.tilts),
+            "gap_mm": pair(&self.gaps),
+            "length_mm": pair(&self.lengths),
+        })
+    }
+
+    fn cells(&self) -> String {
+        let cell = |v: &[f64], digits: usize| match (rms(v), max_abs(v)) {
+            (Some(r), Some(m)) => format!("{r:.digits$} / {m:.digits$}"),
+            _ => "—".to_owned(),
+        };
+        format!(
+            "{} | {} | {} | {} | {}",
+            self.count(),
+            cell(&self.heights, 2),
+            cell(&self.tilts, 3),
+            cell(&self.gaps, 2),
+            cell(&self.lengths, 2)
+        )
+    }
+}
+
+/// Errors overall and per session.
+#[derive(Debug, Clone, Default)]
+pub struct Scored {
+    /// All contacts.
+    pub overall: Errors,
+    /// Per session.
+    pub sessions: BTreeMap<String, Errors>,
+}
+
+impl Scored {
+    fn of(
+        model: &McpcModel,
+        parameters: &[f64],
+        nuisance: &Nuisance,
+        rows: &[Measurement],
+    ) -> Result<Self> {
+        let mut scored = Scored::default();
+        for (row, (contact, violation)) in rows
+            .iter()
+            .zip(contact_violations(model, parameters, nuisance, rows)?)
+        {
+            scored.overall.add(&contact, &violation);
+            let session = row.session.clone().unwrap_or_default();
+            scored
+                .sessions
+                .entry(session)
+                .or_default()
+                .add(&contact, &violation);
+        }
+        Ok(scored)
+    }
+}
+
+/// The held-out scores of a contact calibration.
+#[derive(Debug, Clone)]
+pub struct ContactScores {
+    /// Registered nominal robot, training planes.
+    pub before: Scored,
+    /// Calibrated robot, training planes.
+    pub after: Scored,
+    /// Registered nominal robot, planes refitted to the held-out contacts (diagnostic).
+    pub before_refit: Scored,
+    /// Calibrated robot, planes refitted to the held-out contacts (diagnostic).
+    pub after_refit: Scored,
+    /// Training contacts under the registered nominal robot and the calibrated one.
+    pub training: [Scored; 2],
+    /// Held-out rows of sessions without training rows (scored only with a refitted plane).
+    pub unscored: usize,
+}
+
+impl ContactScores {
+    /// Scores the fits of `problem` on its held-out contacts.
+    pub fn new(
+        problem: &ContactProblem,
+        fit: &ContactFit,
+        options: &IdentificationOptions,
+    ) -> Result<Self> {
+        let trained: BTreeSet<&str> = problem
+            .training
+            .iter()
+            .filter_map(|m| m.session.as_deref())
+            .collect();
+        let (scorable, rest): (Vec<Measurement>, Vec<Measurement>) =
+            problem.validation.iter().cloned().partition(|m| {
+                !has_plane(m) || m.session.as_deref().is_some_and(|s| trained.contains(s))
+            });
+        let model = &problem.model;
+        let score = |r: &crate::calibration::IdentificationReport, rows: &[Measurement]| {
+            Scored::of(model, &r.parameters, &r.nuisance, rows)
+        };
+        let refit = |r: &crate::calibration::IdentificationReport| -> Result<Scored> {
+            refitted(problem, &r.parameters, &r.nuisance, options)
+        };
+        Ok(Self {
+            before: score(&fit.before, &scorable)?,
+            after: score(&fit.after, &scorable)?,
+            before_refit: refit(&fit.before)?,
+            after_refit: refit(&fit.after)?,
+            training: [
+                score(&fit.before, &problem.training)?,
+                score(&fit.after, &problem.training)?,
+            ],
+            unscored: rest.len(),
+        })
+    }
+
+    /// Whether the calibrated robot beats the registered nominal robot on the held-out
+    /// contacts (training planes), or on the training contacts when none are held out.
+    pub fn better_than_nominal(&self) -> bool {
+        let compare = |before: &Errors, after: &Errors| match (before.primary(), after.primary()) {
+            (Some(b), Some(a)) => Some(a < b),
+            _ => None,
+        };
+        compare(&self.before.overall, &self.after.overall)
+            .or_else(|| compare(&self.training[0].overall, &self.training[1].overall))
+            .unwrap_or(false)
+    }
+}
+
+fn has_plane(m: &Measurement) -> bool {
+    matches!(
+        m.observation,
+        Observation::Contact(Contact::Flush { .. } | Contact::Point { .. })
+    )
+}
+
+/// The held-out contacts scored with each session's plane refitted to them (the robot and the
+/// other nuisance held): planes restart from a closed-form fit to the held-out contacts.
+fn refitted(
+    problem: &ContactProblem,
+    parameters: &[f64],
+    nuisance: &Nuisance,
+    options: &IdentificationOptions,
+) -> Result<Scored> {
+    let mut model = problem.model.clone();
+    model.set_parameters(parameters)?;
+    let mut rows = problem.validation.clone();
+    let mut nuisance = nuisance.clone();
+    let mut values = nuisance.values();
+    let mut free = Vec::new();
+    let count = model.parameter_count();
+    for (session, block) in &problem.planes {
+        let of_session: Vec<&Measurement> = rows
+            .iter()
+            .filter(|m| m.session.as_deref() == Some(session) && has_plane(m))
+            .collect();
+        if of_session.is_empty() {
+            continue;
+        }
+        let setup = problem.setup_planes[session];
+        let start = plane_start(&model, &nuisance, &of_session, &setup);
+        for m in &mut rows {
+            if let Observation::Contact(
+                Contact::Flush { plane, .. } | Contact::Point { plane, .. },
+            ) = &mut m.observation
+            {
+                if plane.block == *block {
+                    plane.nominal = start;
+                }
+            }
+        }
+        let offset = nuisance.offset(*block);
+        for k in 0..3 {
+            values[offset + k] = 0.0;
+            free.push(count + offset + k);
+        }
+    }
+    nuisance.set_values(&values)?;
+    let nuisance = if free.is_empty() {
+        nuisance
+    } else {
+        identify_with_nuisance(&model, &nuisance, &rows, None, &Rigid, &free, options)?.nuisance
+    };
+    Scored::of(&model, &model.parameters(), &nuisance, &rows)
+}
+
+/// The plane of `block` at its fitted values, as `(point, normal)` in the reference link.
+fn fitted_plane(
+    problem: &ContactProblem,
+    nuisance: &Nuisance,
+    block: usize,
+) -> Option<(Vec3, Vec3)> {
+    let nominal =
+        problem
+            .training
+            .iter()
+            .chain(&problem.validation)
+            .find_map(|m| match &m.observation {
+                Observation::Contact(
+                    Contact::Flush { plane, .. } | Contact::Point { plane, .. },
+                ) if plane.block == block => Some(plane.nominal),
+                _ => None,
+            })?;
+    let v = nuisance.block_values(block).ok()?;
+    let tilt = nalgebra::Rotation3::from_axis_angle(&Vec3::x_axis(), v[1])
+        * nalgebra::Rotation3::from_axis_angle(&Vec3::y_axis(), v[2]);
+    let normal = nominal.rotation * (tilt * Vec3::z());
+    Some((nominal.translation.vector + normal * v[0], normal))
+}
+
+/// report.md and report.json of a contact calibration (`urdf_changes`: joints the exported
+/// URDF changes, `None` when it was not written).
+pub fn contact_report(
+    tree: &KinematicTree,
+    problem: &ContactProblem,
+    fit: &ContactFit,
+    scores: &ContactScores,
+    reference: &str,
+    urdf_changes: Option<usize>,
+) -> (String, serde_json::Value) {
+    let usable = urdf_changes.is_some();
+    let mut md = format!("# Contact calibration: {}\n\n", tree.name());
+    let _ = writeln!(
+        md,
+        "**Verdict: {}**\n",
+        if usable {
+            "usable — the calibrated robot predicts the held-out contacts better than the \
+             registered nominal robot; calibrated.urdf written (one URDF for all chains)"
+        } else {
+            "not usable — the calibrated robot does not predict the held-out contacts better \
+             than the registered nominal robot; calibrated.urdf was not written"
+        }
+    );
+    let kinds: Vec<&str> = problem.kinds.iter().map(|k| k.name()).collect();
+    let _ = writeln!(
+        md,
+        "Reference link: {reference}. Tools: {}. Contacts: {} training, {} held out ({}); \
+         sessions: {}.\n",
+        problem
+            .model
+            .tools()
+            .iter()
+            .map(|t| tree.link(t.link).name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        problem.training.len(),
+        problem.validation.len(),
+        kinds.join(", "),
+        problem
+            .planes
+            .keys()
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", "),
+    );
+    let header = "| robot | contacts | height RMS / max (mm) | tilt RMS / max (°) | gap RMS / max \
+                  (mm) | bar length RMS / max (mm) |\n|---|---|---|---|---|---|\n";
+    md.push_str(
+        "## Held-out contacts, each session's plane as the training fit found it (primary)\n\n",
+    );
+    md.push_str(header);
+    let _ = writeln!(
+        md,
+        "| registered nominal robot (only the nuisance fitted) | {} |",
+        scores.before.overall.cells()
+    );
+    let _ = writeln!(md, "| calibrated | {} |\n", scores.after.overall.cells());
+    if scores.unscored > 0 {
+        let _ = writeln!(
+            md,
+            "{} held-out contacts belong to sessions without training contacts: their plane \
+             is unknown, they are scored in the diagnostic below only.\n",
+            scores.unscored
+        );
+    }
+    if scores.after.sessions.len() > 1 {
+        md.push_str("Per session (height RMS, tilt RMS):\n\n| session | contacts | before | after |\n|---|---|---|---|\n");
+        for (session, after) in &scores.after.sessions {
+            let before = &scores.before.sessions[session];
+            let figure = |e: &Errors| {
+                format!(
+                    "{} mm, {}°",
+                    rms(&e.heights).map_or("—".into(), |v| format!("{v:.2}")),
+                    rms(&e.tilts).map_or("—".into(), |v| format!("{v:.3}"))
+                )
+            };
+            let _ = writeln!(
+                md,
+                "| {session} | {} | {} | {} |",
+                after.count(),
+                figure(before),
+                figure(after)
+            );
+        }
+        md.push('\n');
+    }
+    md.push_str(
+        "## Diagnostic: a plane refitted to the held-out contacts\n\n(Not the figure to judge \
+         by: a refitted plane absorbs a plane that moved and part of the robot's error.)\n\n",
+    );
+    md.push_str(header);
+    let _ = writeln!(
+        md,
+        "| registered nominal robot | {} |",
+        scores.before_refit.overall.cells()
+    );
+    let _ = writeln!(
+        md,
+        "| calibrated | {} |\n",
+        scores.after_refit.overall.cells()
+    );
+    md.push_str("## Training fit\n\n");
+    let after = &fit.after;
+    let _ = writeln!(
+        md,
+        "{} equations, {} unknowns (joint frames and nuisance), rank {}, σ̂ = {:.3} (the \
+         residuals against the setup's σ's), {} iterations ({:?}).\n",
+        after.rows,
+        fit.free.len(),
+        after.rank,
+        after.residual_scale,
+        after.iterations,
+        after.termination,
+    );
+    md.push_str(header);
+    let _ = writeln!(
+        md,
+        "| registered nominal robot, training contacts | {} |",
+        scores.training[0].overall.cells()
+    );
+    let _ = writeln!(
+        md,
+        "| calibrated, training contacts | {} |\n",
+        scores.training[1].overall.cells()
+    );
+    md.push_str(&planes_markdown(problem, fit));
+    md.push_str(&unobservable_markdown(tree, problem, fit));
+    let json = json!({
+        "schema_version": 1,
+        "robot": tree.name(),
+        "reference_link": reference,
+        "usable": usable,
+        "kinds": kinds,
+        "training_contacts": problem.training.len(),
+        "held_out_contacts": problem.validation.len(),
+        "held_out": {
+            "training_plane": {"before": scores.before.overall.json(), "after": scores.after.overall.json()},
+            "refitted_plane_diagnostic": {"before": scores.before_refit.overall.json(), "after": scores.after_refit.overall.json()},
+            "sessions": scores.after.sessions.iter().map(|(s, e)| (s.clone(), json!({"before": scores.before.sessions[s].json(), "after": e.json()}))).collect::<serde_json::Map<_, _>>(),
+        },
+        "training": {"before": scores.training[0].overall.json(), "after": scores.training[1].overall.json()},
+        "rows": after.rows,
+        "unknowns": fit.free.len(),
+        "rank": after.rank,
+        "residual_scale": after.residual_scale,
+        "nuisance": (0..after.nuisance.len()).map(|k| json!({"name": after.nuisance.value_name(k), "value": after.nuisance.values()[k]})).collect::<Vec<_>>(),
+        "parameters": problem.model.parameter_layout().iter().enumerate().map(|(k, _)| json!({"name": problem.model.parameter_name(tree, k), "value": after.parameters[k]})).collect::<Vec<_>>(),
+        "unidentifiable": after.unidentifiable.iter().map(|c| c.describe_with(&problem.model, tree, &after.nuisance)).collect::<Vec<_>>(),
+        "urdf_joints_changed": urdf_changes,
+    });
+    (md, json)
+}
+
+fn planes_markdown(problem: &ContactProblem, fit: &ContactFit) -> String {
+    if problem.planes.is_empty() {
+        return String::new();
+    }
+    let mut md = String::from(
+        "## Planes (reference link frame)\n\n| session | fitted point (m) | fitted normal | \
+         from the setup's nominal: along its normal (mm), tilt (°) |\n|---|---|---|---|\n",
+    );
+    for (session, block) in &problem.planes {
+        let Some((point, normal)) = fitted_plane(problem, &fit.after.nuisance, *block) else {
+            continue;
+        };
+        let setup: &Pose = &problem.setup_planes[session];
+        let n0 = setup.rotation * Vec3::z();
+        let along = n0.dot(&(point - setup.translation.vector)) * 1e3;
+        let tilt = n0.angle(&normal).to_degrees();
+        let _ = writeln!(
+            md,
+            "| {session} | ({:.4}, {:.4}, {:.4}) | ({:.4}, {:.4}, {:.4}) | {along:+.1}, {tilt:.2} |",
+            point.x, point.y, point.z, normal.x, normal.y, normal.z
+        );
+    }
+    md.push('\n');
+    md
+}
+
+fn unobservable_markdown(
+    tree: &KinematicTree,
+    problem: &ContactProblem,
+    fit: &ContactFit,
+) -> String {
+    let mut md = String::from("## What the contacts cannot determine\n\n");
+    let has = |k: ContactKind| problem.kinds.contains(&k);
+    if has(ContactKind::Flush) {
+        md.push_str(
+            "- A plane's height and a contact face's offset along its normal alias exactly: \
+             the face offset is held at the setup's value and the plane height absorbs it \
+             (a face offset that is wrong moves the fitted plane, not the robot).\n",
+        );
+    }
+    if has(ContactKind::Flush) || has(ContactKind::Point) {
+        md.push_str(
+            "- A plane sees the contacts relative to itself only: where on the plane and the \
+             yaw about its normal carry nothing, and robot errors that move every contact \
+             along the plane or rigidly with it are not determined.\n",
+        );
+    }
+    if !has(ContactKind::Flush) && !has(ContactKind::Point) {
+        md.push_str(
+            "- Touch and bar contacts see the two hands relative to each other only: the \
+             common chain (torso, legs) and the robot's placement are not determined and keep \
+             their nominal values.\n",
+        );
+    }
+    let unseen = &fit.after.unidentifiable;
+    let _ = writeln!(
+        md,
+        "- {} of {} unknowns are not determined by these contacts (kept at their nominal \
+         values){}",
+        fit.free.len() - fit.after.rank,
+        fit.free.len(),
+        if unseen.is_empty() { "." } else { ", e.g.:" }
+    );
+    for c in unseen.iter().take(5) {
+        let _ = writeln!(
+            md,
+            "  - {}",
+            c.describe_with(&problem.model, tree, &fit.after.nuisance)
+        );
+    }
+    md
+}

@@ -1,0 +1,669 @@
+//! `calibrate --contacts C.csv --contact-setup S.yaml` (issue 29): a robot calibrated from
+//! its contacts alone — flush faces and contact points on a plane per session, touches, a bar.
+//!
+//! 1. The tools of the setup file, measured from the reference link (a sole), make one model
+//!    for all chains; each row becomes a contact measurement with its nuisance blocks (a plane
+//!    per session, a face or contact point per tool, the bar).
+//! 2. Each plane starts from a closed-form fit to the nominal robot's contacts (the mean face
+//!    normal or the points' least-squares plane, through their centroid), so that nominal
+//!    planes far off (0.3 m) converge.
+//! 3. "Before": the registered nominal robot — only the nuisance fitted, same least squares.
+//!    "After": the joint frames and the nuisance from there.
+//! 4. Held-out contacts (`--validation`, else every fifth row) scored with the training
+//!    session's plane (primary) and with a plane refitted to them (diagnostic).
+
+use super::note::Note;
+use super::source::{branches, RobotSource};
+use crate::calibration::observation::{contact_violation, NuisanceBlock, Tools};
+use crate::calibration::{
+    identify_with_nuisance, IdentificationOptions, IdentificationReport, Nuisance, Rigid,
+    RobotState,
+};
+use crate::error::{Error, Result};
+use crate::io::contacts_csv::{read_contacts, ContactKind, ContactRow, ContactTable};
+use crate::io::contacts_yaml::{read_contact_setup, ContactSetup};
+use crate::kinematics::McpcModel;
+use crate::math::{Pose, Vec3};
+use crate::measurement::{Contact, ContactFace, ContactPlane, Measurement, Observation};
+use crate::report::contacts::{contact_report, ContactScores};
+use crate::sim::contacts::contact_free_parameters;
+use crate::tree::KinematicTree;
+use crate::urdf::{export_urdf_with, ExportOptions};
+use nalgebra::{Matrix3, UnitQuaternion};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// What `calibrate --contacts` reads.
+#[derive(Debug, Clone, Default)]
+pub struct ContactCalibrateConfig {
+    /// The robot.
+    pub robot: RobotSource,
+    /// The contacts CSV (training rows).
+    pub contacts: PathBuf,
+    /// The setup YAML.
+    pub setup: PathBuf,
+    /// Held-out contacts (same format) [default: every fifth row of `contacts`].
+    pub validation: Option<PathBuf>,
+    /// The reference link; overrides the setup's.
+    pub reference_link: Option<String>,
+}
+
+/// The outputs of `calibrate --contacts`.
+#[derive(Debug, Clone)]
+pub struct ContactCalibration {
+    /// Loader warnings and what the user should know.
+    pub notes: Vec<Note>,
+    /// report.md.
+    pub report_markdown: String,
+    /// report.json.
+    pub report_json: serde_json::Value,
+    /// calibrated.urdf (all chains), `None` when the verdict failed.
+    pub urdf: Option<String>,
+}
+
+/// The files `calibrate --contacts` writes into its output folder.
+pub const CONTACT_OUTPUTS: [&str; 3] = ["report.md", "report.json", "calibrated.urdf"];
+
+impl ContactCalibration {
+    /// Whether the calibrated robot beat the registered nominal robot (calibrated.urdf
+    /// written).
+    pub fn usable(&self) -> bool {
+        self.urdf.is_some()
+    }
+
+    /// Writes the outputs as the whole contents of `out`.
+    pub fn write(&self, out: &Path) -> Result<()> {
+        let mut files = vec![
+            (
+                "report.md".to_owned(),
+                self.report_markdown.clone().into_bytes(),
+            ),
+            (
+                "report.json".to_owned(),
+                serde_json::to_vec_pretty(&self.report_json).map_err(|e| Error::InvalidData {
+                    origin: "report.json".into(),
+                    message: e.to_string(),
+                })?,
+            ),
+        ];
+        if let Some(urdf) = &self.urdf {
+            files.push(("calibrated.urdf".to_owned(), urdf.clone().into_bytes()));
+        }
+        crate::io::replace_folder(out, &files)
+    }
+}
+
+/// The contacts of one file as measurements of a model, with the nuisance they need.
+#[derive(Debug, Clone)]
+pub struct ContactProblem {
+    /// The model (every tool of the setup, from the reference link).
+    pub model: McpcModel,
+    /// The nuisance values at their start (setup nominals; planes from closed-form fits).
+    pub nuisance: Nuisance,
+    /// Nuisance values to fit (indices among the nuisance values).
+    pub free_nuisance: Vec<usize>,
+    /// Training contacts.
+    pub training: Vec<Measurement>,
+    /// Held-out contacts.
+    pub validation: Vec<Measurement>,
+    /// Each session's plane block.
+    pub planes: BTreeMap<String, usize>,
+    /// Each session's nominal plane of the setup file (before the closed-form start).
+    pub setup_planes: BTreeMap<String, Pose>,
+    /// The contact kinds present.
+    pub kinds: Vec<ContactKind>,
+}
+
+/// Calibrates from contacts (see the module's documentation).
+pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCalibration> {
+    let robot = config.robot.load()?;
+    let mut notes = robot.notes();
+    let setup = read_contact_setup(&config.setup)?;
+    let tree = &robot.import.tree;
+    let training = read_contacts(&config.contacts, tree)?;
+    notes.extend(table_notes(&training, &config.contacts));
+    let (training, validation, held_out_note) = match &config.validation {
+        Some(path) => {
+            let table = read_contacts(path, tree)?;
+            notes.extend(table_notes(&table, path));
+            (training.rows, table.rows, None)
+        }
+        None => {
+            let (train, held): (Vec<_>, Vec<_>) = training
+                .rows
+                .into_iter()
+                .enumerate()
+                .partition(|(k, _)| k % 5 != 4);
+            (
+                train.into_iter().map(|(_, r)| r).collect(),
+                held.into_iter().map(|(_, r)| r).collect::<Vec<_>>(),
+                Some("no --validation file: every fifth row is held out"),
+            )
+        }
+    };
+    notes.extend(held_out_note.map(Note::info));
+    let reference = config
+        .reference_link
+        .clone()
+        .or_else(|| setup.reference_link.clone());
+    let links: Vec<String> = setup.tools.values().map(|t| t.link.clone()).collect();
+    let branches = branches(&robot.import, Some(&links), reference.as_deref())?;
+    let model = McpcModel::from_tree(tree, &branches)?;
+    let origin = config.contacts.display().to_string();
+    let problem = contact_problem(tree, model, &setup, &training, &validation, &origin)?;
+    let options = contact_options(&setup);
+    let fit = fit_contacts(&problem, &options)?;
+    let scores = ContactScores::new(&problem, &fit, &options)?;
+    let mut calibrated = problem.model.clone();
+    calibrated.set_parameters(&fit.after.parameters)?;
+    let better = scores.better_than_nominal();
+    let export = if better {
+        let export_options = ExportOptions {
+            add_tool_links: true,
+            ..ExportOptions::default()
+        };
+        Some(export_urdf_with(
+            &robot.text,
+            &robot.origin,
+            tree,
+            &calibrated,
+            &export_options,
+        )?)
+    } else {
+        None
+    };
+    let (report_markdown, report_json) = contact_report(
+        tree,
+        &problem,
+        &fit,
+        &scores,
+        reference
+            .as_deref()
+            .unwrap_or(tree.link(tree.root()).name.as_str()),
+        export.as_ref().map(|e| e.changes.len()),
+    );
+    Ok(ContactCalibration {
+        notes,
+        report_markdown,
+        report_json,
+        urdf: export.map(|e| e.urdf),
+    })
+}
+
+fn table_notes(table: &ContactTable, path: &Path) -> Vec<Note> {
+    let mut notes = Vec::new();
+    if !table.ignored_columns.is_empty() {
+        notes.push(Note::warning(format!(
+            "{}: columns that are no joint of the robot are ignored: {}",
+            path.display(),
+            table.ignored_columns.join(", ")
+        )));
+    }
+    notes
+}
+
+/// The identification options of a contact fit: the setup's σ's.
+pub fn contact_options(setup: &ContactSetup) -> IdentificationOptions {
+    IdentificationOptions {
+        max_iterations: 200,
+        height_sigma: setup.sigma.height,
+        tilt_sigma: setup.sigma.tilt,
+        gap_sigma: setup.sigma.gap,
+        length_sigma: setup.sigma.length,
+        ..IdentificationOptions::default()
+    }
+}
+
+/// The two fits of a contact calibration.
+#[derive(Debug, Clone)]
+pub struct ContactFit {
+    /// The registered nominal robot: only the nuisance fitted.
+    pub before: IdentificationReport,
+    /// The joint frames and the nuisance fitted (from `before`).
+    pub after: IdentificationReport,
+    /// Free columns of `after` (model parameters, then nuisance values).
+    pub free: Vec<usize>,
+}
+
+/// Fits the nuisance on the nominal robot ("before"), then the robot's joint frames with it.
+pub fn fit_contacts(
+    problem: &ContactProblem,
+    options: &IdentificationOptions,
+) -> Result<ContactFit> {
+    let model = &problem.model;
+    let count = model.parameter_count();
+    let nuisance_free: Vec<usize> = problem.free_nuisance.iter().map(|k| count + k).collect();
+    let before = identify_with_nuisance(
+        model,
+        &problem.nuisance,
+        &problem.training,
+        None,
+        &Rigid,
+        &nuisance_free,
+        options,
+    )?;
+    let mut free = contact_free_parameters(model);
+    free.extend(nuisance_free);
+    let after = identify_with_nuisance(
+        model,
+        &before.nuisance,
+        &problem.training,
+        None,
+        &Rigid,
+        &free,
+        options,
+    )?;
+    Ok(ContactFit {
+        before,
+        after,
+        free,
+    })
+}
+
+/// The violation (predicted values, m and rad) of each contact of `rows` under `model` with
+/// `parameters` and `nuisance`.
+pub fn contact_violations(
+    model: &McpcModel,
+    parameters: &[f64],
+    nuisance: &Nuisance,
+    rows: &[Measurement],
+) -> Result<Vec<(Contact, Vec<f64>)>> {
+    let mut model = model.clone();
+    model.set_parameters(parameters)?;
+    rows.iter()
+        .filter_map(|m| match &m.observation {
+            Observation::Contact(c) => Some((m, *c)),
+            _ => None,
+        })
+        .map(|(m, contact)| {
+            let poses = model.tool_poses(&m.q);
+            let state = RobotState {
+                model: &model,
+                q: &m.q,
+                tool: m.tool,
+                tools: Tools::Poses(&poses),
+                offset: None,
+                nuisance,
+            };
+            Ok((contact, contact_violation(&contact, &state)?))
+        })
+        .collect()
+}
+
+/// Builds the contact problem of `training` and `validation` rows on `model` (`origin` names
+/// the contacts file in messages).
+pub fn contact_problem(
+    tree: &KinematicTree,
+    model: McpcModel,
+    setup: &ContactSetup,
+    training: &[ContactRow],
+    validation: &[ContactRow],
+    origin: &str,
+) -> Result<ContactProblem> {
+    let mut builder = Builder {
+        setup,
+        origin,
+        nuisance: Nuisance::default(),
+        free: Vec::new(),
+        planes: BTreeMap::new(),
+        faces: BTreeMap::new(),
+        points: BTreeMap::new(),
+        bar: None,
+    };
+    let tool_index = tool_indices(tree, &model, setup)?;
+    let mut kinds = Vec::new();
+    let mut measurements = [Vec::new(), Vec::new()];
+    for (set, rows) in [training, validation].iter().enumerate() {
+        for row in rows.iter() {
+            let (tool, contact) = builder.contact(row, &tool_index)?;
+            if !kinds.contains(&row.kind) {
+                kinds.push(row.kind);
+            }
+            measurements[set].push(Measurement {
+                tool,
+                q: row.q.clone(),
+                observation: Observation::Contact(contact),
+                stage: None,
+                payload: None,
+                session: Some(row.session.clone()),
+            });
+        }
+    }
+    let [mut training, mut validation] = measurements;
+    let setup_planes = builder
+        .planes
+        .iter()
+        .map(|(s, (_, pose))| (s.clone(), *pose))
+        .collect();
+    // Each plane starts from a closed-form fit to the nominal robot's training contacts.
+    for (session, (block, nominal)) in &builder.planes {
+        let rows: Vec<&Measurement> = training
+            .iter()
+            .filter(|m| m.session.as_deref() == Some(session))
+            .collect();
+        let start = plane_start(&model, &builder.nuisance, &rows, nominal);
+        for m in training.iter_mut().chain(validation.iter_mut()) {
+            set_plane_nominal(m, *block, start);
+        }
+    }
+    let planes = builder
+        .planes
+        .iter()
+        .map(|(s, (b, _))| (s.clone(), *b))
+        .collect();
+    Ok(ContactProblem {
+        model,
+        nuisance: builder.nuisance,
+        free_nuisance: builder.free,
+        training,
+        validation,
+        planes,
+        setup_planes,
+        kinds,
+    })
+}
+
+/// Each setup tool's index among the model's tools.
+fn tool_indices(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    setup: &ContactSetup,
+) -> Result<BTreeMap<String, usize>> {
+    setup
+        .tools
+        .iter()
+        .map(|(name, tool)| {
+            let link = tree.link_id(tool.link.trim())?;
+            let index = model
+                .tools()
+                .iter()
+                .position(|t| t.link == link)
+                .ok_or_else(|| Error::InvalidData {
+                    origin: "contact setup".into(),
+                    message: format!(
+                        "tool '{name}': link '{}' is not a tool of the model",
+                        tool.link
+                    ),
+                })?;
+            Ok((name.clone(), index))
+        })
+        .collect()
+}
+
+fn set_plane_nominal(m: &mut Measurement, block: usize, pose: Pose) {
+    if let Observation::Contact(Contact::Flush { plane, .. } | Contact::Point { plane, .. }) =
+        &mut m.observation
+    {
+        if plane.block == block {
+            plane.nominal = pose;
+        }
+    }
+}
+
+/// Nuisance blocks made as rows need them.
+struct Builder<'a> {
+    setup: &'a ContactSetup,
+    origin: &'a str,
+    nuisance: Nuisance,
+    free: Vec<usize>,
+    /// Session → (block, the setup's nominal plane).
+    planes: BTreeMap<String, (usize, Pose)>,
+    /// Tool → (block, nominal face).
+    faces: BTreeMap<String, (usize, Pose)>,
+    /// Tool → block.
+    points: BTreeMap<String, usize>,
+    bar: Option<usize>,
+}
+
+impl Builder<'_> {
+    fn add(&mut self, name: String, names: &[&str], values: Vec<f64>, free: &[bool]) -> usize {
+        let start = self.nuisance.len();
+        self.free
+            .extend((0..values.len()).filter(|&k| free[k]).map(|k| start + k));
+        self.nuisance.blocks.push(NuisanceBlock {
+            name,
+            parameter_names: names.iter().map(|s| s.to_string()).collect(),
+            values,
+        });
+        self.nuisance.blocks.len() - 1
+    }
+
+    fn fail(&self, row: &ContactRow, message: String) -> Error {
+        Error::InvalidData {
+            origin: format!("{}:{}", self.origin, row.line),
+            message,
+        }
+    }
+
+    fn tool(&self, row: &ContactRow, name: &str, index: &BTreeMap<String, usize>) -> Result<usize> {
+        index.get(name).copied().ok_or_else(|| {
+            self.fail(
+                row,
+                format!(
+                    "tool '{}' is not in the setup file's tools ({}); add it there with its link",
+                    crate::limits::cut(name),
+                    index.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })
+    }
+
+    fn plane(&mut self, row: &ContactRow) -> Result<ContactPlane> {
+        if let Some((block, nominal)) = self.planes.get(&row.session) {
+            return Ok(ContactPlane {
+                block: *block,
+                nominal: *nominal,
+            });
+        }
+        let entry =
+            self.setup.planes.get(&row.session).ok_or_else(|| {
+                self.fail(
+                    row,
+                    format!(
+                    "session '{}' has no plane in the setup file's planes ({}); add its nominal \
+                     plane as a pose in the reference link",
+                    crate::limits::cut(&row.session),
+                    self.setup.planes.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+                )
+            })?;
+        let free = self.setup.free.plane;
+        let block = self.add(
+            format!("plane {}", row.session),
+            &["height", "tilt a", "tilt b"],
+            vec![0.0; 3],
+            &[free; 3],
+        );
+        self.planes
+            .insert(row.session.clone(), (block, entry.pose()));
+        Ok(ContactPlane {
+            block,
+            nominal: entry.pose(),
+        })
+    }
+
+    fn face(&mut self, row: &ContactRow) -> Result<ContactFace> {
+        if let Some((block, nominal)) = self.faces.get(&row.tool) {
+            return Ok(ContactFace {
+                block: *block,
+                nominal: *nominal,
+            });
+        }
+        let face = self.setup.tools[&row.tool].face.ok_or_else(|| {
+            self.fail(
+                row,
+                format!(
+                    "a flush row needs tool '{}''s contact face: add 'face: {{xyz: [...], rpy: \
+                     [...]}}' (its z axis the face normal) to the tool in the setup file",
+                    row.tool
+                ),
+            )
+        })?;
+        let f = self.setup.free;
+        let block = self.add(
+            format!("face {}", row.tool),
+            &["offset", "tilt a", "tilt b"],
+            vec![0.0; 3],
+            &[f.face_offset, f.face_tilt, f.face_tilt],
+        );
+        self.faces.insert(row.tool.clone(), (block, face.pose()));
+        Ok(ContactFace {
+            block,
+            nominal: face.pose(),
+        })
+    }
+
+    fn point(&mut self, row: &ContactRow, tool: &str) -> Result<usize> {
+        if let Some(block) = self.points.get(tool) {
+            return Ok(*block);
+        }
+        let point = self.setup.tools[tool].point.ok_or_else(|| {
+            self.fail(
+                row,
+                format!(
+                    "a {} row needs tool '{tool}''s contact point: add 'point: [x, y, z]' (m, in \
+                     the tool's link) to the tool in the setup file",
+                    row.kind.name()
+                ),
+            )
+        })?;
+        let free = self.setup.free.point;
+        let block = self.add(
+            format!("point {tool}"),
+            &["x", "y", "z"],
+            point.to_vec(),
+            &[free; 3],
+        );
+        self.points.insert(tool.to_owned(), block);
+        Ok(block)
+    }
+
+    fn contact(
+        &mut self,
+        row: &ContactRow,
+        index: &BTreeMap<String, usize>,
+    ) -> Result<(usize, Contact)> {
+        let tool = self.tool(row, &row.tool, index)?;
+        let second = match &row.tool2 {
+            Some(name) => Some((name.clone(), self.tool(row, name, index)?)),
+            None => None,
+        };
+        let contact = match (row.kind, second) {
+            (ContactKind::Flush, _) => Contact::Flush {
+                plane: self.plane(row)?,
+                face: self.face(row)?,
+            },
+            (ContactKind::Point, _) => Contact::Point {
+                plane: self.plane(row)?,
+                point: self.point(row, &row.tool)?,
+            },
+            (ContactKind::Touch, Some((name, tool2))) => Contact::Touch {
+                point: self.point(row, &row.tool)?,
+                tool2,
+                point2: self.point(row, &name)?,
+            },
+            (ContactKind::Distance, Some((name, tool2))) => {
+                let bar = match self.bar {
+                    Some(b) => b,
+                    None => {
+                        let bar = self.setup.bar.ok_or_else(|| {
+                            self.fail(
+                                row,
+                                "a distance row needs the bar: add 'bar: {length: L}' (m) to the \
+                                 setup file"
+                                    .into(),
+                            )
+                        })?;
+                        let block =
+                            self.add("bar".into(), &["length"], vec![bar.length], &[bar.free]);
+                        self.bar = Some(block);
+                        block
+                    }
+                };
+                Contact::Distance {
+                    point: self.point(row, &row.tool)?,
+                    tool2,
+                    point2: self.point(row, &name)?,
+                    length: bar,
+                }
+            }
+            (kind, None) => {
+                return Err(self.fail(row, format!("a {} row needs tool2", kind.name())))
+            }
+        };
+        if contact.second_tool() == Some(tool) {
+            return Err(self.fail(row, "tool and tool2 are the same tool".into()));
+        }
+        Ok((tool, contact))
+    }
+}
+
+/// A plane through the nominal robot's contacts of one session: the centroid of the face
+/// points (or contact points), the normal the mean face normal (flush; its sign that of the
+/// setup's normal) or the smallest principal direction of the points when they span a plane,
+/// else the setup's normal. The rotation is the setup's turned by the smallest rotation onto
+/// that normal. `setup` when there are no rows.
+pub fn plane_start(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    rows: &[&Measurement],
+    setup: &Pose,
+) -> Pose {
+    let n0 = setup.rotation * Vec3::z();
+    let (mut points, mut normals) = (Vec::new(), Vec::new());
+    for m in rows {
+        let Observation::Contact(contact) = &m.observation else {
+            continue;
+        };
+        let tool = model.tool_poses(&m.q)[m.tool];
+        match contact {
+            Contact::Flush { face, .. } => {
+                let at = tool * face.nominal;
+                points.push(at.translation.vector);
+                let a = at.rotation * Vec3::z();
+                normals.push(if a.dot(&n0) < 0.0 { -a } else { a });
+            }
+            Contact::Point { point, .. } => {
+                if let Ok(c) = nuisance.block_values(*point) {
+                    points.push(tool * nalgebra::Point3::new(c[0], c[1], c[2]).coords);
+                }
+            }
+            _ => {}
+        }
+    }
+    if points.is_empty() {
+        return *setup;
+    }
+    let centroid = points.iter().sum::<Vec3>() / points.len() as f64;
+    let mean_normal: Vec3 = normals.iter().sum();
+    let normal = if mean_normal.norm() > 1e-9 {
+        mean_normal.normalize()
+    } else {
+        principal_normal(&points, &centroid).unwrap_or(n0)
+    };
+    let normal = if normal.dot(&n0) < 0.0 {
+        -normal
+    } else {
+        normal
+    };
+    let turn =
+        UnitQuaternion::rotation_between(&n0, &normal).unwrap_or_else(UnitQuaternion::identity);
+    Pose::from_parts(centroid.into(), turn * setup.rotation)
+}
+
+/// The least-squares plane normal of `points`, when they span a plane (smallest spread below
+/// a tenth of the middle one).
+fn principal_normal(points: &[Vec3], centroid: &Vec3) -> Option<Vec3> {
+    if points.len() < 3 {
+        return None;
+    }
+    let scatter: Matrix3<f64> = points
+        .iter()
+        .map(|p| (p - centroid) * (p - centroid).transpose())
+        .sum();
+    let eigen = scatter.symmetric_eigen();
+    let mut order = [0, 1, 2];
+    order.sort_by(|a, b| eigen.eigenvalues[*a].total_cmp(&eigen.eigenvalues[*b]));
+    (eigen.eigenvalues[order[0]] < 0.01 * eigen.eigenvalues[order[1]])
+        .then(|| eigen.eigenvectors.column(order[0]).into_owned())
+}
