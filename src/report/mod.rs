@@ -6,6 +6,7 @@ pub mod check;
 pub mod compare;
 pub mod html;
 pub mod html_chart;
+mod html_escape;
 pub mod html_page;
 pub mod inspect;
 pub mod outliers;
