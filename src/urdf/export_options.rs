@@ -29,7 +29,7 @@ pub const DROPPED_OFFSET_SIGMAS: f64 = 3.0;
 pub struct ExportOptions {
     /// Per tool link name, the largest off-axis offset (m) that may be dropped: the
     /// calibration's own uncertainty of the tool origin ([`Self::with_uncertainty`]). Tools
-    /// not listed get [`ON_AXIS_TOLERANCE`](ON_AXIS_TOLERANCE).
+    /// not listed get [`ON_AXIS_TOLERANCE`].
     pub tool_tolerances: BTreeMap<String, f64>,
     /// Add a fixed child link `<tool>_calibrated` carrying the exact calibrated tool frame
     /// under every tool link whose offset is too large to drop (instead of refusing).
