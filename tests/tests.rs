@@ -47,6 +47,7 @@ mod second_robot;
 mod sessions;
 mod simulate;
 mod stiffness;
+mod structure;
 mod tutorial;
 mod urdf_import;
 mod urdf_tolerant;

@@ -23,13 +23,14 @@ use super::options::IdentificationOptions;
 use super::plan::{Anderson, CalibrationReport, Compensation, Plan};
 use super::predictor::{Predictor, Rigid};
 use super::robust::{calibrate_robust, RobustReport};
-use super::verdict::Finding;
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::math::{pose, Pose, Vec3};
 use crate::measurement::{Measurement, Observation};
 use crate::tree::Branches;
 use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector6};
+
+pub use super::session_findings::session_findings;
 
 /// Parameters of one session's frame block (translation and rotation).
 pub const FRAME_BLOCK_PARAMETERS: usize = 6;
@@ -591,112 +592,6 @@ pub fn validate_sessions(
             }
         })
         .collect())
-}
-
-/// A frame's offset from the first session's, in words: translation (mm) and rotation (deg).
-fn offset_words(frame: &Pose) -> String {
-    format!(
-        "{:.2} mm, {:.3}°",
-        frame.translation.vector.norm() * 1e3,
-        frame.rotation.angle().to_degrees()
-    )
-}
-
-/// The findings of a calibration with sessions: a note naming every session with its rows
-/// and its frame relative to the first; a warning for a frame its rows cannot determine or
-/// an alternation that did not settle; a note with the validation sessions' two figures.
-pub fn session_findings(report: &SessionsReport) -> Vec<Finding> {
-    let mut findings = Vec::new();
-    let listed: Vec<String> = report
-        .frames
-        .iter()
-        .enumerate()
-        .map(|(s, f)| {
-            if s == 0 {
-                format!(
-                    "{} {} rows (the reference frame)",
-                    session_label(&f.name),
-                    f.rows
-                )
-            } else {
-                format!(
-                    "{} {} rows (frame {} from the first; its rows moved by {:.2} mm RMS)",
-                    session_label(&f.name),
-                    f.rows,
-                    offset_words(&f.session_from_first),
-                    f.displacement * 1e3
-                )
-            }
-        })
-        .collect();
-    findings.push(Finding::note(
-        "sessions",
-        format!(
-            "{} measurement session(s), one measurement frame each ({} parameters per session \
-             after the first, fitted with the geometry in {} round(s)): {}",
-            report.frames.len(),
-            FRAME_BLOCK_PARAMETERS,
-            report.rounds,
-            listed.join("; ")
-        ),
-    ));
-    if !report.converged {
-        findings.push(Finding::warning(
-            "sessions",
-            format!(
-                "the session frames did not settle within {MAX_ROUNDS} rounds of calibration \
-                 and frame fits; the geometry may still carry part of a session's frame"
-            ),
-        ));
-    }
-    for f in report
-        .frames
-        .iter()
-        .filter(|f| f.determined < FRAME_BLOCK_PARAMETERS)
-    {
-        findings.push(Finding::warning(
-            "sessions",
-            format!(
-                "session {} ({} rows) determines only {} of its frame's {} directions; the \
-                 others stay at the closed-form start: measure at least three well-spread \
-                 positions (or one pose) per session",
-                session_label(&f.name),
-                f.rows,
-                f.determined,
-                FRAME_BLOCK_PARAMETERS
-            ),
-        ));
-    }
-    if !report.validation.is_empty() {
-        let listed: Vec<String> = report
-            .validation
-            .iter()
-            .map(|v| {
-                format!(
-                    "{} {} rows ({}): training frame {:.2} mm RMS, re-registered ({} frame \
-                     parameters refitted, geometry fixed) {:.2} mm",
-                    session_label(&v.name),
-                    v.rows,
-                    if v.seen_in_training {
-                        "seen in training: its own fitted frame"
-                    } else {
-                        "new: the first session's frame"
-                    },
-                    v.training_frame_rms * 1e3,
-                    v.refitted_parameters,
-                    v.reregistered_rms * 1e3
-                )
-            })
-            .collect();
-        findings.push(Finding::note(
-            "validation-sessions",
-            format!(
-                "validation by session (the headline figures use the training frame): {}",
-                listed.join("; ")
-            ),
-        ));
-    }
-    findings
 }
 
 /// `report` with the validation sessions' figures at the calibrated `model`, when any row of

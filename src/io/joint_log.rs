@@ -1,12 +1,9 @@
 //! Joint-state logs (`treecal pair --joints`): a CSV with a time column and one column per
 //! joint, or a ROS 2 bag in MCAP holding `sensor_msgs/msg/JointState` (`joint_log_mcap`).
 
-use super::bounded::read_text;
 use super::joints_csv::parse_csv;
 use super::units::{parse_units_header, resolve_units, AngleUnit, LengthUnit, StatedUnits};
 use crate::error::{Error, Result};
-use crate::limits::MAX_CSV_BYTES;
-use std::path::Path;
 
 /// Largest time stamp (s, either sign): a Unix time in seconds is about 2·10⁹.
 pub const MAX_TIME: f64 = 1e11;
@@ -55,14 +52,7 @@ pub struct JointLog {
     pub joint_length_unit: LengthUnit,
 }
 
-/// Reads a joint log: an MCAP file (by its magic bytes) or a CSV.
-pub fn read_joint_log(path: &Path, options: &JointLogOptions) -> Result<JointLog> {
-    if super::joint_log_mcap::is_mcap(path)? {
-        return super::joint_log_mcap::read_joint_log_mcap(path, options.topic.as_deref());
-    }
-    let text = read_text(path, MAX_CSV_BYTES)?;
-    parse_joint_log_csv(&text, &path.display().to_string(), options)
-}
+pub use super::joint_log_read::read_joint_log;
 
 /// Parses a joint-log CSV: a header with the time column and joint names, one sample per
 /// row; an empty cell is a joint the sample does not give.

@@ -18,6 +18,14 @@ use crate::tree::{Actuation, JointKind, KinematicTree};
 use std::collections::HashMap;
 use std::path::Path;
 
+mod names;
+pub use names::{
+    measured_targets, measured_tool_names, read_measured_targets, read_measured_tool_names,
+};
+
+mod write;
+pub use write::{measurements_to_csv, measurements_to_csv_with, MeasurementWriteOptions};
+
 /// How to read a measurement CSV. A unit left `None` is taken from the file's units comment
 /// (`# units: length=mm angle=deg`), else the default; a unit given here that contradicts the
 /// comment is an error.
@@ -603,79 +611,6 @@ fn angles_look_like_radians(
     Ok(())
 }
 
-/// The distinct links named in the `tool` column of measurement CSV `text`, in order of first
-/// appearance: the measured tools, read without a robot model (so that the arms can be built
-/// from them). An error when there is no `tool` column or no data row.
-pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
-    let table = parse_csv(text, origin)?;
-    let column = table
-        .headers
-        .iter()
-        .position(|h| h == "tool")
-        .ok_or_else(|| Error::InvalidData {
-            origin: format!("{origin}:{}", table.header_line),
-            message: "the header has no 'tool' column; add one naming the measured tool link \
-                of each row"
-                .into(),
-        })?;
-    let mut names: Vec<String> = Vec::new();
-    for (line, fields) in &table.records {
-        let name = &fields[column];
-        if name.is_empty() {
-            return Err(Error::InvalidData {
-                origin: format!("{origin}:{line}:tool"),
-                message: "the tool is empty; name the measured tool link".into(),
-            });
-        }
-        if !names.contains(name) {
-            names.push(name.clone());
-        }
-    }
-    if names.is_empty() {
-        return Err(Error::InvalidData {
-            origin: origin.to_owned(),
-            message: "the file has a header but no data rows; add one row per measurement".into(),
-        });
-    }
-    Ok(names)
-}
-
-/// The distinct `(tool, point)` pairs the rows of measurement CSV `text` name, in order of
-/// first appearance, read without a robot model: `None` for a missing `tool` column (the
-/// tool then comes from `--tools`) and for a missing or empty `point`.
-pub fn measured_targets(text: &str, origin: &str) -> Result<Vec<(Option<String>, Option<String>)>> {
-    let table = parse_csv(text, origin)?;
-    let column = |name: &str| table.headers.iter().position(|h| h == name);
-    let (tool, point) = (column("tool"), column(POINT_COLUMN));
-    let mut pairs: Vec<(Option<String>, Option<String>)> = Vec::new();
-    for (line, fields) in &table.records {
-        let value = |c: Option<usize>| c.map(|c| fields[c].clone()).filter(|v| !v.is_empty());
-        let pair = (value(tool), value(point));
-        if tool.is_some() && pair.0.is_none() {
-            return Err(Error::InvalidData {
-                origin: format!("{origin}:{line}:tool"),
-                message: "the tool is empty; name the measured tool link".into(),
-            });
-        }
-        if !pairs.contains(&pair) {
-            pairs.push(pair);
-        }
-    }
-    Ok(pairs)
-}
-
-/// Reads a measurement CSV file's tool and point columns; see [`measured_targets`].
-pub fn read_measured_targets(path: &Path) -> Result<Vec<(Option<String>, Option<String>)>> {
-    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
-    measured_targets(&text, &path.display().to_string())
-}
-
-/// Reads a measurement CSV file's tool column; see [`measured_tool_names`].
-pub fn read_measured_tool_names(path: &Path) -> Result<Vec<String>> {
-    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
-    measured_tool_names(&text, &path.display().to_string())
-}
-
 /// Rows that repeat an earlier row in every column but the id: accepted (a repeated
 /// measurement is legitimate), with one warning, since an accidentally duplicated row weighs
 /// double in the fit.
@@ -868,149 +803,4 @@ fn classify(
         observation,
         observed,
     })
-}
-
-/// How to write a measurement CSV.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct MeasurementWriteOptions {
-    /// Unit of positions, targets and prismatic joint values (default m).
-    pub length_unit: LengthUnit,
-    /// Unit of revolute and continuous joint values (default rad).
-    pub angle_unit: AngleUnit,
-    /// Write each pose as three targets `ax,…,cz` placed by
-    /// [`crate::measurement::targets_on`] (as a tracker exports them) instead of `x,…,qz`.
-    pub three_targets: bool,
-}
-
-/// Writes measurements as CSV in metres and radians:
-/// `id,stage,tool,<joint names…>,x,y,z[,qw,qx,qy,qz]`.
-/// Full poses and single positions cannot be mixed in one file.
-pub fn measurements_to_csv(
-    tree: &KinematicTree,
-    model: &McpcModel,
-    measurements: &[Measurement],
-) -> Result<String> {
-    measurements_to_csv_with(
-        tree,
-        model,
-        measurements,
-        &MeasurementWriteOptions::default(),
-    )
-}
-
-/// Writes measurements as CSV in the units and layout `options` name; output in units other
-/// than metres and radians starts with the units comment `# units: length=… angle=…`.
-pub fn measurements_to_csv_with(
-    tree: &KinematicTree,
-    model: &McpcModel,
-    measurements: &[Measurement],
-    options: &MeasurementWriteOptions,
-) -> Result<String> {
-    let fail = |message: String| Error::InvalidData {
-        origin: "measurement CSV".into(),
-        message,
-    };
-    let poses = measurements
-        .iter()
-        .filter(|m| matches!(m.observation, Observation::Pose(_)))
-        .count();
-    if poses != 0 && poses != measurements.len() {
-        return Err(fail(
-            "full poses and single positions cannot be written to one file".into(),
-        ));
-    }
-    if options.three_targets && poses != measurements.len() {
-        return Err(fail(
-            "three targets can only be written for full poses, not for positions".into(),
-        ));
-    }
-    let kind = match (options.three_targets, poses > 0) {
-        (true, _) => ObservationKind::ThreeTargets,
-        (false, true) => ObservationKind::Pose,
-        (false, false) => ObservationKind::Position,
-    };
-    let mut header: Vec<String> = vec!["id".into(), "stage".into(), "tool".into()];
-    header.extend(tree.dofs().iter().map(|j| tree.joint(*j).name.clone()));
-    header.extend(kind.columns().iter().map(|c| c.to_string()));
-    // The payload column only when some row states its payload.
-    let payloads = measurements.iter().any(|m| m.payload.is_some());
-    if payloads {
-        header.push(PAYLOAD_COLUMN.into());
-    }
-    // The session column only when some row names its session.
-    let sessions = measurements.iter().any(|m| m.session.is_some());
-    if sessions {
-        header.push(SESSION_COLUMN.into());
-    }
-    let length = options.length_unit.in_metres();
-    let joint_scales: Vec<f64> = tree
-        .dofs()
-        .iter()
-        .map(|j| match tree.joint(*j).kind {
-            JointKind::Prismatic => length,
-            _ => options.angle_unit.in_radians(),
-        })
-        .collect();
-    let text = |v: f64| format!("{v}");
-    let mut rows = vec![header];
-    for (index, m) in measurements.iter().enumerate() {
-        let tool = model
-            .tools()
-            .get(m.tool)
-            .map(|t| tree.link(t.link).name.clone())
-            .ok_or_else(|| {
-                fail(format!(
-                    "measurement {index} names tool {} of {}",
-                    m.tool,
-                    model.tools().len()
-                ))
-            })?;
-        if m.q.len() != joint_scales.len() {
-            return Err(fail(format!(
-                "measurement {index} has {} joint values but the robot has {} independent joints",
-                m.q.len(),
-                joint_scales.len()
-            )));
-        }
-        let mut row = vec![
-            (index + 1).to_string(),
-            m.stage.clone().unwrap_or_default(),
-            tool,
-        ];
-        row.extend(m.q.iter().zip(&joint_scales).map(|(v, s)| text(v / s)));
-        match &m.observation {
-            Observation::Pose(p) if options.three_targets => {
-                for target in targets_on(p) {
-                    row.extend(target.iter().map(|v| text(v / length)));
-                }
-            }
-            Observation::Pose(p) => {
-                let t = p.translation.vector / length;
-                let q = p.rotation.quaternion();
-                row.extend([t.x, t.y, t.z, q.w, q.i, q.j, q.k].map(text));
-            }
-            Observation::Position(p) => row.extend((p / length).iter().map(|v| text(*v))),
-            // Contacts have no tracker columns: they are written to a contacts CSV.
-            Observation::Contact(_) => {}
-        }
-        if payloads {
-            row.push(m.payload.map(text).unwrap_or_default());
-        }
-        if sessions {
-            row.push(m.session.clone().unwrap_or_default());
-        }
-        rows.push(row);
-    }
-    let body = super::csv_text(&rows, "measurement CSV")?;
-    if options.length_unit == LengthUnit::Metre && options.angle_unit == AngleUnit::Radian {
-        Ok(body)
-    } else {
-        let units = MeasurementUnits {
-            length: options.length_unit,
-            angle: options.angle_unit,
-            joint_length: options.length_unit,
-            rotation: options.angle_unit,
-        };
-        Ok(format!("{}\n{body}", StatedUnits::line_for(&units)))
-    }
 }

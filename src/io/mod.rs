@@ -10,6 +10,7 @@ mod csv_scan;
 pub mod detections_csv;
 pub mod joint_log;
 pub mod joint_log_mcap;
+mod joint_log_read;
 pub mod joints_csv;
 mod joints_stream;
 pub mod mcpc_table;

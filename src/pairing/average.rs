@@ -1,7 +1,7 @@
 //! Averages over a plateau: the joints' mean and standard deviation, the target's mean
 //! position and RMS spread, the rigid body's mean orientation and RMS angle.
 
-use super::plateaus::{Plateau, PlateauStatus};
+use super::plateau::{Plateau, PlateauStatus};
 use super::{JointSeries, TrackerSeries};
 use crate::math::{Rotation, Vec3};
 use nalgebra::{Quaternion, UnitQuaternion};

@@ -5,6 +5,7 @@
 
 mod average;
 pub mod clock;
+mod plateau;
 pub mod plateaus;
 pub mod speed;
 

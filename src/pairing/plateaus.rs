@@ -6,7 +6,6 @@
 use super::average::measure;
 use super::speed::{windowed_speeds, SpeedNorm};
 use super::{JointSeries, TrackerSeries};
-use crate::math::{Rotation, Vec3};
 
 /// Thresholds of stillness and of an acceptable plateau (SI units).
 #[derive(Debug, Clone, PartialEq)]
@@ -57,41 +56,7 @@ impl Default for PlateauOptions {
     }
 }
 
-/// Whether a plateau became a measurement.
-#[derive(Debug, Clone, PartialEq)]
-pub enum PlateauStatus {
-    /// Paired: one measurement row.
-    Kept,
-    /// Not paired, and why.
-    Rejected(String),
-}
-
-/// One interval where the joints were still, on the joint log's clock.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Plateau {
-    /// Start and end (s) of the samples averaged (for a rejected plateau: of the joints' run).
-    pub start: f64,
-    /// See `start`.
-    pub end: f64,
-    /// Mean of every watched joint.
-    pub joint_mean: Vec<f64>,
-    /// Standard deviation of every watched joint.
-    pub joint_std: Vec<f64>,
-    /// Joint samples averaged.
-    pub joint_samples: usize,
-    /// Mean target position (m), if the tracker has samples in the interval.
-    pub position: Option<Vec3>,
-    /// RMS distance of the target's samples from `position` (m).
-    pub position_spread: Option<f64>,
-    /// Mean orientation of the rigid body, when the tracker reports poses.
-    pub orientation: Option<Rotation>,
-    /// RMS angle of the samples from `orientation` (rad).
-    pub rotation_spread: Option<f64>,
-    /// Tracker samples averaged.
-    pub tracker_samples: usize,
-    /// Kept or rejected.
-    pub status: PlateauStatus,
-}
+pub use super::plateau::{Plateau, PlateauStatus};
 
 /// Every plateau found, in time order, and how many brief still moments (shorter than a
 /// quarter of the minimum duration, e.g. at a reversal of motion) were passed over.
@@ -339,6 +304,7 @@ fn check(p: &Plateau, joints: &JointSeries, options: &PlateauOptions) -> Plateau
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Vec3;
 
     /// One joint holding 0 until 3 s, moving to 1 rad by 4 s, holding to 8 s; the target
     /// follows at x = value (m), sampled every 10 ms, except a tracker gap over the move.

@@ -69,14 +69,7 @@ pub struct HtmlReport<'a> {
 pub(super) const STYLE: &str = include_str!("html_style.css");
 const VIEWER: &str = include_str!("html_viewer.js");
 
-/// Escapes text for HTML content and attribute values.
-pub fn escape(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-        .replace('\'', "&#39;")
-}
+pub use super::html_escape::escape;
 
 /// Escaped text with markdown `code` spans as `<code>`.
 fn inline(text: &str) -> String {

@@ -2,7 +2,7 @@
 //! its change and a whisker of ±1 standard deviation, lengths (mm) and angles (deg) in panels
 //! of their own (their scales differ). Plain SVG text, so the page needs no library.
 
-use super::html::escape;
+use super::html_escape::escape;
 use crate::calibration::ParameterEstimate;
 use std::fmt::Write;
 

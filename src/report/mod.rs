@@ -7,6 +7,7 @@ pub mod compare;
 pub mod contacts;
 pub mod html;
 pub mod html_chart;
+mod html_escape;
 pub mod html_page;
 pub mod inspect;
 pub mod outliers;

@@ -2,7 +2,7 @@
 //! calibration scored on fresh rows.
 
 use super::plot::{error_plot_svg, ErrorPlot, Series};
-use super::strata::ValidationStrata;
+use super::strata::{StrataRow, ValidationStrata};
 use crate::calibration::validation::Stratum;
 use crate::calibration::ErrorSummary;
 use crate::error::Result;
@@ -148,8 +148,8 @@ pub struct VerifyReport {
 impl VerifyReport {
     /// The report of `rows`, judged against `max_error_mm`.
     pub fn new(context: VerifyContext, rows: Vec<VerifyRow>, max_error_mm: Option<f64>) -> Self {
-        let summary = crate::workflow::verify::summary_of(&rows);
-        let strata = crate::workflow::verify::strata_of(&rows);
+        let summary = summary_of(&rows);
+        let strata = strata_of(&rows);
         let rms = summary.rms_position_mm;
         Self {
             schema_version: VERIFY_SCHEMA,
@@ -261,4 +261,33 @@ fn frame_words(c: &VerifyContext) -> String {
         "registration" => "the calibration's registration as written (nothing refitted)".into(),
         _ => "the URDF's root link frame (nothing refitted)".into(),
     }
+}
+
+/// The strata rows of `rows`.
+pub(crate) fn strata_rows(rows: &[VerifyRow]) -> Vec<StrataRow> {
+    rows.iter()
+        .map(|r| StrataRow {
+            id: r.id.clone(),
+            index: r.index,
+            tool: r.tool.clone(),
+            stratum: r.stratum,
+            position_mm: r.position_mm,
+            outlier: false,
+        })
+        .collect()
+}
+
+/// The summary of `rows` ([`ErrorSummary::of`], as `calibrate`'s artifact figures).
+pub(crate) fn summary_of(rows: &[VerifyRow]) -> ErrorSummary {
+    let position: Vec<f64> = rows.iter().map(|r| r.position_mm).collect();
+    let orientation: Vec<f64> = rows.iter().filter_map(|r| r.orientation_deg).collect();
+    ErrorSummary::of(&position, &orientation)
+}
+
+/// The strata of `rows` ([`ValidationStrata::of_rows`]); `None` without strata.
+pub(crate) fn strata_of(rows: &[VerifyRow]) -> Option<ValidationStrata> {
+    rows.iter()
+        .any(|r| r.stratum.is_some())
+        .then(|| ValidationStrata::of_rows(&strata_rows(rows)))
+        .flatten()
 }

@@ -13,4 +13,5 @@ pub mod noise;
 pub mod planning;
 pub mod pose_set;
 pub mod sampling;
+mod trial_report;
 pub mod truth;

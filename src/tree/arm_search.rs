@@ -12,7 +12,7 @@
 //! 4. Of more than two, the pair named left and right, then diverging furthest from the root
 //!    (sharing the most torso), then the longest, wins.
 
-use super::branches::{common_ancestor, DecisionRule};
+use super::arm_rules::{common_ancestor, DecisionRule};
 use super::{JointId, KinematicTree, LinkId};
 use crate::error::{Error, Result};
 
@@ -282,7 +282,7 @@ fn best_pair(tree: &KinematicTree, candidates: &[Candidate], pool: &[usize]) -> 
             .filter(|j| tree.joint(**j).kind.is_movable())
             .count()
     };
-    let side = |i: usize| super::branches::side_from_tip(tree, candidates[i].tip);
+    let side = |i: usize| super::arm_rules::side_from_tip(tree, candidates[i].tip);
     // (named left and right, movable joints above the divergence, joints in both runs)
     type Score = (bool, usize, usize);
     let mut best: Option<(Score, (usize, usize))> = None;

@@ -5,6 +5,7 @@
 //! `joints[j]` always connects an earlier link to a later one and one forward sweep computes
 //! every link pose ([`KinematicTree::link_poses`]).
 
+mod arm_rules;
 mod arm_search;
 mod branches;
 mod geometry;

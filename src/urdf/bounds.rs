@@ -2,7 +2,6 @@
 //! robot is not too large and its names are printable and of sane length; after it, every
 //! number treecal uses is finite and of a sane magnitude for its quantity.
 
-use super::import::element_line;
 use crate::error::{Error, Result};
 use crate::limits::{magnitude_problem, name_problem, Quantity, MAX_JOINTS};
 
@@ -142,5 +141,36 @@ fn short(name: &str) -> String {
         name.chars().take(60).collect::<String>() + "…"
     } else {
         name.to_owned()
+    }
+}
+
+/// The 1-based line of `<tag ... name="name"`, if it can be found in the text.
+pub(super) fn element_line(text: &str, tag: &str, name: &str) -> Option<usize> {
+    for quote in ['"', '\''] {
+        let needle = format!("name={quote}{name}{quote}");
+        let mut start = 0;
+        while let Some(found) = text[start..].find(&needle) {
+            let at = start + found;
+            let open = text[..at].rfind('<')?;
+            let element = text[open + 1..at].trim_start();
+            if element.starts_with(tag) && element[tag.len()..].starts_with(char::is_whitespace) {
+                return Some(text[..at].matches('\n').count() + 1);
+            }
+            start = at + needle.len();
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::element_line;
+
+    #[test]
+    fn finds_element_lines() {
+        let text = "<robot>\n <link name=\"a\"/>\n <joint name=\"a\" type=\"fixed\">\n</robot>";
+        assert_eq!(element_line(text, "link", "a"), Some(2));
+        assert_eq!(element_line(text, "joint", "a"), Some(3));
+        assert_eq!(element_line(text, "joint", "b"), None);
     }
 }

@@ -22,10 +22,7 @@ use crate::tree::{JointKind, KinematicTree, LinkId};
 /// anything a calibration can resolve, and it keeps a nominal export byte-identical.
 pub const UNCHANGED_TOLERANCE: f64 = 1e-12;
 
-/// How far (m) a tool link's origin may sit off the axis of the movable joint that carries it.
-/// A URDF joint turns its child link about an axis through the child's origin, so a tool link
-/// that is itself the child of a revolute joint can only be exported while it stays on the axis.
-pub const ON_AXIS_TOLERANCE: f64 = 1e-9;
+pub use super::export_options::ON_AXIS_TOLERANCE;
 
 /// One joint whose `<origin>` or `<axis>` was rewritten.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

@@ -14,6 +14,11 @@ use crate::math::Pose;
 use crate::tree::KinematicTree;
 use std::collections::BTreeMap;
 
+/// How far (m) a tool link's origin may sit off the axis of the movable joint that carries it.
+/// A URDF joint turns its child link about an axis through the child's origin, so a tool link
+/// that is itself the child of a revolute joint can only be exported while it stays on the axis.
+pub const ON_AXIS_TOLERANCE: f64 = 1e-9;
+
 /// How many standard deviations of the tool origin an off-axis offset may be and still be
 /// dropped: 3σ, so a tool that truly sits on the axis is exported without an added link in
 /// all but 0.3 % of calibrations, while an offset the data resolve is never silently lost.
@@ -24,7 +29,7 @@ pub const DROPPED_OFFSET_SIGMAS: f64 = 3.0;
 pub struct ExportOptions {
     /// Per tool link name, the largest off-axis offset (m) that may be dropped: the
     /// calibration's own uncertainty of the tool origin ([`Self::with_uncertainty`]). Tools
-    /// not listed get [`ON_AXIS_TOLERANCE`](super::export::ON_AXIS_TOLERANCE).
+    /// not listed get [`ON_AXIS_TOLERANCE`].
     pub tool_tolerances: BTreeMap<String, f64>,
     /// Add a fixed child link `<tool>_calibrated` carrying the exact calibrated tool frame
     /// under every tool link whose offset is too large to drop (instead of refusing).
@@ -86,8 +91,8 @@ impl ExportOptions {
         self.tool_tolerances
             .get(name)
             .copied()
-            .unwrap_or(super::export::ON_AXIS_TOLERANCE)
-            .max(super::export::ON_AXIS_TOLERANCE)
+            .unwrap_or(ON_AXIS_TOLERANCE)
+            .max(ON_AXIS_TOLERANCE)
     }
 }
 

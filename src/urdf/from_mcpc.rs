@@ -9,7 +9,7 @@
 //! link and the tool hangs below it on a fixed joint. Links get simple cylinders and plausible
 //! masses so that later steps (gravity loads, self-collision) have something to work with.
 
-use super::export::ON_AXIS_TOLERANCE;
+use super::export_options::ON_AXIS_TOLERANCE;
 use crate::kinematics::{FrameKind, McpcTable, TableBranch};
 use crate::math::{pose, rpy_from_rotation, Pose, Rotation, Vec3};
 use std::fmt::Write;

@@ -3,6 +3,7 @@
 //! urdf-rs parses the XML; everything it does not check is checked here, with messages that
 //! name the element and, where it can be found, the line.
 
+use super::bounds::element_line;
 use crate::error::{Error, Result};
 use crate::limits::{magnitude_problem, Quantity};
 use crate::math::{pose, rotation_from_rpy, Mat3, Pose, Vec3};
@@ -653,35 +654,4 @@ fn urdf_pose(p: &urdf_rs::Pose) -> Pose {
         Vec3::from(p.xyz.0),
         rotation_from_rpy(p.rpy.0[0], p.rpy.0[1], p.rpy.0[2]),
     )
-}
-
-/// The 1-based line of `<tag ... name="name"`, if it can be found in the text.
-pub(super) fn element_line(text: &str, tag: &str, name: &str) -> Option<usize> {
-    for quote in ['"', '\''] {
-        let needle = format!("name={quote}{name}{quote}");
-        let mut start = 0;
-        while let Some(found) = text[start..].find(&needle) {
-            let at = start + found;
-            let open = text[..at].rfind('<')?;
-            let element = text[open + 1..at].trim_start();
-            if element.starts_with(tag) && element[tag.len()..].starts_with(char::is_whitespace) {
-                return Some(text[..at].matches('\n').count() + 1);
-            }
-            start = at + needle.len();
-        }
-    }
-    None
-}
-
-#[cfg(test)]
-mod tests {
-    use super::element_line;
-
-    #[test]
-    fn finds_element_lines() {
-        let text = "<robot>\n <link name=\"a\"/>\n <joint name=\"a\" type=\"fixed\">\n</robot>";
-        assert_eq!(element_line(text, "link", "a"), Some(2));
-        assert_eq!(element_line(text, "joint", "a"), Some(3));
-        assert_eq!(element_line(text, "joint", "b"), None);
-    }
 }

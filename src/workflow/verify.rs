@@ -18,12 +18,11 @@ use super::postures::{chains_of, RecordedPostures, POSTURES_KEY};
 use super::source::{MeasurementSource, RobotSource, StiffnessSource};
 use crate::calibration::sessions::{fit_session_frame, Sessions, FRAME_BLOCK_PARAMETERS};
 use crate::calibration::validation::{ChainPostures, Stratum};
-use crate::calibration::{ErrorSummary, IdentificationOptions};
+use crate::calibration::IdentificationOptions;
 use crate::error::{Error, Result};
 use crate::io::{read_registration, AngleUnit, LengthUnit, MeasurementReadOptions};
 use crate::math::Pose;
 use crate::measurement::Measurement;
-use crate::report::strata::{StrataRow, ValidationStrata};
 use crate::report::verify::{VerifyReport, VerifyRow, VerifySession};
 use crate::tree::KinematicTree;
 use std::path::{Path, PathBuf};
@@ -455,35 +454,6 @@ fn scored_rows(
             }
         })
         .collect()
-}
-
-/// The strata rows of `rows`.
-pub(crate) fn strata_rows(rows: &[VerifyRow]) -> Vec<StrataRow> {
-    rows.iter()
-        .map(|r| StrataRow {
-            id: r.id.clone(),
-            index: r.index,
-            tool: r.tool.clone(),
-            stratum: r.stratum,
-            position_mm: r.position_mm,
-            outlier: false,
-        })
-        .collect()
-}
-
-/// The summary of `rows` ([`ErrorSummary::of`], as `calibrate`'s artifact figures).
-pub(crate) fn summary_of(rows: &[VerifyRow]) -> ErrorSummary {
-    let position: Vec<f64> = rows.iter().map(|r| r.position_mm).collect();
-    let orientation: Vec<f64> = rows.iter().filter_map(|r| r.orientation_deg).collect();
-    ErrorSummary::of(&position, &orientation)
-}
-
-/// The strata of `rows` ([`ValidationStrata::of_rows`]); `None` without strata.
-pub(crate) fn strata_of(rows: &[VerifyRow]) -> Option<ValidationStrata> {
-    rows.iter()
-        .any(|r| r.stratum.is_some())
-        .then(|| ValidationStrata::of_rows(&strata_rows(rows)))
-        .flatten()
 }
 
 /// Renders the files and the provenance.
