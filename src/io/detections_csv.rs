@@ -193,3 +193,29 @@ fn find<'a>(
 fn invalid(origin: String, message: String) -> Error {
     Error::InvalidData { origin, message }
 }
+
+/// A detections CSV of `views` (cameras and targets of `rig` on `tree`), which
+/// [`parse_detections`] reads back: one row per detected point, revolute joints in radians,
+/// prismatic ones in metres, pixels at full precision.
+pub fn detections_to_csv(tree: &KinematicTree, rig: &Rig, views: &[View]) -> String {
+    let mut text = String::from("# units: length=m angle=rad\n");
+    let mut header: Vec<String> = DETECTION_COLUMNS.iter().map(|c| c.to_string()).collect();
+    header.extend(tree.dofs().iter().map(|j| tree.joint(*j).name.clone()));
+    text.push_str(&header.join(","));
+    text.push('\n');
+    for view in views {
+        let joints: Vec<String> = view.q.iter().map(|v| format!("{v:?}")).collect();
+        let joints = joints.join(",");
+        for (corner, pixel) in &view.points {
+            text.push_str(&format!(
+                "{},{},{},{corner},{:?},{:?},{joints}\n",
+                view.id,
+                rig.cameras[view.camera].name,
+                rig.targets[view.target].name,
+                pixel.x,
+                pixel.y
+            ));
+        }
+    }
+    text
+}
