@@ -97,6 +97,20 @@ pub fn parse_detections(
             }
         };
         let point = (corner, Vector2::new(pixel(4)?, pixel(5)?));
+        let image = &rig.cameras[camera].intrinsics;
+        for (k, value, size) in [(4, point.1.x, image.width), (5, point.1.y, image.height)] {
+            if !(-1.0..=size + 1.0).contains(&value) {
+                return Err(invalid(
+                    place(k),
+                    format!(
+                        "{value} px is outside camera '{}''s {} × {} image; check the image \
+                         size in the camera file, the camera column, or that u and v are \
+                         pixels (not normalised coordinates)",
+                        rig.cameras[camera].name, image.width, image.height
+                    ),
+                ));
+            }
+        }
         let existing = views.iter().position(|v| v.id == id && v.target == target);
         let same_image = views.iter().position(|v| v.id == id);
         if let Some(other) = same_image {

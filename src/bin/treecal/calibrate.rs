@@ -9,9 +9,14 @@ use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, PlanSource, RobotSource,
     StiffnessSource,
 };
+use std::path::Path;
+use treecal::workflow::calibrate_camera::{calibrate_camera_files, CameraCalibrateConfig};
 use treecal::{Error, Result};
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
+    if let (Some(camera), Some(detections)) = (&args.camera, &args.detections) {
+        return run_camera(&args, camera, detections);
+    }
     let config = config(&args);
     // The output folder is replaced as a whole at the end: refuse one that holds an input or
     // is not a previous output before computing anything.
@@ -44,7 +49,7 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
     };
     CalibrateConfig {
         robot: RobotSource::from_path(args.robot.clone()),
-        measurements: MeasurementSource::Csv(args.measurements.clone()),
+        measurements: MeasurementSource::Csv(args.measurements.clone().unwrap_or_default()),
         validation: args.validation.clone().map(MeasurementSource::Csv),
         stiffness: args.stiffness.clone().map(StiffnessSource::File),
         tools: args.tools.clone(),
@@ -89,4 +94,37 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
         },
         cv: args.cv,
     }
+}
+
+/// `calibrate --camera FILE --detections FILE`: the camera calibration from files.
+fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<()> {
+    let config = CameraCalibrateConfig {
+        robot: RobotSource::from_path(args.robot.clone()),
+        tools: args.tools.clone(),
+        camera_file: camera.to_owned(),
+        detections: detections.to_owned(),
+        validation: args.validation.clone(),
+        pixel_sigma: args.pixel_sigma,
+        angle_unit: args.angle_unit,
+        length_unit: args.joint_length_unit.or(args.length_unit),
+        add_tool_links: args.add_tool_links,
+    };
+    config.check_output(&args.out)?;
+    let calibration = calibrate_camera_files(&config)?;
+    for note in &calibration.notes {
+        crate::output::note(note);
+    }
+    calibration.write(&args.out)?;
+    crate::output::print(&calibration.report_markdown)?;
+    crate::output::note(format_args!("wrote {}", args.out.display()));
+    if !calibration.usable() {
+        return Err(Error::InvalidData {
+            origin: "camera calibration".into(),
+            message: format!(
+                "verdict failed (see the errors above and {}); calibrated.urdf was not written",
+                args.out.join("report.md").display()
+            ),
+        });
+    }
+    Ok(())
 }

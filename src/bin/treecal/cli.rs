@@ -683,12 +683,23 @@ pub struct CalibrateArgs {
     /// report.json `model_choice`); --model auto uses 5 without it.
     #[arg(long, value_name = "K")]
     pub cv: Option<usize>,
-    /// Measurement CSV (one row per tool observation).
-    #[arg(long, value_name = "M.csv")]
-    pub measurements: PathBuf,
-    /// Validation measurements (same format) [default: hold out a seeded fifth].
+    /// Measurement CSV (one row per tool observation); not with --camera.
+    #[arg(long, value_name = "M.csv", required_unless_present = "camera")]
+    pub measurements: Option<PathBuf>,
+    /// Validation measurements (same format) [default: hold out a seeded fifth]; with
+    /// --camera, held-out detections (a detections CSV), predicted but not fitted.
     #[arg(long, value_name = "V.csv")]
     pub validation: Option<PathBuf>,
+    /// Camera file (cameras and targets, docs/file-formats.md): calibrate from the pixels of
+    /// --detections instead of tracker measurements (docs/camera.md).
+    #[arg(long, value_name = "CAMERAS.yaml", requires = "detections", conflicts_with = "measurements")]
+    pub camera: Option<PathBuf>,
+    /// Camera detections CSV (with --camera).
+    #[arg(long, value_name = "D.csv", requires = "camera")]
+    pub detections: Option<PathBuf>,
+    /// Pixel noise σ of a detected point (px), with --camera.
+    #[arg(long, default_value_t = 0.5, value_name = "PX")]
+    pub pixel_sigma: f64,
     /// Link stiffness, joint compliance and payloads (YAML, docs/flexibility.md): compensate
     /// the deflections under gravity. Without it the robot is treated as rigid.
     #[arg(long, value_name = "S.yaml")]
