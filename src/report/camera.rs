@@ -185,7 +185,10 @@ pub fn camera_markdown(report: &CameraCalibrationReport) -> String {
     }
     if let Some(held) = &report.held_out {
         row(&format!("held out ({}), nominal", held.file), &held.before);
-        row(&format!("held out ({}), calibrated", held.file), &held.after);
+        row(
+            &format!("held out ({}), calibrated", held.file),
+            &held.after,
+        );
     }
     text.push_str("\n## What the images cannot determine\n\n");
     if report.unobservable.findings.is_empty() {

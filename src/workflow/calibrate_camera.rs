@@ -136,8 +136,7 @@ struct Setup {
 
 /// Calibrates from the files of `config`; writes nothing.
 pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCalibration> {
-    if !(config.pixel_sigma.is_finite() && config.pixel_sigma > 0.0 && config.pixel_sigma <= 1e3)
-    {
+    if !(config.pixel_sigma.is_finite() && config.pixel_sigma > 0.0 && config.pixel_sigma <= 1e3) {
         return Err(Error::InvalidData {
             origin: "--pixel-sigma".into(),
             message: format!(
@@ -216,7 +215,12 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         Some(text) => Some(fitted_camera_file(&setup, &fit, text)?),
         None => None,
     };
-    findings.extend(verdict_findings(&fit, &residuals, held_out.as_ref(), config));
+    findings.extend(verdict_findings(
+        &fit,
+        &residuals,
+        held_out.as_ref(),
+        config,
+    ));
     findings.extend(
         unobservable
             .findings
@@ -314,12 +318,8 @@ fn load(config: &CameraCalibrateConfig, notes: &mut Vec<Note>) -> Result<Setup> 
         }
     }
     let nominal = McpcModel::from_tree(&import.tree, &branches)?;
-    let (rig, augmented) = Rig::build(
-        &import.tree,
-        &nominal,
-        &contents.cameras,
-        &contents.targets,
-    )?;
+    let (rig, augmented) =
+        Rig::build(&import.tree, &nominal, &contents.cameras, &contents.targets)?;
     Ok(Setup {
         tree: import.tree,
         branches,
@@ -568,7 +568,12 @@ fn fitted_poses(setup: &Setup, fitted: &CameraFileContents) -> (Vec<FittedPose>,
         .iter()
         .zip(&fitted.cameras)
         .map(|(n, f): (&CameraSpec, &CameraSpec)| {
-            row(&n.name, &n.mount, &n.mount_from_camera, &f.mount_from_camera)
+            row(
+                &n.name,
+                &n.mount,
+                &n.mount_from_camera,
+                &f.mount_from_camera,
+            )
         })
         .collect();
     let targets = setup
@@ -579,7 +584,12 @@ fn fitted_poses(setup: &Setup, fitted: &CameraFileContents) -> (Vec<FittedPose>,
         .zip(&setup.rig.targets)
         .filter(|(_, rig)| rig.tool >= setup.rig.robot_tools)
         .map(|((n, f), _): ((&TargetSpec, &TargetSpec), _)| {
-            row(&n.name, &n.mount, &n.mount_from_target, &f.mount_from_target)
+            row(
+                &n.name,
+                &n.mount,
+                &n.mount_from_target,
+                &f.mount_from_target,
+            )
         })
         .collect();
     (cameras, targets)
@@ -614,7 +624,10 @@ fn robot_parameters(
     Ok((0..robot.parameter_count())
         .map(|i| {
             let p = setup.rig.augmented_index(&robot, i);
-            let k = fit.unknowns.iter().position(|u| *u == Unknown::Parameter(p));
+            let k = fit
+                .unknowns
+                .iter()
+                .position(|u| *u == Unknown::Parameter(p));
             RobotParameter {
                 name: robot.parameter_name(&setup.tree, i),
                 nominal: nominal[p],

@@ -4,13 +4,13 @@
 use crate::cli::{
     CalibrateArgs, GravityFrame, JointErrorArg, MeasurementFrame, ModelArg, PlanArg, PlanChoice,
 };
+use std::path::Path;
+use treecal::workflow::calibrate_camera::{calibrate_camera_files, CameraCalibrateConfig};
 use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, PlanSource, RobotSource,
     StiffnessSource,
 };
-use std::path::Path;
-use treecal::workflow::calibrate_camera::{calibrate_camera_files, CameraCalibrateConfig};
 use treecal::{Error, Result};
 
 pub fn run(args: CalibrateArgs) -> Result<()> {

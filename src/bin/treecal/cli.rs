@@ -692,7 +692,12 @@ pub struct CalibrateArgs {
     pub validation: Option<PathBuf>,
     /// Camera file (cameras and targets, docs/file-formats.md): calibrate from the pixels of
     /// --detections instead of tracker measurements (docs/camera.md).
-    #[arg(long, value_name = "CAMERAS.yaml", requires = "detections", conflicts_with = "measurements")]
+    #[arg(
+        long,
+        value_name = "CAMERAS.yaml",
+        requires = "detections",
+        conflicts_with = "measurements"
+    )]
     pub camera: Option<PathBuf>,
     /// Camera detections CSV (with --camera).
     #[arg(long, value_name = "D.csv", requires = "camera")]
