@@ -229,6 +229,7 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
     );
     let verdict = Verdict::from_findings(findings);
     notes.extend(verdict.reasons.iter().map(Note::from));
+    let extra_std = extra_std_devs(&setup, &std_devs);
     let report = CameraCalibrationReport {
         schema_version: 1,
         robot: setup.tree.name().to_owned(),
@@ -257,7 +258,27 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         robot_parameters: robot_parameters(&setup, &fit, &std_devs)?,
         verdict: verdict.clone(),
     };
-    finish(config, setup, report, notes, urdf, calibrated_cameras)
+    let calibrated = calibrated_cameras.map(|(contents, yaml)| (contents, yaml, extra_std));
+    finish(config, setup, report, notes, urdf, calibrated)
+}
+
+/// Per camera and target pose of the rig ([`Rig::extra`]), the standard deviations of its
+/// six parameters when all are determined.
+fn extra_std_devs(setup: &Setup, std: &StdDevs<'_>) -> Vec<(String, [f64; 6])> {
+    (0..setup.rig.extra.len())
+        .filter_map(|e| {
+            let values: Option<Vec<f64>> = setup
+                .rig
+                .extra_parameters(&setup.augmented, e)
+                .map(|p| std.parameter(p))
+                .collect();
+            let v = values?;
+            Some((
+                setup.rig.extra[e].0.clone(),
+                [v[0], v[1], v[2], v[3], v[4], v[5]],
+            ))
+        })
+        .collect()
 }
 
 /// The report's poses, the files, the outcome.
@@ -267,10 +288,10 @@ fn finish(
     mut report: CameraCalibrationReport,
     notes: Vec<Note>,
     urdf: Option<String>,
-    calibrated: Option<(CameraFileContents, String)>,
+    calibrated: Option<(CameraFileContents, String, Vec<(String, [f64; 6])>)>,
 ) -> Result<CameraCalibration> {
-    if let Some((contents, _)) = &calibrated {
-        let (cameras, targets) = fitted_poses(&setup, contents);
+    if let Some((contents, _, std)) = &calibrated {
+        let (cameras, targets) = fitted_poses(&setup, contents, std);
         report.cameras = cameras;
         report.target_poses = targets;
     }
@@ -284,7 +305,7 @@ fn finish(
             crate::io::to_json(&report)?.into_bytes(),
         ),
     ];
-    if let (Some(urdf), Some((_, yaml))) = (&urdf, &calibrated) {
+    if let (Some(urdf), Some((_, yaml, _))) = (&urdf, &calibrated) {
         files.push(("calibrated.urdf".to_owned(), urdf.clone().into_bytes()));
         files.push((CALIBRATED_CAMERAS.to_owned(), yaml.clone().into_bytes()));
     }
@@ -548,19 +569,24 @@ fn fitted_camera_file(
 }
 
 /// The report's pose rows: cameras, and targets not on a tool.
-fn fitted_poses(setup: &Setup, fitted: &CameraFileContents) -> (Vec<FittedPose>, Vec<FittedPose>) {
+fn fitted_poses(
+    setup: &Setup,
+    fitted: &CameraFileContents,
+    std: &[(String, [f64; 6])],
+) -> (Vec<FittedPose>, Vec<FittedPose>) {
     let link = |mount: &Mount| match mount {
         Mount::World => "world".to_owned(),
         Mount::Link(l) => setup.tree.link(*l).name.clone(),
     };
-    let row = |name: &str, mount: &Mount, nominal: &Pose, calibrated: &Pose| FittedPose {
+    let std_of = |extra: String| std.iter().find(|(n, _)| *n == extra).map(|(_, s)| *s);
+    let row = |name: &str, mount: &Mount, nominal: &Pose, calibrated: &Pose, std| FittedPose {
         name: name.to_owned(),
         link: link(mount),
         nominal_xyz: nominal.translation.vector.into(),
         calibrated_xyz: calibrated.translation.vector.into(),
         nominal_rpy: rpy_from_rotation(&nominal.rotation),
         calibrated_rpy: rpy_from_rotation(&calibrated.rotation),
-        std_dev: None,
+        std_dev: std,
     };
     let cameras = setup
         .contents
@@ -568,11 +594,13 @@ fn fitted_poses(setup: &Setup, fitted: &CameraFileContents) -> (Vec<FittedPose>,
         .iter()
         .zip(&fitted.cameras)
         .map(|(n, f): (&CameraSpec, &CameraSpec)| {
+            let std = std_of(format!("camera {}", n.name));
             row(
                 &n.name,
                 &n.mount,
                 &n.mount_from_camera,
                 &f.mount_from_camera,
+                std,
             )
         })
         .collect();
@@ -584,11 +612,13 @@ fn fitted_poses(setup: &Setup, fitted: &CameraFileContents) -> (Vec<FittedPose>,
         .zip(&setup.rig.targets)
         .filter(|(_, rig)| rig.tool >= setup.rig.robot_tools)
         .map(|((n, f), _): ((&TargetSpec, &TargetSpec), _)| {
+            let std = std_of(format!("target {}", n.name));
             row(
                 &n.name,
                 &n.mount,
                 &n.mount_from_target,
                 &f.mount_from_target,
+                std,
             )
         })
         .collect();

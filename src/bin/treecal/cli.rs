@@ -696,7 +696,10 @@ pub struct CalibrateArgs {
         long,
         value_name = "CAMERAS.yaml",
         requires = "detections",
-        conflicts_with = "measurements"
+        conflicts_with_all = [
+            "measurements", "stiffness", "identify_stiffness", "plan", "plan_file",
+            "reference_link", "joint_errors", "prior", "significant", "cv", "freeze", "free"
+        ]
     )]
     pub camera: Option<PathBuf>,
     /// Camera detections CSV (with --camera).
