@@ -281,6 +281,9 @@ fn extra_std_devs(setup: &Setup, std: &StdDevs<'_>) -> Vec<(String, [f64; 6])> {
         .collect()
 }
 
+/// The fitted camera file, its YAML, and the σ of each fitted pose ([`extra_std_devs`]).
+type FittedCameraFile = (CameraFileContents, String, Vec<(String, [f64; 6])>);
+
 /// The report's poses, the files, the outcome.
 fn finish(
     config: &CameraCalibrateConfig,
@@ -288,7 +291,7 @@ fn finish(
     mut report: CameraCalibrationReport,
     notes: Vec<Note>,
     urdf: Option<String>,
-    calibrated: Option<(CameraFileContents, String, Vec<(String, [f64; 6])>)>,
+    calibrated: Option<FittedCameraFile>,
 ) -> Result<CameraCalibration> {
     if let Some((contents, _, std)) = &calibrated {
         let (cameras, targets) = fitted_poses(&setup, contents, std);
