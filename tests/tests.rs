@@ -5,6 +5,7 @@ mod common;
 mod branches;
 mod calibrate;
 mod camera;
+mod camera_cli;
 mod cli;
 mod collision;
 mod compare;

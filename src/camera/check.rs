@@ -5,7 +5,7 @@
 //! unless something fixed in the world is observed, and nothing fixes the scale when only
 //! single markers (no board spacing, no tracker) are seen. See `docs/camera.md` §5.
 
-use super::fit::{CameraFitOptions, CameraProblem};
+use super::fit::{CameraFitOptions, CameraFitReport, CameraProblem};
 use super::solve::calibrate_camera;
 use super::target::TargetShape;
 use crate::error::Result;
@@ -41,6 +41,18 @@ pub fn camera_identifiability(
         ..CameraFitOptions::default()
     };
     let report = calibrate_camera(model, problem, &options)?;
+    Ok(explain(tree, branches, model, problem, &report))
+}
+
+/// What `report` (a fit of `problem` on `model`, the rig's augmented model of `tree`) leaves
+/// undetermined, by name, and why in words.
+pub fn explain(
+    tree: &KinematicTree,
+    branches: &Branches,
+    model: &McpcModel,
+    problem: &CameraProblem<'_>,
+    report: &CameraFitReport,
+) -> CameraIdentifiability {
     let undetermined: Vec<String> = (0..report.unknowns.len())
         .filter(|&k| !report.identifiable[k])
         .map(|k| problem.unknown_name(tree, model, k))
@@ -112,10 +124,10 @@ pub fn camera_identifiability(
                 .join(", ")
         ));
     }
-    Ok(CameraIdentifiability {
+    CameraIdentifiability {
         unknowns: report.unknowns.len(),
         rank: report.rank,
         undetermined,
         findings,
-    })
+    }
 }

@@ -311,3 +311,73 @@ fn bad(origin: &str, place: &str, message: String) -> Error {
         message,
     }
 }
+
+/// A camera file describing `cameras` and `targets` on `tree` (metres and radians), which
+/// [`parse_camera_file`] reads back to the same values: what `simulate --observation camera`
+/// hands a user, and the fitted cameras `calibrate --camera` writes for reuse.
+pub fn camera_file_yaml(
+    tree: &KinematicTree,
+    cameras: &[CameraSpec],
+    targets: &[TargetSpec],
+) -> String {
+    let mount = |mount: &Mount| match mount {
+        Mount::World => "world".to_owned(),
+        Mount::Link(link) => tree.link(*link).name.clone(),
+    };
+    let pose = |pose: &Pose| {
+        let t = pose.translation.vector;
+        let [r, p, y] = crate::math::rpy_from_rotation(&pose.rotation);
+        format!(
+            "{{xyz: [{:?}, {:?}, {:?}], rpy: [{r:?}, {p:?}, {y:?}]}}",
+            t.x, t.y, t.z
+        )
+    };
+    let mut text = String::from("units: {length: m, angle: rad}\ncameras:\n");
+    for camera in cameras {
+        let i = &camera.intrinsics;
+        let [k1, k2, p1, p2, k3] = i.distortion;
+        let mut estimate = Vec::new();
+        if camera.estimate_pose {
+            estimate.push("pose");
+        }
+        if camera.estimate_intrinsics {
+            estimate.push("intrinsics");
+        }
+        text.push_str(&format!(
+            "  - name: {}\n    link: {}\n    pose: {}\n    intrinsics: {{fx: {:?}, fy: {:?}, cx: \
+             {:?}, cy: {:?}}}\n    distortion: [{k1:?}, {k2:?}, {p1:?}, {p2:?}, {k3:?}]\n    \
+             image: {{width: {:?}, height: {:?}}}\n    estimate: [{}]\n",
+            camera.name,
+            mount(&camera.mount),
+            pose(&camera.mount_from_camera),
+            i.fx,
+            i.fy,
+            i.cx,
+            i.cy,
+            i.width,
+            i.height,
+            estimate.join(", ")
+        ));
+    }
+    if !targets.is_empty() {
+        text.push_str("targets:\n");
+    }
+    for target in targets {
+        let shape = match &target.shape {
+            TargetShape::Board {
+                rows,
+                columns,
+                spacing,
+            } => format!("board: {{rows: {rows}, columns: {columns}, spacing: {spacing:?}}}"),
+            TargetShape::Marker => "marker: {}".to_owned(),
+        };
+        text.push_str(&format!(
+            "  - name: {}\n    link: {}\n    pose: {}\n    {shape}\n    estimate: [{}]\n",
+            target.name,
+            mount(&target.mount),
+            pose(&target.mount_from_target),
+            if target.estimate_pose { "pose" } else { "" }
+        ));
+    }
+    text
+}

@@ -97,6 +97,20 @@ pub fn parse_detections(
             }
         };
         let point = (corner, Vector2::new(pixel(4)?, pixel(5)?));
+        let image = &rig.cameras[camera].intrinsics;
+        for (k, value, size) in [(4, point.1.x, image.width), (5, point.1.y, image.height)] {
+            if !(-1.0..=size + 1.0).contains(&value) {
+                return Err(invalid(
+                    place(k),
+                    format!(
+                        "{value} px is outside camera '{}''s {} × {} image; check the image \
+                         size in the camera file, the camera column, or that u and v are \
+                         pixels (not normalised coordinates)",
+                        rig.cameras[camera].name, image.width, image.height
+                    ),
+                ));
+            }
+        }
         let existing = views.iter().position(|v| v.id == id && v.target == target);
         let same_image = views.iter().position(|v| v.id == id);
         if let Some(other) = same_image {
@@ -192,4 +206,30 @@ fn find<'a>(
 
 fn invalid(origin: String, message: String) -> Error {
     Error::InvalidData { origin, message }
+}
+
+/// A detections CSV of `views` (cameras and targets of `rig` on `tree`), which
+/// [`parse_detections`] reads back: one row per detected point, revolute joints in radians,
+/// prismatic ones in metres, pixels at full precision.
+pub fn detections_to_csv(tree: &KinematicTree, rig: &Rig, views: &[View]) -> String {
+    let mut text = String::from("# units: length=m angle=rad\n");
+    let mut header: Vec<String> = DETECTION_COLUMNS.iter().map(|c| c.to_string()).collect();
+    header.extend(tree.dofs().iter().map(|j| tree.joint(*j).name.clone()));
+    text.push_str(&header.join(","));
+    text.push('\n');
+    for view in views {
+        let joints: Vec<String> = view.q.iter().map(|v| format!("{v:?}")).collect();
+        let joints = joints.join(",");
+        for (corner, pixel) in &view.points {
+            text.push_str(&format!(
+                "{},{},{},{corner},{:?},{:?},{joints}\n",
+                view.id,
+                rig.cameras[view.camera].name,
+                rig.targets[view.target].name,
+                pixel.x,
+                pixel.y
+            ));
+        }
+    }
+    text
 }

@@ -2,6 +2,7 @@
 
 pub mod artifact;
 pub mod calibrate;
+pub mod camera;
 pub mod check;
 pub mod compare;
 pub mod contacts;

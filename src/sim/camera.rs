@@ -131,14 +131,31 @@ pub struct CameraTrialReport {
     pub unidentifiable: Vec<String>,
 }
 
-/// Runs trial `trial` in `mode`. Configurations, truth and noise depend on the seed only, so
-/// the three modes see the same robot at the same configurations.
-pub fn run_camera_trial(
+/// The truth and the observations of one trial.
+#[derive(Debug, Clone)]
+pub struct CameraTrialData {
+    /// The trial's seed.
+    pub seed: u64,
+    /// The true augmented model (robot, camera and target poses).
+    pub truth: McpcModel,
+    /// Identification configurations.
+    pub configurations: Vec<Vec<f64>>,
+    /// Validation configurations (over the whole joint ranges).
+    pub validation: Vec<Vec<f64>>,
+    /// The noisy images (none in tracker mode).
+    pub views: Vec<View>,
+    /// The tracker rows (none in camera mode).
+    pub tracker: Vec<Measurement>,
+}
+
+/// The truth and observations of trial `trial` in `mode`. Configurations, truth and noise
+/// depend on the seed only, so the three modes see the same robot at the same configurations.
+pub fn camera_trial_data(
     setup: &CameraSetup<'_>,
     options: &CameraSimulationOptions,
     mode: ObservationMode,
     trial: usize,
-) -> Result<CameraTrialReport> {
+) -> Result<CameraTrialData> {
     let seed = trial_seed(options.seed, trial);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let truth = camera_truth(setup, options, &mut rng)?;
@@ -171,6 +188,50 @@ pub fn run_camera_trial(
             &mut tracker_rng,
         )
     };
+    Ok(CameraTrialData {
+        seed,
+        truth,
+        configurations,
+        validation,
+        views,
+        tracker,
+    })
+}
+
+/// Held-out images of `data`'s truth: `count` further configurations drawn as the
+/// identification ones were (each showing a tool board, and the world board when every
+/// configuration must), from their own random stream, with ids `h<k>-<target>`.
+pub fn held_out_views(
+    setup: &CameraSetup<'_>,
+    options: &CameraSimulationOptions,
+    data: &CameraTrialData,
+    count: usize,
+) -> Result<Vec<View>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(data.seed ^ 0x4E1D_0BB5_0000_0002);
+    let configurations = visible_configurations(setup, &data.truth, options, count, &mut rng)?;
+    let mut views = observe_views(setup.rig, &data.truth, &configurations, options, &mut rng)?;
+    for view in &mut views {
+        view.id = format!("h{}", &view.id[1..]);
+    }
+    Ok(views)
+}
+
+/// Runs trial `trial` in `mode`: its data ([`camera_trial_data`]), the fit, and the fit
+/// judged against the truth.
+pub fn run_camera_trial(
+    setup: &CameraSetup<'_>,
+    options: &CameraSimulationOptions,
+    mode: ObservationMode,
+    trial: usize,
+) -> Result<CameraTrialReport> {
+    let CameraTrialData {
+        seed,
+        truth,
+        configurations,
+        validation,
+        views,
+        tracker,
+    } = camera_trial_data(setup, options, mode, trial)?;
     let problem = CameraProblem {
         rig: setup.rig,
         views: &views,

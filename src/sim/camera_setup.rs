@@ -90,6 +90,20 @@ pub fn camera_rig(
     options: &CameraRigOptions,
     seed: u64,
 ) -> Result<(Rig, McpcModel)> {
+    let (cameras, targets) = camera_specs(tree, branches, nominal, checker, options, seed)?;
+    Rig::build(tree, nominal, &cameras, &targets)
+}
+
+/// The camera and targets of [`camera_rig`] as a user would describe them (a camera file,
+/// [`crate::io::camera_yaml`]).
+pub fn camera_specs(
+    tree: &KinematicTree,
+    branches: &Branches,
+    nominal: &McpcModel,
+    checker: Option<&CollisionChecker>,
+    options: &CameraRigOptions,
+    seed: u64,
+) -> Result<(Vec<CameraSpec>, Vec<TargetSpec>)> {
     let link = options.camera_link.unwrap_or(branches.divergence);
     let q0 = tree.zero_configuration();
     let world_from_link = nominal.world_from_base() * tree.link_pose(link, &q0)?;
@@ -209,7 +223,7 @@ pub fn camera_rig(
         estimate_pose: true,
         estimate_intrinsics: options.estimate_intrinsics,
     };
-    Rig::build(tree, nominal, &[camera], &targets)
+    Ok((vec![camera], targets))
 }
 
 /// The unit direction (of [`DIRECTIONS`] spread evenly over the sphere) with the highest

@@ -5,6 +5,7 @@
 
 pub mod calibrate;
 pub mod calibrate_artifact;
+pub mod calibrate_camera;
 pub mod calibrate_contacts;
 pub mod calibrate_deploy;
 mod calibrate_html;

@@ -5,12 +5,12 @@ use super::checker::collision_checker;
 use super::simulate::{ObservationChoice, SimulateConfig, Simulation};
 use super::source::branches;
 use super::{Note, Progress, ProgressFn};
-use crate::camera::TargetShape;
+use crate::camera::{CameraSpec, Rig, TargetShape, TargetSpec};
 use crate::sim::camera::{
-    board_size, run_camera_trial, CameraSetup, CameraSimulationOptions, CameraTrialReport,
-    ObservationMode,
+    board_size, camera_trial_data, held_out_views, run_camera_trial, CameraSetup,
+    CameraSimulationOptions, CameraTrialReport, ObservationMode,
 };
-use crate::sim::camera_setup::{camera_rig, CameraRigOptions};
+use crate::sim::camera_setup::{camera_specs, CameraRigOptions};
 use crate::sim::noise::NoiseModel;
 use crate::sim::truth::ErrorRanges;
 use crate::{McpcModel, Result};
@@ -64,7 +64,7 @@ pub(super) fn simulate_camera(
         estimate_intrinsics: config.estimate_intrinsics,
         ..CameraRigOptions::default()
     };
-    let (rig, augmented) = camera_rig(
+    let (cameras, targets) = camera_specs(
         tree,
         &branches,
         &nominal,
@@ -72,6 +72,7 @@ pub(super) fn simulate_camera(
         &rig_options,
         config.seed,
     )?;
+    let (rig, augmented) = Rig::build(tree, &nominal, &cameras, &targets)?;
     let options = CameraSimulationOptions {
         rig: rig_options,
         configurations: config.poses + config.torso_poses,
@@ -142,7 +143,66 @@ pub(super) fn simulate_camera(
         "mean_predicted_rms_position_mm": mean(reports.iter().map(|r| r.predicted_rms_position_mm)),
         "mean_rms_position_mm": mean(reports.iter().map(|r| r.rms_position_mm)),
     });
-    Simulation::without_tracker_trials(notes, results, markdown, reports)
+    let mut simulation = Simulation::without_tracker_trials(notes, results, markdown, reports)?;
+    if mode != ObservationMode::Tracker && config.trials > 0 {
+        let lab = LabFiles {
+            text: &robot.text,
+            origin: &robot.origin,
+            cameras: &cameras,
+            targets: &targets,
+        };
+        simulation
+            .files
+            .extend(lab_files(&setup, &options, mode, &lab)?);
+    }
+    Ok(simulation)
+}
+
+/// The robot's text and the rig as a user describes it, for [`lab_files`].
+struct LabFiles<'a> {
+    text: &'a str,
+    origin: &'a str,
+    cameras: &'a [CameraSpec],
+    targets: &'a [TargetSpec],
+}
+
+/// Trial 1's data as a lab would hand them to `calibrate --camera`: detections.csv (the
+/// identification images), validation_detections.csv (held-out images of the same robot),
+/// cameras.yaml (the nominal camera and targets) and truth.urdf (the true robot, with
+/// `<tool>_calibrated` links where a true tool frame is off its joint's axis), to judge the
+/// calibration against.
+fn lab_files(
+    setup: &CameraSetup<'_>,
+    options: &CameraSimulationOptions,
+    mode: ObservationMode,
+    lab: &LabFiles<'_>,
+) -> Result<Vec<(String, Vec<u8>)>> {
+    use crate::io::camera_yaml::camera_file_yaml;
+    use crate::io::detections_csv::detections_to_csv;
+    let data = camera_trial_data(setup, options, mode, 0)?;
+    let held_out = held_out_views(setup, options, &data, options.validation_poses.max(1))?;
+    let truth = setup.rig.robot_model(&data.truth)?.with_offsets_absorbed();
+    let export_options = crate::urdf::ExportOptions {
+        add_tool_links: true,
+        ..Default::default()
+    };
+    let urdf =
+        crate::urdf::export_urdf_with(lab.text, lab.origin, setup.tree, &truth, &export_options)?;
+    Ok(vec![
+        (
+            "detections.csv".to_owned(),
+            detections_to_csv(setup.tree, setup.rig, &data.views).into_bytes(),
+        ),
+        (
+            "validation_detections.csv".to_owned(),
+            detections_to_csv(setup.tree, setup.rig, &held_out).into_bytes(),
+        ),
+        (
+            "cameras.yaml".to_owned(),
+            camera_file_yaml(setup.tree, lab.cameras, lab.targets).into_bytes(),
+        ),
+        ("truth.urdf".to_owned(), urdf.urdf.into_bytes()),
+    ])
 }
 
 /// With the default tools, a camera on a link moved by joints on no branch (a head camera

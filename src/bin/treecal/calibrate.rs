@@ -5,6 +5,7 @@ use crate::cli::{
     CalibrateArgs, GravityFrame, JointErrorArg, MeasurementFrame, ModelArg, PlanArg, PlanChoice,
 };
 use std::path::Path;
+use treecal::workflow::calibrate_camera::{calibrate_camera_files, CameraCalibrateConfig};
 use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, PlanSource, RobotSource,
@@ -15,6 +16,9 @@ use treecal::{Error, Result};
 pub fn run(args: CalibrateArgs) -> Result<()> {
     if let (Some(contacts), Some(setup)) = (&args.contacts, &args.contact_setup) {
         return run_contacts(&args, contacts, setup);
+    }
+    if let (Some(camera), Some(detections)) = (&args.camera, &args.detections) {
+        return run_camera(&args, camera, detections);
     }
     let config = config(&args);
     // The output folder is replaced as a whole at the end: refuse one that holds an input or
@@ -108,18 +112,63 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
         validation: args.validation.clone(),
         reference_link: args.reference_link.clone(),
     })?;
-    for note in &calibration.notes {
+    finish(
+        args,
+        &calibration.notes,
+        &calibration.report_markdown,
+        calibration.write(&args.out),
+        calibration.usable(),
+        "the calibrated robot does not predict the held-out contacts better than the \
+         registered nominal robot",
+    )
+}
+
+/// `calibrate --camera FILE --detections FILE`: the camera calibration from files.
+fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<()> {
+    let config = CameraCalibrateConfig {
+        robot: RobotSource::from_path(args.robot.clone()),
+        tools: args.tools.clone(),
+        camera_file: camera.to_owned(),
+        detections: detections.to_owned(),
+        validation: args.validation.clone(),
+        pixel_sigma: args.pixel_sigma,
+        angle_unit: args.angle_unit,
+        length_unit: args.joint_length_unit.or(args.length_unit),
+        add_tool_links: args.add_tool_links,
+    };
+    config.check_output(&args.out)?;
+    let calibration = calibrate_camera_files(&config)?;
+    finish(
+        args,
+        &calibration.notes,
+        &calibration.report_markdown,
+        calibration.write(&args.out),
+        calibration.usable(),
+        "verdict failed (see the errors above)",
+    )
+}
+
+/// The end of a contacts or camera calibration: its notes on stderr, the written folder's
+/// report on stdout, and an error when the verdict says the result is not usable.
+fn finish(
+    args: &CalibrateArgs,
+    notes: &[treecal::workflow::note::Note],
+    report_markdown: &str,
+    written: Result<()>,
+    usable: bool,
+    failure: &str,
+) -> Result<()> {
+    for note in notes {
         crate::output::note(note);
     }
-    calibration.write(&args.out)?;
-    crate::output::print(&calibration.report_markdown)?;
+    written?;
+    crate::output::print(report_markdown)?;
     crate::output::note(format_args!("wrote {}", args.out.display()));
-    if !calibration.usable() {
+    if !usable {
         return Err(Error::InvalidData {
             origin: "calibration".into(),
             message: format!(
-                "the calibrated robot does not predict the held-out contacts better than the \
-                 registered nominal robot (see {}); calibrated.urdf was not written",
+                "{failure} (see {}); calibrated.urdf was not written",
                 args.out.join("report.md").display()
             ),
         });

@@ -683,8 +683,8 @@ pub struct CalibrateArgs {
     /// report.json `model_choice`); --model auto uses 5 without it.
     #[arg(long, value_name = "K")]
     pub cv: Option<usize>,
-    /// Measurement CSV (one row per tool observation).
-    #[arg(long, value_name = "M.csv", required_unless_present = "contacts")]
+    /// Measurement CSV (one row per tool observation); not with --contacts or --camera.
+    #[arg(long, value_name = "M.csv", required_unless_present_any = ["contacts", "camera"])]
     pub measurements: Option<PathBuf>,
     /// Contacts CSV (docs/contacts.md, docs/file-formats.md): calibrate from contacts — faces
     /// flush on a plane, points on a plane, touches, a bar — instead of --measurements; with
@@ -693,16 +693,36 @@ pub struct CalibrateArgs {
         long,
         value_name = "C.csv",
         requires = "contact_setup",
-        conflicts_with = "measurements"
+        conflicts_with_all = ["measurements", "camera"]
     )]
     pub contacts: Option<PathBuf>,
     /// The contacts' setup (YAML): reference link, tools with their nominal contact faces and
     /// points, each session's nominal plane, the bar, what is fitted.
     #[arg(long, value_name = "S.yaml", requires = "contacts")]
     pub contact_setup: Option<PathBuf>,
-    /// Validation measurements (same format) [default: hold out a seeded fifth].
+    /// Validation measurements (same format) [default: hold out a seeded fifth]; with
+    /// --contacts, held-out contacts; with --camera, held-out detections (a detections CSV),
+    /// predicted but not fitted.
     #[arg(long, value_name = "V.csv")]
     pub validation: Option<PathBuf>,
+    /// Camera file (cameras and targets, docs/file-formats.md): calibrate from the pixels of
+    /// --detections instead of tracker measurements (docs/camera.md).
+    #[arg(
+        long,
+        value_name = "CAMERAS.yaml",
+        requires = "detections",
+        conflicts_with_all = [
+            "measurements", "stiffness", "identify_stiffness", "plan", "plan_file",
+            "reference_link", "joint_errors", "prior", "significant", "cv", "freeze", "free"
+        ]
+    )]
+    pub camera: Option<PathBuf>,
+    /// Camera detections CSV (with --camera).
+    #[arg(long, value_name = "D.csv", requires = "camera")]
+    pub detections: Option<PathBuf>,
+    /// Pixel noise σ of a detected point (px), with --camera.
+    #[arg(long, default_value_t = 0.5, value_name = "PX")]
+    pub pixel_sigma: f64,
     /// Link stiffness, joint compliance and payloads (YAML, docs/flexibility.md): compensate
     /// the deflections under gravity. Without it the robot is treated as rigid.
     #[arg(long, value_name = "S.yaml")]

@@ -1,0 +1,673 @@
+//! `calibrate --camera cameras.yaml --detections detections.csv [--validation V.csv]`: the
+//! whole camera calibration from files: read the robot, the camera file and the detections,
+//! fit the robot with the camera extrinsics, the target poses and (when asked) the
+//! intrinsics ([`crate::camera::calibrate_camera`]), judge it (σ̂ in pixels, points without a
+//! pixel, held-out images, what the images cannot determine), and export one corrected URDF
+//! and the fitted camera file. Computes everything and writes nothing
+//! ([`CameraCalibration::write`] writes). See `docs/camera.md`.
+
+use super::checks::{check_outputs, Output};
+use super::simulate_camera::with_camera_link;
+use super::source::{branches, RobotSource};
+use super::Note;
+use crate::calibration::{Finding, Termination, Verdict};
+use crate::camera::{
+    calibrate_camera, explain_identifiability, predict_pixels, CameraFitOptions, CameraFitReport,
+    CameraProblem, CameraSpec, Intrinsics, Mount, RejectedPoint, Rig, TargetSpec, Unknown, View,
+    INTRINSIC_NAMES,
+};
+use crate::error::{Error, Result};
+use crate::io::camera_yaml::{camera_file_yaml, read_camera_file, CameraFileContents};
+use crate::io::detections_csv::read_detections;
+use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit, StatedUnits};
+use crate::math::{rpy_from_rotation, Pose};
+use crate::report::camera::{
+    camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,
+    HeldOut, PixelResiduals, RobotParameter, TargetResiduals,
+};
+use crate::tree::KinematicTree;
+use crate::urdf::{export_urdf_with, ExportOptions};
+use crate::McpcModel;
+use std::path::{Path, PathBuf};
+
+/// The fitted camera file [`CameraCalibration::write`] writes next to calibrated.urdf.
+pub const CALIBRATED_CAMERAS: &str = "cameras_calibrated.yaml";
+
+/// σ̂ above which the pixel residuals are flagged (they are this many times the declared σ).
+pub const PIXEL_SIGMA_WARNING: f64 = 3.0;
+
+/// σ̂ above which the calibration fails: the model or the detections are wrong, not noisy.
+pub const PIXEL_SIGMA_FAILED: f64 = 30.0;
+
+/// Settings of [`calibrate_camera_files`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraCalibrateConfig {
+    /// The robot.
+    pub robot: RobotSource,
+    /// Tool links ending the arms [default: detected, plus the link of a camera moved by
+    /// joints on no branch].
+    pub tools: Option<Vec<String>>,
+    /// The camera file (cameras and targets, `docs/file-formats.md`).
+    pub camera_file: PathBuf,
+    /// The detections CSV.
+    pub detections: PathBuf,
+    /// Held-out detections (same format), predicted but not fitted.
+    pub validation: Option<PathBuf>,
+    /// Pixel noise σ of a detected point (px).
+    pub pixel_sigma: f64,
+    /// Unit of revolute joints in the CSVs [default: the file's `# units:` comment, else rad].
+    pub angle_unit: Option<AngleUnit>,
+    /// Unit of prismatic joints [default: the comment's, else m].
+    pub length_unit: Option<LengthUnit>,
+    /// Add `<tool>_calibrated` links where a calibrated tool frame is off its joint's axis.
+    pub add_tool_links: bool,
+}
+
+/// The outcome of a camera calibration.
+#[derive(Debug, Clone)]
+pub struct CameraCalibration {
+    /// `ok`, `warning` or `failed`, with its reasons.
+    pub verdict: Verdict,
+    /// What the CLI prints on stderr, in order.
+    pub notes: Vec<Note>,
+    /// The content of report.json.
+    pub report: CameraCalibrationReport,
+    /// report.md.
+    pub report_markdown: String,
+    /// The calibrated URDF; `None` when the verdict failed or the model cannot be exported.
+    pub urdf: Option<String>,
+    /// Every output file: `(name, bytes)`.
+    pub files: Vec<(String, Vec<u8>)>,
+    /// The input files (the writers refuse to replace them).
+    pub inputs: Vec<PathBuf>,
+}
+
+impl CameraCalibrateConfig {
+    /// Every file the calibration reads.
+    pub fn inputs(&self) -> Vec<&Path> {
+        [
+            self.robot.path(),
+            Some(self.camera_file.as_path()),
+            Some(self.detections.as_path()),
+            self.validation.as_deref(),
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+
+    /// Checks, before calibrating, that the folder `out` can receive the outputs.
+    pub fn check_output(&self, out: &Path) -> Result<()> {
+        check_outputs(&[Output::Folder(out)], &self.inputs())?;
+        check_output_folder(out, &is_output_file)
+    }
+}
+
+/// Whether a file name is one a calibration writes (a previous output may be replaced).
+fn is_output_file(name: &str) -> bool {
+    name == CALIBRATED_CAMERAS || super::calibrate::is_output_file(name)
+}
+
+impl CameraCalibration {
+    /// Whether the result may be used (verdict `ok` or `warning`).
+    pub fn usable(&self) -> bool {
+        self.verdict.usable()
+    }
+
+    /// Replaces the folder `out` with the output files.
+    pub fn write(&self, out: &Path) -> Result<()> {
+        let inputs: Vec<&Path> = self.inputs.iter().map(PathBuf::as_path).collect();
+        check_outputs(&[Output::Folder(out)], &inputs)?;
+        check_output_folder(out, &is_output_file)?;
+        replace_folder(out, &self.files)
+    }
+}
+
+/// What the fit works on.
+struct Setup {
+    tree: KinematicTree,
+    branches: crate::Branches,
+    contents: CameraFileContents,
+    rig: Rig,
+    augmented: McpcModel,
+    text: String,
+    origin: String,
+}
+
+/// Calibrates from the files of `config`; writes nothing.
+pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCalibration> {
+    if !(config.pixel_sigma.is_finite() && config.pixel_sigma > 0.0 && config.pixel_sigma <= 1e3) {
+        return Err(Error::InvalidData {
+            origin: "--pixel-sigma".into(),
+            message: format!(
+                "{} px: give the detector's noise, a positive number of pixels (0.1 to a few)",
+                config.pixel_sigma
+            ),
+        });
+    }
+    let mut notes = Vec::new();
+    let setup = load(config, &mut notes)?;
+    let units = StatedUnits {
+        angle: config.angle_unit,
+        length: config.length_unit,
+        ..StatedUnits::default()
+    };
+    let views = read_detections(&config.detections, &setup.tree, &setup.rig, &units)?;
+    let held_out_views = match &config.validation {
+        Some(path) => Some(read_detections(path, &setup.tree, &setup.rig, &units)?),
+        None => None,
+    };
+    let problem = CameraProblem {
+        rig: &setup.rig,
+        views: &views,
+        tracker: &[],
+        unknowns: setup.rig.unknowns(&setup.augmented, true),
+    };
+    let options = CameraFitOptions {
+        pixel_sigma: config.pixel_sigma,
+        ..CameraFitOptions::default()
+    };
+    let fit = calibrate_camera(&setup.augmented, &problem, &options)?;
+    let unobservable = explain_identifiability(
+        &setup.tree,
+        &setup.branches,
+        &setup.augmented,
+        &problem,
+        &fit,
+    );
+    let std_devs = std_devs(&fit);
+    let robot_model = setup.rig.robot_model(&fit.model)?;
+    let robot_std: Vec<Option<f64>> = (0..robot_model.parameter_count())
+        .map(|i| std_devs.parameter(setup.rig.augmented_index(&robot_model, i)))
+        .collect();
+    let export_options = ExportOptions::with_uncertainty(
+        &setup.tree,
+        &robot_model,
+        &robot_std,
+        config.add_tool_links,
+    );
+    let mut findings = Vec::new();
+    let urdf = match export_urdf_with(
+        &setup.text,
+        &setup.origin,
+        &setup.tree,
+        &robot_model.with_offsets_absorbed(),
+        &export_options,
+    ) {
+        Ok(export) => {
+            findings.extend(super::export::export_notes(&export));
+            Some(export.urdf)
+        }
+        Err(error) => {
+            findings.push(Finding::failed(
+                "urdf-export",
+                format!("the calibrated model cannot be written as a URDF: {error}"),
+            ));
+            None
+        }
+    };
+    let (residuals, targets, _) = pixel_residuals(&setup.rig, &views, &fit.model, &fit.intrinsics);
+    let held_out = match (&held_out_views, &config.validation) {
+        (Some(views), Some(path)) => Some(held_out(&setup, views, path, &fit)),
+        _ => None,
+    };
+    let calibrated_cameras = match &urdf {
+        Some(text) => Some(fitted_camera_file(&setup, &fit, text)?),
+        None => None,
+    };
+    findings.extend(verdict_findings(
+        &fit,
+        &residuals,
+        held_out.as_ref(),
+        config,
+    ));
+    findings.extend(
+        unobservable
+            .findings
+            .iter()
+            .map(|f| Finding::warning("camera-unobservable", f.clone())),
+    );
+    let verdict = Verdict::from_findings(findings);
+    notes.extend(verdict.reasons.iter().map(Note::from));
+    let extra_std = extra_std_devs(&setup, &std_devs);
+    let report = CameraCalibrationReport {
+        schema_version: 1,
+        robot: setup.tree.name().to_owned(),
+        inputs: config
+            .inputs()
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect(),
+        fit: CameraFitSummary {
+            iterations: fit.iterations,
+            termination: fit.termination,
+            rows: fit.rows,
+            unknowns: fit.unknowns.len(),
+            rank: fit.rank,
+            residual_scale: fit.residual_scale,
+            pixel_sigma: config.pixel_sigma,
+        },
+        residuals,
+        targets,
+        held_out,
+        rejected: fit.rejected.clone(),
+        unobservable,
+        cameras: Vec::new(),
+        intrinsics: intrinsics_rows(&setup.rig, &fit, &std_devs),
+        target_poses: Vec::new(),
+        robot_parameters: robot_parameters(&setup, &fit, &std_devs)?,
+        verdict: verdict.clone(),
+    };
+    let calibrated = calibrated_cameras.map(|(contents, yaml)| (contents, yaml, extra_std));
+    finish(config, setup, report, notes, urdf, calibrated)
+}
+
+/// Per camera and target pose of the rig ([`Rig::extra`]), the standard deviations of its
+/// six parameters when all are determined.
+fn extra_std_devs(setup: &Setup, std: &StdDevs<'_>) -> Vec<(String, [f64; 6])> {
+    (0..setup.rig.extra.len())
+        .filter_map(|e| {
+            let values: Option<Vec<f64>> = setup
+                .rig
+                .extra_parameters(&setup.augmented, e)
+                .map(|p| std.parameter(p))
+                .collect();
+            let v = values?;
+            Some((
+                setup.rig.extra[e].0.clone(),
+                [v[0], v[1], v[2], v[3], v[4], v[5]],
+            ))
+        })
+        .collect()
+}
+
+/// The fitted camera file, its YAML, and the σ of each fitted pose ([`extra_std_devs`]).
+type FittedCameraFile = (CameraFileContents, String, Vec<(String, [f64; 6])>);
+
+/// The report's poses, the files, the outcome.
+fn finish(
+    config: &CameraCalibrateConfig,
+    setup: Setup,
+    mut report: CameraCalibrationReport,
+    notes: Vec<Note>,
+    urdf: Option<String>,
+    calibrated: Option<FittedCameraFile>,
+) -> Result<CameraCalibration> {
+    if let Some((contents, _, std)) = &calibrated {
+        let (cameras, targets) = fitted_poses(&setup, contents, std);
+        report.cameras = cameras;
+        report.target_poses = targets;
+    }
+    let markdown = camera_markdown(&report);
+    let usable = report.verdict.usable();
+    let urdf = urdf.filter(|_| usable);
+    let mut files = vec![
+        ("report.md".to_owned(), markdown.clone().into_bytes()),
+        (
+            "report.json".to_owned(),
+            crate::io::to_json(&report)?.into_bytes(),
+        ),
+    ];
+    if let (Some(urdf), Some((_, yaml, _))) = (&urdf, &calibrated) {
+        files.push(("calibrated.urdf".to_owned(), urdf.clone().into_bytes()));
+        files.push((CALIBRATED_CAMERAS.to_owned(), yaml.clone().into_bytes()));
+    }
+    Ok(CameraCalibration {
+        verdict: report.verdict.clone(),
+        notes,
+        report,
+        report_markdown: markdown,
+        urdf,
+        files,
+        inputs: config.inputs().into_iter().map(Path::to_owned).collect(),
+    })
+}
+
+/// Reads the robot and the camera file; the branches (with the camera's link where joints
+/// on no branch move it) and the rig on the nominal model.
+fn load(config: &CameraCalibrateConfig, notes: &mut Vec<Note>) -> Result<Setup> {
+    let robot = config.robot.load()?;
+    notes.extend(robot.notes());
+    let (text, origin) = (robot.text, robot.origin);
+    let import = robot.import;
+    let contents = read_camera_file(&config.camera_file, &import.tree)?;
+    let mut branches = branches(&import, config.tools.as_deref(), None)?;
+    if config.tools.is_none() {
+        for camera in &contents.cameras {
+            if let Mount::Link(link) = camera.mount {
+                if let Some(extended) = with_camera_link(&import.tree, &branches, link, notes)? {
+                    branches = extended;
+                }
+            }
+        }
+    }
+    let nominal = McpcModel::from_tree(&import.tree, &branches)?;
+    let (rig, augmented) =
+        Rig::build(&import.tree, &nominal, &contents.cameras, &contents.targets)?;
+    Ok(Setup {
+        tree: import.tree,
+        branches,
+        contents,
+        rig,
+        augmented,
+        text,
+        origin,
+    })
+}
+
+/// Standard deviations of the fit's unknowns.
+struct StdDevs<'a> {
+    fit: &'a CameraFitReport,
+}
+
+impl StdDevs<'_> {
+    fn of(&self, unknown: Unknown) -> Option<f64> {
+        let k = self.fit.unknowns.iter().position(|u| *u == unknown)?;
+        if !self.fit.identifiable[k] {
+            return None;
+        }
+        let c = self.fit.covariance.as_ref()?;
+        Some(c[(k, k)].max(0.0).sqrt())
+    }
+
+    fn parameter(&self, index: usize) -> Option<f64> {
+        self.of(Unknown::Parameter(index))
+    }
+}
+
+fn std_devs(fit: &CameraFitReport) -> StdDevs<'_> {
+    StdDevs { fit }
+}
+
+/// Pixel residuals of `views` predicted by `model` and `intrinsics`: all, per target, and
+/// the points without a pixel.
+fn pixel_residuals(
+    rig: &Rig,
+    views: &[View],
+    model: &McpcModel,
+    intrinsics: &[Intrinsics],
+) -> (PixelResiduals, Vec<TargetResiduals>, Vec<RejectedPoint>) {
+    let mut all = Vec::new();
+    let mut per_target: Vec<Vec<f64>> = vec![Vec::new(); rig.targets.len()];
+    let mut images = vec![0; rig.targets.len()];
+    let mut rejected = Vec::new();
+    for view in views {
+        let poses = model.tool_poses(&view.q);
+        let pixels = predict_pixels(rig, view, &poses, &intrinsics[view.camera], false);
+        images[view.target] += 1;
+        for (pixel, (point, measured)) in pixels.iter().zip(&view.points) {
+            match pixel {
+                Ok(p) => {
+                    let d = (measured - p).norm();
+                    all.push(d);
+                    per_target[view.target].push(d);
+                }
+                Err(reason) => rejected.push(RejectedPoint {
+                    view: view.id.clone(),
+                    point: *point,
+                    reason: *reason,
+                }),
+            }
+        }
+    }
+    let targets = rig
+        .targets
+        .iter()
+        .zip(per_target.iter().zip(&images))
+        .filter(|(_, (_, n))| **n > 0)
+        .map(|(t, (d, n))| TargetResiduals {
+            target: t.name.clone(),
+            residuals: statistics(d, *n),
+        })
+        .collect();
+    (statistics(&all, views.len()), targets, rejected)
+}
+
+fn statistics(lengths: &[f64], images: usize) -> PixelResiduals {
+    let n = lengths.len().max(1) as f64;
+    PixelResiduals {
+        images,
+        points: lengths.len(),
+        rms_px: (lengths.iter().map(|d| d * d).sum::<f64>() / n).sqrt(),
+        mean_px: lengths.iter().sum::<f64>() / n,
+        max_px: lengths.iter().copied().fold(0.0, f64::max),
+    }
+}
+
+/// The held-out images before (nominal) and after calibration.
+fn held_out(setup: &Setup, views: &[View], path: &Path, fit: &CameraFitReport) -> HeldOut {
+    let nominal: Vec<Intrinsics> = setup.rig.cameras.iter().map(|c| c.intrinsics).collect();
+    let (before, _, _) = pixel_residuals(&setup.rig, views, &setup.augmented, &nominal);
+    let (after, _, rejected) = pixel_residuals(&setup.rig, views, &fit.model, &fit.intrinsics);
+    HeldOut {
+        file: path.display().to_string(),
+        before,
+        after,
+        rejected,
+    }
+}
+
+/// The verdict's findings on the fit itself.
+fn verdict_findings(
+    fit: &CameraFitReport,
+    residuals: &PixelResiduals,
+    held_out: Option<&HeldOut>,
+    config: &CameraCalibrateConfig,
+) -> Vec<Finding> {
+    let mut findings = Vec::new();
+    let scale = fit.residual_scale;
+    let rms = format!("RMS pixel residual {:.3} px", residuals.rms_px);
+    if !scale.is_finite() || scale > PIXEL_SIGMA_FAILED {
+        findings.push(Finding::failed(
+            "pixel-sigma-ratio",
+            format!(
+                "σ̂ = {scale:.3e}: the pixel residuals ({rms}) are far beyond any detector noise; \
+                 typical causes: a wrong camera link or a nominal camera pose far off (fix \
+                 `pose` in the camera file), a board's corner order or size unlike the camera \
+                 file's, joint angles in degrees read as radians (--angle-unit), images matched \
+                 to the wrong configurations"
+            ),
+        ));
+    } else if scale > PIXEL_SIGMA_WARNING {
+        findings.push(Finding::warning(
+            "pixel-sigma-ratio",
+            format!(
+                "σ̂ = {scale:.1}: the pixel residuals ({rms}) are {scale:.0}× the declared \
+                 --pixel-sigma {} px: the detector is noisier than declared (the standard \
+                 deviations are scaled by σ̂), or the model misses something (flexibility, \
+                 distortion: estimate the intrinsics with `estimate: [pose, intrinsics]`)",
+                config.pixel_sigma
+            ),
+        ));
+    }
+    if fit.termination == Termination::MaxIterations {
+        findings.push(Finding::warning(
+            "camera-iterations",
+            format!(
+                "the fit stopped at its iteration limit ({}) before converging: check the \
+                 nominal camera pose in the camera file",
+                fit.iterations
+            ),
+        ));
+    }
+    if let Some(point) = fit.rejected.first() {
+        findings.push(Finding::warning(
+            "camera-rejected-points",
+            format!(
+                "{} detected point(s) were left out because the nominal robot and camera give \
+                 them no pixel (first: image '{}', point {}: {}); check the camera's nominal \
+                 pose and the target's link in the camera file",
+                fit.rejected.len(),
+                point.view,
+                point.point,
+                point.reason.describe()
+            ),
+        ));
+    }
+    if let Some(held) = held_out {
+        if let Some(point) = held.rejected.first() {
+            findings.push(Finding::warning(
+                "held-out-rejected-points",
+                format!(
+                    "{} held-out point(s) have no pixel with the calibrated robot (first: image \
+                     '{}', point {}: {})",
+                    held.rejected.len(),
+                    point.view,
+                    point.point,
+                    point.reason.describe()
+                ),
+            ));
+        }
+        let limit = 3.0 * residuals.rms_px.max(config.pixel_sigma);
+        if held.after.points > 0 && held.after.rms_px > limit {
+            findings.push(Finding::warning(
+                "held-out-pixels",
+                format!(
+                    "the held-out images are predicted to {:.2} px RMS, more than 3× the fit's \
+                     {:.2} px: the calibration does not carry over to other configurations \
+                     (too few or too similar images, or a model error)",
+                    held.after.rms_px, residuals.rms_px
+                ),
+            ));
+        }
+    }
+    findings
+}
+
+/// The cameras and targets of the camera file with their fitted poses, expressed in the
+/// links of the calibrated URDF `urdf` (so the file and the URDF go together), and the
+/// fitted intrinsics: the contents and their YAML.
+fn fitted_camera_file(
+    setup: &Setup,
+    fit: &CameraFitReport,
+    urdf: &str,
+) -> Result<(CameraFileContents, String)> {
+    let calibrated = crate::urdf::parse_urdf(urdf, "calibrated.urdf")?.tree;
+    let q0 = setup.tree.zero_configuration();
+    let world_from_base = fit.model.world_from_base();
+    let link_pose = |mount: Mount| -> Result<Pose> {
+        match mount {
+            Mount::World => Ok(Pose::identity()),
+            Mount::Link(link) => {
+                let id = calibrated.link_id(&setup.tree.link(link).name)?;
+                let q = calibrated.zero_configuration();
+                Ok(world_from_base * calibrated.link_pose(id, &q)?)
+            }
+        }
+    };
+    let poses = fit.model.tool_poses(&q0);
+    let mut contents = setup.contents.clone();
+    for (k, camera) in contents.cameras.iter_mut().enumerate() {
+        let rig = &setup.rig.cameras[k];
+        camera.mount_from_camera = link_pose(camera.mount)?.inverse() * poses[rig.tool];
+        camera.intrinsics = fit.intrinsics[k];
+    }
+    for (k, target) in contents.targets.iter_mut().enumerate() {
+        let rig = &setup.rig.targets[k];
+        target.mount_from_target =
+            link_pose(target.mount)?.inverse() * poses[rig.tool] * rig.tool_from_target;
+    }
+    let yaml = camera_file_yaml(&setup.tree, &contents.cameras, &contents.targets);
+    Ok((contents, yaml))
+}
+
+/// The report's pose rows: cameras, and targets not on a tool.
+fn fitted_poses(
+    setup: &Setup,
+    fitted: &CameraFileContents,
+    std: &[(String, [f64; 6])],
+) -> (Vec<FittedPose>, Vec<FittedPose>) {
+    let link = |mount: &Mount| match mount {
+        Mount::World => "world".to_owned(),
+        Mount::Link(l) => setup.tree.link(*l).name.clone(),
+    };
+    let std_of = |extra: String| std.iter().find(|(n, _)| *n == extra).map(|(_, s)| *s);
+    let row = |name: &str, mount: &Mount, nominal: &Pose, calibrated: &Pose, std| FittedPose {
+        name: name.to_owned(),
+        link: link(mount),
+        nominal_xyz: nominal.translation.vector.into(),
+        calibrated_xyz: calibrated.translation.vector.into(),
+        nominal_rpy: rpy_from_rotation(&nominal.rotation),
+        calibrated_rpy: rpy_from_rotation(&calibrated.rotation),
+        std_dev: std,
+    };
+    let cameras = setup
+        .contents
+        .cameras
+        .iter()
+        .zip(&fitted.cameras)
+        .map(|(n, f): (&CameraSpec, &CameraSpec)| {
+            let std = std_of(format!("camera {}", n.name));
+            row(
+                &n.name,
+                &n.mount,
+                &n.mount_from_camera,
+                &f.mount_from_camera,
+                std,
+            )
+        })
+        .collect();
+    let targets = setup
+        .contents
+        .targets
+        .iter()
+        .zip(&fitted.targets)
+        .zip(&setup.rig.targets)
+        .filter(|(_, rig)| rig.tool >= setup.rig.robot_tools)
+        .map(|((n, f), _): ((&TargetSpec, &TargetSpec), _)| {
+            let std = std_of(format!("target {}", n.name));
+            row(
+                &n.name,
+                &n.mount,
+                &n.mount_from_target,
+                &f.mount_from_target,
+                std,
+            )
+        })
+        .collect();
+    (cameras, targets)
+}
+
+fn intrinsics_rows(rig: &Rig, fit: &CameraFitReport, std: &StdDevs<'_>) -> Vec<FittedIntrinsic> {
+    let mut rows = Vec::new();
+    for (camera, spec) in rig.cameras.iter().enumerate() {
+        let nominal = spec.intrinsics.to_vector();
+        let fitted = fit.intrinsics[camera].to_vector();
+        for (index, name) in INTRINSIC_NAMES.iter().enumerate() {
+            rows.push(FittedIntrinsic {
+                name: format!("{} {name}", spec.name),
+                nominal: nominal[index],
+                calibrated: fitted[index],
+                std_dev: std.of(Unknown::Intrinsic { camera, index }),
+            });
+        }
+    }
+    rows
+}
+
+/// Every parameter of the robot's own model, by name.
+fn robot_parameters(
+    setup: &Setup,
+    fit: &CameraFitReport,
+    std: &StdDevs<'_>,
+) -> Result<Vec<RobotParameter>> {
+    let robot = setup.rig.robot_model(&fit.model)?;
+    let nominal = setup.augmented.parameters();
+    let fitted = fit.model.parameters();
+    Ok((0..robot.parameter_count())
+        .map(|i| {
+            let p = setup.rig.augmented_index(&robot, i);
+            let k = fit
+                .unknowns
+                .iter()
+                .position(|u| *u == Unknown::Parameter(p));
+            RobotParameter {
+                name: robot.parameter_name(&setup.tree, i),
+                nominal: nominal[p],
+                calibrated: fitted[p],
+                std_dev: std.parameter(p),
+                determined: k.is_some_and(|k| fit.identifiable[k]),
+            }
+        })
+        .collect())
+}

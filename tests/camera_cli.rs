@@ -1,0 +1,164 @@
+//! The camera calibration from files, as a lab runs it: `simulate --observation camera`
+//! writes detections.csv, validation_detections.csv, cameras.yaml and truth.urdf;
+//! `calibrate --camera --detections` reads them and its calibrated.urdf is judged against
+//! the true robot (tool pose errors in the root frame).
+
+use crate::common::cli::{assert_error, assert_success, treecal};
+use std::path::Path;
+
+/// Simulates trial 1 into `dir/sim` and calibrates it into `dir/out`.
+fn simulate_and_calibrate(dir: &Path, simulate: &[&str]) -> serde_json::Value {
+    let sim = dir.join("sim");
+    let out = dir.join("out");
+    let mut args = vec![
+        "simulate",
+        "--observation",
+        "camera",
+        "--trials",
+        "1",
+        "-o",
+        sim.to_str().unwrap(),
+    ];
+    args.extend_from_slice(simulate);
+    assert_success(&treecal(&args), "simulate");
+    let path = |name: &str| sim.join(name).to_str().unwrap().to_owned();
+    let run = treecal(&[
+        "calibrate",
+        "--camera",
+        &path("cameras.yaml"),
+        "--detections",
+        &path("detections.csv"),
+        "--validation",
+        &path("validation_detections.csv"),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_success(&run, "calibrate --camera");
+    assert!(run.stdout.contains("# Camera calibration"), "{run}");
+    for file in ["calibrated.urdf", "cameras_calibrated.yaml", "report.md"] {
+        assert!(out.join(file).exists(), "{file} missing\n{run}");
+    }
+    let json = std::fs::read_to_string(out.join("report.json")).unwrap();
+    serde_json::from_str(&json).unwrap()
+}
+
+/// Mean and largest tool position error (mm) of `urdf` against `truth` at seeded random
+/// configurations, and the mean of the nominal robot's.
+fn tool_errors(dir: &Path, urdf: &Path) -> (f64, f64, f64) {
+    let load = |path: &Path| treecal::urdf::load_urdf(path).unwrap().tree;
+    let truth = load(&dir.join("sim/truth.urdf"));
+    let fitted = load(urdf);
+    let nominal = treecal::urdf::parse_urdf(
+        treecal::workflow::source::BUILT_IN_ROBONAUT,
+        "built-in robonaut",
+    )
+    .unwrap()
+    .tree;
+    let mut rng = crate::common::rng(11);
+    let (mut sum, mut max, mut before, mut n) = (0.0, 0.0f64, 0.0, 0.0);
+    for _ in 0..30 {
+        let q = crate::common::random_configuration(&truth, &mut rng);
+        for tool in ["left_tool", "right_tool"] {
+            let pose = |tree: &treecal::KinematicTree| {
+                tree.link_pose(tree.link_id(tool).unwrap(), &q).unwrap()
+            };
+            let actual = pose(&truth).translation.vector;
+            let error = (pose(&fitted).translation.vector - actual).norm() * 1e3;
+            sum += error;
+            max = max.max(error);
+            before += (pose(&nominal).translation.vector - actual).norm() * 1e3;
+            n += 1.0;
+        }
+    }
+    (sum / n, max, before / n)
+}
+
+#[test]
+fn a_simulated_lab_calibrates_from_its_files_and_recovers_the_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = simulate_and_calibrate(dir.path(), &[]);
+    assert_eq!(report["verdict"]["status"], "ok", "{report:#}");
+    let sigma = report["fit"]["residual_scale"].as_f64().unwrap();
+    assert!((0.8..1.2).contains(&sigma), "σ̂ {sigma}");
+    let held = &report["held_out"];
+    let (before, after) = (
+        held["before"]["rms_px"].as_f64().unwrap(),
+        held["after"]["rms_px"].as_f64().unwrap(),
+    );
+    assert!(
+        before > 20.0 && after < 1.0,
+        "held out {before} → {after} px"
+    );
+    let (mean, max, nominal) = tool_errors(dir.path(), &dir.path().join("out/calibrated.urdf"));
+    // Trial 1 of the default set-up: the simulation's own validation gives 1.36 mm mean.
+    assert!(mean < 2.5 && max < 6.0, "tool error {mean} mm (max {max})");
+    assert!(nominal > 30.0, "nominal robot {nominal} mm off");
+}
+
+#[test]
+fn noise_free_detections_recover_the_true_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = simulate_and_calibrate(dir.path(), &["--pixel-sigma", "0", "--noise", "0"]);
+    assert_eq!(report["rejected"].as_array().unwrap().len(), 0);
+    let after = report["held_out"]["after"]["rms_px"].as_f64().unwrap();
+    assert!(after < 1e-4, "held out {after} px");
+    let (mean, max, _) = tool_errors(dir.path(), &dir.path().join("out/calibrated.urdf"));
+    assert!(max < 1e-3, "tool error {mean} mm (max {max})");
+}
+
+#[test]
+fn camera_calibration_files_with_errors_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim");
+    assert_success(
+        &treecal(&[
+            "simulate",
+            "--observation",
+            "camera",
+            "--trials",
+            "1",
+            "--poses",
+            "10",
+            "-o",
+            sim.to_str().unwrap(),
+        ]),
+        "simulate",
+    );
+    let text = std::fs::read_to_string(sim.join("detections.csv")).unwrap();
+    let cameras = sim.join("cameras.yaml");
+    let calibrate = |name: &str, detections: String| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, detections).unwrap();
+        treecal(&[
+            "calibrate",
+            "--camera",
+            cameras.to_str().unwrap(),
+            "--detections",
+            path.to_str().unwrap(),
+            "-o",
+            dir.path().join("out").to_str().unwrap(),
+        ])
+    };
+    // Line 3 is the first detection (after the units comment and the header).
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let mut fields: Vec<String> = lines[2].split(',').map(str::to_owned).collect();
+    fields[4] = "1234.5".into();
+    lines[2] = fields.join(",");
+    let run = calibrate("outside.csv", lines.join("\n"));
+    assert_error(
+        &run,
+        &["outside.csv:3:u", "outside", "640"],
+        "a pixel outside the image",
+    );
+    fields[4] = "12".into();
+    fields[2] = "left_tool_bored".into();
+    lines[2] = fields.join(",");
+    let run = calibrate("target.csv", lines.join("\n"));
+    assert_error(
+        &run,
+        &["target.csv:3:target", "left_tool_board"],
+        "a misspelt target",
+    );
+    let run = treecal(&["calibrate", "--camera", cameras.to_str().unwrap()]);
+    assert!(!run.success && run.stderr.contains("--detections"), "{run}");
+}
