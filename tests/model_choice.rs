@@ -376,13 +376,14 @@ fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
             measurement_frame: MeasurementFrame::Base,
         },
         patterns: &patterns,
+        stiffness: None,
     };
     let list = vec![
         spec(ModelLevel::Offsets, false, false),
         spec(ModelLevel::Geometry, false, false),
         spec(ModelLevel::Geometry, true, false),
     ];
-    assert!(candidates(&tree, &nominal, false).len() >= list.len());
+    assert!(candidates(&tree, &nominal, false, false).len() >= list.len());
     let harmonic = nominal
         .with_joint_errors(
             JointErrorTerms {
