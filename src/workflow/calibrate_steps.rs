@@ -535,12 +535,17 @@ pub(super) fn add_model_choice(
     if let Some(cv) = &result.cross_validation {
         outputs.markdown.push_str(&cross_validation_markdown(cv));
         for row in &cv.rows {
+            let mm = |v: Option<f64>| v.map_or("failed".to_string(), |v| format!("{v:.3} mm"));
+            let without = if cv.left_out_ids.is_empty() {
+                String::new()
+            } else {
+                format!(" ({} without flagged rows)", mm(row.choice_rms_mm))
+            };
             notes.push(Note::info(format!(
-                "cv: {:<45} {:>3} parameters  held-out RMS {}",
+                "cv: {:<45} {:>3} parameters  held-out RMS {}{without}",
                 row.model,
                 row.parameters,
-                row.rms_mm
-                    .map_or("failed".to_string(), |v| format!("{v:.3} mm"))
+                mm(row.rms_mm)
             )));
         }
     }

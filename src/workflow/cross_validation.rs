@@ -75,6 +75,33 @@ pub struct CrossValidation {
     /// The ids of those rows (report.json `left_out_of_choice`), set by [`Self::name_rows`].
     #[serde(rename = "left_out_of_choice")]
     pub left_out_ids: Vec<String>,
+    /// When an identified-stiffness candidate was lowest but not significantly lower than
+    /// the best rigid one ([`SIGNIFICANT_T`]): why the rigid one was chosen instead.
+    pub doubt: Option<String>,
+}
+
+/// The identified-stiffness candidate changes what is shipped (a rigid-only URDF and a
+/// compensation file), so it must beat the best other candidate by this many standard errors
+/// of the paired difference of squared held-out errors over the rows (a one-sided test at
+/// about 2.5 %).
+pub const SIGNIFICANT_T: f64 = 2.0;
+
+/// The paired t statistic of `a² − b²` over the rows `kept` (positive: `b` is lower).
+fn paired_t(a: &[Option<f64>], b: &[Option<f64>], kept: &[usize]) -> f64 {
+    let d: Vec<f64> = kept
+        .iter()
+        .filter_map(|&i| Some(a[i]? * a[i]? - b[i]? * b[i]?))
+        .collect();
+    if d.len() < 2 {
+        return 0.0;
+    }
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    let variance = d.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
+    if variance == 0.0 {
+        return if mean > 0.0 { f64::INFINITY } else { 0.0 };
+    }
+    mean / (variance / n).sqrt()
 }
 
 impl CrossValidation {
@@ -92,7 +119,7 @@ impl CrossValidation {
             self.folds,
             self.postures,
             &self.left_out_ids,
-        );
+        ) + self.doubt.as_deref().unwrap_or("");
     }
 }
 
@@ -182,29 +209,43 @@ pub fn cross_validate(
     let left_out: Vec<usize> = (0..measurements.len())
         .filter(|&i| 2 * flagged[i] > trained[i])
         .collect();
-    let rows: Vec<CvRow> = evaluated
-        .into_iter()
-        .map(|mut e| {
-            if e.row.rms_mm.is_some() {
-                let kept: Vec<f64> = (0..measurements.len())
-                    .filter(|i| left_out.binary_search(i).is_err())
-                    .filter_map(|i| e.errors[i])
-                    .collect();
-                e.row.choice_rms_mm = Some(rms(&kept) * 1e3);
-            }
-            e.row
-        })
+    let kept: Vec<usize> = (0..measurements.len())
+        .filter(|i| left_out.binary_search(i).is_err())
         .collect();
-    let chosen = rows
-        .iter()
-        .enumerate()
-        .filter_map(|(i, r)| r.choice_rms_mm.map(|rms| (i, rms)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(i, _)| i);
+    for e in evaluated.iter_mut().filter(|e| e.row.rms_mm.is_some()) {
+        let errors: Vec<f64> = kept.iter().filter_map(|&i| e.errors[i]).collect();
+        e.row.choice_rms_mm = Some(rms(&errors) * 1e3);
+    }
+    let lowest = |rigid: bool| {
+        evaluated
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| !(rigid && e.row.spec.identify_stiffness))
+            .filter_map(|(i, e)| e.row.choice_rms_mm.map(|rms| (i, rms)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i)
+    };
+    let mut chosen = lowest(false);
+    let mut doubt = None;
+    if let (Some(i), Some(j)) = (chosen, lowest(true)) {
+        if evaluated[i].row.spec.identify_stiffness {
+            let t = paired_t(&evaluated[j].errors, &evaluated[i].errors, &kept);
+            if t < SIGNIFICANT_T {
+                chosen = Some(j);
+                doubt = Some(format!(
+                    "; '{}' was lower, but not significantly over the rows (paired t = {t:.2} < {SIGNIFICANT_T}), and it would ship the URDF with a compensation file",
+                    evaluated[i].row.model
+                ));
+            }
+        }
+    }
+    let rows: Vec<CvRow> = evaluated.into_iter().map(|e| e.row).collect();
     let left_out_ids: Vec<String> = left_out.iter().map(|i| format!("#{}", i + 1)).collect();
     Ok(CrossValidation {
         folds: folds.len(),
-        reason: reason(&rows, chosen, folds.len(), postures, &left_out_ids),
+        reason: reason(&rows, chosen, folds.len(), postures, &left_out_ids)
+            + doubt.as_deref().unwrap_or(""),
+        doubt,
         postures,
         rows,
         chosen,
