@@ -449,7 +449,7 @@ fn calibrate_writes_joint_errors_and_refuses_unknown_patterns() {
     assert!(yaml.contains("sine:") && yaml.contains("cosine:"), "{yaml}");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["model"]["name"], "geometry+harmonics");
+    assert_eq!(report["model"]["name"], "geometry+harmonics+compensated");
     let frozen = report["parameters"]
         .as_array()
         .unwrap()
