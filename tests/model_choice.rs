@@ -376,13 +376,14 @@ fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
             measurement_frame: MeasurementFrame::Base,
         },
         patterns: &patterns,
+        stiffness: None,
     };
     let list = vec![
         spec(ModelLevel::Offsets, false, false),
         spec(ModelLevel::Geometry, false, false),
         spec(ModelLevel::Geometry, true, false),
     ];
-    assert!(candidates(&tree, &nominal, false).len() >= list.len());
+    assert!(candidates(&tree, &nominal, false, false).len() >= list.len());
     let harmonic = nominal
         .with_joint_errors(
             JointErrorTerms {
@@ -448,7 +449,7 @@ fn calibrate_writes_joint_errors_and_refuses_unknown_patterns() {
     assert!(yaml.contains("sine:") && yaml.contains("cosine:"), "{yaml}");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["model"]["name"], "geometry+harmonics");
+    assert_eq!(report["model"]["name"], "geometry+harmonics+compensated");
     let frozen = report["parameters"]
         .as_array()
         .unwrap()

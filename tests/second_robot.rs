@@ -226,10 +226,12 @@ fn check_common(robot: &SecondRobot, run: &Run, report: &serde_json::Value, out:
     assert_ne!(report["verdict"]["status"], "failed", "{said}");
 }
 
-/// Default flags and `--model auto`, no stiffness file: a rigid calibration of series-elastic
-/// joints. The fit shows model error (σ̂ ≈ 24), so the default lets cross-validation choose
-/// as `auto` does; the verdict says how many mm the model leaves unexplained and what would
-/// reduce it; the held-out figure is that of the rigid-only truth (5–8 mm).
+/// Default flags and `--model auto`, no stiffness file, series-elastic joints. The geometry
+/// fit shows model error (σ̂ ≈ 24), so the default lets cross-validation choose as `auto`
+/// does: with the 57 mm blunder left out of the choice (its held-out error would be ~7 mm of
+/// every candidate's RMS), the geometry with identified joint stiffness wins; the export is
+/// the rigid-only URDF (5–8 mm) plus calibrated_compensated.urdf and stiffness.yaml (3.3 mm),
+/// and the verdict says how many mm the model leaves unexplained.
 #[test]
 fn the_second_robot_with_default_flags_and_model_auto() {
     let robot = second_robot(2028);
@@ -254,10 +256,41 @@ fn the_second_robot_with_default_flags_and_model_auto() {
         );
         let cv = &report["model_choice"];
         assert!(cv["rows"].as_array().unwrap().len() >= 6, "{name}: {cv}");
-        let alone = report["artifact"]["urdf_alone"]["errors"]["rms_position_mm"]
-            .as_f64()
-            .unwrap();
+        // The blunder is left out of the choice (not of the RMS column), and the data's
+        // series-elastic joints make the identified stiffness the choice.
+        assert_eq!(
+            cv["left_out_of_choice"],
+            serde_json::json!([robot.ids[robot.blunder]]),
+            "{name}: {cv}"
+        );
+        assert_eq!(
+            report["model"]["name"], "geometry+identified stiffness",
+            "{name}: {cv}"
+        );
+        let rows = cv["rows"].as_array().unwrap();
+        let names: Vec<&str> = rows.iter().map(|r| r["model"].as_str().unwrap()).collect();
+        let mut unique = names.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(unique.len(), names.len(), "{names:?}");
+        for row in rows {
+            let (all, choice) = (
+                row["rms_mm"].as_f64().unwrap(),
+                row["choice_rms_mm"].as_f64().unwrap(),
+            );
+            assert!(
+                all > choice + 1.0,
+                "{name}: the blunder counts in the RMS column: {row}"
+            );
+        }
+        let artifact = &report["artifact"];
+        let number = |key: &str| artifact[key]["errors"]["rms_position_mm"].as_f64().unwrap();
+        let (alone, compensated) = (number("urdf_alone"), number("with_compensation"));
         assert!((4.0..9.0).contains(&alone), "{name}: {alone} mm");
+        assert!(compensated < 0.6 * alone, "{name}: {artifact}");
+        assert!(
+            out.join("stiffness.yaml").exists() && out.join("calibrated_compensated.urdf").exists()
+        );
         eprintln!(
             "{name}: model {} URDF alone {alone:.3} mm",
             report["model"]["name"]
@@ -434,6 +467,21 @@ fn simulated_joint_errors_are_chosen_by_cross_validation_and_recovered() {
     assert!(results["trials"][0]["truth_joint_errors"].is_null());
     let (harmonics, backlash, report) = chosen(&plain, "plain-auto");
     assert!(!harmonics && !backlash, "{}", report["model_choice"]);
+    // Rigid truth: the identified-stiffness candidate is offered but not chosen.
+    assert!(
+        report["model_choice"]["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|r| r["spec"]["identify_stiffness"] == true),
+        "{}",
+        report["model_choice"]
+    );
+    assert_ne!(
+        report["model"]["spec"]["identify_stiffness"], true,
+        "{}",
+        report["model_choice"]
+    );
     let (csv, results) = simulate_arm(dir.path(), "harmonics", &["--truth-harmonics", "0.003"]);
     let (harmonics, _, report) = chosen(&csv, "harmonics-auto");
     assert!(harmonics, "{}", report["model_choice"]);

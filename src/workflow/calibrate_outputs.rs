@@ -61,14 +61,22 @@ fn context(
         ),
         validation: data.validation_source.clone(),
         plan: result.plan_name.clone(),
-        compensation: match (stiffness, config.identify_stiffness) {
+        compensation: match (
+            stiffness,
+            config.identify_stiffness || result.spec.identify_stiffness,
+        ) {
             (Some(origin), false) => format!("compensated exactly ({origin})"),
             (Some(origin), true) => {
                 format!("compensated exactly, stiffness identified (prior {origin})")
             }
-            (None, true) => {
-                "compensated exactly, stiffness identified (prior: the defaults)".into()
-            }
+            (None, true) => format!(
+                "compensated exactly, stiffness identified (prior: the defaults){}",
+                if config.identify_stiffness {
+                    ""
+                } else {
+                    "; chosen by cross-validation"
+                }
+            ),
             (None, false) => "not compensated (no --stiffness)".into(),
         },
         sigma: [config.position_sigma, config.rotation_sigma],
@@ -203,7 +211,12 @@ pub(super) fn outputs(
         stiffness_to_yaml(
             file,
             &format!(
-                "Identified by `treecal calibrate --identify-stiffness` from {} (robot '{}'):\nevery calibrated joint and body with its identified stiffness; see report.md.",
+                "Identified by {} from {} (robot '{}'):\nevery calibrated joint and body with its identified stiffness; see report.md.",
+                if config.identify_stiffness {
+                    "`treecal calibrate --identify-stiffness`"
+                } else {
+                    "`treecal calibrate` (its cross-validation chose geometry + identified stiffness)"
+                },
                 config.measurements.origin(),
                 tree.name()
             ),

@@ -224,36 +224,24 @@ pub(super) fn identify(
         }
         notes.push(Note::warning(message + " (with --strict this is an error)"));
     }
-    // With stiffness identification and no file, the library defaults are the prior.
-    let stiffness = match &config.stiffness {
-        Some(source) => Some(source.read(tree, &loaded.nominal)?),
-        None => config.identify_stiffness.then(Stiffness::default),
-    };
-    let flexibility = match &stiffness {
-        Some(stiffness) => {
-            let model = FlexibilityModel::new(tree, &loaded.nominal, stiffness)?;
-            Some(match config.gravity_frame {
-                GravityFrame::Measurement => model.with_gravity_in_measurement_frame(),
-                GravityFrame::Base => model,
-            })
-        }
-        None => None,
-    };
+    let stiffness = Stiffnesses::new(config, loaded)?;
+    let flexibility = stiffness.in_play.clone();
     let options = IdentificationOptions {
         position_sigma: config.position_sigma,
         rotation_sigma: config.rotation_sigma,
         robust: config.robust,
         ..IdentificationOptions::default()
     };
+    let candidate_prior = stiffness.candidate_prior(config, loaded);
     let choose = |model| {
         choose_model(
             config,
             model,
             loaded,
-            flexibility.as_ref(),
+            [flexibility.as_ref(), candidate_prior],
             &plan,
             &options,
-            &data.measurements,
+            data,
         )
     };
     let (mut spec, mut cross_validation) = choose(config.model)?;
@@ -334,8 +322,9 @@ pub(super) fn identify(
     };
     let mut identified = None;
     let mut final_flexibility = flexibility.clone().filter(|_| spec.compensate);
-    let run = match (&flexibility, &stiffness, config.identify_stiffness) {
-        (Some(prior), Some(stiffness), true) => {
+    let identify_now = config.identify_stiffness || spec.identify_stiffness;
+    let run = match (&stiffness.prior, identify_now) {
+        (Some((stiffness, prior)), true) => {
             let stiffness_options = StiffnessOptions {
                 prior_sigma: config.stiffness_prior,
                 ..StiffnessOptions::default()
@@ -382,17 +371,73 @@ pub(super) fn identify(
     Ok((identified_run, identified))
 }
 
+/// The stiffness in play and the prior a stiffness fit starts from.
+struct Stiffnesses {
+    /// The flexibility the compensated models use: the stiffness file's, or with
+    /// `--identify-stiffness` and no file the library defaults'.
+    in_play: Option<FlexibilityModel>,
+    /// The stiffness a stiffness fit starts from (the file's, else the library defaults) and
+    /// its flexibility; `None` when the robot cannot carry it (no inertials, and none asked).
+    prior: Option<(Stiffness, FlexibilityModel)>,
+}
+
+impl Stiffnesses {
+    fn new(config: &CalibrateConfig, loaded: &Loaded) -> Result<Self> {
+        let tree = loaded.robot.tree();
+        let file = match &config.stiffness {
+            Some(source) => Some(source.read(tree, &loaded.nominal)?),
+            None => None,
+        };
+        let build = |stiffness: &Stiffness| -> Result<FlexibilityModel> {
+            let model = FlexibilityModel::new(tree, &loaded.nominal, stiffness)?;
+            Ok(match config.gravity_frame {
+                GravityFrame::Measurement => model.with_gravity_in_measurement_frame(),
+                GravityFrame::Base => model,
+            })
+        };
+        // With stiffness identification and no file, the library defaults are the prior.
+        let in_play = match (&file, config.identify_stiffness) {
+            (Some(stiffness), _) => Some(build(stiffness)?),
+            (None, true) => Some(build(&Stiffness::default())?),
+            (None, false) => None,
+        };
+        let stiffness = file.unwrap_or_default();
+        let prior = match &in_play {
+            Some(flexibility) => Some((stiffness, flexibility.clone())),
+            None => build(&stiffness).ok().map(|f| (stiffness, f)),
+        };
+        Ok(Self { in_play, prior })
+    }
+
+    /// The prior of the cross-validation's identified-stiffness candidate: offered unless
+    /// `--identify-stiffness` is given anyway, when the robot carries masses and the data are
+    /// measured from the URDF root (the loads flow to it).
+    fn candidate_prior(
+        &self,
+        config: &CalibrateConfig,
+        loaded: &Loaded,
+    ) -> Option<&FlexibilityModel> {
+        let tree = loaded.robot.tree();
+        if config.identify_stiffness || loaded.branches.reference != tree.root() {
+            return None;
+        }
+        self.prior.as_ref().map(|(_, flexibility)| flexibility)
+    }
+}
+
 /// The model to calibrate: the asked level, or the cross-validation's choice; and the
-/// cross-validation table when asked (`--cv`) or needed (`--model auto`).
+/// cross-validation table when asked (`--cv`) or needed (`--model auto`). `flexibility`: the
+/// stiffness in play, and the prior of the identified-stiffness candidate.
 fn choose_model(
     config: &CalibrateConfig,
     model: ModelChoice,
     loaded: &Loaded,
-    flexibility: Option<&FlexibilityModel>,
+    flexibility: [Option<&FlexibilityModel>; 2],
     plan: &crate::calibration::Plan,
     options: &IdentificationOptions,
-    measurements: &[Measurement],
+    data: &Data,
 ) -> Result<(ModelSpec, Option<CrossValidation>)> {
+    let [flexibility, candidate_prior] = flexibility;
     let asked = |level| ModelSpec {
         level,
         harmonics: config.harmonics,
@@ -400,7 +445,8 @@ fn choose_model(
         prior: config.prior,
         prior_scale: config.prior_scale,
         significant: config.significant,
-        compensate: true,
+        compensate: flexibility.is_some(),
+        identify_stiffness: false,
     };
     let level = match model {
         ModelChoice::Level(level) => Some(level),
@@ -427,15 +473,28 @@ fn choose_model(
             measurement_frame: loaded.frame,
         },
         patterns: &config.patterns,
+        stiffness: candidate_prior.map(|prior| {
+            let options = StiffnessOptions {
+                prior_sigma: config.stiffness_prior,
+                ..StiffnessOptions::default()
+            };
+            (prior, options)
+        }),
     };
-    let mut list = candidates(tree, &loaded.nominal, flexibility.is_some());
+    let mut list = candidates(
+        tree,
+        &loaded.nominal,
+        flexibility.is_some(),
+        candidate_prior.is_some(),
+    );
     if let Some(level) = level {
         let mine = asked(level);
         if !list.contains(&mine) {
             list.insert(0, mine);
         }
     }
-    let cv = cross_validate(&input, &list, measurements, folds, config.seed)?;
+    let mut cv = cross_validate(&input, &list, &data.measurements, folds, config.seed)?;
+    cv.name_rows(&data.ids[0]);
     let spec = match (level, cv.chosen) {
         (Some(level), _) => asked(level),
         (None, Some(i)) => cv.rows[i].spec,
@@ -476,12 +535,17 @@ pub(super) fn add_model_choice(
     if let Some(cv) = &result.cross_validation {
         outputs.markdown.push_str(&cross_validation_markdown(cv));
         for row in &cv.rows {
+            let mm = |v: Option<f64>| v.map_or("failed".to_string(), |v| format!("{v:.3} mm"));
+            let without = if cv.left_out_ids.is_empty() {
+                String::new()
+            } else {
+                format!(" ({} without flagged rows)", mm(row.choice_rms_mm))
+            };
             notes.push(Note::info(format!(
-                "cv: {:<45} {:>3} parameters  held-out RMS {}",
+                "cv: {:<45} {:>3} parameters  held-out RMS {}{without}",
                 row.model,
                 row.parameters,
-                row.rms_mm
-                    .map_or("failed".to_string(), |v| format!("{v:.3} mm"))
+                mm(row.rms_mm)
             )));
         }
     }

@@ -72,6 +72,9 @@ pub struct ModelSpec {
     pub significant: Option<f64>,
     /// With the stiffness in play: compensate the deflections (else rigid).
     pub compensate: bool,
+    /// Identify the joint and link compliances with the geometry (`--identify-stiffness`,
+    /// the stiffness file or the library defaults as the prior) and compensate with them.
+    pub identify_stiffness: bool,
 }
 
 impl Default for ModelSpec {
@@ -84,12 +87,15 @@ impl Default for ModelSpec {
             prior_scale: 1.0,
             significant: None,
             compensate: false,
+            identify_stiffness: false,
         }
     }
 }
 
 impl ModelSpec {
-    /// A short name, e.g. `geometry+prior+harmonics`.
+    /// A short name, e.g. `geometry+prior+harmonics`; `+compensated` when the given
+    /// stiffness compensates the deflections, `+identified stiffness` when the compliances are
+    /// identified too (a rigid model has neither), so no two candidates share a name.
     pub fn name(&self) -> String {
         let mut name = match self.level {
             ModelLevel::Offsets => "offsets".to_string(),
@@ -105,6 +111,11 @@ impl ModelSpec {
             if on {
                 name.push_str(part);
             }
+        }
+        if self.identify_stiffness {
+            name.push_str("+identified stiffness");
+        } else if self.compensate {
+            name.push_str("+compensated");
         }
         if let Some(k) = self.significant {
             name.push_str(&format!(" (corrections ≥ {k}σ)"));
