@@ -10,9 +10,7 @@ use crate::kinematics::McpcModel;
 use crate::math::{Pose, Vec3};
 use crate::measurement::{Contact, Measurement, Observation};
 use crate::tree::KinematicTree;
-use crate::workflow::calibrate_contacts::{
-    contact_violations, plane_start, ContactFit, ContactProblem,
-};
+use crate::workflow::contact_fit::{contact_violations, plane_start, ContactFit, ContactProblem};
 use serde_json::json;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
@@ -318,8 +316,45 @@ pub fn contact_report(
             .collect::<Vec<_>>()
             .join(", "),
     );
-    let header = "| robot | contacts | height RMS / max (mm) | tilt RMS / max (°) | gap RMS / max \
-                  (mm) | bar length RMS / max (mm) |\n|---|---|---|---|---|---|\n";
+    md.push_str(&held_out_markdown(scores, HEADER));
+    md.push_str("## Training fit\n\n");
+    let after = &fit.after;
+    let _ = writeln!(
+        md,
+        "{} equations, {} unknowns (joint frames and nuisance), rank {}, σ̂ = {:.3} (the \
+         residuals against the setup's σ's), {} iterations ({:?}).\n",
+        after.rows,
+        fit.free.len(),
+        after.rank,
+        after.residual_scale,
+        after.iterations,
+        after.termination,
+    );
+    md.push_str(HEADER);
+    let _ = writeln!(
+        md,
+        "| registered nominal robot, training contacts | {} |",
+        scores.training[0].overall.cells()
+    );
+    let _ = writeln!(
+        md,
+        "| calibrated, training contacts | {} |\n",
+        scores.training[1].overall.cells()
+    );
+    md.push_str(&planes_markdown(problem, fit));
+    md.push_str(&unobservable_markdown(tree, problem, fit));
+    let json = contact_json(tree, problem, fit, scores, reference, urdf_changes);
+    (md, json)
+}
+
+/// The columns of every contact figure table.
+const HEADER: &str = "| robot | contacts | height RMS / max (mm) | tilt RMS / max (°) | gap RMS / \
+                      max (mm) | bar length RMS / max (mm) |\n|---|---|---|---|---|---|\n";
+
+/// The held-out figures: each session's training plane (primary, per session when several),
+/// then a plane refitted to the held-out contacts (diagnostic).
+fn held_out_markdown(scores: &ContactScores, header: &str) -> String {
+    let mut md = String::new();
     md.push_str(
         "## Held-out contacts, each session's plane as the training fit found it (primary)\n\n",
     );
@@ -374,37 +409,25 @@ pub fn contact_report(
         "| calibrated | {} |\n",
         scores.after_refit.overall.cells()
     );
-    md.push_str("## Training fit\n\n");
+    md
+}
+
+/// report.json of a contact calibration (see [`contact_report`]).
+fn contact_json(
+    tree: &KinematicTree,
+    problem: &ContactProblem,
+    fit: &ContactFit,
+    scores: &ContactScores,
+    reference: &str,
+    urdf_changes: Option<usize>,
+) -> serde_json::Value {
     let after = &fit.after;
-    let _ = writeln!(
-        md,
-        "{} equations, {} unknowns (joint frames and nuisance), rank {}, σ̂ = {:.3} (the \
-         residuals against the setup's σ's), {} iterations ({:?}).\n",
-        after.rows,
-        fit.free.len(),
-        after.rank,
-        after.residual_scale,
-        after.iterations,
-        after.termination,
-    );
-    md.push_str(header);
-    let _ = writeln!(
-        md,
-        "| registered nominal robot, training contacts | {} |",
-        scores.training[0].overall.cells()
-    );
-    let _ = writeln!(
-        md,
-        "| calibrated, training contacts | {} |\n",
-        scores.training[1].overall.cells()
-    );
-    md.push_str(&planes_markdown(problem, fit));
-    md.push_str(&unobservable_markdown(tree, problem, fit));
-    let json = json!({
+    let kinds: Vec<&str> = problem.kinds.iter().map(|k| k.name()).collect();
+    json!({
         "schema_version": 1,
         "robot": tree.name(),
         "reference_link": reference,
-        "usable": usable,
+        "usable": urdf_changes.is_some(),
         "kinds": kinds,
         "training_contacts": problem.training.len(),
         "held_out_contacts": problem.validation.len(),
@@ -422,8 +445,7 @@ pub fn contact_report(
         "parameters": problem.model.parameter_layout().iter().enumerate().map(|(k, _)| json!({"name": problem.model.parameter_name(tree, k), "value": after.parameters[k]})).collect::<Vec<_>>(),
         "unidentifiable": after.unidentifiable.iter().map(|c| c.describe_with(&problem.model, tree, &after.nuisance)).collect::<Vec<_>>(),
         "urdf_joints_changed": urdf_changes,
-    });
-    (md, json)
+    })
 }
 
 fn planes_markdown(problem: &ContactProblem, fit: &ContactFit) -> String {

@@ -176,36 +176,7 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         &fit,
     );
     let std_devs = std_devs(&fit);
-    let robot_model = setup.rig.robot_model(&fit.model)?;
-    let robot_std: Vec<Option<f64>> = (0..robot_model.parameter_count())
-        .map(|i| std_devs.parameter(setup.rig.augmented_index(&robot_model, i)))
-        .collect();
-    let export_options = ExportOptions::with_uncertainty(
-        &setup.tree,
-        &robot_model,
-        &robot_std,
-        config.add_tool_links,
-    );
-    let mut findings = Vec::new();
-    let urdf = match export_urdf_with(
-        &setup.text,
-        &setup.origin,
-        &setup.tree,
-        &robot_model.with_offsets_absorbed(),
-        &export_options,
-    ) {
-        Ok(export) => {
-            findings.extend(super::export::export_notes(&export));
-            Some(export.urdf)
-        }
-        Err(error) => {
-            findings.push(Finding::failed(
-                "urdf-export",
-                format!("the calibrated model cannot be written as a URDF: {error}"),
-            ));
-            None
-        }
-    };
+    let (urdf, mut findings) = export_robot(&setup, config, &fit, &std_devs)?;
     let (residuals, targets, _) = pixel_residuals(&setup.rig, &views, &fit.model, &fit.intrinsics);
     let held_out = match (&held_out_views, &config.validation) {
         (Some(views), Some(path)) => Some(held_out(&setup, views, path, &fit)),
@@ -260,6 +231,47 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
     };
     let calibrated = calibrated_cameras.map(|(contents, yaml)| (contents, yaml, extra_std));
     finish(config, setup, report, notes, urdf, calibrated)
+}
+
+/// calibrated.urdf of the fitted robot (its standard deviations in the export's comments),
+/// or a failed finding when the model cannot be written as a URDF.
+fn export_robot(
+    setup: &Setup,
+    config: &CameraCalibrateConfig,
+    fit: &CameraFitReport,
+    std_devs: &StdDevs<'_>,
+) -> Result<(Option<String>, Vec<Finding>)> {
+    let robot_model = setup.rig.robot_model(&fit.model)?;
+    let robot_std: Vec<Option<f64>> = (0..robot_model.parameter_count())
+        .map(|i| std_devs.parameter(setup.rig.augmented_index(&robot_model, i)))
+        .collect();
+    let export_options = ExportOptions::with_uncertainty(
+        &setup.tree,
+        &robot_model,
+        &robot_std,
+        config.add_tool_links,
+    );
+    let mut findings = Vec::new();
+    let urdf = match export_urdf_with(
+        &setup.text,
+        &setup.origin,
+        &setup.tree,
+        &robot_model.with_offsets_absorbed(),
+        &export_options,
+    ) {
+        Ok(export) => {
+            findings.extend(super::export::export_notes(&export));
+            Some(export.urdf)
+        }
+        Err(error) => {
+            findings.push(Finding::failed(
+                "urdf-export",
+                format!("the calibrated model cannot be written as a URDF: {error}"),
+            ));
+            None
+        }
+    };
+    Ok((urdf, findings))
 }
 
 /// Per camera and target pose of the rig ([`Rig::extra`]), the standard deviations of its

@@ -16,6 +16,7 @@ pub mod check_camera;
 pub mod checker;
 pub mod checks;
 pub mod compare;
+pub mod contact_fit;
 pub mod cross_validation;
 pub mod export;
 pub mod fk;

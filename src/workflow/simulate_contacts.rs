@@ -162,14 +162,7 @@ fn lab_files(
                 continue;
             };
             let name = tool_name(m.tool);
-            let entry = setup
-                .tools
-                .entry(name.clone())
-                .or_insert_with(|| ToolSetup {
-                    link: name.clone(),
-                    face: None,
-                    point: None,
-                });
+            let entry = tool_entry(setup, &name);
             let (kind, plane, tool2) = match *contact {
                 Contact::Flush { plane, face } => {
                     entry.face = Some(PoseEntry::of(&face.nominal));
@@ -192,15 +185,8 @@ fn lab_files(
                 } => {
                     entry.point = Some(rough_point(scene.nuisance.block_values(point)?, 0));
                     let other = tool_name(tool2);
-                    let second = setup
-                        .tools
-                        .entry(other.clone())
-                        .or_insert_with(|| ToolSetup {
-                            link: other.clone(),
-                            face: None,
-                            point: None,
-                        });
-                    second.point = Some(rough_point(scene.nuisance.block_values(point2)?, 1));
+                    tool_entry(setup, &other).point =
+                        Some(rough_point(scene.nuisance.block_values(point2)?, 1));
                     let kind = if matches!(contact, Contact::Touch { .. }) {
                         ContactKind::Touch
                     } else {
@@ -260,6 +246,18 @@ fn lab_files(
             contact_setup_to_yaml(&setup)?.into_bytes(),
         ),
     ])
+}
+
+/// The setup's entry of the tool at link `name` (created without face or point).
+fn tool_entry<'a>(setup: &'a mut ContactSetup, name: &str) -> &'a mut ToolSetup {
+    setup
+        .tools
+        .entry(name.to_owned())
+        .or_insert_with(|| ToolSetup {
+            link: name.to_owned(),
+            face: None,
+            point: None,
+        })
 }
 
 /// A true contact point as a lab's nominal: [`SETUP_POINT_ERROR`] off, deterministic.
