@@ -25,22 +25,14 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     // is not a previous output before computing anything.
     config.check_output(&args.out)?;
     let calibration = calibrate(&config)?;
-    for note in &calibration.notes {
-        crate::output::note(note);
-    }
-    calibration.write(&args.out)?;
-    crate::output::print(&calibration.report_markdown)?;
-    crate::output::note(format_args!("wrote {}", args.out.display()));
-    if !calibration.usable() {
-        return Err(Error::InvalidData {
-            origin: "calibration".into(),
-            message: format!(
-                "verdict failed (see the errors above and {}); calibrated.urdf was not written",
-                args.out.join("report.md").display()
-            ),
-        });
-    }
-    Ok(())
+    finish(
+        &args,
+        &calibration.notes,
+        &calibration.report_markdown,
+        calibration.write(&args.out),
+        calibration.usable(),
+        "verdict failed",
+    )
 }
 
 fn config(args: &CalibrateArgs) -> CalibrateConfig {
@@ -144,11 +136,11 @@ fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<
         &calibration.report_markdown,
         calibration.write(&args.out),
         calibration.usable(),
-        "verdict failed (see the errors above)",
+        "verdict failed",
     )
 }
 
-/// The end of a contacts or camera calibration: its notes on stderr, the written folder's
+/// The end of a calibration (tracker, contacts or camera): its notes on stderr, the written folder's
 /// report on stdout, and an error when the verdict says the result is not usable.
 fn finish(
     args: &CalibrateArgs,
@@ -168,7 +160,7 @@ fn finish(
         return Err(Error::InvalidData {
             origin: "calibration".into(),
             message: format!(
-                "{failure} (see {}); calibrated.urdf was not written",
+                "{failure} (see the errors above and {}); calibrated.urdf was not written",
                 args.out.join("report.md").display()
             ),
         });
