@@ -98,15 +98,7 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
         origin: origin.to_owned(),
         message: "the file is empty; it needs a header row naming joints".into(),
     })?;
-    let mut seen = std::collections::HashSet::with_capacity(headers.len());
-    for name in &headers {
-        if !seen.insert(name.as_str()) {
-            return Err(Error::InvalidData {
-                origin: format!("{origin}:{header_line}"),
-                message: format!("column '{name}' appears twice in the header"),
-            });
-        }
-    }
+    check_unique_columns(&headers, &format!("{origin}:{header_line}"))?;
     Ok(CsvTable {
         headers,
         header_line,
@@ -309,4 +301,18 @@ pub fn pose_fields(pose: &Pose) -> impl Iterator<Item = String> {
         .into_iter()
         .chain((0..3).flat_map(move |i| (0..3).map(move |j| r[(i, j)])))
         .map(|v| format!("{v}"))
+}
+
+/// A header naming a column twice is an error at `place` (`file:line`).
+pub(super) fn check_unique_columns(headers: &[String], place: &str) -> Result<()> {
+    let mut seen = std::collections::HashSet::with_capacity(headers.len());
+    for name in headers {
+        if !seen.insert(name.as_str()) {
+            return Err(Error::InvalidData {
+                origin: place.to_owned(),
+                message: format!("column '{name}' appears twice in the header"),
+            });
+        }
+    }
+    Ok(())
 }

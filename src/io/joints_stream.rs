@@ -49,15 +49,7 @@ impl<R: BufRead> CsvRecords<R> {
             origin: origin.to_owned(),
             message: "the file is empty; it needs a header row naming joints".into(),
         })?;
-        let mut seen = std::collections::HashSet::with_capacity(headers.len());
-        for name in &headers {
-            if !seen.insert(name.as_str()) {
-                return Err(Error::InvalidData {
-                    origin: format!("{origin}:{line}"),
-                    message: format!("column '{name}' appears twice in the header"),
-                });
-            }
-        }
+        super::joints_csv::check_unique_columns(&headers, &format!("{origin}:{line}"))?;
         records.headers = headers;
         records.header_line = line;
         Ok(records)

@@ -6,7 +6,7 @@
 use super::check::stage_analysis;
 use super::checker::{collision_checker, collision_statement};
 use super::checks::{check_outputs, count, sigmas, Output};
-use super::source::{branches, RobotSource};
+use super::source::{NominalRobot, RobotSource};
 use super::{no_progress, Note, Progress, ProgressFn};
 use crate::calibration::identifiability::DEFAULT_CONDITION_LIMIT;
 use crate::calibration::{
@@ -154,16 +154,16 @@ pub fn plan(config: &PlanConfig) -> Result<PosePlan> {
 pub fn plan_with_progress(config: &PlanConfig, progress: ProgressFn<'_>) -> Result<PosePlan> {
     let workspace = validate(config)?;
     let mut notes = Vec::new();
-    let robot = config.robot.load()?;
-    notes.extend(robot.notes());
-    let import = robot.import;
-    let tree = &import.tree;
-    let branches = branches(
-        &import,
+    let NominalRobot {
+        import,
+        branches,
+        model,
+    } = config.robot.nominal(
         config.tools.as_deref(),
         config.reference_link.as_deref(),
+        &mut notes,
     )?;
-    let model = McpcModel::from_tree(tree, &branches)?;
+    let tree = &import.tree;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
     notes.extend(crate::calibration::gauge::gauge_summary(&model, tree).map(Note::info));

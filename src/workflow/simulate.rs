@@ -4,7 +4,7 @@
 
 use super::checker::{collision_checker, collision_statement};
 use super::checks::{check_outputs as check_paths, count, Output};
-use super::source::{branches, PlanSource, RobotSource, StiffnessSource};
+use super::source::{NominalRobot, PlanSource, RobotSource, StiffnessSource};
 use super::{no_progress, Note, Progress, ProgressFn};
 use crate::calibration::{Plan, RobustLoss, StiffnessOptions};
 use crate::io::{
@@ -255,16 +255,16 @@ pub fn simulate_with_progress(
     }
     let noise = NoiseModel::parse(&config.noise)?;
     let mut notes = Vec::new();
-    let robot = config.robot.load()?;
-    notes.extend(robot.notes());
-    let import = robot.import;
-    let tree = &import.tree;
-    let branches = branches(
-        &import,
+    let NominalRobot {
+        import,
+        branches,
+        model: nominal,
+    } = config.robot.nominal(
         config.tools.as_deref(),
         config.reference_link.as_deref(),
+        &mut notes,
     )?;
-    let nominal = McpcModel::from_tree(tree, &branches)?;
+    let tree = &import.tree;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
     notes.extend(crate::calibration::gauge::gauge_summary(&nominal, tree).map(Note::info));

@@ -2,7 +2,7 @@
 //! trials ([`crate::sim::contacts`]) on the robot, with their summary.md and results.json.
 
 use super::simulate::{SimulateConfig, Simulation};
-use super::source::branches;
+use super::source::NominalRobot;
 use super::{Note, Progress, ProgressFn};
 use crate::io::contacts_csv::{contacts_to_csv, ContactKind, ContactRow};
 use crate::io::contacts_yaml::{
@@ -26,16 +26,16 @@ pub(super) fn simulate_contacts(
     progress: ProgressFn<'_>,
 ) -> Result<Simulation> {
     let mut notes = Vec::new();
-    let robot = config.robot.load()?;
-    notes.extend(robot.notes());
-    let import = robot.import;
-    let tree = &import.tree;
-    let branches = branches(
-        &import,
+    let NominalRobot {
+        import,
+        model: nominal,
+        ..
+    } = config.robot.nominal(
         config.tools.as_deref(),
         config.reference_link.as_deref(),
+        &mut notes,
     )?;
-    let nominal = McpcModel::from_tree(tree, &branches)?;
+    let tree = &import.tree;
     let settings = ContactSimulation {
         kinds: config.contacts.clone(),
         per_kind: config.poses + config.torso_poses,

@@ -103,6 +103,38 @@ impl LoadedRobot {
     }
 }
 
+/// A robot with its branches and nominal MCPC model: the first steps of `simulate` and `plan`.
+pub(crate) struct NominalRobot {
+    /// The kinematic tree and the loader's warnings.
+    pub import: UrdfImport,
+    /// The tools, the coupled branch and the reference link.
+    pub branches: Branches,
+    /// The nominal model of `branches`.
+    pub model: McpcModel,
+}
+
+impl RobotSource {
+    /// Loads the robot, adds its loader warnings to `notes` and builds the nominal model of
+    /// `tools` measured from `reference` ([`branches`]).
+    pub(crate) fn nominal(
+        &self,
+        tools: Option<&[String]>,
+        reference: Option<&str>,
+        notes: &mut Vec<Note>,
+    ) -> Result<NominalRobot> {
+        let robot = self.load()?;
+        notes.extend(robot.notes());
+        let import = robot.import;
+        let branches = branches(&import, tools, reference)?;
+        let model = McpcModel::from_tree(&import.tree, &branches)?;
+        Ok(NominalRobot {
+            import,
+            branches,
+            model,
+        })
+    }
+}
+
 /// The link fixed in the world while measuring: `name`, or the root without one. An unknown
 /// name is an error that lists the links there are.
 pub fn reference_link(tree: &KinematicTree, name: Option<&str>) -> Result<LinkId> {
