@@ -80,7 +80,7 @@ fn workflow_simulate_gives_the_cli_results_json() {
     // (Bytes, not parsed values: serde_json's parser may round the last bit.)
     assert_eq!(
         String::from_utf8(written).unwrap(),
-        treecal::io::to_json(&outcome.results).unwrap()
+        treecal::io::to_json_rows(&outcome.results).unwrap()
     );
     assert_eq!(outcome.reports.len(), 2);
     // A different seed, different numbers (the comparison above can fail).

@@ -13,6 +13,7 @@ pub mod joint_log_mcap;
 mod joint_log_read;
 pub mod joints_csv;
 mod joints_stream;
+mod json_rows;
 pub mod mcpc_table;
 pub mod measurement_table;
 pub mod measurements_csv;
@@ -41,6 +42,7 @@ pub use joints_csv::{
     POSE_COLUMNS,
 };
 pub use joints_stream::{open_csv_records, CsvRecords};
+pub use json_rows::to_json_rows;
 pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
 pub use measurement_table::{MeasurementTable, ObservationRows};
 pub use measurements_csv::{

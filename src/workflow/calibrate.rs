@@ -242,7 +242,6 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
         &result.run.report.model,
         &data.measurements,
         &mut outputs.report,
-        &mut outputs.files,
     )?;
     let provenance = super::provenance::calibrate_record(config, started)?;
     super::provenance::attach(

@@ -8,7 +8,7 @@ use crate::calibration::identifiability::NamedCombination;
 use crate::calibration::robust::{DataSet, OUTLIER_WEIGHT};
 use crate::calibration::{CalibrationRun, ChosenFrame, Finding, Verdict};
 use crate::error::{Error, Result};
-use crate::io::{stiffness_to_yaml, to_json, to_yaml};
+use crate::io::{stiffness_to_yaml, to_yaml};
 use crate::report::{
     calibration_markdown, calibration_plots, calibration_summary, outlier_rows, parameter_file,
     stiffness_markdown, CalibrationContext, CalibrationSummary,
@@ -258,7 +258,6 @@ pub(super) fn outputs(
         origin: "report.json".into(),
         message: e.to_string(),
     };
-    let json = to_json(&summary)?;
     let report = serde_json::to_value(&summary).map_err(json_error)?;
     if let Some((stiffness_summary, _)) = &identified {
         markdown.push_str(&stiffness_markdown(stiffness_summary));
@@ -287,7 +286,8 @@ pub(super) fn outputs(
     }
     files.push(("params.yaml".into(), params.into_bytes()));
     files.push(("report.md".into(), markdown.clone().into_bytes()));
-    files.push(("report.json".into(), json.into_bytes()));
+    // Rendered from `report` once it is complete (the calibration's last step, provenance).
+    files.push(("report.json".into(), Vec::new()));
     for (stem, svg) in plots {
         files.push((format!("{stem}.svg"), svg.into_bytes()));
     }

@@ -549,17 +549,8 @@ pub(super) fn add_model_choice(
             )));
         }
     }
-    for (name, bytes) in outputs.files.iter_mut() {
-        match name.as_str() {
-            "report.md" => *bytes = outputs.markdown.clone().into_bytes(),
-            "report.json" => {
-                let mut written: serde_json::Value = serde_json::from_slice(bytes)
-                    .map_err(|e| invalid("report.json", e.to_string()))?;
-                add_before_stiffness(&mut written, &extra);
-                *bytes = crate::io::to_json(&written)?.into_bytes();
-            }
-            _ => {}
-        }
+    if let Some((_, bytes)) = outputs.files.iter_mut().find(|(n, _)| n == "report.md") {
+        *bytes = outputs.markdown.clone().into_bytes();
     }
     Ok(())
 }

@@ -224,7 +224,12 @@ fn configurations(a: &Folder, b: &Folder) -> Vec<(String, Vec<(String, f64)>)> {
         };
         for tool in &recorded.tools {
             for posture in &tool.postures {
-                let joints = posture.iter().map(|(n, v)| (n.clone(), *v)).collect();
+                let joints = tool
+                    .joints
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, joint)| Some((joint.name.clone(), posture.value(i, &joint.name)?)))
+                    .collect();
                 out.push((tool.tool.clone(), joints));
             }
         }

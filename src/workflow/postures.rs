@@ -33,8 +33,30 @@ pub struct RecordedTool {
     pub tool: String,
     /// The independent joints of its chain, with their calibrated ranges.
     pub joints: Vec<RecordedJoint>,
-    /// Per identification row, the value of each joint of `joints` by name (rad, m).
-    pub postures: Vec<BTreeMap<String, f64>>,
+    /// Per identification row, the value of each joint of `joints` (rad, m).
+    pub postures: Vec<RecordedPosture>,
+}
+
+/// One recorded posture: the joint values in the order of [`RecordedTool::joints`] (written
+/// since `treecal.report/3`: an array is a tenth of the memory of a map at 10⁵ rows), or by
+/// joint name (`treecal.report/2` files, still read).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum RecordedPosture {
+    /// The values in the order of the tool's `joints`.
+    Values(Vec<f64>),
+    /// The values by joint name (older reports).
+    Named(BTreeMap<String, f64>),
+}
+
+impl RecordedPosture {
+    /// The value of joint `name`, the `index`-th of its tool's `joints`.
+    pub fn value(&self, index: usize, name: &str) -> Option<f64> {
+        match self {
+            Self::Values(values) => values.get(index).copied(),
+            Self::Named(values) => values.get(name).copied(),
+        }
+    }
 }
 
 /// Every tool's postures (report.json `"identification_postures"`).
@@ -72,13 +94,7 @@ pub fn record(
             let postures = chain
                 .postures
                 .iter()
-                .map(|posture| {
-                    joints
-                        .iter()
-                        .zip(posture)
-                        .map(|(joint, &value)| (joint.name.clone(), value))
-                        .collect()
-                })
+                .map(|posture| RecordedPosture::Values(posture.clone()))
                 .collect();
             RecordedTool {
                 tool: tree.link(tool.link).name.clone(),
@@ -135,8 +151,9 @@ pub fn chains_of(
                     record
                         .joints
                         .iter()
-                        .map(|joint| {
-                            posture.get(&joint.name).copied().ok_or_else(|| Error::InvalidData {
+                        .enumerate()
+                        .map(|(index, joint)| {
+                            posture.value(index, &joint.name).ok_or_else(|| Error::InvalidData {
                                 origin: format!("{origin}: {POSTURES_KEY}"),
                                 message: format!(
                                     "a posture of tool '{name}' has no value of joint '{}'",
@@ -164,8 +181,9 @@ pub(super) fn insert_key(report: &mut serde_json::Value, key: &str, value: serde
     }
 }
 
-/// Sets `key` to `value` in `report` (the parsed form of the JSON file `file` among `files`)
-/// and in that file.
+/// Sets `key` to `value` in `report` and renders the JSON file `file` among `files` from it
+/// (`io::to_json_rows`: rendered from the value, never parsed back, which at 10⁵ rows would
+/// hold a second copy of a report of hundreds of MB).
 pub(super) fn set_report_key(
     report: &mut serde_json::Value,
     files: &mut [(String, Vec<u8>)],
@@ -173,28 +191,20 @@ pub(super) fn set_report_key(
     key: &str,
     value: serde_json::Value,
 ) -> Result<()> {
-    insert_key(report, key, value.clone());
-    for (name, bytes) in files.iter_mut() {
-        if name == file {
-            let mut written: serde_json::Value =
-                serde_json::from_slice(bytes).map_err(|e| Error::InvalidData {
-                    origin: file.into(),
-                    message: e.to_string(),
-                })?;
-            insert_key(&mut written, key, value.clone());
-            *bytes = crate::io::to_json(&written)?.into_bytes();
-        }
+    insert_key(report, key, value);
+    if let Some((_, bytes)) = files.iter_mut().find(|(name, _)| name == file) {
+        *bytes = crate::io::to_json_rows(report)?.into_bytes();
     }
     Ok(())
 }
 
-/// Records the identification postures of a calibration in its report.json.
+/// Records the identification postures of a calibration in its report.json value (the file
+/// is rendered from it once, when the report is complete).
 pub(super) fn add_to_report(
     tree: &KinematicTree,
     model: &McpcModel,
     identification: &[Measurement],
     report: &mut serde_json::Value,
-    files: &mut [(String, Vec<u8>)],
 ) -> Result<()> {
     let value = serde_json::to_value(record(tree, model, identification)).map_err(|e| {
         Error::InvalidData {
@@ -202,5 +212,6 @@ pub(super) fn add_to_report(
             message: e.to_string(),
         }
     })?;
-    set_report_key(report, files, "report.json", POSTURES_KEY, value)
+    insert_key(report, POSTURES_KEY, value);
+    Ok(())
 }

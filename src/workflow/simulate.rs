@@ -8,7 +8,7 @@ use super::source::{NominalRobot, PlanSource, RobotSource, StiffnessSource};
 use super::{no_progress, Note, Progress, ProgressFn};
 use crate::calibration::{Plan, RobustLoss, StiffnessOptions};
 use crate::io::{
-    measurements_to_csv_with, read_plan, to_json, write_atomically, AngleUnit, LengthUnit,
+    measurements_to_csv_with, read_plan, write_atomically, AngleUnit, LengthUnit,
     MeasurementWriteOptions,
 };
 use crate::kinematics::{FlexibilityModel, Stiffness};
@@ -218,7 +218,7 @@ impl Simulation {
             ("summary.md".to_owned(), markdown.clone().into_bytes()),
             (
                 "results.json".to_owned(),
-                crate::io::to_json(&results)?.into_bytes(),
+                crate::io::to_json_rows(&results)?.into_bytes(),
             ),
         ];
         Ok(Simulation {
@@ -314,9 +314,9 @@ pub fn simulate_with_progress(
     })?;
     let mut files = vec![
         ("summary.md".to_owned(), markdown.clone().into_bytes()),
-        // From the value the outcome holds, so that the file is `to_json(&outcome.results)`
+        // From the value the outcome holds, so that the file is `to_json_rows(&outcome.results)`
         // to the byte (keys sorted).
-        ("results.json".to_owned(), to_json(&results)?.into_bytes()),
+        ("results.json".to_owned(), crate::io::to_json_rows(&results)?.into_bytes()),
     ];
     files.extend(plots(reports.first())?);
     let inputs: Vec<PathBuf> = [
