@@ -10,8 +10,8 @@ use rand::SeedableRng;
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use treecal::math::Pose;
-use treecal::sim::collision::CollisionChecker;
-use treecal::sim::sampling::{sample_configurations, SamplingOptions};
+use treecal::sim::CollisionChecker;
+use treecal::sim::{sample_configurations, SamplingOptions};
 use treecal::{load_urdf, KinematicTree};
 
 fn robots() -> Vec<(&'static str, PathBuf)> {

@@ -6,8 +6,8 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
-use treecal::sim::collision::CollisionChecker;
-use treecal::sim::planning::{plan_poses, PlanningOptions};
+use treecal::sim::CollisionChecker;
+use treecal::sim::{plan_poses, PlanningOptions};
 use treecal::{detect_branches, load_urdf, McpcModel};
 
 fn planning(c: &mut Criterion) {

@@ -18,10 +18,10 @@ use std::time::Instant;
 use treecal::io::{parse_stiffness, write_atomically};
 use treecal::kinematics::FlexibilityModel;
 use treecal::report::plot::{line_plot_svg, Curve, LinePlot};
-use treecal::sim::collision::CollisionChecker;
-use treecal::sim::experiment::{Setup, SimulationOptions};
-use treecal::sim::monte_carlo::run_trials;
-use treecal::sim::planning::PlanningOptions;
+use treecal::sim::run_trials;
+use treecal::sim::CollisionChecker;
+use treecal::sim::PlanningOptions;
+use treecal::sim::{Setup, SimulationOptions};
 use treecal::{detect_branches, parse_urdf, Error, McpcModel, Result};
 
 const ROBOT: &str = include_str!("../robots/robonaut/robonaut.urdf");

@@ -10,9 +10,9 @@ use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
 use treecal::io::{measurements_to_csv_with, AngleUnit, LengthUnit, MeasurementWriteOptions};
 use treecal::measurement::Measurement;
-use treecal::sim::noise::{observe, NoiseModel, Targets};
-use treecal::sim::sampling::{sample_configurations, SamplingOptions};
-use treecal::sim::truth::{true_model, ErrorRanges};
+use treecal::sim::{observe, NoiseModel, Targets};
+use treecal::sim::{sample_configurations, SamplingOptions};
+use treecal::sim::{true_model, ErrorRanges};
 use treecal::{detect_branches, load_urdf, McpcModel};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

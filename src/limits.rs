@@ -230,9 +230,9 @@ pub fn name_problem(name: &str) -> Option<String> {
     })
 }
 
-/// Reads a UTF-8 text file of at most `max_bytes`: [`crate::io::bounded::read_text`], the one
+/// Reads a UTF-8 text file of at most `max_bytes`: [`crate::io::read_text`], the one
 /// bounded reader (regular files only, size checked before reading).
-pub use crate::io::bounded::read_text;
+pub use crate::io::read_text;
 
 /// Fails if `text` is longer than `max_bytes` (for text given as a string, not a file).
 pub fn check_text_size(text: &str, max_bytes: u64, origin: &str) -> Result<()> {

@@ -18,9 +18,9 @@ use treecal::io::{
 use treecal::kinematics::FlexibilityModel;
 use treecal::math::{pose_error, Pose, Vec3};
 use treecal::measurement::{Measurement, Observation};
-use treecal::sim::noise::{observe, NoiseModel, Targets};
-use treecal::sim::sampling::{sample_configurations, SamplingOptions};
-use treecal::sim::truth::{true_model, ErrorRanges};
+use treecal::sim::{observe, NoiseModel, Targets};
+use treecal::sim::{sample_configurations, SamplingOptions};
+use treecal::sim::{true_model, ErrorRanges};
 use treecal::{load_urdf, Branches, KinematicTree, McpcModel};
 
 /// A robot with its branches and nominal model.

@@ -9,7 +9,7 @@ use treecal::sim::camera::{
     run_camera_trial, CameraSetup, CameraSimulationOptions, ObservationMode,
 };
 use treecal::sim::camera_setup::{camera_rig, CameraRigOptions};
-use treecal::sim::noise::NoiseModel;
+use treecal::sim::NoiseModel;
 
 fn rig(robot: &SimulatedRobot, options: &CameraRigOptions) -> (Rig, McpcModel) {
     camera_rig(
@@ -375,12 +375,12 @@ fn camera_identifiability_names_the_torso_only_without_the_world_board() {
             .map(|&(d, _)| (d, 0.25 * ((k as f64) * 1.3 + d as f64).sin()))
             .collect();
         configurations.extend(
-            treecal::sim::sampling::sample_configurations(
+            treecal::sim::sample_configurations(
                 &robot.tree,
                 Some(&robot.checker),
                 1,
                 &mut rng,
-                &treecal::sim::sampling::SamplingOptions::default(),
+                &treecal::sim::SamplingOptions::default(),
                 &fixed,
             )
             .unwrap(),
@@ -495,12 +495,12 @@ fn check_camera_files_name_the_torso_without_the_pole() {
     let configurations: Vec<Vec<f64>> = (0..40)
         .flat_map(|k| {
             let t = k as f64;
-            treecal::sim::sampling::sample_configurations(
+            treecal::sim::sample_configurations(
                 &robot.tree,
                 Some(&robot.checker),
                 1,
                 &mut rng,
-                &treecal::sim::sampling::SamplingOptions::default(),
+                &treecal::sim::SamplingOptions::default(),
                 &[(0, 0.15 * (1.3 * t).sin()), (1, 0.15 * (0.7 * t).cos())],
             )
             .unwrap()

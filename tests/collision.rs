@@ -3,8 +3,8 @@
 //! and on the repository's robots.
 
 use crate::common::*;
-use treecal::sim::collision::{CollisionChecker, CollisionOptions};
-use treecal::sim::sampling::{sample_configurations, SamplingOptions};
+use treecal::sim::{sample_configurations, SamplingOptions};
+use treecal::sim::{CollisionChecker, CollisionOptions};
 use treecal::tree::{KinematicTree, LinkId};
 use treecal::urdf::load_urdf;
 
@@ -722,7 +722,7 @@ fn plan_names_the_collision_meshes_it_cannot_find() {
 /// which pairs it does not check.
 #[test]
 fn pairs_that_always_collide_are_not_checked() {
-    use treecal::sim::sampling::{sample_configurations, SamplingOptions};
+    use treecal::sim::{sample_configurations, SamplingOptions};
     let mut tree = sliding_boxes(CUBE);
     let mut checker = CollisionChecker::new(&tree).unwrap();
     let mut random = rng(5);

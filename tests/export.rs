@@ -847,7 +847,7 @@ fn export_tolerance_is_three_sigma_of_the_tool_origin() {
     assert!((options.tolerance("l_hand") - expected).abs() < 1e-15);
     assert_eq!(
         options.tolerance("r_hand"),
-        treecal::urdf::export::ON_AXIS_TOLERANCE
+        treecal::urdf::ON_AXIS_TOLERANCE
     );
 }
 

@@ -5,16 +5,16 @@
 use crate::common::*;
 use nalgebra::Vector6;
 use rand::RngExt;
-use treecal::kinematics::flexibility::{
+use treecal::kinematics::McpcModel;
+use treecal::kinematics::{
     point_load_deflection, uniform_load_deflection, BeamCompliance, FlexibilityModel,
     JointStiffness, LinkStiffness, Payload, Stiffness,
 };
-use treecal::kinematics::McpcModel;
 use treecal::math::{pose, pose_error, rot_x, rot_z, Vec3};
 use treecal::tree::{detect_branches, KinematicTree};
 use treecal::Error;
 
-const G: f64 = treecal::kinematics::flexibility::STANDARD_GRAVITY;
+const G: f64 = treecal::kinematics::STANDARD_GRAVITY;
 
 fn load(relative: &str) -> (KinematicTree, McpcModel) {
     let tree = treecal::load_urdf(&robot(relative)).unwrap().tree;

@@ -11,8 +11,8 @@ use treecal::calibration::{
 };
 use treecal::math::Pose;
 use treecal::measurement::{Measurement, Observation};
-use treecal::sim::noise::{observe, NoiseModel, Targets};
-use treecal::sim::truth::{true_model, ErrorRanges};
+use treecal::sim::{observe, NoiseModel, Targets};
+use treecal::sim::{true_model, ErrorRanges};
 use treecal::{load_urdf, McpcModel};
 
 fn far_tracker() -> Pose {

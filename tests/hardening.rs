@@ -198,11 +198,11 @@ fn simulate_angle_error_beyond_a_half_turn_is_refused() {
     assert_error(&run, &["--angle-error", "1e308"], "simulate --angle-error");
     // The library refuses it too, instead of panicking in the random range.
     let (_, model) = robonaut();
-    let ranges = treecal::sim::truth::ErrorRanges {
+    let ranges = treecal::sim::ErrorRanges {
         angle: 1e308,
         length: 0.05,
     };
-    assert!(treecal::sim::truth::true_model(&model, &ranges, &mut rng(1)).is_err());
+    assert!(treecal::sim::true_model(&model, &ranges, &mut rng(1)).is_err());
 }
 
 #[test]

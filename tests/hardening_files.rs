@@ -8,7 +8,7 @@ use crate::common::*;
 use std::path::{Path, PathBuf};
 use treecal::io::{mesh_vertices, parse_csv, parse_plan, read_mesh_vertices};
 use treecal::limits;
-use treecal::sim::mesh::MeshLookup;
+use treecal::sim::MeshLookup;
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let path = dir.join(name);

@@ -391,7 +391,7 @@ fn unwritable_outputs_are_refused_before_computing() {
 #[test]
 fn a_second_run_on_a_locked_output_folder_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let lock = treecal::io::output_lock::lock_output(dir.path(), "out").unwrap();
+    let lock = treecal::io::lock_output(dir.path(), "out").unwrap();
     let out = dir.path().join("out");
     let run = treecal(&[
         "calibrate",

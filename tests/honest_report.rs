@@ -21,7 +21,7 @@ use treecal::io::{
 use treecal::kinematics::FlexibilityModel;
 use treecal::math::Pose;
 use treecal::measurement::{Measurement, Observation};
-use treecal::sim::truth::{true_model, ErrorRanges};
+use treecal::sim::{true_model, ErrorRanges};
 use treecal::urdf::parse_urdf;
 use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, RobotSource,

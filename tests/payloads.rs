@@ -11,7 +11,7 @@ use treecal::io::{measurements_to_csv, parse_measurements, MeasurementReadOption
 use treecal::kinematics::FlexibilityModel;
 use treecal::math::pose_error;
 use treecal::measurement::{Measurement, Observation};
-use treecal::sim::experiment::{run_trial, SimulationOptions};
+use treecal::sim::{run_trial, SimulationOptions};
 use treecal::tree::{detect_branches, KinematicTree};
 use treecal::McpcModel;
 
@@ -219,7 +219,7 @@ fn simulated_data_at_two_payloads_determine_more_than_at_one() {
     assert_eq!(at(0.0), at(20.0), "rows not split evenly");
     let text = measurements_to_csv(&robot.tree, &robot.nominal, &two.measurements).unwrap();
     assert!(text.contains("payload_kg"));
-    let identified = |r: &treecal::sim::experiment::TrialReport| {
+    let identified = |r: &treecal::sim::TrialReport| {
         r.stiffness
             .as_ref()
             .unwrap()

@@ -2,8 +2,8 @@
 
 use crate::common::*;
 use treecal::math::Vec3;
-use treecal::sim::collision::CollisionChecker;
-use treecal::sim::planning::{
+use treecal::sim::CollisionChecker;
+use treecal::sim::{
     criterion_value, plan_poses, Criterion, PlanReport, PlanningOptions, PlanningStage,
 };
 use treecal::tree::{detect_branches, Branches, KinematicTree};

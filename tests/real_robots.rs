@@ -22,7 +22,7 @@ use treecal::calibration::fit_rigid_transform;
 use treecal::io::{measurements_to_csv_with, AngleUnit, LengthUnit, MeasurementWriteOptions};
 use treecal::math::Pose;
 use treecal::measurement::{Measurement, Observation};
-use treecal::sim::truth::{true_model, ErrorRanges};
+use treecal::sim::{true_model, ErrorRanges};
 use treecal::tree::KinematicTree;
 use treecal::urdf::export_urdf;
 use treecal::{load_urdf, McpcModel};

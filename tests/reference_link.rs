@@ -345,7 +345,7 @@ fn noise_free_recovery_from_a_sole() {
     use treecal::calibration::plan::{calibrate, Compensation, Plan};
     use treecal::calibration::{initial_guess, IdentificationOptions};
     use treecal::measurement::{Measurement, Observation};
-    use treecal::sim::truth::{true_model, ErrorRanges};
+    use treecal::sim::{true_model, ErrorRanges};
     for humanoid in &HUMANOIDS[..2] {
         let (_, tree, branches) = load(humanoid);
         let nominal = McpcModel::from_tree(&tree, &branches).unwrap();

@@ -6,7 +6,7 @@ use crate::common::*;
 use serde_json::Value;
 use std::path::Path;
 use treecal::calibration::RobustLoss;
-use treecal::sim::experiment::{run_trial, Setup, SimulationOptions};
+use treecal::sim::{run_trial, Setup, SimulationOptions};
 
 use crate::common::{simulated_robonaut as robonaut, SimulatedRobot as Robot};
 
@@ -15,7 +15,7 @@ fn setup(robot: &Robot) -> Setup<'_> {
 }
 
 /// Mean compensated validation position error over the arms (mm).
-fn validation_error(report: &treecal::sim::experiment::TrialReport) -> f64 {
+fn validation_error(report: &treecal::sim::TrialReport) -> f64 {
     report
         .validation
         .iter()

@@ -1,9 +1,9 @@
 //! The section 5.2 simulation: library-level checks (the CLI is tested in tests/cli.rs).
 
 use treecal::calibration::Plan;
-use treecal::sim::experiment::{run_trial, Setup, SimulationOptions};
-use treecal::sim::monte_carlo::{run_trials, summarise};
-use treecal::sim::noise::NoiseModel;
+use treecal::sim::NoiseModel;
+use treecal::sim::{run_trial, Setup, SimulationOptions};
+use treecal::sim::{run_trials, summarise};
 
 use crate::common::{simulated_robonaut as robonaut, SimulatedRobot as Robot};
 

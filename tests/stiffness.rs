@@ -7,7 +7,7 @@ use rand_distr::{Distribution, Normal};
 use treecal::calibration::{
     analyse_compliance, identify_stiffness, IdentificationOptions, StiffnessOptions,
 };
-use treecal::kinematics::flexibility::{ComplianceBasis, FlexibilityModel, Stiffness};
+use treecal::kinematics::{ComplianceBasis, FlexibilityModel, Stiffness};
 use treecal::math::pose_error;
 use treecal::measurement::{Measurement, Observation};
 use treecal::tree::{detect_branches, KinematicTree};
@@ -307,7 +307,7 @@ fn prior_drawn_trial(
     seed: u64,
     draw: &TruthDraw,
     prior: StiffnessOptions,
-) -> (treecal::sim::experiment::TrialReport, Vec<f64>) {
+) -> (treecal::sim::TrialReport, Vec<f64>) {
     let model_flexibility = &robot.flexibility;
     let parameters = ComplianceBasis::new(model_flexibility)
         .parameters()
@@ -325,18 +325,18 @@ fn prior_drawn_trial(
     let truth_flexibility = model_flexibility
         .with_compliance_scales(&parameters, &truth)
         .unwrap();
-    let setup = treecal::sim::experiment::Setup {
+    let setup = treecal::sim::Setup {
         truth_flexibility: &truth_flexibility,
         model_flexibility,
         ..robot.setup()
     };
-    let options = treecal::sim::experiment::SimulationOptions {
+    let options = treecal::sim::SimulationOptions {
         validation_poses: 2,
         seed,
         identify_stiffness: Some(prior),
         ..Default::default()
     };
-    let mut report = treecal::sim::monte_carlo::run_trials(&setup, &options, 1, &|| {}).unwrap();
+    let mut report = treecal::sim::run_trials(&setup, &options, 1, &|| {}).unwrap();
     (report.remove(0), truth)
 }
 

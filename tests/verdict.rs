@@ -12,7 +12,7 @@ use std::path::Path;
 use treecal::calibration::{CalibrationRun, Status, Verdict};
 use treecal::math::Vec3;
 use treecal::measurement::{Measurement, Observation};
-use treecal::sim::truth::{true_model, ErrorRanges};
+use treecal::sim::{true_model, ErrorRanges};
 use treecal::{load_urdf, Branches, KinematicTree, McpcModel};
 
 const SIGMA: f64 = 3e-5;

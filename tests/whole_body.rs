@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use treecal::io::{measurements_to_csv_with, AngleUnit, LengthUnit, MeasurementWriteOptions};
 use treecal::math::{pose, rotation_from_rpy, Pose, Vec3};
 use treecal::measurement::{Measurement, Observation};
-use treecal::sim::truth::{true_model, ErrorRanges};
+use treecal::sim::{true_model, ErrorRanges};
 use treecal::tree::{detect_branches_from, KinematicTree};
 use treecal::urdf::export_urdf;
 use treecal::{load_urdf, McpcModel};

@@ -7,10 +7,16 @@ use super::predictor::{Deflected, DeflectedWithDerivative, Rigid};
 use super::solver::{identify, IdentificationReport};
 use super::verdict::Finding;
 use crate::error::{Error, Result};
-use crate::kinematics::{McpcModel, McpcTool, ParameterOwner};
+use crate::kinematics::{McpcModel, ParameterOwner};
 use crate::measurement::Measurement;
 use crate::tree::Branches;
-use nalgebra::{DMatrix, DVector, Vector6};
+use nalgebra::Vector6;
+
+mod anderson;
+mod locked_arm;
+pub(super) use anderson::Anderson;
+use anderson::ANDERSON_DEPTH;
+pub use locked_arm::locked_arm_model;
 
 /// Which parameters a stage identifies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -156,6 +162,34 @@ pub enum Compensation<'a> {
     Exact(Deflected<'a>),
 }
 
+/// What every stage of one run of a plan shares.
+struct StageContext<'a> {
+    /// The model frames of the coupled branch's joints ([`coupled_frames`]).
+    coupled_frames: Vec<usize>,
+    compensation: Compensation<'a>,
+    options: &'a IdentificationOptions,
+    /// Eq. (26): the linear D_f of every measurement, once, at the starting model.
+    linear_offsets: Option<Vec<Vector6<f64>>>,
+    /// One predictor for all stages and cycles, so its Jacobian corrections are reused; it
+    /// exists exactly under exact compensation.
+    exact_predictor: Option<DeflectedWithDerivative<'a>>,
+    /// 1, or [`MAX_CYCLES`] for a staged plan under exact compensation.
+    max_cycles: usize,
+}
+
+/// One stage's measurements (indices and copies) and its options (the observation weights,
+/// robust estimation, of its measurements): the same in every cycle.
+struct StageInput {
+    selected: Vec<usize>,
+    data: Vec<Measurement>,
+    options: IdentificationOptions,
+}
+
+/// A coupled stage's identified reduced model (torso + locked-arm tools), the measurements
+/// re-pointed at those tools and their number, from the previous cycle: the next cycle starts
+/// from them, so the locked-arm tools need not be built or found again.
+type CoupledStart = Option<(McpcModel, Vec<Measurement>, usize)>;
+
 /// Runs `plan`: every stage starts from the previous stage's model.
 pub fn calibrate(
     branches: &Branches,
@@ -180,22 +214,6 @@ pub fn calibrate(
         .map(|s| s.parameters == ParameterSet::Coupled && coupled_frames.is_empty())
         .collect();
     let notes = skipped_stage_notes(plan, &skipped, measurements);
-    // Eq. (26): the linear D_f of every measurement, once, at the starting model.
-    let linear_offsets: Option<Vec<Vector6<f64>>> = match compensation {
-        Compensation::Linear(source) => Some(
-            measurements
-                .iter()
-                .map(|m| {
-                    Ok(source
-                        .flexibility
-                        .for_payload(m.payload)?
-                        .tool_deflections(source.tree, model, &m.q)?[m.tool])
-                })
-                .collect::<Result<_>>()?,
-        ),
-        _ => None,
-    };
-    let mut current = model.clone();
     // With exact compensation, a staged plan is repeated: the coupled stage needs the
     // deflections of arms that only the later stage calibrates.
     let staged = plan
@@ -203,24 +221,113 @@ pub fn calibrate(
         .iter()
         .zip(&skipped)
         .any(|(s, &skip)| s.parameters == ParameterSet::Coupled && !skip);
-    let max_cycles = if staged && matches!(compensation, Compensation::Exact(_)) {
-        MAX_CYCLES
-    } else {
-        1
+    let context = StageContext {
+        coupled_frames,
+        compensation,
+        options,
+        linear_offsets: linear_offsets(compensation, model, measurements)?,
+        exact_predictor: match compensation {
+            Compensation::Exact(source) => Some(DeflectedWithDerivative::new(source)),
+            _ => None,
+        },
+        max_cycles: if staged && matches!(compensation, Compensation::Exact(_)) {
+            MAX_CYCLES
+        } else {
+            1
+        },
     };
-    // One predictor for all stages and cycles, so its Jacobian corrections are reused.
-    let exact_predictor = match compensation {
-        Compensation::Exact(source) => Some(DeflectedWithDerivative::new(source)),
-        _ => None,
+    let inputs = stage_inputs(plan, &skipped, measurements, options)?;
+    let mut current = model.clone();
+    let mut reports = Vec::new();
+    let mut previous_coupled: Vec<CoupledStart> = vec![None; plan.stages.len()];
+    let mut acceleration = Anderson::new(ANDERSON_DEPTH);
+    let mut cycles = 0;
+    while cycles < context.max_cycles {
+        cycles += 1;
+        let before = current.parameters();
+        reports.clear();
+        for (index, stage) in plan.stages.iter().enumerate() {
+            if skipped[index] {
+                continue;
+            }
+            let input = &inputs[index];
+            reports.push(match stage.parameters {
+                ParameterSet::Coupled => coupled_stage(
+                    &context,
+                    stage,
+                    input,
+                    &mut current,
+                    &mut previous_coupled[index],
+                )?,
+                ParameterSet::Arms | ParameterSet::All => {
+                    free_stage(&context, stage, input, &mut current)?
+                }
+            });
+        }
+        let after = current.parameters();
+        if largest_change(&after, &before) <= CYCLE_TOLERANCE || cycles == context.max_cycles {
+            break;
+        }
+        // Start the next cycle from the Anderson-extrapolated fixed point rather than from
+        // this cycle's result: the cycles converge linearly (the stages are coupled through
+        // the deflections), the extrapolation makes that a few cycles.
+        let next = acceleration.next(&before, &after);
+        current.set_parameters(&next)?;
+    }
+    Ok(CalibrationReport {
+        model: current,
+        stages: reports,
+        cycles,
+        notes,
+    })
+}
+
+/// The largest absolute change between two parameter vectors.
+fn largest_change(after: &[f64], before: &[f64]) -> f64 {
+    after
+        .iter()
+        .zip(before)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Eq. (26): the linear D_f of every measurement, once, at the starting model (under linear
+/// compensation only).
+fn linear_offsets(
+    compensation: Compensation<'_>,
+    model: &McpcModel,
+    measurements: &[Measurement],
+) -> Result<Option<Vec<Vector6<f64>>>> {
+    let Compensation::Linear(source) = compensation else {
+        return Ok(None);
     };
-    // Each stage's measurements (indices and copies): the same in every cycle.
-    let mut stage_inputs: Vec<(Vec<usize>, Vec<Measurement>)> = Vec::new();
-    // Each stage's options: the observation weights (robust estimation) of its measurements.
-    let mut stage_options: Vec<IdentificationOptions> = Vec::new();
-    for (stage, &skip) in plan.stages.iter().zip(&skipped) {
+    measurements
+        .iter()
+        .map(|m| {
+            Ok(source
+                .flexibility
+                .for_payload(m.payload)?
+                .tool_deflections(source.tree, model, &m.q)?[m.tool])
+        })
+        .collect::<Result<_>>()
+        .map(Some)
+}
+
+/// Each stage's measurements and options (empty for a skipped stage).
+fn stage_inputs(
+    plan: &Plan,
+    skipped: &[bool],
+    measurements: &[Measurement],
+    options: &IdentificationOptions,
+) -> Result<Vec<StageInput>> {
+    let mut inputs = Vec::with_capacity(plan.stages.len());
+    for (stage, &skip) in plan.stages.iter().zip(skipped) {
         if skip {
-            stage_inputs.push((Vec::new(), Vec::new()));
-            stage_options.push(options.for_measurements(&[]));
+            inputs.push(StageInput {
+                selected: Vec::new(),
+                data: Vec::new(),
+                options: options.for_measurements(&[]),
+            });
             continue;
         }
         let selected: Vec<usize> = (0..measurements.len())
@@ -237,197 +344,185 @@ pub fn calibrate(
                 ),
             });
         }
-        let data = selected.iter().map(|&i| measurements[i].clone()).collect();
-        stage_options.push(options.for_measurements(&selected));
-        stage_inputs.push((selected, data));
+        inputs.push(StageInput {
+            data: selected.iter().map(|&i| measurements[i].clone()).collect(),
+            options: options.for_measurements(&selected),
+            selected,
+        });
     }
-    let mut reports = Vec::new();
-    // Per coupled stage, its identified reduced model (torso + locked-arm tools), the
-    // measurements re-pointed at those tools and their number, from the previous cycle: the
-    // next cycle starts from them, so the locked-arm tools need not be built or found again.
-    let mut previous_coupled: Vec<Option<(McpcModel, Vec<Measurement>, usize)>> =
-        vec![None; plan.stages.len()];
-    let mut acceleration = Anderson::new(ANDERSON_DEPTH);
-    let mut cycles = 0;
-    while cycles < max_cycles {
-        cycles += 1;
-        let before = current.parameters();
-        reports.clear();
-        for (index, stage) in plan.stages.iter().enumerate() {
-            if skipped[index] {
-                continue;
+    Ok(inputs)
+}
+
+/// A coupled stage: the torso frames (with the locked-arm tools as nuisance parameters) on the
+/// reduced model, copied back into `current`. Under exact compensation of a plan run once, it
+/// repeats with refreshed deflections until the torso stops moving.
+fn coupled_stage(
+    context: &StageContext<'_>,
+    stage: &Stage,
+    input: &StageInput,
+    current: &mut McpcModel,
+    previous: &mut CoupledStart,
+) -> Result<StageReport> {
+    let mut rounds = 0;
+    loop {
+        rounds += 1;
+        let offsets = coupled_offsets(context, input, current)?;
+        let (mut stage_model, stage_data, locked_tools) = match previous.take() {
+            // Same data, same groups: the locked tools start where the previous round found
+            // them, the torso frames (the first parameters of both models) where the model
+            // has them now.
+            Some((mut previous, stage_data, locked_tools)) => {
+                let mut values = previous.parameters();
+                let torso = previous.tool_parameter_offset(0);
+                values[..torso].copy_from_slice(&current.parameters()[..torso]);
+                previous.set_parameters(&values)?;
+                (previous, stage_data, locked_tools)
             }
-            let (selected, data) = &stage_inputs[index];
-            let report = match stage.parameters {
-                ParameterSet::Coupled => {
-                    let mut rounds = 0;
-                    loop {
-                        rounds += 1;
-                        // The reduced model cannot carry the flexibility model, so its deflections
-                        // enter as offsets: fixed for Linear, recomputed at the current torso for
-                        // Exact until they stop changing.
-                        let offsets: Option<Vec<Vector6<f64>>> = match compensation {
-                            Compensation::None => None,
-                            Compensation::Linear(_) => linear_offsets
-                                .as_ref()
-                                .map(|o| selected.iter().map(|&i| o[i]).collect()),
-                            Compensation::Exact(source) => Some(
-                                data.iter()
-                                    .map(|m| Ok(source.offsets(&current, &m.q, m.payload)?[m.tool]))
-                                    .collect::<Result<_>>()?,
-                            ),
-                        };
-                        let (mut stage_model, stage_data, locked_tools) = match previous_coupled
-                            [index]
-                            .take()
-                        {
-                            // Same data, same groups: the locked tools start where the
-                            // previous round found them, the torso frames (the first
-                            // parameters of both models) where the model has them now.
-                            Some((mut previous, stage_data, locked_tools)) => {
-                                let mut values = previous.parameters();
-                                let torso = previous.tool_parameter_offset(0);
-                                values[..torso].copy_from_slice(&current.parameters()[..torso]);
-                                previous.set_parameters(&values)?;
-                                (previous, stage_data, locked_tools)
-                            }
-                            None => locked_arm_model(&current, &coupled_frames, data, &stage.name)?,
-                        };
-                        let kept = position_only_orientations(&stage_model, &stage_data);
-                        // The torso frames' parameters are the first of both models.
-                        let shared: usize = stage_model
-                            .frames()
-                            .iter()
-                            .map(|f| f.kind.parameter_count())
-                            .sum();
-                        let mut free: Vec<usize> = (0..stage_model.parameter_count())
-                            .filter(|p| !kept.contains(p))
-                            .filter(|p| !(*p < shared && options.frozen.contains(p)))
-                            .collect();
-                        let gauge = reference_gauge(&stage_model, &free);
-                        free.retain(|p| !gauge.contains(p));
-                        let reduced = IdentificationOptions {
-                            prior: options.prior.as_ref().map(|prior| {
-                                prior.for_reduced_model(shared, stage_model.parameter_count())
-                            }),
-                            ..stage_options[index].clone()
-                        };
-                        let identification = identify(
-                            &stage_model,
-                            &stage_data,
-                            offsets.as_deref(),
-                            // The reduced model is rigid; its deflections come as offsets.
-                            &Rigid,
-                            &free,
-                            &reduced,
-                        )?;
-                        // Copy the torso frames back into the full model.
-                        let before = current.parameters();
-                        let mut values = before.clone();
-                        for (stage_frame, &frame) in coupled_frames.iter().enumerate() {
-                            let count = current.frames()[frame].kind.parameter_count();
-                            let from = stage_model.frame_parameter_offset(stage_frame);
-                            let to = current.frame_parameter_offset(frame);
-                            values[to..to + count]
-                                .copy_from_slice(&identification.parameters[from..from + count]);
-                        }
-                        current.set_parameters(&values)?;
-                        stage_model.set_parameters(&identification.parameters)?;
-                        if stage_model.has_frame_parameters() {
-                            // From a reference link the stage fits the measurement frame too.
-                            current.set_measurement_frame(&stage_model.world_from_base());
-                        }
-                        let frame_parameters = stage_model.has_frame_parameters();
-                        previous_coupled[index] = Some((stage_model, stage_data, locked_tools));
-                        let change = values
-                            .iter()
-                            .zip(&before)
-                            .map(|(a, b)| (a - b).abs())
-                            .fold(0.0, f64::max);
-                        // Repeat with refreshed offsets only when the whole plan is not being
-                        // repeated anyway (the outer cycles refresh them too, more cheaply).
-                        let again = matches!(compensation, Compensation::Exact(_))
-                            && max_cycles == 1
-                            && change > 1e-13
-                            && rounds < 8;
-                        if !again {
-                            break StageReport {
-                                name: stage.name.clone(),
-                                measurements: data.len(),
-                                locked_tools,
-                                frame_parameters,
-                                identification,
-                                kept,
-                                gauge,
-                            };
-                        }
-                    }
-                }
-                ParameterSet::Arms | ParameterSet::All => {
-                    let kept = position_only_orientations(&current, data);
-                    let mut free: Vec<usize> =
-                        stage_parameters(&current, &coupled_frames, stage.parameters)
-                            .into_iter()
-                            .filter(|p| !kept.contains(p) && !options.frozen.contains(p))
-                            .collect();
-                    let gauge = reference_gauge(&current, &free);
-                    free.retain(|p| !gauge.contains(p));
-                    let offsets: Option<Vec<Vector6<f64>>> = linear_offsets
-                        .as_ref()
-                        .map(|o| selected.iter().map(|&i| o[i]).collect());
-                    // The exact predictor exists exactly under exact compensation.
-                    let identification = match &exact_predictor {
-                        Some(predictor) => identify(
-                            &current,
-                            data,
-                            None,
-                            predictor,
-                            &free,
-                            &stage_options[index],
-                        )?,
-                        None => identify(
-                            &current,
-                            data,
-                            offsets.as_deref(),
-                            &Rigid,
-                            &free,
-                            &stage_options[index],
-                        )?,
-                    };
-                    current.set_parameters(&identification.parameters)?;
-                    StageReport {
-                        name: stage.name.clone(),
-                        measurements: data.len(),
-                        locked_tools: 0,
-                        frame_parameters: false,
-                        identification,
-                        kept,
-                        gauge,
-                    }
-                }
-            };
-            reports.push(report);
-        }
-        let after = current.parameters();
-        let change = after
+            None => locked_arm_model(current, &context.coupled_frames, &input.data, &stage.name)?,
+        };
+        let kept = position_only_orientations(&stage_model, &stage_data);
+        // The torso frames' parameters are the first of both models.
+        let shared: usize = stage_model
+            .frames()
             .iter()
-            .zip(&before)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        if change <= CYCLE_TOLERANCE || cycles == max_cycles {
-            break;
+            .map(|f| f.kind.parameter_count())
+            .sum();
+        let mut free: Vec<usize> = (0..stage_model.parameter_count())
+            .filter(|p| !kept.contains(p))
+            .filter(|p| !(*p < shared && context.options.frozen.contains(p)))
+            .collect();
+        let gauge = reference_gauge(&stage_model, &free);
+        free.retain(|p| !gauge.contains(p));
+        let reduced = IdentificationOptions {
+            prior: context
+                .options
+                .prior
+                .as_ref()
+                .map(|prior| prior.for_reduced_model(shared, stage_model.parameter_count())),
+            ..input.options.clone()
+        };
+        let identification = identify(
+            &stage_model,
+            &stage_data,
+            offsets.as_deref(),
+            // The reduced model is rigid; its deflections come as offsets.
+            &Rigid,
+            &free,
+            &reduced,
+        )?;
+        let change = copy_torso_back(context, &identification, &mut stage_model, current)?;
+        let frame_parameters = stage_model.has_frame_parameters();
+        *previous = Some((stage_model, stage_data, locked_tools));
+        // Repeat with refreshed offsets only when the whole plan is not being repeated anyway
+        // (the outer cycles refresh them too, more cheaply).
+        let again = matches!(context.compensation, Compensation::Exact(_))
+            && context.max_cycles == 1
+            && change > 1e-13
+            && rounds < 8;
+        if !again {
+            return Ok(StageReport {
+                name: stage.name.clone(),
+                measurements: input.data.len(),
+                locked_tools,
+                frame_parameters,
+                identification,
+                kept,
+                gauge,
+            });
         }
-        // Start the next cycle from the Anderson-extrapolated fixed point rather than from
-        // this cycle's result: the cycles converge linearly (the stages are coupled through
-        // the deflections), the extrapolation makes that a few cycles.
-        let next = acceleration.next(&before, &after);
-        current.set_parameters(&next)?;
     }
-    Ok(CalibrationReport {
-        model: current,
-        stages: reports,
-        cycles,
-        notes,
+}
+
+/// The deflections of a coupled stage's measurements. The reduced model cannot carry the
+/// flexibility model, so its deflections enter as offsets: fixed for Linear, recomputed at the
+/// current torso for Exact until they stop changing.
+fn coupled_offsets(
+    context: &StageContext<'_>,
+    input: &StageInput,
+    current: &McpcModel,
+) -> Result<Option<Vec<Vector6<f64>>>> {
+    Ok(match context.compensation {
+        Compensation::None => None,
+        Compensation::Linear(_) => context
+            .linear_offsets
+            .as_ref()
+            .map(|o| input.selected.iter().map(|&i| o[i]).collect()),
+        Compensation::Exact(source) => Some(
+            input
+                .data
+                .iter()
+                .map(|m| Ok(source.offsets(current, &m.q, m.payload)?[m.tool]))
+                .collect::<Result<_>>()?,
+        ),
+    })
+}
+
+/// Copies a coupled stage's identified torso frames (and, from a reference link, its
+/// measurement frame) back into the full model; returns how far the full model's parameters
+/// moved.
+fn copy_torso_back(
+    context: &StageContext<'_>,
+    identification: &IdentificationReport,
+    stage_model: &mut McpcModel,
+    current: &mut McpcModel,
+) -> Result<f64> {
+    let before = current.parameters();
+    let mut values = before.clone();
+    for (stage_frame, &frame) in context.coupled_frames.iter().enumerate() {
+        let count = current.frames()[frame].kind.parameter_count();
+        let from = stage_model.frame_parameter_offset(stage_frame);
+        let to = current.frame_parameter_offset(frame);
+        values[to..to + count].copy_from_slice(&identification.parameters[from..from + count]);
+    }
+    current.set_parameters(&values)?;
+    stage_model.set_parameters(&identification.parameters)?;
+    if stage_model.has_frame_parameters() {
+        // From a reference link the stage fits the measurement frame too.
+        current.set_measurement_frame(&stage_model.world_from_base());
+    }
+    Ok(largest_change(&values, &before))
+}
+
+/// An `Arms` or `All` stage on the full model.
+fn free_stage(
+    context: &StageContext<'_>,
+    stage: &Stage,
+    input: &StageInput,
+    current: &mut McpcModel,
+) -> Result<StageReport> {
+    let data = &input.data;
+    let kept = position_only_orientations(current, data);
+    let mut free: Vec<usize> = stage_parameters(current, &context.coupled_frames, stage.parameters)
+        .into_iter()
+        .filter(|p| !kept.contains(p) && !context.options.frozen.contains(p))
+        .collect();
+    let gauge = reference_gauge(current, &free);
+    free.retain(|p| !gauge.contains(p));
+    let offsets: Option<Vec<Vector6<f64>>> = context
+        .linear_offsets
+        .as_ref()
+        .map(|o| input.selected.iter().map(|&i| o[i]).collect());
+    // The exact predictor exists exactly under exact compensation.
+    let identification = match &context.exact_predictor {
+        Some(predictor) => identify(current, data, None, predictor, &free, &input.options)?,
+        None => identify(
+            current,
+            data,
+            offsets.as_deref(),
+            &Rigid,
+            &free,
+            &input.options,
+        )?,
+    };
+    current.set_parameters(&identification.parameters)?;
+    Ok(StageReport {
+        name: stage.name.clone(),
+        measurements: data.len(),
+        locked_tools: 0,
+        frame_parameters: false,
+        identification,
+        kept,
+        gauge,
     })
 }
 
@@ -522,161 +617,4 @@ pub fn stage_parameters(
         })
         .map(|(i, _)| i)
         .collect()
-}
-
-/// The coupled-stage model: the torso frames plus one rigid tool per distinct (tool, locked arm
-/// configuration), and the measurements re-pointed at those tools; also the number of those
-/// tools. Whether the locked tools are determined by the data is left to the solver's rank
-/// analysis. `coupled_frames` are the model frames of the coupled branch's joints; the pose
-/// planner uses this too, so that it plans for exactly the model the stage identifies.
-pub fn locked_arm_model(
-    model: &McpcModel,
-    coupled_frames: &[usize],
-    data: &[Measurement],
-    stage: &str,
-) -> Result<(McpcModel, Vec<Measurement>, usize)> {
-    let frames: Vec<_> = coupled_frames
-        .iter()
-        .map(|&f| model.frames()[f].clone())
-        .collect();
-    for (index, frame) in frames.iter().enumerate() {
-        if frame.parent.is_some_and(|p| p >= index) || coupled_frames[index] != index {
-            return Err(Error::InvalidData {
-                origin: format!("stage '{stage}'"),
-                message: "the coupled branch's frames must come first in the model".into(),
-            });
-        }
-    }
-    // Arm joint values of a measurement: every frame not in the coupled branch on its chain.
-    let arm_values = |m: &Measurement| -> Vec<f64> {
-        model
-            .tool_chain(m.tool)
-            .iter()
-            .filter(|f| !coupled_frames.contains(f))
-            .map(|&f| model.joint_value(f, &m.q))
-            .collect()
-    };
-    let mut groups: Vec<(usize, Vec<f64>, Vec<f64>)> = Vec::new(); // (tool, arm values, one q)
-    let mut stage_data = Vec::with_capacity(data.len());
-    for m in data {
-        let values = arm_values(m);
-        let group = match groups.iter().position(|(tool, v, _)| {
-            *tool == m.tool && v.iter().zip(&values).all(|(a, b)| (a - b).abs() <= 1e-9)
-        }) {
-            Some(g) => g,
-            None => {
-                groups.push((m.tool, values, m.q.clone()));
-                groups.len() - 1
-            }
-        };
-        let mut moved = m.clone();
-        moved.tool = group;
-        stage_data.push(moved);
-    }
-    let mut tools = Vec::with_capacity(groups.len());
-    for (tool, _, q) in &groups {
-        // The tool's last coupled frame (the last coupled frame, unless a reference link's
-        // path runs through coupled frames off the tool's chain).
-        let last = model
-            .tool_chain(*tool)
-            .iter()
-            .rev()
-            .find(|f| coupled_frames.contains(f))
-            .copied();
-        let world_from_tool = model.tool_pose(*tool, q);
-        let world_from_last = match last {
-            Some(f) => model.moved(f, q, &model.frame_transforms(q)[f]).to_pose(),
-            None => model.world_from_root(q),
-        };
-        let twist = last.map_or(0.0, |f| model.frames()[f].twist);
-        let link = model.tools()[*tool].link;
-        tools.push(McpcTool::from_relative_pose(
-            link,
-            last,
-            twist,
-            &(world_from_last.inverse() * world_from_tool),
-        ));
-    }
-    let mut stage_model = McpcModel::new(frames, tools)?;
-    if let Some(reference) = model.reference() {
-        if !model
-            .reference_chain()
-            .iter()
-            .all(|f| coupled_frames.contains(f))
-        {
-            return Err(Error::InvalidData {
-                origin: format!("stage '{stage}'"),
-                message:
-                    "the reference link's path leaves the coupled branch; use the simultaneous plan"
-                        .into(),
-            });
-        }
-        stage_model.set_reference(Some(reference.clone()))?;
-    }
-    stage_model.set_world_from_base(&model.world_from_base());
-    Ok((stage_model, stage_data, groups.len()))
-}
-
-/// How many earlier cycles the Anderson extrapolation of a repeated plan uses.
-const ANDERSON_DEPTH: usize = 3;
-
-/// Anderson acceleration (type II) of the fixed-point iteration `x ← G(x)` formed by the
-/// cycles of a repeated plan (Walker & Ni, SIAM J. Numer. Anal. 49, 2011): the next start is
-/// `G(xₖ) − ΔG·γ` with `γ` the least-squares fit of the latest residual `fₖ = G(xₖ) − xₖ` by
-/// the last residual differences `ΔF`. Falls back to the plain step `G(xₖ)` whenever the
-/// residual grew, so it is never worse than repeating the plan.
-pub(super) struct Anderson {
-    depth: usize,
-    /// `(G(x), f)` of the latest cycles, oldest first.
-    history: Vec<(DVector<f64>, DVector<f64>)>,
-}
-
-impl Anderson {
-    pub(super) fn new(depth: usize) -> Self {
-        Self {
-            depth,
-            history: Vec::new(),
-        }
-    }
-
-    /// The start of the next cycle, given this cycle's start `x` and result `g = G(x)`.
-    pub(super) fn next(&mut self, x: &[f64], g: &[f64]) -> Vec<f64> {
-        let g = DVector::from_column_slice(g);
-        let f = &g - DVector::from_column_slice(x);
-        if self
-            .history
-            .last()
-            .is_some_and(|(_, previous)| f.norm() >= previous.norm())
-        {
-            self.history.clear();
-        }
-        self.history.push((g.clone(), f.clone()));
-        if self.history.len() > self.depth + 1 {
-            self.history.remove(0);
-        }
-        let columns = self.history.len() - 1;
-        if columns == 0 {
-            return g.as_slice().to_vec();
-        }
-        let n = g.len();
-        let mut delta_f = DMatrix::zeros(n, columns);
-        let mut delta_g = DMatrix::zeros(n, columns);
-        for k in 0..columns {
-            delta_f.set_column(k, &(&self.history[k + 1].1 - &self.history[k].1));
-            delta_g.set_column(k, &(&self.history[k + 1].0 - &self.history[k].0));
-        }
-        // Small least-squares problem: SVD with a relative cut keeps it stable when the
-        // differences are nearly parallel.
-        if !delta_f.iter().chain(f.iter()).all(|v| v.is_finite()) {
-            // No SVD of a non-finite matrix (it never ends): take the plain step.
-            return g.as_slice().to_vec();
-        }
-        let svd = delta_f.svd(true, true);
-        match svd.solve(&f, 1e-10 * svd.singular_values.max()) {
-            Ok(gamma) if gamma.iter().all(|v| v.is_finite()) => {
-                (g - delta_g * gamma).as_slice().to_vec()
-            }
-            _ => g.as_slice().to_vec(),
-        }
-    }
 }

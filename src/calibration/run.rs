@@ -4,46 +4,31 @@
 pub use super::frame::MeasurementFrame;
 use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame};
 pub use super::hold_out::{hold_out, hold_out_indices};
+use super::initial_guess::InitialGuess;
 use super::observation::kind_of;
 use super::options::IdentificationOptions;
 pub use super::outcome::{
     ArmResiduals, CalibrationRun, ErrorSummary, FrameRefinement, ParameterEstimate,
 };
-use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
+use super::plan::{CalibrationReport, Compensation};
 use super::predictor::Deflected;
 use super::robust::{self, DataSet, Outlier, RobustLoss, RobustReport};
 use super::sessions::{
     calibrate_sessions, finish_sessions, session_findings, validation_in_training_frames,
-    SessionCalibration, Sessions,
+    SessionCalibration, Sessions, SessionsReport,
 };
 use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::Pose;
 use crate::measurement::Measurement;
-use crate::tree::{Branches, KinematicTree};
-use nalgebra::{DMatrix, DVector};
-use rayon::prelude::*;
+use nalgebra::DMatrix;
 
-/// What a calibration is run on and how.
-#[derive(Debug, Clone, Copy)]
-pub struct CalibrationInput<'a> {
-    /// The robot.
-    pub tree: &'a KinematicTree,
-    /// Its coupled branch and arms.
-    pub branches: &'a Branches,
-    /// The nominal MCPC model of `branches`.
-    pub nominal: &'a McpcModel,
-    /// The flexibility model, for exact compensation; `None` calibrates a rigid robot.
-    pub flexibility: Option<&'a FlexibilityModel>,
-    /// The stages.
-    pub plan: &'a Plan,
-    /// Row weights, tolerances.
-    pub options: &'a IdentificationOptions,
-    /// Where the measurements are: fitted, the root frame, a known registration, or `Auto`
-    /// (see [`MeasurementFrame`]); the tool frames are always fitted.
-    pub measurement_frame: MeasurementFrame,
-}
+mod frame_refinement;
+mod input;
+use frame_refinement::refine_measurement_frame;
+pub use frame_refinement::{FRAME_PRIOR_ANGLE, FRAME_PRIOR_LENGTH};
+pub use input::CalibrationInput;
 
 /// Calibrates from `measurements` and evaluates the result on them and on `validation`.
 pub fn run_calibration(
@@ -84,30 +69,17 @@ pub fn run_calibration(
     // From here on every row is in the first session's frame (validation: the training frame).
     let measurements = &in_first_frame[..];
     let validation = &validation_in_training_frames(validation, Some(&sessions))[..];
-    let mut frame_refinement = None;
-    if let (true, Some(flexibility)) = (fitted_frame, input.flexibility) {
-        // The frame is refined with the robust weights found, the outliers left out.
-        let weighted = IdentificationOptions {
-            observation_weights: robust.fit_weights(),
-            ..input.options.clone()
-        };
-        let weighted_input = CalibrationInput {
-            options: &weighted,
-            ..*input
-        };
-        let refined =
-            refine_measurement_frame(&weighted_input, flexibility, measurements, &report)?;
-        guess.world_from_base = refined.report.model.world_from_base();
-        report = refined.report;
-        frame_refinement = Some(refined.summary);
-        robust.residuals = robust::residuals(
-            &report.model,
+    let frame_refinement = match (fitted_frame, input.flexibility) {
+        (true, Some(flexibility)) => Some(refine_frame(
+            input,
+            (flexibility, compensation),
             measurements,
-            compensation,
-            None,
-            input.options,
-        )?;
-    }
+            &mut guess,
+            &mut report,
+            &mut robust,
+        )?),
+        _ => None,
+    };
     let outliers = name_outliers(
         input,
         &report,
@@ -126,55 +98,19 @@ pub fn run_calibration(
         input.options,
     )?;
     let validation_strata = super::validation::strata(&report.model, measurements, validation);
-    // The identification rows the fit kept, with their indices in the data given (for the
-    // reports' row ids); every validation row counts (its outliers are only marked).
-    let (measurement_rows, measurements): (Vec<usize>, Vec<Measurement>) = measurements
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| {
-            !outliers
-                .iter()
-                .any(|o| o.set == DataSet::Identification && o.index == *i)
-        })
-        .map(|(i, m)| (i, m.clone()))
-        .unzip();
-    let validation_rows: Vec<usize> = (0..validation.len()).collect();
+    // Every validation row counts (its outliers are only marked).
+    let (measurement_rows, measurements) = kept_rows(measurements, &outliers);
     let measurements = &measurements[..];
     let parameters = estimates(input, &guess.model, &report);
-    let predict = |model: &McpcModel, q: &[f64], payload: Option<f64>| -> Result<Vec<Pose>> {
-        match input.flexibility {
-            Some(flexibility) => flexibility
-                .for_payload(payload)?
-                .deflected_tool_poses(input.tree, model, q),
-            None => Ok(model.tool_poses(q)),
-        }
-    };
-    let residuals = |data: &[Measurement], rows: &[usize]| -> Result<Vec<ArmResiduals>> {
-        arm_residuals(
-            input,
-            data,
-            rows,
-            &|q, _| Ok(baseline.tool_poses(q)),
-            &|q, payload| predict(&report.model, q, payload),
-        )
-    };
-    let identification = residuals(measurements, &measurement_rows)?;
-    let validation_residuals = if validation.is_empty() {
-        Vec::new()
-    } else {
-        residuals(validation, &validation_rows)?
-    };
+    let (identification, validation_residuals) = before_and_after(
+        input,
+        &baseline,
+        &report,
+        (measurements, &measurement_rows),
+        validation,
+    )?;
     let predicted_validation_sd_mm = predicted_spread(&report, validation);
-    let predicted_validation_rms_mm = (!predicted_validation_sd_mm.is_empty())
-        .then(|| {
-            (predicted_validation_sd_mm
-                .iter()
-                .map(|s| s * s)
-                .sum::<f64>()
-                / predicted_validation_sd_mm.len() as f64)
-                .sqrt()
-        })
-        .filter(|rms| rms.is_finite());
+    let predicted_validation_rms_mm = root_mean_square(&predicted_validation_sd_mm);
     let sessions = finish_sessions(
         sessions,
         &report.model,
@@ -183,15 +119,14 @@ pub fn run_calibration(
         compensation,
         input.options,
     )?;
-    let mut findings = vec![frame_finding];
-    findings.extend(sessions.iter().flat_map(session_findings));
-    findings.extend(report.notes.iter().cloned());
-    findings.extend(outlier_finding(
-        &robust,
-        &outliers,
+    let findings = first_findings(
+        frame_finding,
+        &sessions,
+        &report,
+        (&robust, &outliers),
         measurements.len(),
         validation.len(),
-    ));
+    );
     let mut run = CalibrationRun {
         guess,
         frame,
@@ -209,7 +144,132 @@ pub fn run_calibration(
         validation_strata,
         sessions,
     };
-    let found = super::checks::assess(&run, input.tree);
+    assess(input, &mut run, measurements, fitted_frame)?;
+    Ok(run)
+}
+
+/// The identification rows the fit kept, with their indices in the data given (for the
+/// reports' row ids).
+fn kept_rows(measurements: &[Measurement], outliers: &[Outlier]) -> (Vec<usize>, Vec<Measurement>) {
+    measurements
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            !outliers
+                .iter()
+                .any(|o| o.set == DataSet::Identification && o.index == *i)
+        })
+        .map(|(i, m)| (i, m.clone()))
+        .unzip()
+}
+
+/// The findings of the calibration itself, in order: the measurement frame's, the sessions',
+/// the plan's notes and the outliers' (`kept_identification` and `validation` as in
+/// [`outlier_finding`]).
+fn first_findings(
+    frame_finding: Finding,
+    sessions: &Option<SessionsReport>,
+    report: &CalibrationReport,
+    (robust, outliers): (&RobustReport, &[Outlier]),
+    kept_identification: usize,
+    validation: usize,
+) -> Vec<Finding> {
+    let mut findings = vec![frame_finding];
+    findings.extend(sessions.iter().flat_map(session_findings));
+    findings.extend(report.notes.iter().cloned());
+    findings.extend(outlier_finding(
+        robust,
+        outliers,
+        kept_identification,
+        validation,
+    ));
+    findings
+}
+
+/// The measurement frame refined ([`refine_measurement_frame`]) with the robust weights
+/// found, the outliers left out; `guess`, `report` and the robust residuals follow it.
+fn refine_frame(
+    input: &CalibrationInput<'_>,
+    (flexibility, compensation): (&FlexibilityModel, Compensation<'_>),
+    measurements: &[Measurement],
+    guess: &mut InitialGuess,
+    report: &mut CalibrationReport,
+    robust: &mut RobustReport,
+) -> Result<FrameRefinement> {
+    let weighted = IdentificationOptions {
+        observation_weights: robust.fit_weights(),
+        ..input.options.clone()
+    };
+    let weighted_input = CalibrationInput {
+        options: &weighted,
+        ..*input
+    };
+    let refined = refine_measurement_frame(&weighted_input, flexibility, measurements, report)?;
+    guess.world_from_base = refined.report.model.world_from_base();
+    *report = refined.report;
+    robust.residuals = robust::residuals(
+        &report.model,
+        measurements,
+        compensation,
+        None,
+        input.options,
+    )?;
+    Ok(refined.summary)
+}
+
+/// The per-arm errors before (the registered nominal `baseline`) and after (the calibrated
+/// model) on the identification rows the fit kept (with their indices in the data given) and on
+/// every validation row.
+fn before_and_after(
+    input: &CalibrationInput<'_>,
+    baseline: &McpcModel,
+    report: &CalibrationReport,
+    (measurements, measurement_rows): (&[Measurement], &[usize]),
+    validation: &[Measurement],
+) -> Result<(Vec<ArmResiduals>, Vec<ArmResiduals>)> {
+    let validation_rows: Vec<usize> = (0..validation.len()).collect();
+    let predict = |model: &McpcModel, q: &[f64], payload: Option<f64>| -> Result<Vec<Pose>> {
+        match input.flexibility {
+            Some(flexibility) => flexibility
+                .for_payload(payload)?
+                .deflected_tool_poses(input.tree, model, q),
+            None => Ok(model.tool_poses(q)),
+        }
+    };
+    let residuals = |data: &[Measurement], rows: &[usize]| -> Result<Vec<ArmResiduals>> {
+        arm_residuals(
+            input,
+            data,
+            rows,
+            &|q, _| Ok(baseline.tool_poses(q)),
+            &|q, payload| predict(&report.model, q, payload),
+        )
+    };
+    let identification = residuals(measurements, measurement_rows)?;
+    let validation_residuals = if validation.is_empty() {
+        Vec::new()
+    } else {
+        residuals(validation, &validation_rows)?
+    };
+    Ok((identification, validation_residuals))
+}
+
+/// The root mean square of `values`, if there are some and it is finite.
+fn root_mean_square(values: &[f64]) -> Option<f64> {
+    (!values.is_empty())
+        .then(|| (values.iter().map(|s| s * s).sum::<f64>() / values.len() as f64).sqrt())
+        .filter(|rms| rms.is_finite())
+}
+
+/// Adds the checks' findings to `run`, and, when the residuals are far above the noise, a root
+/// cause found in the joint columns.
+fn assess(
+    input: &CalibrationInput<'_>,
+    run: &mut CalibrationRun,
+    measurements: &[Measurement],
+    fitted_frame: bool,
+) -> Result<()> {
+    let found = super::checks::assess(run, input.tree);
     run.findings.extend(found);
     // Residuals far above the noise: look for a root cause in the joint columns.
     let suspicious = run.report.stages.iter().any(|s| {
@@ -230,7 +290,7 @@ pub fn run_calibration(
         }
     }
     super::columns::mark_consequences(&mut run.findings);
-    Ok(run)
+    Ok(())
 }
 
 /// The outliers of the identification data (the robust fit's) and of the validation data
@@ -481,186 +541,6 @@ fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> V
                 * 1e3
         })
         .collect()
-}
-
-struct Refined {
-    report: CalibrationReport,
-    summary: FrameRefinement,
-}
-
-/// Rigid kinematics cannot tell the measurement frame from the MCPC parameters (the model is
-/// complete: any frame error is absorbed by them), but the deflections can: gravity and the
-/// lever arms of the loads are fixed in space, and the absorbed parametrisation places joints
-/// and masses differently. A frame fitted to the nominal model (off by the geometric errors)
-/// therefore leaves a systematic error of the order of deflection × relative geometric error.
-/// This refines the six frame parameters by variable projection: Gauss–Newton on the weighted
-/// residual *after* calibrating the parameters at each trial frame, with forward-difference
-/// derivatives (each a warm-started calibration) and a Gaussian prior centred on the closed-form
-/// frame ([`FRAME_PRIOR_LENGTH`], [`FRAME_PRIOR_ANGLE`]) for the directions the data leave free.
-fn refine_measurement_frame(
-    input: &CalibrationInput<'_>,
-    flexibility: &FlexibilityModel,
-    measurements: &[Measurement],
-    start: &CalibrationReport,
-) -> Result<Refined> {
-    let predictor = Deflected {
-        tree: input.tree,
-        flexibility,
-    };
-    let residual_of = |report: &CalibrationReport| {
-        super::linearise::weighted_residual(&report.model, measurements, &predictor, input.options)
-    };
-    let calibrate_at = |from: &McpcModel, frame: &Pose| -> Result<CalibrationReport> {
-        let mut model = from.clone();
-        model.set_world_from_base(frame);
-        calibrate(
-            input.branches,
-            &model,
-            measurements,
-            Compensation::Exact(predictor),
-            input.plan,
-            input.options,
-        )
-    };
-    // Frame perturbation: world_from_base ← exp(δ)·world_from_base, δ = (translation, rotation)
-    // in the measurement frame.
-    let moved = |frame: &Pose, delta: &[f64]| -> Pose {
-        let rotation = nalgebra::UnitQuaternion::from_scaled_axis(nalgebra::Vector3::new(
-            delta[3], delta[4], delta[5],
-        ));
-        // Turned about the frame's own origin, not the measurement origin.
-        let origin =
-            frame.translation.vector + nalgebra::Vector3::new(delta[0], delta[1], delta[2]);
-        Pose::from_parts(origin.into(), rotation * frame.rotation)
-    };
-    const STEP: f64 = 1e-4;
-    const MAX_ITERATIONS: usize = 10;
-    let initial_frame = start.model.world_from_base();
-    // The correction from the closed-form frame as (translation, rotation vector).
-    let correction_of = |frame: &Pose| -> DVector<f64> {
-        let t = frame.translation.vector - initial_frame.translation.vector;
-        let r = (frame.rotation * initial_frame.rotation.inverse()).scaled_axis();
-        DVector::from_column_slice(&[t.x, t.y, t.z, r.x, r.y, r.z])
-    };
-    let prior: DVector<f64> = DVector::from_column_slice(&[
-        1.0 / FRAME_PRIOR_LENGTH,
-        1.0 / FRAME_PRIOR_LENGTH,
-        1.0 / FRAME_PRIOR_LENGTH,
-        1.0 / FRAME_PRIOR_ANGLE,
-        1.0 / FRAME_PRIOR_ANGLE,
-        1.0 / FRAME_PRIOR_ANGLE,
-    ]);
-    let total_cost = |residual: &DVector<f64>, frame: &Pose| -> f64 {
-        0.5 * residual.norm_squared()
-            + 0.5 * correction_of(frame).component_mul(&prior).norm_squared()
-    };
-    let mut current = start.clone();
-    let mut residual = residual_of(&current)?;
-    let initial_cost = 0.5 * residual.norm_squared();
-    let mut iterations = 0;
-    let mut determined = 0;
-    let mut damping = 0.0;
-    while iterations < MAX_ITERATIONS {
-        let frame = current.model.world_from_base();
-        // The six columns are independent calibrations: run them on all cores.
-        let columns: Vec<DVector<f64>> = (0..6)
-            .into_par_iter()
-            .map(|k| -> Result<DVector<f64>> {
-                let mut delta = [0.0; 6];
-                delta[k] = STEP;
-                let shifted = calibrate_at(&current.model, &moved(&frame, &delta))?;
-                Ok((residual_of(&shifted)? - &residual) / STEP)
-            })
-            .collect::<Result<_>>()?;
-        let jacobian = DMatrix::from_columns(&columns);
-        crate::limits::ensure_finite(
-            jacobian.iter().chain(residual.iter()),
-            "measurement frame refinement: the Jacobian",
-        )?;
-        let singular_values = jacobian.clone().svd(false, false).singular_values;
-        let largest = singular_values.max();
-        // Directions the data determine better than the prior does.
-        determined = singular_values
-            .iter()
-            .filter(|&&s| s > 1.0 / FRAME_PRIOR_LENGTH.max(FRAME_PRIOR_ANGLE) && s > 1e-6 * largest)
-            .count();
-        let cost = total_cost(&residual, &frame);
-        let weights = prior.component_mul(&prior);
-        let normal = jacobian.tr_mul(&jacobian) + DMatrix::from_diagonal(&weights);
-        let gradient = jacobian.tr_mul(&residual) + correction_of(&frame).component_mul(&weights);
-        let mut accepted = false;
-        let mut converged = false;
-        for _ in 0..10 {
-            let damped = &normal + DMatrix::identity(6, 6) * damping;
-            let Some(cholesky) = damped.cholesky() else {
-                break;
-            };
-            let step = -cholesky.solve(&gradient);
-            let trial_frame = moved(&frame, step.as_slice());
-            let trial = calibrate_at(&current.model, &trial_frame)?;
-            let trial_residual = residual_of(&trial)?;
-            let trial_cost = total_cost(&trial_residual, &trial_frame);
-            if trial_cost < cost {
-                current = trial;
-                residual = trial_residual;
-                damping *= 0.1;
-                accepted = true;
-                iterations += 1;
-                // Past the noise floor the cost creeps along the valley the data leave
-                // free; a relative decrease of 1e-5 is far below what noise tells apart.
-                converged = step.norm() < 1e-9 || cost - trial_cost <= 1e-5 * cost;
-                break;
-            }
-            damping = if damping == 0.0 {
-                1e-6 * normal.diagonal().max()
-            } else {
-                damping * 10.0
-            };
-        }
-        if !accepted || converged {
-            break;
-        }
-    }
-    Ok(finish(
-        current,
-        residual,
-        initial_cost,
-        iterations,
-        determined,
-        &initial_frame,
-    ))
-}
-
-/// How far (m) the refined measurement frame is expected to be from the closed-form fit: the
-/// scale of a Gaussian prior that keeps the directions the deflections hardly see (such as a
-/// turn about the vertical) where the closed form put them.
-pub const FRAME_PRIOR_LENGTH: f64 = 0.01;
-
-/// The same for rotations (rad).
-pub const FRAME_PRIOR_ANGLE: f64 = 0.01;
-
-fn finish(
-    report: CalibrationReport,
-    residual: DVector<f64>,
-    initial_cost: f64,
-    iterations: usize,
-    determined: usize,
-    initial_frame: &Pose,
-) -> Refined {
-    let frame = report.model.world_from_base();
-    let change = frame * initial_frame.inverse();
-    Refined {
-        summary: FrameRefinement {
-            iterations,
-            cost: [initial_cost, 0.5 * residual.norm_squared()],
-            correction: [
-                change.rotation.angle(),
-                (frame.translation.vector - initial_frame.translation.vector).norm(),
-            ],
-            determined,
-        },
-        report,
-    }
 }
 
 /// The percentage of `before` that `after` removed (0 when there was nothing to remove).

@@ -4,7 +4,7 @@
 
 use crate::limits::{MAX_MESH_BYTES, MAX_MESH_VERTICES};
 use crate::math::Vec3;
-use crate::sim::mesh::MeshLookup;
+use crate::sim::MeshLookup;
 use std::path::{Path, PathBuf};
 
 /// Where a URDF mesh file name points: `package://pkg/rest` is looked up in each of
@@ -30,7 +30,7 @@ pub fn resolve_mesh(filename: &str, urdf_dir: &Path, package_dirs: &[PathBuf]) -
     found(urdf_dir.join(filename))
 }
 
-/// A loader for [`crate::sim::collision::CollisionChecker::with_meshes`] that resolves names
+/// A loader for [`crate::sim::CollisionChecker::with_meshes`] that resolves names
 /// with [`resolve_mesh`] and reads the file's vertices with [`read_mesh_vertices`].
 pub fn mesh_file_loader(
     urdf_dir: PathBuf,
@@ -46,7 +46,7 @@ pub fn mesh_file_loader(
 /// told by the extension or else the contents; [`MeshLookup::Unreadable`] with the reason when
 /// the file cannot be read or parsed or holds no vertices.
 ///
-/// The file is read through the bounded reader ([`crate::io::bounded`]: regular files only, at
+/// The file is read through the bounded reader ([`crate::io::read_text`]: regular files only, at
 /// most [`MAX_MESH_BYTES`]). COLLADA goes to treecal's own reader (`src/io/collada.rs`), STL and
 /// OBJ to `mesh-loader`, which opens no other file: an OBJ's `mtllib` (materials, not needed
 /// for a hull) is never read, so it cannot name a FIFO that blocks the command.

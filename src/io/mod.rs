@@ -1,39 +1,52 @@
 //! Reading and writing data files (YAML, CSV, MCAP): the only users of serde_yaml, csv and
 //! mcap.
 
-pub mod bounded;
+mod bounded;
 pub mod camera_yaml;
 mod collada;
 pub mod contacts_csv;
 pub mod contacts_yaml;
 mod csv_scan;
 pub mod detections_csv;
-pub mod joint_log;
-pub mod joint_log_mcap;
+mod joint_log;
+mod joint_log_mcap;
 mod joint_log_read;
-pub mod joints_csv;
+mod joints_csv;
 mod joints_stream;
 mod json_rows;
-pub mod mcpc_table;
-pub mod measurement_table;
-pub mod measurements_csv;
-pub mod mesh_files;
-pub mod observations;
-pub mod output_lock;
-pub mod overlay;
-pub mod paired_csv;
-pub mod params;
-pub mod plan;
-pub mod poses_csv;
-pub mod provenance;
-pub mod registration;
-pub mod ros_joint_state;
-pub mod stiffness;
-pub mod stiffness_write;
-pub mod tracker_log;
-pub mod units;
-pub mod write;
+mod mcpc_table;
+mod measurement_table;
+mod measurements_csv;
+mod mesh_files;
+mod observations;
+mod output_lock;
+mod overlay;
+mod paired_csv;
+mod params;
+mod plan;
+mod poses_csv;
+mod provenance;
+mod registration;
+mod ros_joint_state;
+mod stiffness;
+mod stiffness_write;
+mod tracker_log;
+mod units;
+mod write;
 mod yaml;
+
+pub use joint_log::MAX_TIME;
+pub use joint_log_mcap::{is_mcap, read_joint_log_mcap, JOINT_STATE_SCHEMA, MAX_MCAP_RECORD_BYTES};
+pub use measurements_csv::{PAYLOAD_COLUMN, POINT_COLUMN, SESSION_COLUMN};
+pub use observations::ROTATION_MATRIX_TOLERANCE;
+pub use output_lock::{lock_output, recover, swap_in};
+pub use poses_csv::STAGES;
+pub use provenance::{
+    input_file, sha256_hex, utc_iso8601, InputFile, Program, ProvenanceRecord, RunFacts,
+    GIT_COMMIT, PROVENANCE_FILE,
+};
+pub use ros_joint_state::{decode_joint_state, JointStateMessage};
+pub use tracker_log::TRACKER_KEYS;
 
 pub use bounded::{read_bytes, read_text};
 pub use joint_log::{parse_joint_log_csv, read_joint_log, JointLog, JointLogOptions};

@@ -8,7 +8,7 @@ use super::joints_csv::{configurations, ColumnMapping, CsvTable};
 use crate::calibration::PoseRow;
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
-use crate::sim::planning::PlannedPose;
+use crate::sim::PlannedPose;
 use crate::tree::KinematicTree;
 
 /// The stage labels a pose row may carry (those of the staged plan).

@@ -3,10 +3,10 @@
 //! key is optional and defaults to [`Stiffness::default`]. See `docs/flexibility.md`.
 
 use crate::error::{Error, Result};
-use crate::kinematics::flexibility::names::Names;
-use crate::kinematics::flexibility::stiffness::{mass_problem, stiffness_problem};
-use crate::kinematics::flexibility::{JointStiffness, LinkStiffness, Payload, Stiffness};
 use crate::kinematics::McpcModel;
+use crate::kinematics::Names;
+use crate::kinematics::{mass_problem, stiffness_problem};
+use crate::kinematics::{JointStiffness, LinkStiffness, Payload, Stiffness};
 use crate::limits::{magnitude_problem, Quantity, MAX_MASS, MIN_STIFFNESS};
 use crate::math::Vec3;
 use crate::tree::KinematicTree;

@@ -1,7 +1,7 @@
 //! Writing stiffness data in the stiffness YAML format (`docs/flexibility.md`, section 8), so
 //! that an identified stiffness can be given back to `--stiffness`.
 
-use crate::kinematics::flexibility::{JointStiffness, LinkStiffness, Stiffness};
+use crate::kinematics::{JointStiffness, LinkStiffness, Stiffness};
 use std::fmt::Write;
 
 /// `stiffness` as a stiffness file, with `comment` (one or more lines) at the top. Reads back

@@ -4,7 +4,7 @@
 
 use super::bounded::read_text;
 use super::joint_log::{number, MAX_TIME};
-use super::joints_csv::parse_csv;
+use super::joints_csv::{parse_csv, CsvTable};
 use super::units::{parse_units_header, resolve_units, LengthUnit, StatedUnits};
 use crate::error::{Error, Result};
 use crate::limits::{self, Quantity, MAX_CSV_BYTES};
@@ -102,58 +102,13 @@ pub fn parse_tracker_log(
     origin: &str,
     options: &TrackerLogOptions,
 ) -> Result<TrackerLog> {
-    let stated = parse_units_header(text, origin)?;
-    let flags = StatedUnits {
-        length: options.length_unit,
-        ..StatedUnits::default()
-    };
-    let header = StatedUnits {
-        length: stated.length,
-        ..StatedUnits::default()
-    };
-    let length_unit = resolve_units(
-        &flags,
-        &StatedUnits {
-            line: stated.line,
-            ..header
-        },
-        origin,
-    )?
-    .length;
+    let length_unit = length_unit(text, origin, options)?;
     let table = parse_csv(text, origin)?;
-    let names = &options.columns.names;
-    let find = |key: usize| table.headers.iter().position(|h| *h == names[key]);
-    let missing = |keys: &[usize]| {
-        keys.iter()
-            .filter(|&&k| find(k).is_none())
-            .map(|&k| format!("'{}' ({})", names[k], TRACKER_KEYS[k]))
-            .collect::<Vec<_>>()
-    };
-    let required = missing(&[0, 1, 2, 3]);
-    let quaternion = missing(&[4, 5, 6, 7]);
-    let header_place = format!("{origin}:{}", table.header_line);
     let fail = |place: String, message: String| Error::InvalidData {
         origin: place,
         message,
     };
-    if !required.is_empty() {
-        return Err(fail(header_place, format!(
-            "no column {} (columns: {}); rename the columns or map them with --tracker-columns, e.g. time=Time,x=TX,y=TY,z=TZ",
-            required.join(", "),
-            table.headers.join(", ")
-        )));
-    }
-    if !quaternion.is_empty() && quaternion.len() < 4 {
-        return Err(fail(
-            header_place,
-            format!(
-                "a pose needs all four quaternion columns; missing {}",
-                quaternion.join(", ")
-            ),
-        ));
-    }
-    let pose = quaternion.is_empty();
-    let used: Vec<usize> = (0..if pose { 8 } else { 4 }).filter_map(find).collect();
+    let (used, pose) = used_columns(&table, origin, options)?;
     let rate = match options.rate {
         Some(r) if !(r.is_finite() && r > 0.0) => {
             return Err(fail(
@@ -219,6 +174,73 @@ pub fn parse_tracker_log(
         ));
     }
     Ok(log)
+}
+
+/// The length unit of a tracker CSV: the options', else its units comment's, else metres.
+fn length_unit(text: &str, origin: &str, options: &TrackerLogOptions) -> Result<LengthUnit> {
+    let stated = parse_units_header(text, origin)?;
+    let flags = StatedUnits {
+        length: options.length_unit,
+        ..StatedUnits::default()
+    };
+    let header = StatedUnits {
+        length: stated.length,
+        ..StatedUnits::default()
+    };
+    Ok(resolve_units(
+        &flags,
+        &StatedUnits {
+            line: stated.line,
+            ..header
+        },
+        origin,
+    )?
+    .length)
+}
+
+/// The columns of time, x, y, z (and the quaternion's w, x, y, z when the log has poses), and
+/// whether it has poses.
+fn used_columns(
+    table: &CsvTable,
+    origin: &str,
+    options: &TrackerLogOptions,
+) -> Result<(Vec<usize>, bool)> {
+    let names = &options.columns.names;
+    let find = |key: usize| table.headers.iter().position(|h| *h == names[key]);
+    let missing = |keys: &[usize]| {
+        keys.iter()
+            .filter(|&&k| find(k).is_none())
+            .map(|&k| format!("'{}' ({})", names[k], TRACKER_KEYS[k]))
+            .collect::<Vec<_>>()
+    };
+    let required = missing(&[0, 1, 2, 3]);
+    let quaternion = missing(&[4, 5, 6, 7]);
+    let header_place = format!("{origin}:{}", table.header_line);
+    let fail = |place: String, message: String| Error::InvalidData {
+        origin: place,
+        message,
+    };
+    if !required.is_empty() {
+        return Err(fail(header_place, format!(
+            "no column {} (columns: {}); rename the columns or map them with --tracker-columns, e.g. time=Time,x=TX,y=TY,z=TZ",
+            required.join(", "),
+            table.headers.join(", ")
+        )));
+    }
+    if !quaternion.is_empty() && quaternion.len() < 4 {
+        return Err(fail(
+            header_place,
+            format!(
+                "a pose needs all four quaternion columns; missing {}",
+                quaternion.join(", ")
+            ),
+        ));
+    }
+    let pose = quaternion.is_empty();
+    Ok((
+        (0..if pose { 8 } else { 4 }).filter_map(find).collect(),
+        pose,
+    ))
 }
 
 /// A quaternion within 1 % of unit length, normalised; a wrong column order usually is not.

@@ -209,11 +209,11 @@ pub struct McpcModel {
     /// Where the base (root link) frame is in the measurement (world) frame; identity unless set.
     world_from_base: Transform,
     /// Joint-angle errors (`joint_errors`), after the tools in the flat vector.
-    pub(crate) joint_errors: super::joint_errors::JointErrors,
+    pub(crate) joint_errors: super::model_extras::JointErrors,
     /// The measurement frame as parameters, last in the flat vector.
-    pub(crate) frame_parameters: Option<super::joint_errors::FrameParameters>,
+    pub(crate) frame_parameters: Option<super::model_extras::FrameParameters>,
     /// The link fixed in the world, when it is not the root (`kinematics::reference`).
-    pub(crate) reference: Option<super::reference::ReferenceChain>,
+    pub(crate) reference: Option<super::model_extras::ReferenceChain>,
 }
 
 /// Which parameter of a frame or tool.

@@ -22,39 +22,9 @@
 //! by [`McpcModel::from_tree`] leaves them out. See `docs/mcpc.md`, "Reference link".
 
 use super::mcpc::{FrameKind, McpcModel};
+use super::model_extras::{inverse, ReferenceChain, ReferenceLink};
 use crate::error::{Error, Result};
 use crate::math::{Pose, Transform, Vec3};
-use crate::tree::LinkId;
-
-/// The reference link of a model: where it hangs in the MCPC chain.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ReferenceLink {
-    /// The link fixed in the world.
-    pub link: LinkId,
-    /// The last MCPC frame on the path from the root to the link (`None`: rigid on the root).
-    pub parent: Option<usize>,
-    /// The link's frame in that frame after its joint's motion (constant, not a parameter).
-    pub last_from_link: Pose,
-}
-
-/// [`ReferenceLink`] with what forward kinematics needs cached.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct ReferenceChain {
-    pub(crate) reference: ReferenceLink,
-    /// The frames from the root to the reference link, root side first.
-    pub(crate) chain: Vec<usize>,
-    /// `last_from_link` in the fast form.
-    pub(crate) last_from_link: Transform,
-}
-
-/// The inverse of a rigid transform: (Rᵀ, −Rᵀ·t).
-pub(crate) fn inverse(transform: &Transform) -> Transform {
-    let rotation = transform.rotation.transpose();
-    Transform {
-        translation: -(rotation * transform.translation),
-        rotation,
-    }
-}
 
 impl McpcModel {
     /// Fixes `reference` in the world instead of the root (`None`: the root). Forward

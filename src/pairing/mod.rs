@@ -4,10 +4,12 @@
 //! See docs/file-formats.md ("Joint-state and tracker logs") and docs/workflows.md.
 
 mod average;
-pub mod clock;
+mod clock;
 mod plateau;
-pub mod plateaus;
-pub mod speed;
+mod plateaus;
+mod speed;
+
+pub use speed::SpeedNorm;
 
 pub use clock::{estimate_clock_offset, ClockEstimate, ClockOptions, ClockVerdict};
 pub use plateaus::{find_plateaus, Plateau, PlateauOptions, PlateauSearch, PlateauStatus};

@@ -159,6 +159,61 @@ pub fn inspect(
     branches: &Branches,
     model: &McpcModel,
 ) -> InspectReport {
+    let counts = joint_counts(tree);
+    let entries = tree_entries(tree, branches);
+    let branch_entries = branches
+        .all()
+        .map(|b| BranchEntry {
+            name: b.name.clone(),
+            role: b.role,
+            joints: b
+                .joints
+                .iter()
+                .map(|j| tree.joint(*j).name.clone())
+                .collect(),
+            tool: b.tool.map(|t| tree.link(t).name.clone()),
+        })
+        .collect();
+
+    let rows = mcpc_rows(tree, branches, model);
+    let revolute = model
+        .frames()
+        .iter()
+        .filter(|f| f.kind == FrameKind::Revolute)
+        .count();
+    let prismatic = model.frames().len() - revolute;
+    let count = model.parameter_count();
+    InspectReport {
+        schema_version: INSPECT_SCHEMA,
+        robot: tree.name().to_owned(),
+        root: tree.link(tree.root()).name.clone(),
+        links: tree.links().len(),
+        joints: counts,
+        degrees_of_freedom: tree.dof_count(),
+        warnings: warnings.to_vec(),
+        tree: entries,
+        limbs: limb_entries(tree),
+        branches: BranchesReport {
+            reference_link: tree.link(branches.reference).name.clone(),
+            reference_note: branches.reference_summary(tree),
+            selection_rule: branches.selection.to_string(),
+            side_rule: branches.sides.to_string(),
+            divergence_link: tree.link(branches.divergence).name.clone(),
+            list: branch_entries,
+        },
+        mcpc: McpcReport {
+            rows,
+            parameter_count: count,
+            parameter_formula: format!(
+                "4·{revolute} revolute + 2·{prismatic} prismatic + 6·{} tools = {count}",
+                model.tools().len()
+            ),
+        },
+    }
+}
+
+/// How many joints of each kind the tree has.
+fn joint_counts(tree: &KinematicTree) -> JointCounts {
     let mut counts = JointCounts::default();
     for joint in tree.joints() {
         match joint.kind {
@@ -171,6 +226,11 @@ pub fn inspect(
             counts.mimic += 1;
         }
     }
+    counts
+}
+
+/// The tree depth first, each link with the joint above it.
+fn tree_entries(tree: &KinematicTree, branches: &Branches) -> Vec<TreeEntry> {
     let branch_of = |joint: crate::tree::JointId| -> Option<String> {
         branches
             .all()
@@ -204,21 +264,11 @@ pub fn inspect(
             stack.push((tree.joint(child).child, depth + 1));
         }
     }
+    entries
+}
 
-    let branch_entries = branches
-        .all()
-        .map(|b| BranchEntry {
-            name: b.name.clone(),
-            role: b.role,
-            joints: b
-                .joints
-                .iter()
-                .map(|j| tree.joint(*j).name.clone())
-                .collect(),
-            tool: b.tool.map(|t| tree.link(t).name.clone()),
-        })
-        .collect();
-
+/// The MCPC parameters of every branch in the paper's Table 1 layout (deg, mm).
+fn mcpc_rows(tree: &KinematicTree, branches: &Branches, model: &McpcModel) -> Vec<McpcRow> {
     let mut rows = Vec::new();
     for branch in branches.all() {
         let mut row = 0;
@@ -262,40 +312,7 @@ pub fn inspect(
             });
         }
     }
-    let revolute = model
-        .frames()
-        .iter()
-        .filter(|f| f.kind == FrameKind::Revolute)
-        .count();
-    let prismatic = model.frames().len() - revolute;
-    let count = model.parameter_count();
-    InspectReport {
-        schema_version: INSPECT_SCHEMA,
-        robot: tree.name().to_owned(),
-        root: tree.link(tree.root()).name.clone(),
-        links: tree.links().len(),
-        joints: counts,
-        degrees_of_freedom: tree.dof_count(),
-        warnings: warnings.to_vec(),
-        tree: entries,
-        limbs: limb_entries(tree),
-        branches: BranchesReport {
-            reference_link: tree.link(branches.reference).name.clone(),
-            reference_note: branches.reference_summary(tree),
-            selection_rule: branches.selection.to_string(),
-            side_rule: branches.sides.to_string(),
-            divergence_link: tree.link(branches.divergence).name.clone(),
-            list: branch_entries,
-        },
-        mcpc: McpcReport {
-            rows,
-            parameter_count: count,
-            parameter_formula: format!(
-                "4·{revolute} revolute + 2·{prismatic} prismatic + 6·{} tools = {count}",
-                model.tools().len()
-            ),
-        },
-    }
+    rows
 }
 
 /// The tree's limbs with their roles.
@@ -354,6 +371,15 @@ impl InspectReport {
         for warning in &self.warnings {
             let _ = writeln!(out, "warning: {warning}");
         }
+        self.write_tree(&mut out);
+        self.write_limbs(&mut out);
+        self.write_branches(&mut out);
+        self.write_mcpc(&mut out);
+        out
+    }
+
+    /// The tree, one link a line, indented by depth.
+    fn write_tree(&self, out: &mut String) {
         let _ = writeln!(
             out,
             "\ntree (link ← joint [type], * = on a calibrated branch):"
@@ -379,6 +405,10 @@ impl InspectReport {
                 }
             }
         }
+    }
+
+    /// The limbs with their roles.
+    fn write_limbs(&self, out: &mut String) {
         let _ = writeln!(
             out,
             "\nlimbs (roles from the names; any of them can be measured)"
@@ -398,6 +428,10 @@ impl InspectReport {
                 limb.joints.join(", ")
             );
         }
+    }
+
+    /// The branches and how they were chosen.
+    fn write_branches(&self, out: &mut String) {
         let b = &self.branches;
         let _ = writeln!(out, "\nbranches (diverging at '{}')", b.divergence_link);
         if b.reference_link != self.root {
@@ -431,6 +465,10 @@ impl InspectReport {
                 branch.role.label()
             );
         }
+    }
+
+    /// The MCPC parameter table and its notes.
+    fn write_mcpc(&self, out: &mut String) {
         let _ = writeln!(
             out,
             "\nMCPC parameters (paper Table 1 layout; angles in degrees, lengths in mm):"
@@ -473,6 +511,5 @@ impl InspectReport {
             let _ = writeln!(out, "    by 90°; later rows' φ undo the turn.");
         }
         let _ = writeln!(out, "  parameters: {}", self.mcpc.parameter_formula);
-        out
     }
 }

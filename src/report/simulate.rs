@@ -1,8 +1,8 @@
 //! Tables of a simulation in the layout of the paper's Table 3.
 
 use crate::measurement::Observation;
-use crate::sim::experiment::{ArmErrors, TrialReport};
-use crate::sim::monte_carlo::{ArmSummary, SimulationSummary};
+use crate::sim::{ArmErrors, TrialReport};
+use crate::sim::{ArmSummary, SimulationSummary};
 use serde::Serialize;
 use std::fmt::Write;
 

@@ -331,7 +331,7 @@ impl CollisionChecker {
     }
 
     /// Stops checking the pairs that collide at every one of `configurations` (the link poses
-    /// of random configurations, see [`crate::sim::sampling::sample_configurations`]): links
+    /// of random configurations, see [`crate::sim::sample_configurations`]): links
     /// whose meshes overlap by design (two links of a compact wrist), which no configuration
     /// can separate and which MoveIt's setup assistant disables as "always in collision".
     /// Returns the pairs no longer checked; none when `configurations` is empty.

@@ -1,17 +1,33 @@
 //! Simulation: random and planned configurations and the self-collision checks they must pass.
 
-pub mod blunders;
+mod blunders;
 pub mod camera;
 pub mod camera_setup;
-pub mod collision;
+mod collision;
 pub mod contacts;
 mod detmax;
-pub mod experiment;
-pub mod mesh;
-pub mod monte_carlo;
-pub mod noise;
-pub mod planning;
-pub mod pose_set;
-pub mod sampling;
+mod experiment;
+mod mesh;
+mod monte_carlo;
+mod noise;
+mod planning;
+mod pose_set;
+mod sampling;
 mod trial_report;
-pub mod truth;
+mod truth;
+
+pub use blunders::inject_blunders;
+pub use collision::{CollisionCheck, CollisionChecker, CollisionOptions, MeshLoader};
+pub use experiment::{
+    run_trial, trial_seed, ArmErrors, BlunderReport, ErrorStats, RunSummary, Setup,
+    SimulationOptions, TrialReport, TruthJointError,
+};
+pub use mesh::MeshLookup;
+pub use monte_carlo::{run_trials, summarise, ArmSummary, SimulationSummary, Spread};
+pub use noise::{observe, NoiseModel, Targets};
+pub use planning::{
+    criterion_value, plan_poses, Criterion, PlanReport, PlannedPose, PlanningOptions, PlanningStage,
+};
+pub use pose_set::{staged_pose_set, StagedPoseSet};
+pub use sampling::{sample_configurations, SamplingOptions};
+pub use truth::{true_model, with_joint_errors, ErrorRanges, JointErrorRanges};

@@ -141,13 +141,73 @@ pub fn plan_poses(
     check_options(options)?;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let tools: Vec<usize> = (0..model.tools().len()).collect();
+    let Drawn {
+        candidates,
+        rejected_collision,
+        rejected_workspace,
+    } = draw_candidates(tree, branches, model, checker, options, &mut rng, progress)?;
+
+    let (blocks, rows, parameters) = jacobian_blocks(branches, model, &candidates, options)?;
+    let mut design = Design::new(blocks, rows, RIDGE);
+    design.greedy(options.poses);
+    let mut exchanges = design.detmax(20 * options.poses + 100);
+    let observations = options.poses * rows;
+    let value = |design: &Design, set: &[usize]| -> f64 {
+        let values = singular_values(&design.information(set));
+        criterion_value(options.criterion, &values, observations)
+    };
+    if options.criterion == Criterion::O3 {
+        exchanges += refine_min_singular_value(&mut design, &value);
+    }
+    let chosen = design.chosen();
+    let planned_value = value(&design, &chosen);
+
+    let random = random_set(&mut rng, candidates.len(), options.poses);
+    let random_value = value(&design, &random);
+    let pose = |c: &usize| PlannedPose {
+        q: candidates[*c].clone(),
+        tools: tools.clone(),
+    };
+    Ok(PlanReport {
+        poses: chosen.iter().map(pose).collect(),
+        random_poses: random.iter().map(pose).collect(),
+        criterion: options.criterion,
+        planned_value,
+        random_value,
+        candidates: candidates.len(),
+        rejected_collision,
+        rejected_workspace,
+        parameters,
+        exchanges,
+    })
+}
+
+/// The candidates a plan chooses from, and how many draws were rejected.
+struct Drawn {
+    candidates: Vec<Vec<f64>>,
+    rejected_collision: usize,
+    rejected_workspace: usize,
+}
+
+/// Draws `options.candidates` collision-free configurations with their tools in the workspace
+/// box (for the torso stage, around `options.locks` locked arm configurations), or fails when
+/// fewer than `options.poses` pass.
+fn draw_candidates(
+    tree: &KinematicTree,
+    branches: &Branches,
+    model: &McpcModel,
+    checker: Option<&CollisionChecker>,
+    options: &PlanningOptions,
+    rng: &mut ChaCha8Rng,
+    progress: &dyn Fn(usize),
+) -> Result<Drawn> {
     let torso_dofs = branches.coupled.dofs(tree);
     let locks = match options.stage {
         PlanningStage::Torso => sample_configurations(
             tree,
             checker,
             options.locks,
-            &mut rng,
+            rng,
             &SamplingOptions::default(),
             &[],
         )?,
@@ -168,14 +228,7 @@ pub fn plan_poses(
     while candidates.len() < options.candidates && draws < max_draws {
         let batch = (options.candidates - candidates.len()).clamp(64, 1024);
         let drawn: Vec<Vec<f64>> = if locks.is_empty() {
-            sample_configurations(
-                tree,
-                None,
-                batch,
-                &mut rng,
-                &SamplingOptions::default(),
-                &[],
-            )?
+            sample_configurations(tree, None, batch, rng, &SamplingOptions::default(), &[])?
         } else {
             let mut drawn = Vec::with_capacity(batch);
             for k in 0..batch {
@@ -184,7 +237,7 @@ pub fn plan_poses(
                     tree,
                     None,
                     1,
-                    &mut rng,
+                    rng,
                     &SamplingOptions::default(),
                     &fixed_for(lock),
                 )?);
@@ -219,47 +272,24 @@ pub fn plan_poses(
             ),
         });
     }
+    Ok(Drawn {
+        candidates,
+        rejected_collision,
+        rejected_workspace,
+    })
+}
 
-    let (blocks, rows, parameters) = jacobian_blocks(branches, model, &candidates, options)?;
-    let mut design = Design::new(blocks, rows, RIDGE);
-    design.greedy(options.poses);
-    let mut exchanges = design.detmax(20 * options.poses + 100);
-    let observations = options.poses * rows;
-    let value = |design: &Design, set: &[usize]| -> f64 {
-        let values = singular_values(&design.information(set));
-        criterion_value(options.criterion, &values, observations)
-    };
-    if options.criterion == Criterion::O3 {
-        exchanges += refine_min_singular_value(&mut design, &value);
-    }
-    let chosen = design.chosen();
-    let planned_value = value(&design, &chosen);
-
-    // The random comparison set: K distinct candidates (partial Fisher–Yates).
-    let mut order: Vec<usize> = (0..candidates.len()).collect();
-    for i in 0..options.poses {
+/// The random comparison set: `poses` distinct candidates of `count` (partial Fisher–Yates),
+/// sorted.
+fn random_set(rng: &mut ChaCha8Rng, count: usize, poses: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..count).collect();
+    for i in 0..poses {
         let j = rng.random_range(i..order.len());
         order.swap(i, j);
     }
-    let mut random: Vec<usize> = order[..options.poses].to_vec();
+    let mut random: Vec<usize> = order[..poses].to_vec();
     random.sort_unstable();
-    let random_value = value(&design, &random);
-    let pose = |c: &usize| PlannedPose {
-        q: candidates[*c].clone(),
-        tools: tools.clone(),
-    };
-    Ok(PlanReport {
-        poses: chosen.iter().map(pose).collect(),
-        random_poses: random.iter().map(pose).collect(),
-        criterion: options.criterion,
-        planned_value,
-        random_value,
-        candidates: candidates.len(),
-        rejected_collision,
-        rejected_workspace,
-        parameters,
-        exchanges,
-    })
+    random
 }
 
 fn check_options(options: &PlanningOptions) -> Result<()> {
@@ -366,11 +396,48 @@ fn jacobian_blocks(
             ),
         });
     }
+    let (stage_model, stage_tools, columns) = stage_model(branches, model, candidates, options)?;
+    let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
+    let per_candidate: Vec<DMatrix<f64>> = candidates
+        .par_iter()
+        .enumerate()
+        .map(|(c, q)| {
+            let mut block = DMatrix::zeros(rows, columns.len());
+            for tool in 0..tool_count {
+                let jacobian = stage_model
+                    .tool_jacobian(stage_tools[c * tool_count + tool], q)
+                    .jacobian;
+                for (k, &column) in columns.iter().enumerate() {
+                    for row in 0..rows_per_tool {
+                        block[(tool * rows_per_tool + row, k)] =
+                            jacobian[(row, column)] * weights[row / 3];
+                    }
+                }
+            }
+            block
+        })
+        .collect();
+    let (blocks, kept) = pool_scaled(&per_candidate, columns.len(), rows);
+    let squares = blocks.norm_squared();
+    crate::limits::ensure_finite(
+        blocks.iter().chain([&squares]),
+        "planning: the candidates' Jacobians",
+    )?;
+    Ok((blocks, rows, kept))
+}
+
+/// The model a planning stage identifies, which of its tools each (candidate, tool) uses, and
+/// the columns (parameters) it frees.
+fn stage_model(
+    branches: &Branches,
+    model: &McpcModel,
+    candidates: &[Vec<f64>],
+    options: &PlanningOptions,
+) -> Result<(McpcModel, Vec<usize>, Vec<usize>)> {
     let coupled_frames = crate::calibration::plan::coupled_frames(model, branches);
     // The model the stage identifies, and which of its tools each measurement uses.
-    let (stage_model, stage_tools, columns): (McpcModel, Vec<usize>, Vec<usize>) = match options
-        .stage
-    {
+    let tool_count = model.tools().len();
+    Ok(match options.stage {
         PlanningStage::Torso => {
             let data: Vec<Measurement> = candidates
                 .iter()
@@ -401,30 +468,20 @@ fn jacobian_blocks(
             let tools = (0..candidates.len()).flat_map(|_| 0..tool_count).collect();
             (model.clone(), tools, columns)
         }
-    };
-    let weights = [1.0 / options.position_sigma, 1.0 / options.rotation_sigma];
-    let per_candidate: Vec<DMatrix<f64>> = candidates
-        .par_iter()
-        .enumerate()
-        .map(|(c, q)| {
-            let mut block = DMatrix::zeros(rows, columns.len());
-            for tool in 0..tool_count {
-                let jacobian = stage_model
-                    .tool_jacobian(stage_tools[c * tool_count + tool], q)
-                    .jacobian;
-                for (k, &column) in columns.iter().enumerate() {
-                    for row in 0..rows_per_tool {
-                        block[(tool * rows_per_tool + row, k)] =
-                            jacobian[(row, column)] * weights[row / 3];
-                    }
-                }
-            }
-            block
-        })
-        .collect();
+    })
+}
+
+/// The candidates' blocks stacked (candidate-major), each column scaled by its RMS norm over
+/// the whole pool, columns no candidate moves dropped; and the number of columns kept.
+fn pool_scaled(
+    per_candidate: &[DMatrix<f64>],
+    columns: usize,
+    rows: usize,
+) -> (DMatrix<f64>, usize) {
+    let candidates = per_candidate;
     // Column scale: RMS norm over the whole pool. Columns no candidate moves are dropped.
-    let mut norms = vec![0.0; columns.len()];
-    for block in &per_candidate {
+    let mut norms = vec![0.0; columns];
+    for block in per_candidate {
         for (k, norm) in norms.iter_mut().enumerate() {
             *norm += block.column(k).norm_squared();
         }
@@ -443,12 +500,7 @@ fn jacobian_blocks(
             }
         }
     }
-    let squares = blocks.norm_squared();
-    crate::limits::ensure_finite(
-        blocks.iter().chain([&squares]),
-        "planning: the candidates' Jacobians",
-    )?;
-    Ok((blocks, rows, kept.len()))
+    (blocks, kept.len())
 }
 
 /// Singular values of a Jacobian from its information matrix `JᵀJ` (√ of the eigenvalues,

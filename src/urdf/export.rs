@@ -15,7 +15,7 @@ use super::xml::{position, scan, unescape, Element};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::math::{pose, rpy_from_rotation, Pose, Rotation, Vec3};
-use crate::tree::{JointKind, KinematicTree, LinkId};
+use crate::tree::{Joint, JointKind, KinematicTree, Link, LinkId};
 
 /// A joint origin change smaller than this (m, and rad as twice the relative quaternion's
 /// vector part) is left out: the joint keeps its text exactly. A picometre is far below
@@ -219,22 +219,9 @@ fn calibrated_placements(
     dropped: &mut Vec<DroppedOffset>,
     added_links: &mut Vec<AddedToolLink>,
 ) -> Result<Vec<Option<Placement>>> {
-    // Calibrated poses in the base frame at zero joint values (the URDF origin is the child's
-    // pose at joint value 0; mimic offsets are joint values like any other, so nothing to undo).
     let frames = model.frames();
-    let mut base_from_frame: Vec<Pose> = Vec::with_capacity(frames.len());
-    for frame in frames {
-        let previous = frame
-            .parent
-            .map_or_else(Pose::identity, |p| base_from_frame[p]);
-        base_from_frame.push(previous * frame.constant_transform());
-    }
-    let mut target: Vec<Option<Pose>> = vec![None; tree.links().len()];
+    let (base_from_frame, mut target) = frame_targets(tree, model);
     let mut new_axis: Vec<Option<Vec3>> = vec![None; tree.joints().len()];
-    for (frame, base_from) in frames.iter().zip(&base_from_frame) {
-        let child = tree.joint(frame.joint).child;
-        target[child.0] = Some(base_from * frame.frame_from_link);
-    }
     let mut pending: Vec<PendingLink> = Vec::new();
     for tool in model.tools() {
         let previous = tool
@@ -300,49 +287,105 @@ fn calibrated_placements(
                 ),
             });
         }
-        let off_axis = last_from_tool.translation.vector.xy().norm();
-        let mut link_pose = last_from_tool;
-        if joint.kind.is_rotational() && off_axis > ON_AXIS_TOLERANCE {
-            // The closest frame a URDF joint can carry: the same orientation, the origin
-            // projected onto the axis.
-            let along = Vec3::new(0.0, 0.0, last_from_tool.translation.vector.z);
-            link_pose = pose(along, last_from_tool.rotation);
-            let tolerance = options.tolerance(&link.name);
-            if off_axis <= tolerance {
-                dropped.push(DroppedOffset {
-                    tool: link.name.clone(),
-                    joint: joint.name.clone(),
-                    offset_mm: off_axis * 1e3,
-                    tolerance_mm: tolerance * 1e3,
-                });
-            } else if options.add_tool_links {
-                pending.push(PendingLink {
-                    tool: link.name.clone(),
-                    link: format!("{}_calibrated", link.name),
-                    parent: tool.link,
-                    reason: AddedReason::OffAxis,
-                    base_from_link: previous * last_from_tool,
-                });
-            } else {
-                return Err(Error::InvalidRobot {
-                    origin: tree.name().to_owned(),
-                    message: format!(
-                        "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {:.4} mm off the joint axis, which a URDF joint cannot express, and more than the calibration's uncertainty allows to drop ({:.4} mm); export with --add-tool-links (ExportOptions::add_tool_links) to add a fixed link '{}_calibrated' at the exact calibrated tool frame, or calibrate a tool link below a fixed joint (add a <link> and a fixed <joint> under '{}')",
-                        link.name,
-                        joint.name,
-                        off_axis * 1e3,
-                        tolerance * 1e3,
-                        link.name,
-                        link.name
-                    ),
-                });
-            }
-        }
+        let link_pose = on_axis_pose(
+            tree,
+            (link, joint),
+            (tool.link, &previous, &last_from_tool),
+            options,
+            dropped,
+            &mut pending,
+        )?;
         target[tool.link.0] = Some(previous * link_pose);
         new_axis[joint_id.0] = Some(link_pose.rotation.inverse() * Vec3::z());
     }
 
     let (placements, exported) = placements_of(tree, &target, &new_axis, in_text);
+    added_links.extend(added_tool_links(tree, pending, &exported));
+    Ok(placements)
+}
+
+/// The calibrated pose of every frame in the base frame at zero joint values (the URDF origin
+/// is the child's pose at joint value 0; mimic offsets are joint values like any other, so
+/// nothing to undo), and the target pose of every frame's child link (`None` for the others).
+fn frame_targets(tree: &KinematicTree, model: &McpcModel) -> (Vec<Pose>, Vec<Option<Pose>>) {
+    let frames = model.frames();
+    let mut base_from_frame: Vec<Pose> = Vec::with_capacity(frames.len());
+    for frame in frames {
+        let previous = frame
+            .parent
+            .map_or_else(Pose::identity, |p| base_from_frame[p]);
+        base_from_frame.push(previous * frame.constant_transform());
+    }
+    let mut target: Vec<Option<Pose>> = vec![None; tree.links().len()];
+    for (frame, base_from) in frames.iter().zip(&base_from_frame) {
+        let child = tree.joint(frame.joint).child;
+        target[child.0] = Some(base_from * frame.frame_from_link);
+    }
+    (base_from_frame, target)
+}
+
+/// The pose (in its moved frame) a tool link that is its joint's child gets: the calibrated
+/// `last_from_tool`, or, off a rotational joint's axis, the closest frame a URDF joint can
+/// carry, with the offset dropped (within the tolerance) or a link added for it (with
+/// `add_tool_links`), else an error.
+fn on_axis_pose(
+    tree: &KinematicTree,
+    (link, joint): (&Link, &Joint),
+    (tool_link, previous, last_from_tool): (LinkId, &Pose, &Pose),
+    options: &ExportOptions,
+    dropped: &mut Vec<DroppedOffset>,
+    pending: &mut Vec<PendingLink>,
+) -> Result<Pose> {
+    let last_from_tool = *last_from_tool;
+    let off_axis = last_from_tool.translation.vector.xy().norm();
+    let mut link_pose = last_from_tool;
+    if joint.kind.is_rotational() && off_axis > ON_AXIS_TOLERANCE {
+        // The closest frame a URDF joint can carry: the same orientation, the origin
+        // projected onto the axis.
+        let along = Vec3::new(0.0, 0.0, last_from_tool.translation.vector.z);
+        link_pose = pose(along, last_from_tool.rotation);
+        let tolerance = options.tolerance(&link.name);
+        if off_axis <= tolerance {
+            dropped.push(DroppedOffset {
+                tool: link.name.clone(),
+                joint: joint.name.clone(),
+                offset_mm: off_axis * 1e3,
+                tolerance_mm: tolerance * 1e3,
+            });
+        } else if options.add_tool_links {
+            pending.push(PendingLink {
+                tool: link.name.clone(),
+                link: format!("{}_calibrated", link.name),
+                parent: tool_link,
+                reason: AddedReason::OffAxis,
+                base_from_link: previous * last_from_tool,
+            });
+        } else {
+            return Err(Error::InvalidRobot {
+                origin: tree.name().to_owned(),
+                message: format!(
+                    "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {:.4} mm off the joint axis, which a URDF joint cannot express, and more than the calibration's uncertainty allows to drop ({:.4} mm); export with --add-tool-links (ExportOptions::add_tool_links) to add a fixed link '{}_calibrated' at the exact calibrated tool frame, or calibrate a tool link below a fixed joint (add a <link> and a fixed <joint> under '{}')",
+                    link.name,
+                    joint.name,
+                    off_axis * 1e3,
+                    tolerance * 1e3,
+                    link.name,
+                    link.name
+                ),
+            });
+        }
+    }
+    Ok(link_pose)
+}
+
+/// The links to add to the text (measured points, markers, off-axis tools), placed relative
+/// to their parents' exported poses; a marker at its parent's place is not added.
+fn added_tool_links(
+    tree: &KinematicTree,
+    pending: Vec<PendingLink>,
+    exported: &[Pose],
+) -> Vec<AddedToolLink> {
+    let mut added = Vec::new();
     for link in pending {
         let parent_from_link = exported[link.parent.0].inverse() * link.base_from_link;
         let at_parent = parent_from_link.translation.vector.norm() <= UNCHANGED_TOLERANCE
@@ -352,7 +395,7 @@ fn calibrated_placements(
             // The measured frame is the tool link itself (a nominal model): nothing to add.
             continue;
         }
-        added_links.push(AddedToolLink {
+        added.push(AddedToolLink {
             // For an off-axis tool: the dropped offset, a pure translation off the axis.
             offset_mm: parent_from_link.translation.vector.norm() * 1e3,
             tool: link.tool,
@@ -364,7 +407,7 @@ fn calibrated_placements(
             parent_from_link,
         });
     }
-    Ok(placements)
+    added
 }
 
 /// The placements that reach the `target` poses, and the exported pose of every link: joint

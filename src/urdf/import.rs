@@ -8,8 +8,8 @@ use crate::error::{Error, Result};
 use crate::limits::{magnitude_problem, Quantity};
 use crate::math::{pose, rotation_from_rpy, Mat3, Pose, Vec3};
 use crate::tree::{
-    Actuation, DofId, Inertial, Joint, JointId, JointKind, KinematicTree, Limits, Link,
-    LinkGeometry, LinkId, Shape,
+    Actuation, Inertial, Joint, JointId, JointKind, KinematicTree, Limits, Link, LinkGeometry,
+    LinkId, Shape,
 };
 use nalgebra::Unit;
 use std::collections::{HashMap, VecDeque};
@@ -50,6 +50,11 @@ pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
     Ok(import)
 }
 
+mod dofs;
+mod joints;
+mod structure;
+use dofs::{dangling_mimics, independent_joints};
+
 struct Importer<'a> {
     text: &'a str,
     origin: &'a str,
@@ -74,130 +79,11 @@ impl Importer<'_> {
             });
         }
 
-        // Names must be unique: everything downstream refers to links and joints by name.
-        let mut link_index: HashMap<&str, usize> = HashMap::new();
-        for (index, link) in robot.links.iter().enumerate() {
-            if link_index.insert(link.name.as_str(), index).is_some() {
-                return Err(self.invalid(
-                    "link",
-                    &link.name,
-                    format!(
-                        "link name '{}' is used twice; link names must be unique",
-                        link.name
-                    ),
-                ));
-            }
-        }
-        let mut joint_names: HashMap<&str, usize> = HashMap::new();
-        for (index, joint) in robot.joints.iter().enumerate() {
-            if joint_names.insert(joint.name.as_str(), index).is_some() {
-                return Err(self.invalid(
-                    "joint",
-                    &joint.name,
-                    format!(
-                        "joint name '{}' is used twice; joint names must be unique",
-                        joint.name
-                    ),
-                ));
-            }
-        }
-
-        // Parent/child structure: each link at most one parent joint, every named link exists.
-        let mut parent_joint_of: Vec<Option<usize>> = vec![None; robot.links.len()];
-        let mut children_of: Vec<Vec<usize>> = vec![Vec::new(); robot.links.len()];
-        for (index, joint) in robot.joints.iter().enumerate() {
-            let parent = *link_index.get(joint.parent.link.as_str()).ok_or_else(|| {
-                self.invalid(
-                    "joint",
-                    &joint.name,
-                    format!(
-                        "joint '{}' names parent link '{}', which does not exist{}",
-                        joint.name,
-                        joint.parent.link,
-                        crate::error::did_you_mean(&joint.parent.link, link_index.keys().copied())
-                    ),
-                )
-            })?;
-            let child = *link_index.get(joint.child.link.as_str()).ok_or_else(|| {
-                self.invalid(
-                    "joint",
-                    &joint.name,
-                    format!(
-                        "joint '{}' names child link '{}', which does not exist{}",
-                        joint.name,
-                        joint.child.link,
-                        crate::error::did_you_mean(&joint.child.link, link_index.keys().copied())
-                    ),
-                )
-            })?;
-            if let Some(other) = parent_joint_of[child] {
-                return Err(self.invalid(
-                    "joint",
-                    &joint.name,
-                    format!(
-                        "link '{}' is the child of both joint '{}' and joint '{}'; a URDF must be a tree",
-                        joint.child.link, robot.joints[other].name, joint.name
-                    ),
-                ));
-            }
-            parent_joint_of[child] = Some(index);
-            children_of[parent].push(index);
-        }
-
-        let roots: Vec<usize> = (0..robot.links.len())
-            .filter(|&l| parent_joint_of[l].is_none())
-            .collect();
-        let root = match roots.as_slice() {
-            [root] => *root,
-            [] => {
-                return Err(self.cycle_error(
-                    robot,
-                    &parent_joint_of,
-                    &link_index,
-                    0,
-                    "every link has a parent joint, so there is no root link",
-                ));
-            }
-            many => {
-                let names: Vec<&str> = many.iter().map(|&l| robot.links[l].name.as_str()).collect();
-                return Err(Error::InvalidRobot {
-                    origin: self.origin.to_owned(),
-                    message: format!(
-                        "the robot has {} root links ({}); connect all but one to the tree with a joint",
-                        names.len(),
-                        names.join(", ")
-                    ),
-                });
-            }
-        };
-
-        // Breadth-first order from the root; links never reached sit on a cycle.
-        let mut order = Vec::with_capacity(robot.links.len());
-        let mut queue = VecDeque::from([root]);
-        while let Some(link) = queue.pop_front() {
-            order.push(link);
-            for &joint in &children_of[link] {
-                queue.push_back(link_index[robot.joints[joint].child.link.as_str()]);
-            }
-        }
-        if order.len() != robot.links.len() {
-            let mut seen = vec![false; robot.links.len()];
-            for &l in &order {
-                seen[l] = true;
-            }
-            // Walking up the parent joints from any unreached link must end on a cycle.
-            let stuck = (0..robot.links.len()).find(|&l| !seen[l]).unwrap_or(0);
-            return Err(self.cycle_error(
-                robot,
-                &parent_joint_of,
-                &link_index,
-                stuck,
-                &format!(
-                    "some links cannot be reached from the root link '{}'",
-                    robot.links[root].name
-                ),
-            ));
-        }
+        let (link_index, joint_names) = self.unique_names(robot)?;
+        let (parent_joint_of, children_of) = self.parent_joints(robot, &link_index)?;
+        let root = self.root_link(robot, &parent_joint_of, &link_index)?;
+        let order =
+            self.breadth_first(robot, root, (&parent_joint_of, &children_of), &link_index)?;
         let mut new_index = vec![0usize; robot.links.len()];
         for (position, &link) in order.iter().enumerate() {
             new_index[link] = position;
@@ -231,327 +117,12 @@ impl Importer<'_> {
             links[joint.parent.0].child_joints.push(JointId(index));
         }
 
-        // A <mimic> of a joint that does not exist is ignored by urdfdom (check_urdf accepts
-        // it); the joint is then independent, with a warning.
-        let mut dangling: Vec<&str> = Vec::new();
-        for joint in &robot.joints {
-            if let Some(mimic) = &joint.mimic {
-                if !joint_names.contains_key(mimic.joint.as_str()) {
-                    warnings.push(format!(
-                        "joint '{}' mimics joint '{}', which does not exist{}; treating '{}' as an independent joint",
-                        joint.name,
-                        mimic.joint,
-                        crate::error::did_you_mean(&mimic.joint, joint_names.keys().copied()),
-                        joint.name
-                    ));
-                    dangling.push(joint.name.as_str());
-                }
-            }
-        }
-
-        // Independent joints get configuration slots in topological order; mimics follow them.
-        let mut dofs = Vec::new();
-        for (index, joint) in joints.iter_mut().enumerate() {
-            if joint.kind.is_movable()
-                && (dangling.contains(&joint.name.as_str())
-                    || robot.joints[source_index(robot, &joint.name)]
-                        .mimic
-                        .is_none())
-            {
-                joint.actuation = Actuation::Independent(DofId(dofs.len()));
-                dofs.push(JointId(index));
-            }
-        }
+        let dangling = dangling_mimics(robot, &joint_names, &mut warnings);
+        let dofs = independent_joints(robot, &mut joints, &dangling);
         self.resolve_mimics(robot, &mut joints, &joint_position)?;
 
         let tree = KinematicTree::from_parts(robot.name.clone(), links, joints, dofs)?;
         Ok(UrdfImport { tree, warnings })
-    }
-
-    /// An error naming the joints of the cycle found by walking parent joints up from link
-    /// `start`, located at the first of them in the file.
-    fn cycle_error(
-        &self,
-        robot: &urdf_rs::Robot,
-        parent_joint_of: &[Option<usize>],
-        link_index: &HashMap<&str, usize>,
-        start: usize,
-        context: &str,
-    ) -> Error {
-        let mut step_of = vec![None; parent_joint_of.len()];
-        let mut walked = Vec::new();
-        let mut link = start;
-        while step_of[link].is_none() {
-            step_of[link] = Some(walked.len());
-            let Some(joint) = parent_joint_of[link] else {
-                break;
-            };
-            walked.push(joint);
-            link = link_index[robot.joints[joint].parent.link.as_str()];
-        }
-        // Child → parent order; turn it round and start at the joint written first.
-        let mut cycle = walked.split_off(step_of[link].unwrap_or(walked.len()));
-        cycle.reverse();
-        if let Some(first) = cycle
-            .iter()
-            .enumerate()
-            .min_by_key(|(_, &j)| j)
-            .map(|(i, _)| i)
-        {
-            cycle.rotate_left(first);
-        }
-        let Some(&first) = cycle.first() else {
-            return Error::InvalidRobot {
-                origin: self.origin.to_owned(),
-                message: format!("{context}; a URDF must be a tree with one root link"),
-            };
-        };
-        let joints: Vec<String> = cycle
-            .iter()
-            .map(|&j| format!("'{}'", robot.joints[j].name))
-            .collect();
-        let mut path = vec![robot.joints[first].parent.link.as_str()];
-        path.extend(cycle.iter().map(|&j| robot.joints[j].child.link.as_str()));
-        self.invalid(
-            "joint",
-            &robot.joints[first].name,
-            format!(
-                "{context}: joints {} form a cycle ({}); a URDF must be a tree with one root link",
-                joints.join(", "),
-                path.join(" → ")
-            ),
-        )
-    }
-
-    fn joint(
-        &self,
-        joint: &urdf_rs::Joint,
-        parent: LinkId,
-        child: LinkId,
-        is_root_joint: bool,
-        warnings: &mut Vec<String>,
-    ) -> Result<Joint> {
-        use urdf_rs::JointType;
-        let kind = match joint.joint_type {
-            JointType::Fixed => JointKind::Fixed,
-            JointType::Revolute => JointKind::Revolute,
-            JointType::Continuous => JointKind::Continuous,
-            JointType::Prismatic => JointKind::Prismatic,
-            JointType::Floating | JointType::Planar if is_root_joint => {
-                let kind = format!("{:?}", joint.joint_type).to_lowercase();
-                warnings.push(format!(
-                    "joint '{}' is {kind} at the root; treating it as fixed (the base does not move during calibration)",
-                    joint.name
-                ));
-                JointKind::Fixed
-            }
-            ref other => {
-                return Err(self.invalid(
-                    "joint",
-                    &joint.name,
-                    format!(
-                        "joint '{}' has type {}, which treecal does not support; only revolute, continuous, prismatic and fixed joints (and a floating or planar joint at the root, treated as fixed) are accepted",
-                        joint.name,
-                        format!("{other:?}").to_lowercase()
-                    ),
-                ))
-            }
-        };
-        let xyz = joint.origin.xyz.0;
-        let rpy = joint.origin.rpy.0;
-        if xyz.iter().chain(rpy.iter()).any(|v| !v.is_finite()) {
-            return Err(self.invalid(
-                "joint",
-                &joint.name,
-                format!(
-                    "joint '{}' has a non-finite <origin> (xyz=\"{} {} {}\" rpy=\"{} {} {}\")",
-                    joint.name, xyz[0], xyz[1], xyz[2], rpy[0], rpy[1], rpy[2]
-                ),
-            ));
-        }
-        let parent_from_joint = pose(
-            Vec3::new(xyz[0], xyz[1], xyz[2]),
-            rotation_from_rpy(rpy[0], rpy[1], rpy[2]),
-        );
-        let raw_axis = Vec3::from(joint.axis.xyz.0);
-        let axis = if kind.is_movable() {
-            let norm = raw_axis.norm();
-            if !norm.is_finite() || norm < 1e-9 {
-                return Err(self.invalid(
-                    "joint",
-                    &joint.name,
-                    format!(
-                        "joint '{}' has axis \"{} {} {}\", which has no direction; give a non-zero finite axis",
-                        joint.name, raw_axis.x, raw_axis.y, raw_axis.z
-                    ),
-                ));
-            }
-            Unit::new_normalize(raw_axis)
-        } else {
-            Vec3::x_axis()
-        };
-        let limits = match kind {
-            JointKind::Revolute | JointKind::Prismatic => {
-                let limit = &joint.limit;
-                let (lower, upper) = (limit.lower, limit.upper);
-                if lower.is_nan() || upper.is_nan() {
-                    return Err(self.invalid(
-                        "joint",
-                        &joint.name,
-                        format!(
-                            "joint '{}' has a NaN limit (lower={lower} upper={upper})",
-                            joint.name
-                        ),
-                    ));
-                }
-                if lower > upper {
-                    return Err(self.invalid(
-                        "joint",
-                        &joint.name,
-                        format!(
-                            "joint '{}' has limits lower={lower} upper={upper}; lower must not exceed upper",
-                            joint.name
-                        ),
-                    ));
-                }
-                // urdf-rs fills a missing <limit> with zeros; a joint that cannot move at all is
-                // far more likely a missing element than a real limit.
-                let all_zero = [lower, upper, limit.effort, limit.velocity]
-                    .iter()
-                    .all(|v| *v == 0.0);
-                if all_zero {
-                    warnings.push(format!(
-                        "joint '{}' is {} but has no <limit> (or an all-zero one); treating it as unbounded",
-                        joint.name,
-                        kind.urdf_name()
-                    ));
-                    None
-                } else {
-                    (lower.is_finite() || upper.is_finite()).then_some(Limits { lower, upper })
-                }
-            }
-            _ => None,
-        };
-        Ok(Joint {
-            name: joint.name.clone(),
-            kind,
-            parent,
-            child,
-            parent_from_joint,
-            axis,
-            limits,
-            actuation: Actuation::None,
-        })
-    }
-
-    fn resolve_mimics(
-        &self,
-        robot: &urdf_rs::Robot,
-        joints: &mut [Joint],
-        position: &HashMap<&str, JointId>,
-    ) -> Result<()> {
-        for index in 0..joints.len() {
-            if !joints[index].kind.is_movable() {
-                continue;
-            }
-            let name = joints[index].name.clone();
-            let Some(first) = robot.joints[source_index(robot, &name)].mimic.as_ref() else {
-                continue;
-            };
-            if matches!(joints[index].actuation, Actuation::Independent(_)) {
-                // A mimic of a joint that does not exist, made independent above.
-                continue;
-            }
-            // Follow mimic → mimic chains to an independent joint, composing the affine maps.
-            let (mut multiplier, mut offset) = (1.0, 0.0);
-            let mut mimic = first;
-            let mut visited = vec![name.clone()];
-            loop {
-                let m = mimic.multiplier.unwrap_or(1.0);
-                let o = mimic.offset.unwrap_or(0.0);
-                if !m.is_finite() || !o.is_finite() {
-                    return Err(self.invalid(
-                        "joint",
-                        &name,
-                        format!("joint '{name}' has a non-finite <mimic> multiplier or offset"),
-                    ));
-                }
-                // value = multiplier·(m·q_master + o) + offset
-                offset += multiplier * o;
-                multiplier *= m;
-                // Each factor is bounded, their product is not: a long chain can overflow.
-                let composed = magnitude_problem(multiplier, Quantity::Factor)
-                    .map(|p| format!("multiplier: {p}"))
-                    .or_else(|| {
-                        magnitude_problem(offset, Quantity::JointLimit)
-                            .map(|p| format!("offset: {p}"))
-                    });
-                if let Some(problem) = composed {
-                    return Err(self.invalid(
-                        "joint",
-                        &name,
-                        format!(
-                            "the <mimic> chain {} → {} composes to a {problem}; shorten the chain \
-                             or reduce its multipliers",
-                            visited.join(" → "),
-                            mimic.joint
-                        ),
-                    ));
-                }
-                let master = *position.get(mimic.joint.as_str()).ok_or_else(|| {
-                    self.invalid(
-                        "joint",
-                        &name,
-                        format!(
-                            "joint '{name}' mimics joint '{}', which does not exist{}",
-                            mimic.joint,
-                            crate::error::did_you_mean(&mimic.joint, position.keys().copied())
-                        ),
-                    )
-                })?;
-                if visited.contains(&mimic.joint) {
-                    return Err(self.invalid(
-                        "joint",
-                        &name,
-                        format!(
-                            "mimic joints {} → {} follow each other in a cycle; one of them must be independent",
-                            visited.join(" → "),
-                            mimic.joint
-                        ),
-                    ));
-                }
-                visited.push(mimic.joint.clone());
-                match joints[master.0].actuation {
-                    Actuation::Independent(dof) => {
-                        joints[index].actuation = Actuation::Mimic {
-                            master: dof,
-                            multiplier,
-                            offset,
-                        };
-                        break;
-                    }
-                    _ if !joints[master.0].kind.is_movable() => {
-                        return Err(self.invalid(
-                            "joint",
-                            &name,
-                            format!(
-                                "joint '{name}' mimics joint '{}', which is fixed",
-                                mimic.joint
-                            ),
-                        ));
-                    }
-                    // The master is itself a mimic (movable, not independent): follow it.
-                    _ => match robot.joints[source_index(robot, &mimic.joint)]
-                        .mimic
-                        .as_ref()
-                    {
-                        Some(next) => mimic = next,
-                        None => break,
-                    },
-                }
-            }
-        }
-        Ok(())
     }
 
     fn inertial(&self, link: &urdf_rs::Link) -> Result<Option<Inertial>> {
@@ -639,14 +210,6 @@ impl Importer<'_> {
         }
         Ok(geometry)
     }
-}
-
-fn source_index(robot: &urdf_rs::Robot, name: &str) -> usize {
-    robot
-        .joints
-        .iter()
-        .position(|j| j.name == name)
-        .unwrap_or(0)
 }
 
 fn urdf_pose(p: &urdf_rs::Pose) -> Pose {

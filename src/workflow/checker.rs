@@ -3,8 +3,8 @@
 use super::source::RobotSource;
 use super::Note;
 use crate::io::{mesh_file_loader, package_dirs};
-use crate::sim::collision::{CollisionCheck, CollisionChecker, CollisionOptions};
-use crate::sim::sampling::{sample_configurations, SamplingOptions};
+use crate::sim::{sample_configurations, SamplingOptions};
+use crate::sim::{CollisionCheck, CollisionChecker, CollisionOptions};
 use crate::tree::KinematicTree;
 use crate::{Error, Result};
 use rand::SeedableRng;

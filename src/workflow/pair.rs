@@ -385,7 +385,7 @@ fn clock_offset(
         path.push([p.x, p.y, p.z]);
     }
     let window = config.plateaus.window;
-    let norm = crate::pairing::speed::SpeedNorm::Euclidean;
+    let norm = crate::pairing::SpeedNorm::Euclidean;
     let joint_speeds = windowed_speeds(&series.times, &path, window, norm);
     let points: Vec<[f64; 3]> = tracker.positions.iter().map(|p| [p.x, p.y, p.z]).collect();
     let tracker_speeds = windowed_speeds(&tracker.times, &points, window, norm);

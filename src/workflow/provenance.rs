@@ -3,11 +3,11 @@
 //! refers to the file (`"provenance"`).
 
 use crate::error::Result;
-use crate::io::provenance::{input_file, utc_iso8601, Program, ProvenanceRecord, RunFacts};
+use crate::io::{input_file, utc_iso8601, Program, ProvenanceRecord, RunFacts};
 use std::path::PathBuf;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-pub use crate::io::provenance::PROVENANCE_FILE;
+pub use crate::io::PROVENANCE_FILE;
 
 /// When a run started (wall clock and monotonic).
 #[derive(Debug, Clone, Copy)]
@@ -35,7 +35,7 @@ pub fn record(
     seeds: &[(&str, u64)],
     started: Started,
 ) -> Result<ProvenanceRecord> {
-    let commit = crate::io::provenance::GIT_COMMIT;
+    let commit = crate::io::GIT_COMMIT;
     Ok(ProvenanceRecord {
         program: Program {
             name: "treecal",

@@ -15,12 +15,12 @@ use crate::kinematics::{FlexibilityModel, Stiffness};
 use crate::limits;
 use crate::report::plot::arm_error_plots;
 use crate::report::simulate::simulation_markdown;
-use crate::sim::collision::CollisionCheck;
-use crate::sim::experiment::{SimulationOptions, TrialReport};
-use crate::sim::monte_carlo::{run_trials, summarise, SimulationSummary};
-use crate::sim::noise::{NoiseModel, Targets};
-use crate::sim::planning::PlanningOptions;
-use crate::sim::truth::ErrorRanges;
+use crate::sim::CollisionCheck;
+use crate::sim::ErrorRanges;
+use crate::sim::PlanningOptions;
+use crate::sim::{run_trials, summarise, SimulationSummary};
+use crate::sim::{NoiseModel, Targets};
+use crate::sim::{SimulationOptions, TrialReport};
 use crate::{Error, KinematicTree, McpcModel, Result};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -224,7 +224,7 @@ impl Simulation {
         Ok(Simulation {
             notes,
             reports: Vec::new(),
-            summary: crate::sim::monte_carlo::summarise(&[]),
+            summary: crate::sim::summarise(&[]),
             results,
             markdown,
             files,
@@ -280,7 +280,7 @@ pub fn simulate_with_progress(
     )?;
     let collisions = collision_statement(config.collision_check, &checker);
     let options = options(config, noise)?;
-    let setup = crate::sim::experiment::Setup {
+    let setup = crate::sim::Setup {
         tree,
         branches: &branches,
         nominal: &nominal,
@@ -566,7 +566,7 @@ fn options(config: &SimulateConfig, noise: NoiseModel) -> Result<SimulationOptio
             angle: config.angle_error,
             length: config.length_error,
         },
-        joint_errors: crate::sim::truth::JointErrorRanges {
+        joint_errors: crate::sim::JointErrorRanges {
             harmonics: config.truth_harmonics,
             backlash: config.truth_backlash,
         },

@@ -11,8 +11,8 @@ use crate::sim::camera::{
     CameraSimulationOptions, CameraTrialReport, ObservationMode,
 };
 use crate::sim::camera_setup::{camera_specs, CameraRigOptions};
-use crate::sim::noise::NoiseModel;
-use crate::sim::truth::ErrorRanges;
+use crate::sim::ErrorRanges;
+use crate::sim::NoiseModel;
 use crate::{McpcModel, Result};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -11,8 +11,8 @@ use crate::io::contacts_yaml::{
 use crate::math::Pose;
 use crate::measurement::{Contact, Measurement, Observation};
 use crate::sim::contacts::{run_contact_trial, ContactScene, ContactSimulation, ContactTrial};
-use crate::sim::experiment::trial_seed;
-use crate::sim::truth::ErrorRanges;
+use crate::sim::trial_seed;
+use crate::sim::ErrorRanges;
 use crate::{McpcModel, Result};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;

@@ -212,13 +212,13 @@ pub struct SimulatedRobot {
     pub branches: treecal::Branches,
     pub nominal: treecal::McpcModel,
     pub flexibility: treecal::kinematics::FlexibilityModel,
-    pub checker: treecal::sim::collision::CollisionChecker,
+    pub checker: treecal::sim::CollisionChecker,
 }
 
 impl SimulatedRobot {
     /// A trial set-up whose model flexibility equals the truth's.
-    pub fn setup(&self) -> treecal::sim::experiment::Setup<'_> {
-        treecal::sim::experiment::Setup {
+    pub fn setup(&self) -> treecal::sim::Setup<'_> {
+        treecal::sim::Setup {
             tree: &self.tree,
             branches: &self.branches,
             nominal: &self.nominal,
@@ -240,7 +240,7 @@ pub fn simulated_robonaut() -> SimulatedRobot {
         treecal::io::read_stiffness(&robot("robonaut/stiffness.yaml"), &tree, &nominal).unwrap();
     let flexibility =
         treecal::kinematics::FlexibilityModel::new(&tree, &nominal, &stiffness).unwrap();
-    let checker = treecal::sim::collision::CollisionChecker::new(&tree).unwrap();
+    let checker = treecal::sim::CollisionChecker::new(&tree).unwrap();
     SimulatedRobot {
         tree,
         branches,

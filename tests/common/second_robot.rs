@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use treecal::kinematics::FlexibilityModel;
 use treecal::math::{pose, Pose, Vec3};
 use treecal::measurement::{Measurement, Observation};
-use treecal::sim::truth::{true_model, ErrorRanges};
+use treecal::sim::{true_model, ErrorRanges};
 use treecal::tree::KinematicTree;
 use treecal::{detect_branches, load_urdf, McpcModel};
 

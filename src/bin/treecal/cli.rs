@@ -375,7 +375,7 @@ pub enum CollisionCheckChoice {
     Off,
 }
 
-impl From<CollisionCheckChoice> for treecal::sim::collision::CollisionCheck {
+impl From<CollisionCheckChoice> for treecal::sim::CollisionCheck {
     fn from(choice: CollisionCheckChoice) -> Self {
         match choice {
             CollisionCheckChoice::Meshes => Self::Meshes,

@@ -25,7 +25,7 @@ pub use sequence::{calibrate_with_stiffness, without_outliers, Fitted, Stiffness
 use super::options::IdentificationOptions;
 use super::solver::Termination;
 use crate::error::{Error, Result};
-use crate::kinematics::flexibility::{ComplianceKind, ComplianceParameter};
+use crate::kinematics::{ComplianceKind, ComplianceParameter};
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;

@@ -1,8 +1,8 @@
 //! The identified stiffness as a stiffness file ready for reuse.
 
 use super::ComplianceEstimate;
-use crate::kinematics::flexibility::{ComplianceKind, JointStiffness, LinkStiffness, Stiffness};
 use crate::kinematics::McpcModel;
+use crate::kinematics::{ComplianceKind, JointStiffness, LinkStiffness, Stiffness};
 use crate::tree::KinematicTree;
 
 /// The prior stiffness data with the identified stiffness of every calibrated joint and body

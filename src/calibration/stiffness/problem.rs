@@ -6,7 +6,7 @@ use crate::calibration::observation::{kind_of, Nuisance, RobotState, Tools};
 use crate::calibration::options::IdentificationOptions;
 use crate::calibration::solver::Termination;
 use crate::error::{Error, Result};
-use crate::kinematics::flexibility::{ComplianceBasis, ComplianceParameter};
+use crate::kinematics::{ComplianceBasis, ComplianceParameter};
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::math::{pose_error, Pose};
 use crate::measurement::Measurement;

@@ -6,7 +6,7 @@ use super::{describe, name, DETERMINED, GROUPS, GROUP_NAMES};
 use crate::calibration::linear_algebra::{column_scales, scale_columns};
 use crate::calibration::options::IdentificationOptions;
 use crate::error::Result;
-use crate::kinematics::flexibility::ComplianceParameter;
+use crate::kinematics::ComplianceParameter;
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;

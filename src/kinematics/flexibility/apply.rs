@@ -175,9 +175,12 @@ impl FlexibilityModel {
                 None => world_from_root,
             };
             let deflected_reference = moved.then(&reference.last_from_link);
-            let back = model
-                .world_from_base_transform()
-                .then(&crate::kinematics::reference::inverse(&deflected_reference));
+            let back =
+                model
+                    .world_from_base_transform()
+                    .then(&crate::kinematics::model_extras::inverse(
+                        &deflected_reference,
+                    ));
             for transform in all.iter_mut().flatten() {
                 *transform = back.then(transform);
             }

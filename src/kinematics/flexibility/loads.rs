@@ -92,6 +92,7 @@ impl FlexibilityModel {
         }
     }
 
+    /// The deformations at `q` with the nominal frames they were computed at.
     pub(crate) fn evaluate(
         &self,
         tree: &KinematicTree,
@@ -135,11 +136,31 @@ impl FlexibilityModel {
         } else {
             Vec::new()
         };
+        let positions = self.mass_positions(model, &moved, &tools, &tree_poses);
+        let loads = self.loads(model, &gravity, &positions, tools.len());
+        let joints = self.joint_deformations(&moved, &loads);
+        let mut segments = self.segment_deformations(&frames, &moved, &tools, &loads);
+        self.add_self_weight(&mut segments, &positions, &gravity);
+        for segment in &mut segments {
+            segment.translation = segment.base_from_beam * segment.local.fixed_rows::<3>(0);
+            segment.rotation = segment.base_from_beam * segment.local.fixed_rows::<3>(3);
+        }
+        Ok(Evaluation {
+            deformations: Deformations { joints, segments },
+            moved,
+            tools,
+        })
+    }
 
-        // Where every mass is; then, from the tips inward, the weight each joint carries as a
-        // force and a moment about the base origin (moved to any point p as N − p × F).
-        let positions: Vec<Vec3> = self
-            .masses
+    /// Where every mass is, base frame.
+    fn mass_positions(
+        &self,
+        model: &McpcModel,
+        moved: &[Transform],
+        tools: &[Transform],
+        tree_poses: &[crate::math::Pose],
+    ) -> Vec<Vec3> {
+        self.masses
             .iter()
             .map(|m| match m.place {
                 Place::Body(frame, point) => {
@@ -172,34 +193,52 @@ impl FlexibilityModel {
                     moved[frame].rotation * in_frame.coords + moved[frame].translation
                 }
             })
-            .collect();
-        let frame_count = frames.len();
-        let mut force = vec![Vec3::zeros(); frame_count];
-        let mut torque = vec![Vec3::zeros(); frame_count];
-        let mut tool_force = vec![Vec3::zeros(); tools.len()];
-        let mut tool_torque = vec![Vec3::zeros(); tools.len()];
-        for (mass, position) in self.masses.iter().zip(&positions) {
+            .collect()
+    }
+
+    /// From the tips inward, the weight each joint carries as a force and a moment about the
+    /// base origin (moved to any point p as N − p × F); and the same for the masses at each
+    /// tool.
+    fn loads(
+        &self,
+        model: &McpcModel,
+        gravity: &Vec3,
+        positions: &[Vec3],
+        tool_count: usize,
+    ) -> Loads {
+        let frame_count = model.frames().len();
+        let mut loads = Loads {
+            force: vec![Vec3::zeros(); frame_count],
+            torque: vec![Vec3::zeros(); frame_count],
+            tool_force: vec![Vec3::zeros(); tool_count],
+            tool_torque: vec![Vec3::zeros(); tool_count],
+        };
+        for (mass, position) in self.masses.iter().zip(positions) {
             let weight = gravity * mass.mass;
-            force[mass.frame] += weight;
-            torque[mass.frame] += position.cross(&weight);
+            loads.force[mass.frame] += weight;
+            loads.torque[mass.frame] += position.cross(&weight);
             if let Place::Tool(tool, _) = mass.place {
-                tool_force[tool] += weight;
-                tool_torque[tool] += position.cross(&weight);
+                loads.tool_force[tool] += weight;
+                loads.tool_torque[tool] += position.cross(&weight);
             }
         }
         // Frames come parents first, so children are complete before they are added on.
         for i in (0..frame_count).rev() {
             if let Some(p) = model.frames()[i].parent {
-                let (f, t) = (force[i], torque[i]);
-                force[p] += f;
-                torque[p] += t;
+                let (f, t) = (loads.force[i], loads.torque[i]);
+                loads.force[p] += f;
+                loads.torque[p] += t;
             }
         }
+        loads
+    }
 
-        let joints = (0..frame_count)
+    /// Eq. (18)–(19): each joint's deflection under the moment it carries.
+    fn joint_deformations(&self, moved: &[Transform], loads: &Loads) -> Vec<JointDeformation> {
+        (0..moved.len())
             .map(|i| {
                 let origin = moved[i].translation;
-                let moment = torque[i] - origin.cross(&force[i]);
+                let moment = loads.torque[i] - origin.cross(&loads.force[i]);
                 let rotation_matrix = moved[i].rotation;
                 let local_moment = rotation_matrix.transpose() * moment;
                 let (bending, torsion) = self.joint_compliance[i];
@@ -210,7 +249,7 @@ impl FlexibilityModel {
                 );
                 JointDeformation {
                     origin,
-                    force: force[i],
+                    force: loads.force[i],
                     moment,
                     local: Vector6::new(
                         0.0,
@@ -223,16 +262,31 @@ impl FlexibilityModel {
                     rotation: rotation_matrix * local_rotation,
                 }
             })
-            .collect();
+            .collect()
+    }
 
-        let mut segments: Vec<SegmentDeformation> = self
-            .segments
+    /// Corrected eq. (21): each segment's deflection under the load at its free end (the
+    /// translation and rotation in the base frame are filled in later).
+    fn segment_deformations(
+        &self,
+        frames: &[Transform],
+        moved: &[Transform],
+        tools: &[Transform],
+        loads: &Loads,
+    ) -> Vec<SegmentDeformation> {
+        self.segments
             .iter()
             .map(|segment| {
                 let start = moved[segment.frame].translation;
                 let (end, tip_force, tip_torque) = match segment.end {
-                    SegmentEnd::Frame(j) => (frames[j].translation, force[j], torque[j]),
-                    SegmentEnd::Tool(t) => (tools[t].translation, tool_force[t], tool_torque[t]),
+                    SegmentEnd::Frame(j) => {
+                        (frames[j].translation, loads.force[j], loads.torque[j])
+                    }
+                    SegmentEnd::Tool(t) => (
+                        tools[t].translation,
+                        loads.tool_force[t],
+                        loads.tool_torque[t],
+                    ),
                 };
                 let base_from_beam = beam_frame(
                     &(end - start),
@@ -256,16 +310,24 @@ impl FlexibilityModel {
                     rotation: Vec3::zeros(),
                 }
             })
-            .collect();
-        // Self-weight: each link's weight at its centre of mass projected on its segment, with
-        // the moment of the offset (see docs/flexibility.md).
-        for (mass, position) in self.masses.iter().zip(&positions) {
+            .collect()
+    }
+
+    /// Self-weight: each link's weight at its centre of mass projected on its segment, with
+    /// the moment of the offset (see docs/flexibility.md).
+    fn add_self_weight(
+        &self,
+        segments: &mut [SegmentDeformation],
+        positions: &[Vec3],
+        gravity: &Vec3,
+    ) {
+        for (mass, position) in self.masses.iter().zip(positions) {
             if mass.segment.is_none() {
                 continue;
             }
             // The body's segment nearest to the mass at the current geometry, so that the
             // model follows the geometry being calibrated (and an exported URDF's).
-            let Some(index) = nearest_segment(&self.segments, &segments, mass.frame, position)
+            let Some(index) = nearest_segment(&self.segments, segments, mass.frame, position)
             else {
                 continue;
             };
@@ -285,16 +347,16 @@ impl FlexibilityModel {
                 &(to_beam * (position - on_axis).cross(&weight)),
             );
         }
-        for segment in &mut segments {
-            segment.translation = segment.base_from_beam * segment.local.fixed_rows::<3>(0);
-            segment.rotation = segment.base_from_beam * segment.local.fixed_rows::<3>(3);
-        }
-        Ok(Evaluation {
-            deformations: Deformations { joints, segments },
-            moved,
-            tools,
-        })
     }
+}
+
+/// The weight each joint carries, and the weight of the masses at each tool, as forces and
+/// moments about the base origin, base frame (N, N·m).
+struct Loads {
+    force: Vec<Vec3>,
+    torque: Vec<Vec3>,
+    tool_force: Vec<Vec3>,
+    tool_torque: Vec<Vec3>,
 }
 
 /// The segment of frame `frame`'s body nearest to `point` (base frame), the first on ties.

@@ -16,15 +16,16 @@
 //! The model, its sign conventions and the comparison with the paper: `docs/flexibility.md`.
 
 mod apply;
-pub mod beam;
-pub mod compliance;
+mod beam;
+mod compliance;
 mod loads;
 mod model;
 pub(crate) mod names;
-pub mod stiffness;
+mod stiffness;
 
 pub use beam::{point_load_deflection, uniform_load_deflection, BeamCompliance};
 pub use compliance::{ComplianceBasis, ComplianceJacobian, ComplianceKind, ComplianceParameter};
 pub use loads::{Deformations, JointDeformation, SegmentDeformation};
 pub use model::{FlexibilityModel, Segment, SegmentEnd};
+pub(crate) use stiffness::{mass_problem, stiffness_problem};
 pub use stiffness::{JointStiffness, LinkStiffness, Payload, Stiffness, STANDARD_GRAVITY};

@@ -235,7 +235,7 @@ impl McpcModel {
             ParameterOwner::Measurement => {
                 let reference = self.world_from_base;
                 let parameters = self.frame_parameters.get_or_insert(
-                    super::super::joint_errors::FrameParameters {
+                    super::super::model_extras::FrameParameters {
                         values: [0.0; 6],
                         reference,
                     },

@@ -1,0 +1,27 @@
+//! What a calibration from data is run on and how.
+
+use crate::calibration::frame::MeasurementFrame;
+use crate::calibration::options::IdentificationOptions;
+use crate::calibration::plan::Plan;
+use crate::kinematics::{FlexibilityModel, McpcModel};
+use crate::tree::{Branches, KinematicTree};
+
+/// What a calibration is run on and how.
+#[derive(Debug, Clone, Copy)]
+pub struct CalibrationInput<'a> {
+    /// The robot.
+    pub tree: &'a KinematicTree,
+    /// Its coupled branch and arms.
+    pub branches: &'a Branches,
+    /// The nominal MCPC model of `branches`.
+    pub nominal: &'a McpcModel,
+    /// The flexibility model, for exact compensation; `None` calibrates a rigid robot.
+    pub flexibility: Option<&'a FlexibilityModel>,
+    /// The stages.
+    pub plan: &'a Plan,
+    /// Row weights, tolerances.
+    pub options: &'a IdentificationOptions,
+    /// Where the measurements are: fitted, the root frame, a known registration, or `Auto`
+    /// (see [`MeasurementFrame`]); the tool frames are always fitted.
+    pub measurement_frame: MeasurementFrame,
+}

@@ -1,0 +1,197 @@
+//! The checks of a measurement CSV's values as a whole: limits, units, repeated rows.
+
+// The parent's types, constants and imports.
+use super::*;
+
+/// The note on the rows of a pose file read as positions (every orientation cell empty).
+pub(super) fn position_only_note(
+    rows: &[String],
+    kind: ObservationKind,
+    origin: &str,
+) -> Option<String> {
+    let first = rows.first()?;
+    let orientation = kind.columns()[3..].join(",");
+    Some(format!(
+        "{origin}: {} row(s) have empty {orientation} and are read as positions of the measured point (first: '{}'); the other rows are full poses",
+        rows.len(),
+        crate::limits::cut(first)
+    ))
+}
+
+/// A joint value outside its URDF limits, as read.
+pub(super) struct OutsideLimits {
+    pub(super) place: String,
+    pub(super) message: String,
+    pub(super) revolute: bool,
+    /// A revolute value read as radians that would be within the limits in degrees.
+    pub(super) within_in_degrees: bool,
+}
+
+/// At most this many values outside their limits are listed one by one.
+const LISTED_OUTSIDE: usize = 5;
+
+/// The warnings for values outside their limits: a few listed, the rest counted. When many
+/// revolute values read as radians are outside their limits and nearly all of them would be
+/// within in degrees, the file is in degrees: one error naming `--angle-unit` instead.
+pub(super) fn limit_warnings(
+    outside: &[OutsideLimits],
+    revolute_values: usize,
+    angle: AngleUnit,
+    origin: &str,
+) -> Result<Vec<String>> {
+    let revolute = outside.iter().filter(|o| o.revolute).count();
+    let explained = outside.iter().filter(|o| o.within_in_degrees).count();
+    // "Many": a tenth of the revolute values (and at least 3), nine in ten of them explained.
+    if angle == AngleUnit::Radian
+        && revolute >= 3
+        && 10 * revolute >= revolute_values
+        && 10 * explained >= 9 * revolute
+    {
+        let first = outside
+            .iter()
+            .find(|o| o.revolute)
+            .map_or(String::new(), |o| {
+                format!(" (first: {}: {})", o.place, o.message)
+            });
+        return Err(Error::InvalidData {
+            origin: origin.to_owned(),
+            message: format!(
+                "{revolute} of {revolute_values} revolute joint values are outside their limits \
+                when read as radians{first}, and {explained} of them are within the limits when \
+                read as degrees: the joint values look like degrees; give --angle-unit deg (or \
+                state `# units: angle=deg` in the file)"
+            ),
+        });
+    }
+    let mut warnings: Vec<String> = outside
+        .iter()
+        .take(LISTED_OUTSIDE)
+        .map(|o| format!("{}: {}", o.place, o.message))
+        .collect();
+    if outside.len() > LISTED_OUTSIDE {
+        warnings.push(format!(
+            "{origin}: {} more joint values are outside their limits (the first {LISTED_OUTSIDE} are listed)",
+            outside.len() - LISTED_OUTSIDE
+        ));
+    }
+    Ok(warnings)
+}
+
+/// Joint values read in degrees that are all within ±2π while the joints could move far more:
+/// radians read as degrees (every revolute joint would have moved less than 6.3°, too little
+/// to calibrate anything). Only checked with at least 10 revolute values.
+pub(super) fn angles_look_like_radians(
+    set: &MeasurementSet,
+    tree: &KinematicTree,
+    angle: AngleUnit,
+    origin: &str,
+) -> Result<()> {
+    if angle != AngleUnit::Degree {
+        return Ok(());
+    }
+    let revolute: Vec<usize> = tree
+        .dofs()
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| tree.joint(**j).kind != JointKind::Prismatic)
+        .map(|(dof, _)| dof)
+        .collect();
+    let values: Vec<f64> = set
+        .measurements
+        .iter()
+        .flat_map(|m| revolute.iter().map(|&d| m.q[d]))
+        .filter(|v| *v != 0.0)
+        .collect();
+    let largest_in_degrees = values
+        .iter()
+        .fold(0.0_f64, |a, v| a.max(v.abs().to_degrees()));
+    if values.len() >= 10 && largest_in_degrees <= std::f64::consts::TAU {
+        return Err(Error::InvalidData {
+            origin: origin.to_owned(),
+            message: format!(
+                "all {} non-zero revolute joint values are within ±{largest_in_degrees:.3} deg, \
+                too small a motion to calibrate from: the joint values look like radians; \
+                give --angle-unit rad (or state `# units: angle=rad` in the file)",
+                values.len()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Rows that repeat an earlier row in every column but the id: accepted (a repeated
+/// measurement is legitimate), with one warning, since an accidentally duplicated row weighs
+/// double in the fit.
+pub(super) struct Repeats {
+    id: Option<usize>,
+    first_line: HashMap<Vec<String>, usize>,
+    /// `(line, line it repeats)` of every repeated row.
+    found: Vec<(usize, usize)>,
+}
+
+impl Repeats {
+    pub(super) fn new(id: Option<usize>) -> Self {
+        Self {
+            id,
+            first_line: HashMap::new(),
+            found: Vec::new(),
+        }
+    }
+
+    pub(super) fn see(&mut self, fields: &[String], line: usize) {
+        let mut key = fields.to_vec();
+        if let Some(id) = self.id {
+            key[id].clear();
+        }
+        if let Some(&first) = self.first_line.get(&key) {
+            self.found.push((line, first));
+        } else {
+            self.first_line.insert(key, line);
+        }
+    }
+
+    pub(super) fn warning(&self, origin: &str, places: Places) -> Option<String> {
+        let &(line, first) = self.found.first()?;
+        let more = match self.found.len() {
+            1 => String::new(),
+            n => format!(" ({} repeated rows in all)", n),
+        };
+        Some(format!(
+            "{}: the row repeats {} in every column but the id{more}; \
+             a repeated row weighs double in the fit: remove it if it was copied by mistake",
+            places.row(origin, line, &line.to_string(), None),
+            places.earlier(first)
+        ))
+    }
+}
+
+/// A finite number, or what is wrong with the text.
+pub(super) fn number(text: &str, unit: &str) -> std::result::Result<f64, String> {
+    let unit = if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" in {unit}")
+    };
+    if text.is_empty() {
+        return Err(format!("the value is missing; give a number{unit}"));
+    }
+    match text.parse::<f64>() {
+        Ok(value) if value.is_finite() => Ok(value),
+        Ok(_) => Err(format!(
+            "'{}' is not a finite number; give a number{unit}",
+            crate::limits::cut(text)
+        )),
+        Err(_) => Err(format!(
+            "'{}' is not a number; give a number{unit}",
+            crate::limits::cut(text)
+        )),
+    }
+}
+
+pub(super) fn quoted_list(names: &[&str]) -> String {
+    names
+        .iter()
+        .map(|n| format!("'{n}'"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
