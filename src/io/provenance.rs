@@ -67,28 +67,46 @@ pub struct ProvenanceRecord {
     pub run: RunFacts,
 }
 
-/// The record of a file: its size and SHA-256.
+/// The record of a file: its size and SHA-256, read in blocks (a 10⁵-row CSV is not held
+/// in memory a second time).
 pub fn input_file(path: &Path) -> Result<InputFile> {
-    let bytes = std::fs::read(path).map_err(|e| Error::Io {
+    use std::io::Read;
+    let io_error = |e| Error::Io {
         path: path.to_owned(),
         source: e,
-    })?;
+    };
+    let mut file = std::fs::File::open(path).map_err(io_error)?;
+    let (mut hasher, mut size) = (Sha256::new(), 0u64);
+    let mut block = vec![0u8; 1 << 16];
+    loop {
+        let read = match file.read(&mut block) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(io_error(e)),
+        };
+        hasher.update(&block[..read]);
+        size += read as u64;
+    }
     Ok(InputFile {
         path: path.display().to_string(),
-        bytes: bytes.len() as u64,
-        sha256: sha256_hex(&bytes),
+        bytes: size,
+        sha256: hex(&hasher.finalize()),
     })
 }
 
 /// SHA-256 of `bytes` in lower-case hex.
 pub fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+/// `digest` in lower-case hex.
+fn hex(digest: &[u8]) -> String {
     use std::fmt::Write;
-    Sha256::digest(bytes)
-        .iter()
-        .fold(String::with_capacity(64), |mut hex, b| {
-            let _ = write!(hex, "{b:02x}");
-            hex
-        })
+    digest.iter().fold(String::with_capacity(64), |mut hex, b| {
+        let _ = write!(hex, "{b:02x}");
+        hex
+    })
 }
 
 /// `seconds` since the Unix epoch as `YYYY-MM-DDTHH:MM:SSZ` (proleptic Gregorian, UTC).

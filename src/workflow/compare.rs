@@ -228,7 +228,9 @@ fn configurations(a: &Folder, b: &Folder) -> Vec<(String, Vec<(String, f64)>)> {
                     .joints
                     .iter()
                     .enumerate()
-                    .filter_map(|(i, joint)| Some((joint.name.clone(), posture.value(i, &joint.name)?)))
+                    .filter_map(|(i, joint)| {
+                        Some((joint.name.clone(), posture.value(i, &joint.name)?))
+                    })
                     .collect();
                 out.push((tool.tool.clone(), joints));
             }

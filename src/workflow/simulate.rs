@@ -316,7 +316,10 @@ pub fn simulate_with_progress(
         ("summary.md".to_owned(), markdown.clone().into_bytes()),
         // From the value the outcome holds, so that the file is `to_json_rows(&outcome.results)`
         // to the byte (keys sorted).
-        ("results.json".to_owned(), crate::io::to_json_rows(&results)?.into_bytes()),
+        (
+            "results.json".to_owned(),
+            crate::io::to_json_rows(&results)?.into_bytes(),
+        ),
     ];
     files.extend(plots(reports.first())?);
     let inputs: Vec<PathBuf> = [

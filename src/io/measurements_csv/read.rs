@@ -16,7 +16,19 @@ pub fn read_measurements(
     options: &MeasurementReadOptions,
 ) -> Result<MeasurementSet> {
     let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
-    parse_measurements(&text, &path.display().to_string(), tree, model, options)
+    let origin = path.display().to_string();
+    let (table, header) = parse_table(&text, &origin)?;
+    // The text is not needed once parsed (at 10⁵ rows it is as large as the measurements).
+    drop(text);
+    measurements_from_table(
+        &table,
+        &header,
+        Places::Lines,
+        &origin,
+        tree,
+        model,
+        options,
+    )
 }
 
 /// Parses measurement CSV text; `origin` names it in messages (`origin:line:column`).
@@ -27,6 +39,12 @@ pub fn parse_measurements(
     model: &McpcModel,
     options: &MeasurementReadOptions,
 ) -> Result<MeasurementSet> {
+    let (table, header) = parse_table(text, origin)?;
+    measurements_from_table(&table, &header, Places::Lines, origin, tree, model, options)
+}
+
+/// The table and the stated units of measurement CSV text.
+fn parse_table(text: &str, origin: &str) -> Result<(CsvTable, StatedUnits)> {
     let table = parse_csv(text, origin).map_err(|e| match e {
         Error::InvalidData { origin, message } if message.starts_with("the file is empty") => {
             Error::InvalidData {
@@ -38,8 +56,7 @@ pub fn parse_measurements(
         }
         other => other,
     })?;
-    let header = parse_units_header(text, origin)?;
-    measurements_from_table(&table, &header, Places::Lines, origin, tree, model, options)
+    Ok((table, parse_units_header(text, origin)?))
 }
 
 /// The measurements of `table` (a CSV as read, or arrays laid out as one) whose stated units
