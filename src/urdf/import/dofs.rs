@@ -1,9 +1,9 @@
-//! Which joints are independent (configuration slots) and which follow another by <mimic>.
+//! Which joints are independent (configuration slots) and which follow another by `<mimic>`.
 
 use crate::tree::{Actuation, DofId, Joint, JointId};
 use std::collections::HashMap;
 
-/// The joints whose <mimic> names a joint that does not exist (ignored by urdfdom, which
+/// The joints whose `<mimic>` names a joint that does not exist (ignored by urdfdom, which
 /// check_urdf accepts): independent, with a warning.
 pub(super) fn dangling_mimics<'r>(
     robot: &'r urdf_rs::Robot,
