@@ -485,7 +485,9 @@ fn unobservable_markdown(
         md.push_str(
             "- A plane's height and a contact face's offset along its normal alias exactly: \
              the face offset is held at the setup's value and the plane height absorbs it \
-             (a face offset that is wrong moves the fitted plane, not the robot).\n",
+             (a face offset that is wrong moves the fitted plane, not the robot). Where two \
+             tools press on the same planes, only the first tool's offset is held; the \
+             other's is fitted relative to it (their difference is seen).\n",
         );
     }
     if has(ContactKind::Flush) || has(ContactKind::Point) {

@@ -4,6 +4,7 @@ pub mod blunders;
 pub mod camera;
 pub mod camera_setup;
 pub mod collision;
+mod contact_trial;
 pub mod contacts;
 mod detmax;
 pub mod experiment;
