@@ -73,20 +73,7 @@ pub fn run_contact_trial(
     let count = nominal.parameter_count();
     let mut free = contact_free_parameters(nominal);
     free.extend(scene.free_nuisance.iter().map(|k| count + k));
-    let mut start = scene.nuisance.clone();
-    let values: Vec<f64> = start
-        .values()
-        .iter()
-        .enumerate()
-        .map(|(k, v)| {
-            if scene.free_nuisance.contains(&k) {
-                v + settings.nuisance_start_error * rng.random_range(-1.0..1.0)
-            } else {
-                *v
-            }
-        })
-        .collect();
-    start.set_values(&values)?;
+    let start = nuisance_start(&scene, settings.nuisance_start_error, &mut rng)?;
     let lever = 0.5;
     let sigma = settings.encoder_sigma.max(1e-6);
     let options = IdentificationOptions {
@@ -183,6 +170,25 @@ pub fn run_contact_trial(
         truth_nuisance: scene.nuisance.clone(),
         scene,
     })
+}
+
+/// The true nuisance values, the freed ones moved up to `error` (m, rad) off: the fit's start.
+fn nuisance_start(scene: &ContactScene, error: f64, rng: &mut ChaCha8Rng) -> Result<Nuisance> {
+    let mut start = scene.nuisance.clone();
+    let values: Vec<f64> = start
+        .values()
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            if scene.free_nuisance.contains(&k) {
+                v + error * rng.random_range(-1.0..1.0)
+            } else {
+                *v
+            }
+        })
+        .collect();
+    start.set_values(&values)?;
+    Ok(start)
 }
 
 /// An independent set of columns of `jacobian` as large as its rank (the singular values above

@@ -268,6 +268,10 @@ pub fn contact_scene(
     })
 }
 
+/// Contacts of one kind made by one tool from one seed configuration: the kind, the contact,
+/// the tool, the seed.
+type Group = (ContactChoice, Contact, usize, Vec<f64>);
+
 /// The nuisance blocks of a scene and which of their values the fit frees.
 #[derive(Default)]
 struct Blocks {
@@ -305,7 +309,7 @@ fn flush_groups(
     blocks: &mut Blocks,
     name: &dyn Fn(usize) -> String,
     rng: &mut ChaCha8Rng,
-) -> Result<Vec<(ContactChoice, Contact, usize, Vec<f64>)>> {
+) -> Result<Vec<Group>> {
     let tools = settings.flush_tools.clamp(1, truth.tools().len().min(2));
     let faces: Vec<ContactFace> = (0..tools)
         .map(|t| ContactFace {
