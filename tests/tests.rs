@@ -10,6 +10,7 @@ mod cli;
 mod collision;
 mod compare;
 mod contacts;
+mod contacts_humanoid;
 mod corpus;
 mod deploy;
 mod export;

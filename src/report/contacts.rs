@@ -98,6 +98,8 @@ pub struct Scored {
     pub overall: Errors,
     /// Per session.
     pub sessions: BTreeMap<String, Errors>,
+    /// Per tool (index among the model's tools; a touch or bar counts for its first tool).
+    pub tools: BTreeMap<usize, Errors>,
 }
 
 impl Scored {
@@ -117,6 +119,11 @@ impl Scored {
             scored
                 .sessions
                 .entry(session)
+                .or_default()
+                .add(&contact, &violation);
+            scored
+                .tools
+                .entry(row.tool)
                 .or_default()
                 .add(&contact, &violation);
         }
@@ -184,9 +191,21 @@ impl ContactScores {
             (Some(b), Some(a)) => Some(a < b),
             _ => None,
         };
-        compare(&self.before.overall, &self.after.overall)
-            .or_else(|| compare(&self.training[0].overall, &self.training[1].overall))
-            .unwrap_or(false)
+        // Every tool must gain (both sides of a two-arm fit), not only the total.
+        let each = |before: &Scored, after: &Scored| {
+            after.tools.iter().all(|(tool, a)| {
+                before
+                    .tools
+                    .get(tool)
+                    .and_then(|b| compare(b, a))
+                    .unwrap_or(true)
+            })
+        };
+        match compare(&self.before.overall, &self.after.overall) {
+            Some(better) => better && each(&self.before, &self.after),
+            None => compare(&self.training[0].overall, &self.training[1].overall)
+                .is_some_and(|better| better && each(&self.training[0], &self.training[1])),
+        }
     }
 }
 
@@ -288,10 +307,12 @@ pub fn contact_report(
         "**Verdict: {}**\n",
         if usable {
             "usable — the calibrated robot predicts the held-out contacts better than the \
-             registered nominal robot; calibrated.urdf written (one URDF for all chains)"
+             registered nominal robot, overall and for every tool; calibrated.urdf written (one \
+             URDF for all chains)"
         } else {
             "not usable — the calibrated robot does not predict the held-out contacts better \
-             than the registered nominal robot; calibrated.urdf was not written"
+             than the registered nominal robot, overall and for every tool; calibrated.urdf \
+             was not written"
         }
     );
     let kinds: Vec<&str> = problem.kinds.iter().map(|k| k.name()).collect();
@@ -316,7 +337,13 @@ pub fn contact_report(
             .collect::<Vec<_>>()
             .join(", "),
     );
-    md.push_str(&held_out_markdown(scores, HEADER));
+    let tool_names: Vec<String> = problem
+        .model
+        .tools()
+        .iter()
+        .map(|t| tree.link(t.link).name.clone())
+        .collect();
+    md.push_str(&held_out_markdown(scores, HEADER, &tool_names));
     md.push_str("## Training fit\n\n");
     let after = &fit.after;
     let _ = writeln!(
@@ -353,7 +380,7 @@ const HEADER: &str = "| robot | contacts | height RMS / max (mm) | tilt RMS / ma
 
 /// The held-out figures: each session's training plane (primary, per session when several),
 /// then a plane refitted to the held-out contacts (diagnostic).
-fn held_out_markdown(scores: &ContactScores, header: &str) -> String {
+fn held_out_markdown(scores: &ContactScores, header: &str, tools: &[String]) -> String {
     let mut md = String::new();
     md.push_str(
         "## Held-out contacts, each session's plane as the training fit found it (primary)\n\n",
@@ -374,25 +401,22 @@ fn held_out_markdown(scores: &ContactScores, header: &str) -> String {
         );
     }
     if scores.after.sessions.len() > 1 {
-        md.push_str("Per session (height RMS, tilt RMS):\n\n| session | contacts | before | after |\n|---|---|---|---|\n");
-        for (session, after) in &scores.after.sessions {
-            let before = &scores.before.sessions[session];
-            let figure = |e: &Errors| {
-                format!(
-                    "{} mm, {}°",
-                    rms(&e.heights).map_or("—".into(), |v| format!("{v:.2}")),
-                    rms(&e.tilts).map_or("—".into(), |v| format!("{v:.3}"))
-                )
-            };
-            let _ = writeln!(
-                md,
-                "| {session} | {} | {} | {} |",
-                after.count(),
-                figure(before),
-                figure(after)
-            );
-        }
-        md.push('\n');
+        let rows = scores
+            .after
+            .sessions
+            .iter()
+            .map(|(s, after)| (s.clone(), &scores.before.sessions[s], after));
+        md.push_str(&breakdown("session", rows));
+    }
+    if scores.after.tools.len() > 1 {
+        let rows = scores.after.tools.iter().filter_map(|(t, after)| {
+            let name = tools
+                .get(*t)
+                .cloned()
+                .unwrap_or_else(|| format!("tool {t}"));
+            Some((name, scores.before.tools.get(t)?, after))
+        });
+        md.push_str(&breakdown("tool", rows));
     }
     md.push_str(
         "## Diagnostic: a plane refitted to the held-out contacts\n\n(Not the figure to judge \
@@ -409,6 +433,34 @@ fn held_out_markdown(scores: &ContactScores, header: &str) -> String {
         "| calibrated | {} |\n",
         scores.after_refit.overall.cells()
     );
+    md
+}
+
+/// A table of the held-out height and tilt RMS per `what` (session, tool), before and after.
+fn breakdown<'a>(
+    what: &str,
+    rows: impl Iterator<Item = (String, &'a Errors, &'a Errors)>,
+) -> String {
+    let mut md = format!(
+        "Per {what} (height RMS, tilt RMS):\n\n| {what} | contacts | before | after |\n|---|---|---|---|\n"
+    );
+    let figure = |e: &Errors| {
+        format!(
+            "{} mm, {}°",
+            rms(&e.heights).map_or("—".into(), |v| format!("{v:.2}")),
+            rms(&e.tilts).map_or("—".into(), |v| format!("{v:.3}"))
+        )
+    };
+    for (name, before, after) in rows {
+        let _ = writeln!(
+            md,
+            "| {name} | {} | {} | {} |",
+            after.count(),
+            figure(before),
+            figure(after)
+        );
+    }
+    md.push('\n');
     md
 }
 
@@ -435,6 +487,7 @@ fn contact_json(
             "training_plane": {"before": scores.before.overall.json(), "after": scores.after.overall.json()},
             "refitted_plane_diagnostic": {"before": scores.before_refit.overall.json(), "after": scores.after_refit.overall.json()},
             "sessions": scores.after.sessions.iter().map(|(s, e)| (s.clone(), json!({"before": scores.before.sessions[s].json(), "after": e.json()}))).collect::<serde_json::Map<_, _>>(),
+            "tools": scores.after.tools.iter().filter_map(|(t, e)| Some((tree.link(problem.model.tools().get(*t)?.link).name.clone(), json!({"before": scores.before.tools.get(t)?.json(), "after": e.json()})))).collect::<serde_json::Map<_, _>>(),
         },
         "training": {"before": scores.training[0].overall.json(), "after": scores.training[1].overall.json()},
         "rows": after.rows,
@@ -485,7 +538,9 @@ fn unobservable_markdown(
         md.push_str(
             "- A plane's height and a contact face's offset along its normal alias exactly: \
              the face offset is held at the setup's value and the plane height absorbs it \
-             (a face offset that is wrong moves the fitted plane, not the robot).\n",
+             (a face offset that is wrong moves the fitted plane, not the robot). Where two \
+             tools press on the same planes, only the first tool's offset is held; the \
+             other's is fitted relative to it (their difference is seen).\n",
         );
     }
     if has(ContactKind::Flush) || has(ContactKind::Point) {

@@ -10,20 +10,21 @@
 //! data, the calibration's Jacobians are analytic), clamped to the joint limits. Self-collision
 //! is not checked here.
 
-use super::truth::{true_model, ErrorRanges};
-use crate::calibration::observation::{contact_violation, NuisanceBlock, Tools};
-use crate::calibration::{
-    identify_with_nuisance, weighted_jacobian, IdentificationOptions, IdentificationReport,
-    Nuisance, Rigid, RobotState,
+pub use super::contact_trial::{
+    contact_free_parameters, held_out_residual, independent_columns, linear_columns,
+    run_contact_trial, ContactTrial, LINEAR_STD,
 };
+use super::truth::ErrorRanges;
+use crate::calibration::observation::{contact_violation, NuisanceBlock, Tools};
+use crate::calibration::{Nuisance, RobotState};
 use crate::error::{Error, Result};
-use crate::kinematics::{McpcModel, ParameterOwner};
+use crate::kinematics::McpcModel;
 use crate::math::Pose;
 use crate::measurement::{Contact, ContactFace, ContactPlane, Measurement, Observation};
 use crate::tree::KinematicTree;
 use nalgebra::{DMatrix, DVector, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use rand_distr::{Distribution, StandardNormal};
 
 /// A kind of simulated contact (`simulate --observation`'s contact names).
@@ -73,6 +74,11 @@ pub struct ContactSimulation {
     pub errors: ErrorRanges,
     /// How far the fit's starting nuisance values are from the true ones (m and rad).
     pub nuisance_start_error: f64,
+    /// Tables (sessions, one plane each) of flush contacts; `per_kind` configurations per table
+    /// and tool.
+    pub tables: usize,
+    /// Tools pressing flush on each table: 1 (the first) or 2 (both hands, one face each).
+    pub flush_tools: usize,
 }
 
 impl Default for ContactSimulation {
@@ -87,6 +93,8 @@ impl Default for ContactSimulation {
                 length: 0.01,
             },
             nuisance_start_error: 0.01,
+            tables: 1,
+            flush_tools: 1,
         }
     }
 }
@@ -126,26 +134,7 @@ pub fn contact_scene(
         )));
     }
     let name = |tool: usize| tree.link(truth.tools()[tool].link).name.clone();
-    let mut nuisance = Nuisance::default();
-    let mut free = Vec::new();
-    let mut add = |nuisance: &mut Nuisance,
-                   name: String,
-                   names: &[&str],
-                   values: Vec<f64>,
-                   held: &[usize]| {
-        let start = nuisance.len();
-        free.extend(
-            (0..values.len())
-                .filter(|k| !held.contains(k))
-                .map(|k| start + k),
-        );
-        nuisance.blocks.push(NuisanceBlock {
-            name,
-            parameter_names: names.iter().map(|s| s.to_string()).collect(),
-            values,
-        });
-        nuisance.blocks.len() - 1
-    };
+    let mut blocks = Blocks::default();
     let point = |rng: &mut ChaCha8Rng| {
         vec![
             rng.random_range(-0.02..0.02),
@@ -157,50 +146,31 @@ pub fn contact_scene(
     let points: Vec<usize> = (0..if needs_points { tools.min(2) } else { 0 })
         .map(|t| {
             let values = point(rng);
-            add(
-                &mut nuisance,
-                format!("point {}", name(t)),
-                &["x", "y", "z"],
-                values,
-                &[],
-            )
+            blocks.add(format!("point {}", name(t)), &["x", "y", "z"], values, &[])
         })
         .collect();
     let limits = limits_of(tree);
     let (mut measurements, mut exact, mut validation) = (Vec::new(), Vec::new(), Vec::new());
     let held_out = (settings.per_kind / 4).max(5);
+    let mut groups = Vec::new();
     for &kind in &settings.kinds {
+        if kind == ContactChoice::Flush {
+            groups.extend(flush_groups(
+                truth,
+                settings,
+                &limits,
+                &mut blocks,
+                &name,
+                rng,
+            )?);
+            continue;
+        }
         let seed = random_configuration(&limits, rng);
         let contact = match kind {
-            ContactChoice::Flush => {
-                let face = ContactFace {
-                    block: add(
-                        &mut nuisance,
-                        format!("face {}", name(0)),
-                        &["offset", "tilt a", "tilt b"],
-                        vec![0.0; 3],
-                        &[0],
-                    ),
-                    nominal: Pose::from_parts(
-                        Translation3::new(0.0, 0.0, 0.05),
-                        UnitQuaternion::identity(),
-                    ),
-                };
-                let plane = ContactPlane {
-                    block: add(
-                        &mut nuisance,
-                        "plane flush".into(),
-                        &["height", "tilt a", "tilt b"],
-                        vec![0.0; 3],
-                        &[],
-                    ),
-                    nominal: truth.tool_poses(&seed)[0] * face.nominal,
-                };
-                Contact::Flush { plane, face }
-            }
+            ContactChoice::Flush => continue,
             ContactChoice::Plane => {
                 let at = truth.tool_poses(&seed)[0];
-                let c = nuisance.block_values(points[0])?;
+                let c = blocks.nuisance.block_values(points[0])?;
                 let origin = at
                     .transform_point(&Vector3::new(c[0], c[1], c[2]).into())
                     .coords;
@@ -210,8 +180,7 @@ pub fn contact_scene(
                     0.0,
                 );
                 let plane = ContactPlane {
-                    block: add(
-                        &mut nuisance,
+                    block: blocks.add(
                         "plane table".into(),
                         &["height", "tilt a", "tilt b"],
                         vec![0.0; 3],
@@ -233,34 +202,24 @@ pub fn contact_scene(
                 point: points[0],
                 tool2: 1,
                 point2: points[1],
-                length: add(
-                    &mut nuisance,
-                    "bar".into(),
-                    &["length"],
-                    vec![settings.bar_length],
-                    &[0],
-                ),
+                length: blocks.add("bar".into(), &["length"], vec![settings.bar_length], &[0]),
             },
         };
         let seed = match kind {
-            ContactChoice::Touch | ContactChoice::Bar => (0..200)
-                .find_map(|_| {
-                    project(
-                        truth,
-                        &nuisance,
-                        &contact,
-                        &random_configuration(&limits, rng),
-                        &limits,
-                    )
-                })
-                .ok_or_else(|| {
-                    invalid(format!(
-                        "no configuration found where the {} contact holds",
-                        kind.name()
-                    ))
-                })?,
+            ContactChoice::Touch | ContactChoice::Bar => contact_seed(
+                truth,
+                &blocks.nuisance,
+                &contact,
+                0,
+                &limits,
+                rng,
+                kind.name(),
+            )?,
             _ => seed,
         };
+        groups.push((kind, contact, 0, seed));
+    }
+    for (kind, contact, tool, seed) in groups {
         for index in 0..settings.per_kind + held_out {
             let q = (0..100)
                 .find_map(|_| {
@@ -269,7 +228,7 @@ pub fn contact_scene(
                         .zip(&limits)
                         .map(|(v, (lo, hi))| (v + rng.random_range(-0.5..0.5)).clamp(*lo, *hi))
                         .collect();
-                    project(truth, &nuisance, &contact, &start, &limits)
+                    project(truth, &blocks.nuisance, &contact, tool, &start, &limits)
                 })
                 .ok_or_else(|| {
                     invalid(format!(
@@ -285,7 +244,7 @@ pub fn contact_scene(
                 })
                 .collect();
             let row = |q: Vec<f64>| Measurement {
-                tool: 0,
+                tool,
                 q,
                 observation: Observation::Contact(contact),
                 stage: None,
@@ -301,12 +260,127 @@ pub fn contact_scene(
         }
     }
     Ok(ContactScene {
-        nuisance,
-        free_nuisance: free,
+        nuisance: blocks.nuisance,
+        free_nuisance: blocks.free,
         measurements,
         exact,
         validation,
     })
+}
+
+/// Contacts of one kind made by one tool from one seed configuration: the kind, the contact,
+/// the tool, the seed.
+type Group = (ContactChoice, Contact, usize, Vec<f64>);
+
+/// The nuisance blocks of a scene and which of their values the fit frees.
+#[derive(Default)]
+struct Blocks {
+    nuisance: Nuisance,
+    free: Vec<usize>,
+}
+
+impl Blocks {
+    /// Adds a block (values `held` are not freed); its index.
+    fn add(&mut self, name: String, names: &[&str], values: Vec<f64>, held: &[usize]) -> usize {
+        let start = self.nuisance.len();
+        self.free.extend(
+            (0..values.len())
+                .filter(|k| !held.contains(k))
+                .map(|k| start + k),
+        );
+        self.nuisance.blocks.push(NuisanceBlock {
+            name,
+            parameter_names: names.iter().map(|s| s.to_string()).collect(),
+            values,
+        });
+        self.nuisance.blocks.len() - 1
+    }
+}
+
+/// Flush contacts: one face per tool (`flush_tools`, its offset held: it aliases the plane's
+/// height), one plane per table (`tables`: sessions `day1`, `day2`, …; one table: `flush`)
+/// through the first tool's face at a random configuration, and a seed configuration where
+/// each tool's face lies flush on it (the first's: that configuration; the second's: projected
+/// from random starts).
+fn flush_groups(
+    truth: &McpcModel,
+    settings: &ContactSimulation,
+    limits: &[(f64, f64)],
+    blocks: &mut Blocks,
+    name: &dyn Fn(usize) -> String,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<Group>> {
+    let tools = settings.flush_tools.clamp(1, truth.tools().len().min(2));
+    let faces: Vec<ContactFace> = (0..tools)
+        .map(|t| ContactFace {
+            block: blocks.add(
+                format!("face {}", name(t)),
+                &["offset", "tilt a", "tilt b"],
+                vec![0.0; 3],
+                // The first face's offset aliases the planes' heights; the second's, on the
+                // same planes, is seen relative to it.
+                if t == 0 { &[0] } else { &[] },
+            ),
+            nominal: Pose::from_parts(
+                Translation3::new(0.0, 0.0, 0.05),
+                UnitQuaternion::identity(),
+            ),
+        })
+        .collect();
+    let tables = settings.tables.max(1);
+    let mut groups = Vec::new();
+    for table in 0..tables {
+        let seed = random_configuration(limits, rng);
+        let session = if tables > 1 {
+            format!("plane day{}", table + 1)
+        } else {
+            "plane flush".to_owned()
+        };
+        let plane = ContactPlane {
+            block: blocks.add(session, &["height", "tilt a", "tilt b"], vec![0.0; 3], &[]),
+            nominal: truth.tool_poses(&seed)[0] * faces[0].nominal,
+        };
+        for (tool, face) in faces.iter().enumerate() {
+            let contact = Contact::Flush { plane, face: *face };
+            let seed = if tool == 0 {
+                seed.clone()
+            } else {
+                contact_seed(
+                    truth,
+                    &blocks.nuisance,
+                    &contact,
+                    tool,
+                    limits,
+                    rng,
+                    "flush",
+                )?
+            };
+            groups.push((ContactChoice::Flush, contact, tool, seed));
+        }
+    }
+    Ok(groups)
+}
+
+/// A configuration where `contact` (of `tool`) holds, projected from random starts.
+fn contact_seed(
+    truth: &McpcModel,
+    nuisance: &Nuisance,
+    contact: &Contact,
+    tool: usize,
+    limits: &[(f64, f64)],
+    rng: &mut ChaCha8Rng,
+    what: &str,
+) -> Result<Vec<f64>> {
+    (0..200)
+        .find_map(|_| {
+            let start = random_configuration(limits, rng);
+            project(truth, nuisance, contact, tool, &start, limits)
+        })
+        .ok_or_else(|| {
+            invalid(format!(
+                "no configuration found where the {what} contact holds"
+            ))
+        })
 }
 
 fn invalid(message: String) -> Error {
@@ -342,17 +416,18 @@ fn random_configuration(limits: &[(f64, f64)], rng: &mut ChaCha8Rng) -> Vec<f64>
 }
 
 /// The contact's violation at `q` on `model`.
-fn violation(
+pub(super) fn violation(
     model: &McpcModel,
     nuisance: &Nuisance,
     contact: &Contact,
+    tool: usize,
     q: &[f64],
 ) -> Result<Vec<f64>> {
     let poses = model.tool_poses(q);
     let state = RobotState {
         model,
         q,
-        tool: 0,
+        tool,
         tools: Tools::Poses(&poses),
         offset: None,
         nuisance,
@@ -365,13 +440,14 @@ fn project(
     model: &McpcModel,
     nuisance: &Nuisance,
     contact: &Contact,
+    tool: usize,
     start: &[f64],
     limits: &[(f64, f64)],
 ) -> Option<Vec<f64>> {
     let mut q = start.to_vec();
     let step = 1e-6;
     for _ in 0..60 {
-        let v = DVector::from_vec(violation(model, nuisance, contact, &q).ok()?);
+        let v = DVector::from_vec(violation(model, nuisance, contact, tool, &q).ok()?);
         if v.norm() < 1e-12 {
             return Some(q);
         }
@@ -379,9 +455,9 @@ fn project(
         for j in 0..q.len() {
             let mut moved = q.clone();
             moved[j] += step;
-            let plus = DVector::from_vec(violation(model, nuisance, contact, &moved).ok()?);
+            let plus = DVector::from_vec(violation(model, nuisance, contact, tool, &moved).ok()?);
             moved[j] -= 2.0 * step;
-            let minus = DVector::from_vec(violation(model, nuisance, contact, &moved).ok()?);
+            let minus = DVector::from_vec(violation(model, nuisance, contact, tool, &moved).ok()?);
             jacobian.set_column(j, &((plus - minus) / (2.0 * step)));
         }
         let gram = &jacobian * jacobian.transpose() + DMatrix::identity(v.len(), v.len()) * 1e-14;
@@ -394,285 +470,4 @@ fn project(
         }
     }
     None
-}
-
-/// One simulated contact calibration: what the fit recovered in the observable subspace.
-#[derive(Debug, Clone)]
-pub struct ContactTrial {
-    /// The identification (model parameters and nuisance at the solution).
-    pub report: IdentificationReport,
-    /// Free columns (model parameters, then nuisance values).
-    pub free: Vec<usize>,
-    /// Rank of the scaled Jacobian at the solution.
-    pub rank: usize,
-    /// Largest residual (m or rad) of held-out contacts made by the true robot, predicted by
-    /// the noise-free fit (what the contacts determine: 0 when the fit recovered it).
-    pub noise_free_held_out: f64,
-    /// The same for the fit with encoder noise.
-    pub held_out: f64,
-    /// Directions of the noisy fit compared with its covariance: those whose standard
-    /// deviation is below [`LINEAR_STD`] (the fit is linear over their spread).
-    pub linear_rank: usize,
-    /// Largest error (m or rad) in the observable subspace of the noisy data's fit started
-    /// from the noise-free fit's solution (the truth's representative along the directions
-    /// the contacts cannot see), against that solution.
-    pub observable_error: f64,
-    /// `√(eᵀ C⁺ e / rank)` of the observable error against the fit's covariance (1: as
-    /// predicted).
-    pub consistency: f64,
-    /// The true nuisance values.
-    pub truth_nuisance: Nuisance,
-    /// The simulated contacts (the true nuisance, training and held-out rows).
-    pub scene: ContactScene,
-}
-
-/// The free model parameters of a contact fit: every joint frame's (tools' offsets alias the
-/// contact points exactly; the measurement frame is the reference link's).
-pub fn contact_free_parameters(model: &McpcModel) -> Vec<usize> {
-    model
-        .parameter_layout()
-        .iter()
-        .enumerate()
-        .filter(|(_, (owner, _))| matches!(owner, ParameterOwner::Frame(_)))
-        .map(|(k, _)| k)
-        .collect()
-}
-
-/// A trial: a true robot off `nominal`, contacts it makes, a fit from the nominal robot and
-/// nuisance values `nuisance_start_error` off, and its error in the observable subspace.
-pub fn run_contact_trial(
-    tree: &KinematicTree,
-    nominal: &McpcModel,
-    settings: &ContactSimulation,
-    seed: u64,
-) -> Result<ContactTrial> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let truth = true_model(nominal, &settings.errors, &mut rng)?;
-    let scene = contact_scene(tree, &truth, settings, &mut rng)?;
-    let count = nominal.parameter_count();
-    let mut free = contact_free_parameters(nominal);
-    free.extend(scene.free_nuisance.iter().map(|k| count + k));
-    let mut start = scene.nuisance.clone();
-    let values: Vec<f64> = start
-        .values()
-        .iter()
-        .enumerate()
-        .map(|(k, v)| {
-            if scene.free_nuisance.contains(&k) {
-                v + settings.nuisance_start_error * rng.random_range(-1.0..1.0)
-            } else {
-                *v
-            }
-        })
-        .collect();
-    start.set_values(&values)?;
-    let lever = 0.5;
-    let sigma = settings.encoder_sigma.max(1e-6);
-    let options = IdentificationOptions {
-        max_iterations: 100,
-        height_sigma: sigma * lever,
-        gap_sigma: sigma * lever,
-        length_sigma: sigma * lever,
-        tilt_sigma: sigma,
-        ..IdentificationOptions::default()
-    };
-    let fit = |measurements: &[Measurement]| {
-        identify_with_nuisance(nominal, &start, measurements, None, &Rigid, &free, &options)
-    };
-    let exact = fit(&scene.exact)?;
-    let report = fit(&scene.measurements)?;
-    // The noise's effect alone: the noisy data fitted from the noise-free solution (minimum-norm
-    // steps then move in the observable directions only, where the covariance applies).
-    let mut reference_model = nominal.clone();
-    reference_model.set_parameters(&exact.parameters)?;
-    // What the contacts cannot see is a curved set (e.g. the plane turning with the torso
-    // about the base): steps along it are not linear, so an error measured across it is not
-    // the covariance's. The noisy fit frees one independent set of columns (as many as the
-    // rank, the rest held at the noise-free solution): no step leaves the observable
-    // directions.
-    let (at_exact, _) = weighted_jacobian(
-        &reference_model,
-        &exact.nuisance,
-        &scene.measurements,
-        &Rigid,
-        &free,
-        &options,
-    )?;
-    let independent: Vec<usize> = independent_columns(&at_exact, options.rank_tolerance)
-        .into_iter()
-        .map(|k| free[k])
-        .collect();
-    let noisy = identify_with_nuisance(
-        &reference_model,
-        &exact.nuisance,
-        &scene.measurements,
-        None,
-        &Rigid,
-        &independent,
-        &options,
-    )?;
-    let mut estimate = nominal.clone();
-    estimate.set_parameters(&noisy.parameters)?;
-    let (jacobian, _) = weighted_jacobian(
-        &estimate,
-        &noisy.nuisance,
-        &scene.measurements,
-        &Rigid,
-        &independent,
-        &options,
-    )?;
-    let values = |r: &IdentificationReport| -> Vec<f64> {
-        r.parameters
-            .iter()
-            .copied()
-            .chain(r.nuisance.values())
-            .collect()
-    };
-    let (reference, estimated) = (values(&exact), values(&noisy));
-    let error = DVector::from_iterator(
-        independent.len(),
-        independent.iter().map(|&p| estimated[p] - reference[p]),
-    );
-    let (_, linear_rank, observable_error, consistency) = observable_part(
-        &jacobian,
-        &error,
-        options.rank_tolerance,
-        noisy.residual_scale,
-    );
-    let noise_free_held_out = held_out_residual(nominal, &exact, &scene.validation)?;
-    let held_out = held_out_residual(nominal, &report, &scene.validation)?;
-    Ok(ContactTrial {
-        noise_free_held_out,
-        held_out,
-        report,
-        free,
-        rank: exact.rank,
-        linear_rank,
-        observable_error,
-        consistency,
-        truth_nuisance: scene.nuisance.clone(),
-        scene,
-    })
-}
-
-/// An independent set of columns of `jacobian` as large as its rank (the singular values above
-/// `tolerance` times the largest, columns scaled to unit norm as the solver does), chosen
-/// greedily by the largest norm left after projecting out the columns chosen before; in
-/// increasing order. Deterministic.
-pub fn independent_columns(jacobian: &DMatrix<f64>, tolerance: f64) -> Vec<usize> {
-    let mut columns: Vec<DVector<f64>> = jacobian
-        .column_iter()
-        .map(|c| {
-            let norm = c.norm();
-            if norm > 0.0 {
-                c / norm
-            } else {
-                c.into_owned()
-            }
-        })
-        .collect();
-    let scaled = DMatrix::from_columns(&columns);
-    let singular = scaled.singular_values();
-    let largest = singular.max();
-    let rank = singular
-        .iter()
-        .filter(|&&s| s > tolerance * largest)
-        .count();
-    let mut chosen = Vec::with_capacity(rank);
-    for _ in 0..rank {
-        let Some((best, _)) = columns
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| !chosen.contains(k))
-            .map(|(k, c)| (k, c.norm()))
-            .max_by(|a, b| a.1.total_cmp(&b.1))
-        else {
-            break;
-        };
-        let basis = columns[best].normalize();
-        for column in &mut columns {
-            let along = basis.dot(column);
-            column.axpy(-along, &basis, 1.0);
-        }
-        chosen.push(best);
-    }
-    chosen.sort_unstable();
-    chosen
-}
-
-/// The largest standard deviation (m, rad) of a direction whose error is compared with the
-/// covariance: weaker directions (a few nearly unobservable combinations of a flush fit, which
-/// the encoder noise moves by centimetres to metres) are not linear over their spread.
-pub const LINEAR_STD: f64 = 1e-2;
-
-/// Rank, largest observable error and its consistency with `σ̂²(JᵀJ)⁺`, from the SVD of the
-/// column-scaled weighted Jacobian (the solver's rank decision).
-fn observable_part(
-    jacobian: &DMatrix<f64>,
-    error: &DVector<f64>,
-    tolerance: f64,
-    scale: f64,
-) -> (usize, usize, f64, f64) {
-    let norms: Vec<f64> = jacobian.column_iter().map(|c| c.norm()).collect();
-    let floor = norms.iter().copied().fold(0.0, f64::max) * 1e-6;
-    let scales = DVector::from_iterator(
-        norms.len(),
-        norms
-            .iter()
-            .map(|&n| if n > floor { n } else { floor.max(1e-300) }),
-    );
-    let mut scaled = jacobian.clone();
-    for (k, mut column) in scaled.column_iter_mut().enumerate() {
-        column /= scales[k];
-    }
-    let svd = scaled.svd(false, true);
-    let Some(v_t) = svd.v_t else {
-        return (0, 0, f64::NAN, f64::NAN);
-    };
-    let largest = svd.singular_values.max();
-    let scaled_error = error.component_mul(&scales);
-    let mut projected = DVector::zeros(error.len());
-    let (mut rank, mut compared, mut chi) = (0, 0, 0.0);
-    for (i, &sigma) in svd.singular_values.iter().enumerate() {
-        let v = v_t.row(i).transpose();
-        // The direction's standard deviation in parameter units (m, rad): beyond
-        // LINEAR_STD the fit is not linear there and the covariance does not apply.
-        let spread = v.component_div(&scales).amax() * scale / sigma;
-        if sigma > tolerance * largest {
-            rank += 1;
-        }
-        if sigma > tolerance * largest && spread < LINEAR_STD {
-            compared += 1;
-            let along = v.dot(&scaled_error);
-            projected += v * along;
-            chi += (along * sigma / scale).powi(2);
-        }
-    }
-    let observable = projected.component_div(&scales).amax();
-    (
-        rank,
-        compared,
-        observable,
-        (chi / compared.max(1) as f64).sqrt(),
-    )
-}
-
-/// The largest residual of the held-out contacts `validation` under the fitted robot and
-/// nuisance of `report` (`nominal` gives the model's structure).
-pub fn held_out_residual(
-    nominal: &McpcModel,
-    report: &IdentificationReport,
-    validation: &[Measurement],
-) -> Result<f64> {
-    let mut model = nominal.clone();
-    model.set_parameters(&report.parameters)?;
-    let mut largest: f64 = 0.0;
-    for m in validation {
-        if let Observation::Contact(contact) = &m.observation {
-            for value in violation(&model, &report.nuisance, contact, &m.q)? {
-                largest = largest.max(value.abs());
-            }
-        }
-    }
-    Ok(largest)
 }

@@ -4,6 +4,7 @@ mod blunders;
 pub mod camera;
 pub mod camera_setup;
 mod collision;
+mod contact_trial;
 pub mod contacts;
 mod detmax;
 mod experiment;

@@ -245,6 +245,13 @@ pub fn contact_problem(
             set_plane_nominal(m, *block, start);
         }
     }
+    if !setup.free.face_offset {
+        builder
+            .free
+            .extend(relative_face_offsets(&builder.nuisance, &training));
+        builder.free.sort_unstable();
+        builder.free.dedup();
+    }
     let planes = builder
         .planes
         .iter()
@@ -260,6 +267,39 @@ pub fn contact_problem(
         setup_planes,
         kinds,
     })
+}
+
+/// The face offsets a flush fit can determine (indices among the nuisance values): a plane's
+/// height aliases a face's offset along its normal, but where several tools press on the same
+/// planes only one offset per group of tools linked by shared planes is aliased. The first
+/// tool's (lowest face block) of each group stays held; the others' offsets, relative to it,
+/// are freed.
+fn relative_face_offsets(nuisance: &Nuisance, rows: &[Measurement]) -> Vec<usize> {
+    // Union–find over face blocks, joined through the planes they share.
+    let mut parent: BTreeMap<usize, usize> = BTreeMap::new();
+    let mut plane_face: BTreeMap<usize, usize> = BTreeMap::new();
+    fn root(parent: &BTreeMap<usize, usize>, mut k: usize) -> usize {
+        while let Some(&p) = parent.get(&k).filter(|&&p| p != k) {
+            k = p;
+        }
+        k
+    }
+    for m in rows {
+        let Observation::Contact(Contact::Flush { plane, face }) = m.observation else {
+            continue;
+        };
+        parent.entry(face.block).or_insert(face.block);
+        let other = *plane_face.entry(plane.block).or_insert(face.block);
+        let (a, b) = (root(&parent, face.block), root(&parent, other));
+        if a != b {
+            parent.insert(a.max(b), a.min(b));
+        }
+    }
+    parent
+        .keys()
+        .filter(|&&face| root(&parent, face) != face)
+        .map(|&face| nuisance.offset(face))
+        .collect()
 }
 
 /// Each setup tool's index among the model's tools.

@@ -138,6 +138,8 @@ pub struct SimulateConfig {
     pub contacts: Vec<crate::sim::contacts::ContactChoice>,
     /// σ of the encoder noise on the recorded configurations of a contact simulation (rad).
     pub encoder_noise: f64,
+    /// Flush contacts: tables (sessions, one plane each) and tools pressing on each (1 or 2).
+    pub contact_tables: (usize, usize),
 }
 
 impl Default for SimulateConfig {
@@ -179,6 +181,7 @@ impl Default for SimulateConfig {
             estimate_intrinsics: false,
             contacts: Vec::new(),
             encoder_noise: 0.0,
+            contact_tables: (1, 1),
         }
     }
 }

@@ -40,6 +40,8 @@ pub(super) fn simulate_contacts(
         kinds: config.contacts.clone(),
         per_kind: config.poses + config.torso_poses,
         encoder_sigma: config.encoder_noise,
+        tables: config.contact_tables.0,
+        flush_tools: config.contact_tables.1,
         errors: ErrorRanges {
             angle: config.angle_error,
             length: config.length_error,

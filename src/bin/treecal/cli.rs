@@ -330,6 +330,12 @@ pub struct SimulateArgs {
     /// Encoder noise σ on the recorded configurations of a contact simulation (rad).
     #[arg(long, default_value_t = 0.0, value_name = "RAD")]
     pub encoder_noise: f64,
+    /// Flush contacts on this many tables (sessions `day1`, `day2`, …, one plane each).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub tables: usize,
+    /// Flush contacts of both hands (the first two tools) on every table, not the first's only.
+    #[arg(long)]
+    pub both_hands: bool,
     /// The camera's link (--observation camera|mixed) [default: the coupled branch's last link].
     #[arg(long, value_name = "LINK")]
     pub camera_link: Option<String>,

@@ -92,6 +92,7 @@ fn config(args: SimulateArgs) -> Result<SimulateConfig> {
         estimate_intrinsics: args.estimate_intrinsics,
         contacts,
         encoder_noise: args.encoder_noise,
+        contact_tables: (args.tables, if args.both_hands { 2 } else { 1 }),
     })
 }
 
