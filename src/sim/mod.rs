@@ -2,7 +2,9 @@
 
 pub mod blunders;
 pub mod camera;
+pub mod camera_planning;
 pub mod camera_setup;
+pub mod camera_visibility;
 pub mod collision;
 pub mod contacts;
 mod detmax;
