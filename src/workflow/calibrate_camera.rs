@@ -19,7 +19,7 @@ use crate::camera::{
 };
 use crate::error::{Error, Result};
 use crate::io::camera_yaml::{camera_file_yaml, read_camera_file, CameraFileContents};
-use crate::io::detections_csv::read_detections;
+use crate::io::detections_csv::{parse_detections, read_detections};
 use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit, StatedUnits};
 use crate::math::{rpy_from_rotation, Pose};
 use crate::measurement::Measurement;
@@ -49,7 +49,7 @@ pub struct CameraCalibrateConfig {
     /// The camera file (cameras and targets, `docs/file-formats.md`).
     pub camera_file: PathBuf,
     /// The detections CSV.
-    pub detections: PathBuf,
+    pub detections: DetectionsSource,
     /// Held-out detections (same format), predicted but not fitted.
     pub validation: Option<PathBuf>,
     /// Pixel noise σ of a detected point (px).
@@ -62,6 +62,21 @@ pub struct CameraCalibrateConfig {
     pub length_unit: Option<LengthUnit>,
     /// Add `<tool>_calibrated` links where a calibrated tool frame is off its joint's axis.
     pub add_tool_links: bool,
+}
+
+/// Where the detections come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DetectionsSource {
+    /// A detections CSV file.
+    File(PathBuf),
+    /// Detections CSV text (the Python package's in-memory detections); `origin` names it in
+    /// messages.
+    Csv {
+        /// The CSV text.
+        text: String,
+        /// Its name in messages.
+        origin: String,
+    },
 }
 
 /// The outcome of a camera calibration.
@@ -89,7 +104,10 @@ impl CameraCalibrateConfig {
         [
             self.robot.path(),
             Some(self.camera_file.as_path()),
-            Some(self.detections.as_path()),
+            match &self.detections {
+                DetectionsSource::File(path) => Some(path.as_path()),
+                DetectionsSource::Csv { .. } => None,
+            },
             self.validation.as_deref(),
             self.tracker.as_ref().map(|t| t.measurements.as_path()),
         ]
@@ -157,7 +175,12 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         length: config.length_unit,
         ..StatedUnits::default()
     };
-    let views = read_detections(&config.detections, &setup.tree, &setup.rig, &units)?;
+    let views = match &config.detections {
+        DetectionsSource::File(path) => read_detections(path, &setup.tree, &setup.rig, &units)?,
+        DetectionsSource::Csv { text, origin } => {
+            parse_detections(text, origin, &setup.tree, &setup.rig, &units)?
+        }
+    };
     let held_out_views = match &config.validation {
         Some(path) => Some(read_detections(path, &setup.tree, &setup.rig, &units)?),
         None => None,

@@ -6,7 +6,7 @@ use crate::cli::{
 };
 use std::path::Path;
 use treecal::workflow::calibrate_camera::{
-    calibrate_camera_files, CameraCalibrateConfig, CameraTrackerInput,
+    calibrate_camera_files, CameraCalibrateConfig, CameraTrackerInput, DetectionsSource,
 };
 use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
@@ -129,7 +129,7 @@ fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<
         robot: RobotSource::from_path(args.robot.clone()),
         tools: args.tools.clone(),
         camera_file: camera.to_owned(),
-        detections: detections.to_owned(),
+        detections: DetectionsSource::File(detections.to_owned()),
         validation: args.validation.clone(),
         pixel_sigma: args.pixel_sigma,
         tracker: args.measurements.as_ref().map(|path| CameraTrackerInput {
