@@ -82,7 +82,11 @@ pub fn plan_camera_poses(
     options: &CameraPlanningOptions,
     progress: &dyn Fn(usize),
 ) -> Result<CameraPlanReport> {
-    if options.poses == 0 || options.candidates < options.poses || !(options.pixel_sigma > 0.0) {
+    if options.poses == 0
+        || options.candidates < options.poses
+        || !options.pixel_sigma.is_finite()
+        || options.pixel_sigma <= 0.0
+    {
         return Err(Error::InvalidData {
             origin: "camera pose planning".into(),
             message: format!(
@@ -306,7 +310,7 @@ fn choose(informations: &[DMatrix<f64>], k: usize) -> (Vec<usize>, usize) {
                     }
                 },
             );
-        if !(best.0 > current + 1e-9 * current.abs().max(1.0)) {
+        if best.0.is_nan() || best.0 <= current + 1e-9 * current.abs().max(1.0) {
             break;
         }
         sum = sum - &informations[chosen[best.1]] + &informations[best.2];

@@ -117,7 +117,7 @@ impl Sight<'_> {
             let to_camera = (camera_pose.translation.vector - board.translation.vector).normalize();
             let face = board.rotation * -Vec3::z();
             let angle = face.dot(&to_camera).clamp(-1.0, 1.0).acos();
-            if !(angle <= self.rules.max_view_angle) {
+            if angle.is_nan() || angle > self.rules.max_view_angle {
                 return Err(Hidden::FacingAway { angle });
             }
         }
