@@ -162,3 +162,152 @@ fn camera_calibration_files_with_errors_are_named() {
     let run = treecal(&["calibrate", "--camera", cameras.to_str().unwrap()]);
     assert!(!run.success && run.stderr.contains("--detections"), "{run}");
 }
+
+/// `tracker.csv` rewritten in a tracker frame 30° about z and (2, −1, 0.5) m from the robot's
+/// root (poses: x, y, z, qw, qx, qy, qz).
+fn in_a_tracker_frame(text: &str) -> String {
+    let tracker_from_root = nalgebra::Isometry3::new(
+        nalgebra::Vector3::new(2.0, -1.0, 0.5),
+        nalgebra::Vector3::z() * 30f64.to_radians(),
+    );
+    let mut lines = text.lines();
+    let mut out: Vec<String> = Vec::new();
+    let mut header: Vec<String> = Vec::new();
+    for line in lines.by_ref() {
+        out.push(line.to_owned());
+        if !line.starts_with('#') {
+            header = line.split(',').map(str::to_owned).collect();
+            break;
+        }
+    }
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let [x, y, z, qw, qx, qy, qz] = ["x", "y", "z", "qw", "qx", "qy", "qz"].map(column);
+    for line in lines {
+        let mut f: Vec<String> = line.split(',').map(str::to_owned).collect();
+        let v = |k: usize| f[k].parse::<f64>().unwrap();
+        let rotation = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            v(qw),
+            v(qx),
+            v(qy),
+            v(qz),
+        ));
+        let pose = tracker_from_root
+            * nalgebra::Isometry3::from_parts(
+                nalgebra::Translation3::new(v(x), v(y), v(z)),
+                rotation,
+            );
+        let t = pose.translation.vector;
+        let q = pose.rotation.quaternion();
+        for (k, value) in [
+            (x, t.x),
+            (y, t.y),
+            (z, t.z),
+            (qw, q.w),
+            (qx, q.i),
+            (qy, q.j),
+            (qz, q.k),
+        ] {
+            f[k] = format!("{value:.12}");
+        }
+        out.push(f.join(","));
+    }
+    out.join("\n") + "\n"
+}
+
+/// `simulate --observation mixed` writes tracker.csv beside the detections; `calibrate
+/// --camera --detections --measurements` fits both, the tracker's own frame registered,
+/// each kind with its σ̂ in the report.
+#[test]
+fn mixed_camera_and_tracker_files_calibrate_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim");
+    let out = dir.path().join("out");
+    assert_success(
+        &treecal(&[
+            "simulate",
+            "--observation",
+            "mixed",
+            "--trials",
+            "1",
+            "-o",
+            sim.to_str().unwrap(),
+        ]),
+        "simulate mixed",
+    );
+    let tracker = std::fs::read_to_string(sim.join("tracker.csv")).unwrap();
+    let moved = dir.path().join("tracker_frame.csv");
+    std::fs::write(&moved, in_a_tracker_frame(&tracker)).unwrap();
+    let path = |name: &str| sim.join(name).to_str().unwrap().to_owned();
+    let run = treecal(&[
+        "calibrate",
+        "--camera",
+        &path("cameras.yaml"),
+        "--detections",
+        &path("detections.csv"),
+        "--measurements",
+        moved.to_str().unwrap(),
+        "--position-sigma",
+        "3.3e-5",
+        "--rotation-sigma",
+        "4.7e-4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_success(&run, "calibrate --camera --measurements");
+    assert!(run.stdout.contains("Rows by kind"), "{run}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let kinds = report["kinds"].as_array().unwrap();
+    let names: Vec<&str> = kinds.iter().map(|k| k["kind"].as_str().unwrap()).collect();
+    assert_eq!(
+        names,
+        ["pixel", "tracker position", "tracker rotation"],
+        "{report:#}"
+    );
+    let rows = tracker.lines().filter(|l| !l.starts_with('#')).count() - 1;
+    assert_eq!(kinds[1]["observations"].as_u64().unwrap() as usize, rows);
+    assert_eq!(kinds[1]["rows"].as_u64().unwrap() as usize, 3 * rows);
+    for kind in kinds {
+        let sigma = kind["residual_scale"].as_f64().unwrap();
+        assert!((0.5..1.6).contains(&sigma), "{kind}");
+    }
+    let xyz: Vec<f64> = report["tracker"]["xyz"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        (xyz[0] - 2.0).abs() < 1e-3 && (xyz[1] + 1.0).abs() < 1e-3 && (xyz[2] - 0.5).abs() < 1e-3,
+        "tracker frame {xyz:?}"
+    );
+    // A tracker of unknown frame says nothing about where the robot stands in its root frame:
+    // that still comes from the world board (the camera alone: 1.36 mm mean on trial 1).
+    let (mean, max, _) = tool_errors(dir.path(), &out.join("calibrated.urdf"));
+    assert!(mean < 1.2 && max < 2.5, "tool error {mean} mm (max {max})");
+    // Rows given in the root frame pin it: the tracker's accuracy.
+    let base = dir.path().join("base");
+    let run = treecal(&[
+        "calibrate",
+        "--camera",
+        &path("cameras.yaml"),
+        "--detections",
+        &path("detections.csv"),
+        "--measurements",
+        &path("tracker.csv"),
+        "--measurement-frame",
+        "base",
+        "--position-sigma",
+        "3.3e-5",
+        "--rotation-sigma",
+        "4.7e-4",
+        "-o",
+        base.to_str().unwrap(),
+    ]);
+    assert_success(
+        &run,
+        "calibrate --camera --measurements --measurement-frame base",
+    );
+    let (mean, max, _) = tool_errors(dir.path(), &base.join("calibrated.urdf"));
+    assert!(mean < 0.3 && max < 1.0, "tool error {mean} mm (max {max})");
+}

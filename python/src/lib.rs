@@ -8,6 +8,7 @@
 #![forbid(unsafe_code)]
 
 mod calibrate;
+mod camera;
 mod fk;
 mod measurements;
 mod trust;
@@ -35,6 +36,8 @@ const KEYWORDS: &[(&str, &str)] = &[
     ("add-tool-links", "add_tool_links"),
     ("angle-unit", "angle_unit"),
     ("calibration", "calibration"),
+    ("camera", "camera"),
+    ("detections", "detections"),
     ("frame", "frame"),
     ("gravity-frame", "gravity_frame"),
     ("identify-stiffness", "identify_stiffness"),
@@ -46,6 +49,7 @@ const KEYWORDS: &[(&str, &str)] = &[
     ("measurement-frame", "measurement_frame"),
     ("measurements", "measurements"),
     ("out", "out_dir"),
+    ("pixel-sigma", "pixel_sigma"),
     ("plan", "plan"),
     ("plan-file", "plan"),
     ("position-sigma", "position_sigma"),
@@ -101,6 +105,8 @@ fn _treecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fk::fk, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate, m)?)?;
     m.add_class::<calibrate::PyCalibration>()?;
+    m.add_function(wrap_pyfunction!(camera::calibrate_camera, m)?)?;
+    m.add_class::<camera::PyCameraCalibration>()?;
     m.add_function(wrap_pyfunction!(trust::verify, m)?)?;
     m.add_function(wrap_pyfunction!(trust::compare, m)?)?;
     Ok(())

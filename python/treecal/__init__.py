@@ -377,6 +377,9 @@ def calibrate(
     ignore_columns: Sequence[str] = (),
     strict: bool = False,
     add_tool_links: bool = False,
+    camera: Optional[PathLike] = None,
+    detections: Optional[DetectionsLike] = None,
+    pixel_sigma: float = 0.5,
 ) -> Calibration:
     """Calibrates `robot` (URDF path; None: the built-in Robonaut) from `measurements`.
 
@@ -392,7 +395,24 @@ def calibrate(
     defaults (None).
     Bad input raises :class:`TreecalError`; a failed verdict does not (see
     :attr:`Calibration.verdict`).
+
+    With `camera` (a camera file: cameras and targets, docs/file-formats.md) the robot is
+    calibrated from the pixels of `detections` (``treecal calibrate --camera``): a detections
+    CSV path, or rows in memory (an iterable of mappings with the keys id, camera, target,
+    corner, u, v and one per joint, radians and metres). `validation` is then a held-out
+    detections CSV path, `measurements` optional tracker rows (a measurement CSV path) fitted
+    with the pixels, each with its σ (`pixel_sigma` px, `position_sigma` m, `rotation_sigma`
+    rad). The :class:`Calibration`'s parameters are then the robot's (name, nominal,
+    calibrated, std_dev, determined) and its report the camera report (docs/camera.md).
     """
+    if camera is not None:
+        return _calibrate_camera(
+            robot, camera, detections, validation, measurements, pixel_sigma,
+            position_sigma, rotation_sigma, measurement_frame, length_unit, angle_unit,
+            joint_length_unit, tools, ignore_columns, add_tool_links,
+        )
+    if detections is not None:
+        raise TreecalError("calibrate: detections= needs camera= (the camera file)")
     if measurements is None:
         raise TreecalError("calibrate: measurements= is required (a CSV path or treecal.Measurements)")
     inner = _native(
@@ -417,6 +437,60 @@ def calibrate(
         rotation_sigma=None if rotation_sigma is None else _float(rotation_sigma, "rotation_sigma"),
         ignore_columns=_strings(ignore_columns, "ignore_columns"),
         strict=_flag(strict, "strict"),
+        add_tool_links=_flag(add_tool_links, "add_tool_links"),
+    )
+    return Calibration(inner)
+
+
+DetectionsLike = Union[PathLike, Sequence[Mapping[str, Any]]]
+
+
+def _detections_csv(rows: Any) -> str:
+    """Detection rows (mappings) as detections CSV text, columns in the first row's order."""
+    if isinstance(rows, Mapping) or not isinstance(rows, collections.abc.Iterable):
+        raise TreecalError("detections: give a CSV path or an iterable of row mappings")
+    rows = list(rows)
+    if not rows or not all(isinstance(r, Mapping) for r in rows):
+        raise TreecalError("detections: give at least one row, each a mapping of column to value")
+    columns = [str(c) for c in rows[0].keys()]
+    lines = [",".join(columns)]
+    for k, row in enumerate(rows):
+        if set(map(str, row.keys())) != set(columns):
+            raise TreecalError(f"detections: row {k} has other columns than row 0 ({', '.join(columns)})")
+        lines.append(",".join(str(row[c]) if not isinstance(row[c], float) else repr(row[c]) for c in columns))
+    return "\n".join(lines) + "\n"
+
+
+def _calibrate_camera(
+    robot: Any, camera: Any, detections: Any, validation: Any, measurements: Any,
+    pixel_sigma: Any, position_sigma: Any, rotation_sigma: Any, measurement_frame: Any,
+    length_unit: Any, angle_unit: Any, joint_length_unit: Any, tools: Any,
+    ignore_columns: Any, add_tool_links: Any,
+) -> "Calibration":
+    """`calibrate` with a camera file (see there)."""
+    if detections is None:
+        raise TreecalError("calibrate: camera= needs detections= (a CSV path or rows)")
+    as_path = isinstance(detections, (str, os.PathLike))
+    for value, name in ((validation, "validation"), (measurements, "measurements")):
+        if value is not None and not isinstance(value, (str, os.PathLike)):
+            raise TreecalError(f"calibrate: with camera=, {name}= is a CSV path")
+    inner = _native(
+        _treecal.calibrate_camera,
+        robot=_robot_path(robot),
+        camera=_path(camera, "camera"),
+        detections=_path(detections, "detections") if as_path else None,
+        detections_csv=None if as_path else _detections_csv(detections),
+        validation=None if validation is None else _path(validation, "validation"),
+        measurements=None if measurements is None else _path(measurements, "measurements"),
+        pixel_sigma=_float(pixel_sigma, "pixel_sigma"),
+        position_sigma=None if position_sigma is None else _float(position_sigma, "position_sigma"),
+        rotation_sigma=None if rotation_sigma is None else _float(rotation_sigma, "rotation_sigma"),
+        measurement_frame=_path(measurement_frame, "measurement_frame"),
+        length_unit=_optional_text(length_unit, "length_unit"),
+        angle_unit=_optional_text(angle_unit, "angle_unit"),
+        joint_length_unit=_optional_text(joint_length_unit, "joint_length_unit"),
+        tools=None if tools is None else _strings(tools, "tools"),
+        ignore_columns=_strings(ignore_columns, "ignore_columns"),
         add_tool_links=_flag(add_tool_links, "add_tool_links"),
     )
     return Calibration(inner)

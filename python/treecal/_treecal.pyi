@@ -58,6 +58,26 @@ def calibrate(
     add_tool_links: bool,
 ) -> Calibration: ...
 
+def calibrate_camera(
+    *,
+    robot: Optional[str],
+    camera: str,
+    detections: Optional[str],
+    detections_csv: Optional[str],
+    validation: Optional[str],
+    measurements: Optional[str],
+    pixel_sigma: float,
+    position_sigma: Optional[float],
+    rotation_sigma: Optional[float],
+    measurement_frame: str,
+    length_unit: Optional[str],
+    angle_unit: Optional[str],
+    joint_length_unit: Optional[str],
+    tools: Optional[List[str]],
+    ignore_columns: List[str],
+    add_tool_links: bool,
+) -> Calibration: ...
+
 def verify(
     *,
     measurements: Union[str, Dict[str, Any]],

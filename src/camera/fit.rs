@@ -118,6 +118,72 @@ pub struct CameraFitReport {
     pub unidentifiable: Vec<Vec<(usize, f64)>>,
     /// Detected points left out (no predicted pixel at the start).
     pub rejected: Vec<RejectedPoint>,
+    /// The rows of each kind of observation and their own σ̂ ([`kind_scales`]).
+    pub kinds: Vec<KindScale>,
+}
+
+/// The rows of one kind of observation in a fit and their σ̂.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct KindScale {
+    /// `pixel`, `tracker position` or `tracker rotation`.
+    pub kind: String,
+    /// Observations of this kind (detected points, tracker rows).
+    pub observations: usize,
+    /// Its residual rows.
+    pub rows: usize,
+    /// Its own σ̂: `√(Σ r² / (rows·(1 − rank/N)))` over its weighted residuals `r` (`N` rows in
+    /// all): each kind bears its share of the degrees of freedom the fit used. 1 when the
+    /// kind's noise is the declared σ.
+    pub residual_scale: f64,
+}
+
+/// σ̂ per kind of the weighted `residual` of `problem` (pixel rows first, then the tracker
+/// rows in order, position rows before rotation rows), at numerical rank `rank`.
+pub fn kind_scales(
+    problem: &CameraProblem<'_>,
+    residual: &DVector<f64>,
+    rank: usize,
+) -> Vec<KindScale> {
+    let total = residual.len();
+    let tracker_rows: usize = problem.tracker.iter().map(|m| m.observation.rows()).sum();
+    let pixel_rows = total.saturating_sub(tracker_rows);
+    // (observations, rows, Σ r²) of pixel, tracker position, tracker rotation.
+    let mut sums = [(0, 0, 0.0); 3];
+    sums[0] = (
+        pixel_rows / 2,
+        pixel_rows,
+        residual.rows(0, pixel_rows).norm_squared(),
+    );
+    let mut row = pixel_rows;
+    for m in problem.tracker {
+        let count = m.observation.rows();
+        for k in 0..count.min(total - row) {
+            let kind = if k < 3 { 1 } else { 2 };
+            sums[kind].1 += 1;
+            sums[kind].2 += residual[row + k].powi(2);
+        }
+        sums[1].0 += 1;
+        if count > 3 {
+            sums[2].0 += 1;
+        }
+        row += count;
+    }
+    let kept = 1.0 - rank as f64 / total.max(1) as f64;
+    ["pixel", "tracker position", "tracker rotation"]
+        .iter()
+        .zip(sums)
+        .filter(|(_, (_, rows, _))| *rows > 0)
+        .map(|(kind, (observations, rows, sum))| KindScale {
+            kind: (*kind).to_owned(),
+            observations,
+            rows,
+            residual_scale: if kept > 0.0 {
+                (sum / (rows as f64 * kept)).sqrt()
+            } else {
+                f64::NAN
+            },
+        })
+        .collect()
 }
 
 /// The current estimate.

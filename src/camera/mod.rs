@@ -23,7 +23,9 @@ pub mod target;
 pub use check::{
     camera_identifiability, explain as explain_identifiability, CameraIdentifiability,
 };
-pub use fit::{CameraFitOptions, CameraFitReport, CameraProblem, RejectedPoint, Unknown};
+pub use fit::{
+    CameraFitOptions, CameraFitReport, CameraProblem, KindScale, RejectedPoint, Unknown,
+};
 pub use model::{Intrinsics, Projection, Rejection, INTRINSIC_COUNT, INTRINSIC_NAMES};
 pub use observation::{linearise_view, predict_pixels, View, ViewPrediction};
 pub use rig::{CameraSpec, Mount, Rig, RigCamera, RigTarget, TargetSpec};

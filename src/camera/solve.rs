@@ -278,6 +278,7 @@ fn statistics(
             .map(|m| m.observation.rows())
             .sum::<usize>();
     let options_sigma = pixel_sigma_of(lin, pixel_rows);
+    let kinds = super::fit::kind_scales(problem, &lin.residual, rank);
     Ok(CameraFitReport {
         model: state.model,
         intrinsics: state.intrinsics,
@@ -293,6 +294,7 @@ fn statistics(
         identifiable,
         unidentifiable,
         rejected,
+        kinds,
     })
 }
 

@@ -3,7 +3,7 @@
 //! camera extrinsics and intrinsics, the robot's parameters and the verdict.
 
 use crate::calibration::{Termination, Verdict};
-use crate::camera::{CameraIdentifiability, RejectedPoint};
+use crate::camera::{CameraIdentifiability, KindScale, RejectedPoint};
 use serde::Serialize;
 
 /// Pixel residuals (measured − predicted) of a set of images.
@@ -61,6 +61,21 @@ pub struct CameraFitSummary {
     pub residual_scale: f64,
     /// The declared pixel σ (px).
     pub pixel_sigma: f64,
+}
+
+/// The tracker's frame as fitted: the robot's root frame in the tracker frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrackerRegistration {
+    /// The measurement CSV.
+    pub file: String,
+    /// Its rows.
+    pub rows: usize,
+    /// Whether the frame was fitted (else the rows are in the root frame).
+    pub fitted: bool,
+    /// The root frame's origin in the tracker frame (m).
+    pub xyz: [f64; 3],
+    /// Its roll, pitch, yaw (rad).
+    pub rpy: [f64; 3],
 }
 
 /// A fitted pose: nominal and calibrated, in its mount (a link or the world).
@@ -121,6 +136,11 @@ pub struct CameraCalibrationReport {
     pub inputs: Vec<String>,
     /// The fit.
     pub fit: CameraFitSummary,
+    /// The rows of each kind of observation (pixels, tracker positions and rotations) and
+    /// each kind's own σ̂.
+    pub kinds: Vec<KindScale>,
+    /// The tracker rows' file and fitted frame, with mixed data.
+    pub tracker: Option<TrackerRegistration>,
     /// The fit's residuals at the solution.
     pub residuals: PixelResiduals,
     /// Per target.
@@ -190,6 +210,7 @@ pub fn camera_markdown(report: &CameraCalibrationReport) -> String {
             &held.after,
         );
     }
+    text.push_str(&kinds_markdown(report));
     text.push_str("\n## What the images cannot determine\n\n");
     if report.unobservable.findings.is_empty() {
         text.push_str("Every unknown is determined by these images.\n");
@@ -214,6 +235,35 @@ pub fn camera_markdown(report: &CameraCalibrationReport) -> String {
     }
     text.push_str(&poses_markdown("Targets", &report.target_poses));
     text.push_str(&parameters_markdown(&report.robot_parameters));
+    text
+}
+
+/// The rows of each kind and their σ̂, and the tracker's frame (mixed data).
+fn kinds_markdown(report: &CameraCalibrationReport) -> String {
+    let mut text = String::from(
+        "\n## Rows by kind\n\n| kind | observations | rows | σ̂ |\n| --- | --- | --- | --- |\n",
+    );
+    for kind in &report.kinds {
+        text.push_str(&format!(
+            "| {} | {} | {} | {:.3} |\n",
+            kind.kind, kind.observations, kind.rows, kind.residual_scale
+        ));
+    }
+    if let Some(tracker) = &report.tracker {
+        let [x, y, z] = tracker.xyz.map(|v| v * 1e3);
+        let [r, p, w] = tracker.rpy.map(f64::to_degrees);
+        text.push_str(&format!(
+            "\nTracker rows: {} from {}; the robot's root frame in the tracker frame: xyz \
+             ({x:.2}, {y:.2}, {z:.2}) mm, rpy ({r:.3}, {p:.3}, {w:.3})° ({}).\n",
+            tracker.rows,
+            tracker.file,
+            if tracker.fitted {
+                "fitted with the rest"
+            } else {
+                "given: the rows are in the root frame"
+            }
+        ));
+    }
     text
 }
 

@@ -682,5 +682,7 @@ fn adjacent(bodies: &Bodies, a: LinkId, b: LinkId) -> bool {
         || bodies.parent_body[body_b.0] == Some(body_a)
 }
 
+mod ray;
+
 #[cfg(test)]
 mod tests;

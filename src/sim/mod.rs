@@ -2,7 +2,9 @@
 
 mod blunders;
 pub mod camera;
+pub mod camera_planning;
 pub mod camera_setup;
+pub mod camera_visibility;
 mod collision;
 mod contact_trial;
 pub mod contacts;

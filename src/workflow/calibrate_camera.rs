@@ -6,24 +6,26 @@
 //! and the fitted camera file. Computes everything and writes nothing
 //! ([`CameraCalibration::write`] writes). See `docs/camera.md`.
 
+use super::calibrate_camera_judge::{held_out, pixel_residuals, verdict_findings};
+use super::camera_tracker::{registered, registration};
 use super::checks::{check_outputs, Output};
 use super::simulate_camera::with_camera_link;
 use super::source::{branches, RobotSource};
 use super::Note;
-use crate::calibration::{Finding, Termination, Verdict};
+use crate::calibration::{Finding, Verdict};
 use crate::camera::{
-    calibrate_camera, explain_identifiability, predict_pixels, CameraFitOptions, CameraFitReport,
-    CameraProblem, CameraSpec, Intrinsics, Mount, RejectedPoint, Rig, TargetSpec, Unknown, View,
-    INTRINSIC_NAMES,
+    calibrate_camera, explain_identifiability, CameraFitOptions, CameraFitReport, CameraProblem,
+    CameraSpec, Mount, Rig, TargetSpec, Unknown, INTRINSIC_NAMES,
 };
 use crate::error::{Error, Result};
 use crate::io::camera_yaml::{camera_file_yaml, read_camera_file, CameraFileContents};
-use crate::io::detections_csv::read_detections;
+use crate::io::detections_csv::{parse_detections, read_detections};
 use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit, StatedUnits};
 use crate::math::{rpy_from_rotation, Pose};
+use crate::measurement::Measurement;
 use crate::report::camera::{
     camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,
-    HeldOut, PixelResiduals, RobotParameter, TargetResiduals,
+    RobotParameter,
 };
 use crate::tree::KinematicTree;
 use crate::urdf::{export_urdf_with, ExportOptions};
@@ -33,11 +35,8 @@ use std::path::{Path, PathBuf};
 /// The fitted camera file [`CameraCalibration::write`] writes next to calibrated.urdf.
 pub const CALIBRATED_CAMERAS: &str = "cameras_calibrated.yaml";
 
-/// σ̂ above which the pixel residuals are flagged (they are this many times the declared σ).
-pub const PIXEL_SIGMA_WARNING: f64 = 3.0;
-
-/// σ̂ above which the calibration fails: the model or the detections are wrong, not noisy.
-pub const PIXEL_SIGMA_FAILED: f64 = 30.0;
+pub use super::calibrate_camera_judge::{PIXEL_SIGMA_FAILED, PIXEL_SIGMA_WARNING};
+pub use super::camera_tracker::CameraTrackerInput;
 
 /// Settings of [`calibrate_camera_files`].
 #[derive(Debug, Clone, PartialEq)]
@@ -50,17 +49,34 @@ pub struct CameraCalibrateConfig {
     /// The camera file (cameras and targets, `docs/file-formats.md`).
     pub camera_file: PathBuf,
     /// The detections CSV.
-    pub detections: PathBuf,
+    pub detections: DetectionsSource,
     /// Held-out detections (same format), predicted but not fitted.
     pub validation: Option<PathBuf>,
     /// Pixel noise σ of a detected point (px).
     pub pixel_sigma: f64,
+    /// Tracker rows fitted with the pixels (mixed data), each kind with its own σ.
+    pub tracker: Option<CameraTrackerInput>,
     /// Unit of revolute joints in the CSVs [default: the file's `# units:` comment, else rad].
     pub angle_unit: Option<AngleUnit>,
     /// Unit of prismatic joints [default: the comment's, else m].
     pub length_unit: Option<LengthUnit>,
     /// Add `<tool>_calibrated` links where a calibrated tool frame is off its joint's axis.
     pub add_tool_links: bool,
+}
+
+/// Where the detections come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DetectionsSource {
+    /// A detections CSV file.
+    File(PathBuf),
+    /// Detections CSV text (the Python package's in-memory detections); `origin` names it in
+    /// messages.
+    Csv {
+        /// The CSV text.
+        text: String,
+        /// Its name in messages.
+        origin: String,
+    },
 }
 
 /// The outcome of a camera calibration.
@@ -88,8 +104,12 @@ impl CameraCalibrateConfig {
         [
             self.robot.path(),
             Some(self.camera_file.as_path()),
-            Some(self.detections.as_path()),
+            match &self.detections {
+                DetectionsSource::File(path) => Some(path.as_path()),
+                DetectionsSource::Csv { .. } => None,
+            },
             self.validation.as_deref(),
+            self.tracker.as_ref().map(|t| t.measurements.as_path()),
         ]
         .into_iter()
         .flatten()
@@ -145,28 +165,41 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
             ),
         });
     }
+    if let Some(tracker) = &config.tracker {
+        tracker.validate()?;
+    }
     let mut notes = Vec::new();
-    let setup = load(config, &mut notes)?;
+    let mut setup = load(config, &mut notes)?;
     let units = StatedUnits {
         angle: config.angle_unit,
         length: config.length_unit,
         ..StatedUnits::default()
     };
-    let views = read_detections(&config.detections, &setup.tree, &setup.rig, &units)?;
+    let views = match &config.detections {
+        DetectionsSource::File(path) => read_detections(path, &setup.tree, &setup.rig, &units)?,
+        DetectionsSource::Csv { text, origin } => {
+            parse_detections(text, origin, &setup.tree, &setup.rig, &units)?
+        }
+    };
     let held_out_views = match &config.validation {
         Some(path) => Some(read_detections(path, &setup.tree, &setup.rig, &units)?),
         None => None,
     };
+    let tracker = read_tracker(config, &mut setup, &mut notes)?;
     let problem = CameraProblem {
         rig: &setup.rig,
         views: &views,
-        tracker: &[],
+        tracker: &tracker,
         unknowns: setup.rig.unknowns(&setup.augmented, true),
     };
-    let options = CameraFitOptions {
+    let mut options = CameraFitOptions {
         pixel_sigma: config.pixel_sigma,
         ..CameraFitOptions::default()
     };
+    if let Some(input) = &config.tracker {
+        options.position_sigma = input.position_sigma;
+        options.rotation_sigma = input.rotation_sigma;
+    }
     let fit = calibrate_camera(&setup.augmented, &problem, &options)?;
     let unobservable = explain_identifiability(
         &setup.tree,
@@ -179,7 +212,9 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
     let (urdf, mut findings) = export_robot(&setup, config, &fit, &std_devs)?;
     let (residuals, targets, _) = pixel_residuals(&setup.rig, &views, &fit.model, &fit.intrinsics);
     let held_out = match (&held_out_views, &config.validation) {
-        (Some(views), Some(path)) => Some(held_out(&setup, views, path, &fit)),
+        (Some(views), Some(path)) => {
+            Some(held_out(&setup.rig, &setup.augmented, views, path, &fit))
+        }
         _ => None,
     };
     let calibrated_cameras = match &urdf {
@@ -190,7 +225,7 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         &fit,
         &residuals,
         held_out.as_ref(),
-        config,
+        config.pixel_sigma,
     ));
     findings.extend(
         unobservable
@@ -218,6 +253,11 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
             residual_scale: fit.residual_scale,
             pixel_sigma: config.pixel_sigma,
         },
+        kinds: fit.kinds.clone(),
+        tracker: config
+            .tracker
+            .as_ref()
+            .map(|input| registration(input, tracker.len(), &fit.model)),
         residuals,
         targets,
         held_out,
@@ -231,6 +271,24 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
     };
     let calibrated = calibrated_cameras.map(|(contents, yaml)| (contents, yaml, extra_std));
     finish(config, setup, report, notes, urdf, calibrated)
+}
+
+/// The tracker rows of `config` (none without them), read with the robot's tools; the setup's
+/// model registered to the tracker's frame ([`registered`]).
+fn read_tracker(
+    config: &CameraCalibrateConfig,
+    setup: &mut Setup,
+    notes: &mut Vec<Note>,
+) -> Result<Vec<Measurement>> {
+    let Some(input) = &config.tracker else {
+        return Ok(Vec::new());
+    };
+    let robot = setup.rig.robot_model(&setup.augmented)?;
+    let set = input.read(&setup.tree, &robot, config.angle_unit, config.length_unit)?;
+    notes.extend(set.notes.iter().map(|n| Note::info(n.clone())));
+    notes.extend(set.warnings.iter().map(|w| Note::warning(w.clone())));
+    setup.augmented = registered(&setup.augmented, &setup.rig, input, &set.measurements)?;
+    Ok(set.measurements)
 }
 
 /// calibrated.urdf of the fitted robot (its standard deviations in the export's comments),
@@ -389,161 +447,6 @@ impl StdDevs<'_> {
 
 fn std_devs(fit: &CameraFitReport) -> StdDevs<'_> {
     StdDevs { fit }
-}
-
-/// Pixel residuals of `views` predicted by `model` and `intrinsics`: all, per target, and
-/// the points without a pixel.
-fn pixel_residuals(
-    rig: &Rig,
-    views: &[View],
-    model: &McpcModel,
-    intrinsics: &[Intrinsics],
-) -> (PixelResiduals, Vec<TargetResiduals>, Vec<RejectedPoint>) {
-    let mut all = Vec::new();
-    let mut per_target: Vec<Vec<f64>> = vec![Vec::new(); rig.targets.len()];
-    let mut images = vec![0; rig.targets.len()];
-    let mut rejected = Vec::new();
-    for view in views {
-        let poses = model.tool_poses(&view.q);
-        let pixels = predict_pixels(rig, view, &poses, &intrinsics[view.camera], false);
-        images[view.target] += 1;
-        for (pixel, (point, measured)) in pixels.iter().zip(&view.points) {
-            match pixel {
-                Ok(p) => {
-                    let d = (measured - p).norm();
-                    all.push(d);
-                    per_target[view.target].push(d);
-                }
-                Err(reason) => rejected.push(RejectedPoint {
-                    view: view.id.clone(),
-                    point: *point,
-                    reason: *reason,
-                }),
-            }
-        }
-    }
-    let targets = rig
-        .targets
-        .iter()
-        .zip(per_target.iter().zip(&images))
-        .filter(|(_, (_, n))| **n > 0)
-        .map(|(t, (d, n))| TargetResiduals {
-            target: t.name.clone(),
-            residuals: statistics(d, *n),
-        })
-        .collect();
-    (statistics(&all, views.len()), targets, rejected)
-}
-
-fn statistics(lengths: &[f64], images: usize) -> PixelResiduals {
-    let n = lengths.len().max(1) as f64;
-    PixelResiduals {
-        images,
-        points: lengths.len(),
-        rms_px: (lengths.iter().map(|d| d * d).sum::<f64>() / n).sqrt(),
-        mean_px: lengths.iter().sum::<f64>() / n,
-        max_px: lengths.iter().copied().fold(0.0, f64::max),
-    }
-}
-
-/// The held-out images before (nominal) and after calibration.
-fn held_out(setup: &Setup, views: &[View], path: &Path, fit: &CameraFitReport) -> HeldOut {
-    let nominal: Vec<Intrinsics> = setup.rig.cameras.iter().map(|c| c.intrinsics).collect();
-    let (before, _, _) = pixel_residuals(&setup.rig, views, &setup.augmented, &nominal);
-    let (after, _, rejected) = pixel_residuals(&setup.rig, views, &fit.model, &fit.intrinsics);
-    HeldOut {
-        file: path.display().to_string(),
-        before,
-        after,
-        rejected,
-    }
-}
-
-/// The verdict's findings on the fit itself.
-fn verdict_findings(
-    fit: &CameraFitReport,
-    residuals: &PixelResiduals,
-    held_out: Option<&HeldOut>,
-    config: &CameraCalibrateConfig,
-) -> Vec<Finding> {
-    let mut findings = Vec::new();
-    let scale = fit.residual_scale;
-    let rms = format!("RMS pixel residual {:.3} px", residuals.rms_px);
-    if !scale.is_finite() || scale > PIXEL_SIGMA_FAILED {
-        findings.push(Finding::failed(
-            "pixel-sigma-ratio",
-            format!(
-                "σ̂ = {scale:.3e}: the pixel residuals ({rms}) are far beyond any detector noise; \
-                 typical causes: a wrong camera link or a nominal camera pose far off (fix \
-                 `pose` in the camera file), a board's corner order or size unlike the camera \
-                 file's, joint angles in degrees read as radians (--angle-unit), images matched \
-                 to the wrong configurations"
-            ),
-        ));
-    } else if scale > PIXEL_SIGMA_WARNING {
-        findings.push(Finding::warning(
-            "pixel-sigma-ratio",
-            format!(
-                "σ̂ = {scale:.1}: the pixel residuals ({rms}) are {scale:.0}× the declared \
-                 --pixel-sigma {} px: the detector is noisier than declared (the standard \
-                 deviations are scaled by σ̂), or the model misses something (flexibility, \
-                 distortion: estimate the intrinsics with `estimate: [pose, intrinsics]`)",
-                config.pixel_sigma
-            ),
-        ));
-    }
-    if fit.termination == Termination::MaxIterations {
-        findings.push(Finding::warning(
-            "camera-iterations",
-            format!(
-                "the fit stopped at its iteration limit ({}) before converging: check the \
-                 nominal camera pose in the camera file",
-                fit.iterations
-            ),
-        ));
-    }
-    if let Some(point) = fit.rejected.first() {
-        findings.push(Finding::warning(
-            "camera-rejected-points",
-            format!(
-                "{} detected point(s) were left out because the nominal robot and camera give \
-                 them no pixel (first: image '{}', point {}: {}); check the camera's nominal \
-                 pose and the target's link in the camera file",
-                fit.rejected.len(),
-                point.view,
-                point.point,
-                point.reason.describe()
-            ),
-        ));
-    }
-    if let Some(held) = held_out {
-        if let Some(point) = held.rejected.first() {
-            findings.push(Finding::warning(
-                "held-out-rejected-points",
-                format!(
-                    "{} held-out point(s) have no pixel with the calibrated robot (first: image \
-                     '{}', point {}: {})",
-                    held.rejected.len(),
-                    point.view,
-                    point.point,
-                    point.reason.describe()
-                ),
-            ));
-        }
-        let limit = 3.0 * residuals.rms_px.max(config.pixel_sigma);
-        if held.after.points > 0 && held.after.rms_px > limit {
-            findings.push(Finding::warning(
-                "held-out-pixels",
-                format!(
-                    "the held-out images are predicted to {:.2} px RMS, more than 3× the fit's \
-                     {:.2} px: the calibration does not carry over to other configurations \
-                     (too few or too similar images, or a model error)",
-                    held.after.rms_px, residuals.rms_px
-                ),
-            ));
-        }
-    }
-    findings
 }
 
 /// The cameras and targets of the camera file with their fitted poses, expressed in the

@@ -167,7 +167,8 @@ struct LabFiles<'a> {
 }
 
 /// Trial 1's data as a lab would hand them to `calibrate --camera`: detections.csv (the
-/// identification images), validation_detections.csv (held-out images of the same robot),
+/// identification images), tracker.csv (with `mixed`: the tracker rows at the same
+/// configurations, in the root frame), validation_detections.csv (held-out images of the same robot),
 /// cameras.yaml (the nominal camera and targets) and truth.urdf (the true robot, with
 /// `<tool>_calibrated` links where a true tool frame is off its joint's axis), to judge the
 /// calibration against.
@@ -188,7 +189,15 @@ fn lab_files(
     };
     let urdf =
         crate::urdf::export_urdf_with(lab.text, lab.origin, setup.tree, &truth, &export_options)?;
-    Ok(vec![
+    let mut files = Vec::new();
+    if mode == ObservationMode::Mixed {
+        // The tracker rows in the robot's root frame (the simulated tracker's frame).
+        let robot = setup.rig.robot_model(setup.augmented)?;
+        let csv =
+            crate::io::measurements_to_csv(setup.tree, &robot, &data.tracker)?;
+        files.push(("tracker.csv".to_owned(), csv.into_bytes()));
+    }
+    files.extend([
         (
             "detections.csv".to_owned(),
             detections_to_csv(setup.tree, setup.rig, &data.views).into_bytes(),
@@ -202,7 +211,8 @@ fn lab_files(
             camera_file_yaml(setup.tree, lab.cameras, lab.targets).into_bytes(),
         ),
         ("truth.urdf".to_owned(), urdf.urdf.into_bytes()),
-    ])
+    ]);
+    Ok(files)
 }
 
 /// With the default tools, a camera on a link moved by joints on no branch (a head camera

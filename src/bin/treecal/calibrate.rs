@@ -5,7 +5,9 @@ use crate::cli::{
     CalibrateArgs, GravityFrame, JointErrorArg, MeasurementFrame, ModelArg, PlanArg, PlanChoice,
 };
 use std::path::Path;
-use treecal::workflow::calibrate_camera::{calibrate_camera_files, CameraCalibrateConfig};
+use treecal::workflow::calibrate_camera::{
+    calibrate_camera_files, CameraCalibrateConfig, CameraTrackerInput, DetectionsSource,
+};
 use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, PlanSource, RobotSource,
@@ -55,12 +57,7 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
         joint_length_unit: args.joint_length_unit,
         ignore_columns: args.ignore_columns.clone(),
         strict: args.strict,
-        measurement_frame: match &args.measurement_frame {
-            MeasurementFrame::Auto => MeasurementFrameChoice::Auto,
-            MeasurementFrame::Fit => MeasurementFrameChoice::Fit,
-            MeasurementFrame::Base => MeasurementFrameChoice::Base,
-            MeasurementFrame::File(path) => MeasurementFrameChoice::File(path.clone()),
-        },
+        measurement_frame: measurement_frame(&args.measurement_frame),
         position_sigma: args.position_sigma,
         rotation_sigma: args.rotation_sigma,
         seed: args.seed,
@@ -115,15 +112,34 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
     )
 }
 
-/// `calibrate --camera FILE --detections FILE`: the camera calibration from files.
+/// The library's choice of the measurement frame for the flag's.
+fn measurement_frame(flag: &MeasurementFrame) -> MeasurementFrameChoice {
+    match flag {
+        MeasurementFrame::Auto => MeasurementFrameChoice::Auto,
+        MeasurementFrame::Fit => MeasurementFrameChoice::Fit,
+        MeasurementFrame::Base => MeasurementFrameChoice::Base,
+        MeasurementFrame::File(path) => MeasurementFrameChoice::File(path.clone()),
+    }
+}
+
+/// `calibrate --camera FILE --detections FILE [--measurements FILE]`: the camera calibration
+/// from files, with tracker rows when given.
 fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<()> {
     let config = CameraCalibrateConfig {
         robot: RobotSource::from_path(args.robot.clone()),
         tools: args.tools.clone(),
         camera_file: camera.to_owned(),
-        detections: detections.to_owned(),
+        detections: DetectionsSource::File(detections.to_owned()),
         validation: args.validation.clone(),
         pixel_sigma: args.pixel_sigma,
+        tracker: args.measurements.as_ref().map(|path| CameraTrackerInput {
+            measurements: path.clone(),
+            position_sigma: args.position_sigma,
+            rotation_sigma: args.rotation_sigma,
+            frame: measurement_frame(&args.measurement_frame),
+            length_unit: args.length_unit,
+            ignore_columns: args.ignore_columns.clone(),
+        }),
         angle_unit: args.angle_unit,
         length_unit: args.joint_length_unit.or(args.length_unit),
         add_tool_links: args.add_tool_links,

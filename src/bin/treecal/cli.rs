@@ -486,6 +486,23 @@ pub struct PlanArgs {
     /// Seed of the candidate draws; the same seed gives the same file.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Camera file (cameras and targets, docs/file-formats.md): choose configurations in which
+    /// the cameras see the boards (in the image, facing the camera within --max-view-angle,
+    /// not hidden by the robot's collision shapes) and that make the pixels most informative
+    /// (docs/camera.md); --candidates then counts configurations showing a board.
+    #[arg(
+        long,
+        value_name = "CAMERAS.yaml",
+        conflicts_with_all = ["stage", "workspace", "noise", "reference_link", "targets"]
+    )]
+    pub camera: Option<PathBuf>,
+    /// Pixel noise σ of a detected point (px), with --camera.
+    #[arg(long, default_value_t = 0.5, value_name = "PX", requires = "camera")]
+    pub pixel_sigma: f64,
+    /// Largest angle between a board's face normal and the direction to the camera (degrees),
+    /// with --camera.
+    #[arg(long, default_value_t = 60.0, value_name = "DEG", requires = "camera")]
+    pub max_view_angle: f64,
     /// The CSV to write (atomically).
     #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.csv")]
     pub out: PathBuf,
@@ -689,7 +706,8 @@ pub struct CalibrateArgs {
     /// report.json `model_choice`); --model auto uses 5 without it.
     #[arg(long, value_name = "K")]
     pub cv: Option<usize>,
-    /// Measurement CSV (one row per tool observation); not with --contacts or --camera.
+    /// Measurement CSV (one row per tool observation); not with --contacts; with --camera,
+    /// tracker rows fitted together with the pixels (mixed data, each with its σ).
     #[arg(long, value_name = "M.csv", required_unless_present_any = ["contacts", "camera"])]
     pub measurements: Option<PathBuf>,
     /// Contacts CSV (docs/contacts.md, docs/file-formats.md): calibrate from contacts — faces
@@ -712,13 +730,13 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "V.csv")]
     pub validation: Option<PathBuf>,
     /// Camera file (cameras and targets, docs/file-formats.md): calibrate from the pixels of
-    /// --detections instead of tracker measurements (docs/camera.md).
+    /// --detections, alone or with the tracker rows of --measurements (docs/camera.md).
     #[arg(
         long,
         value_name = "CAMERAS.yaml",
         requires = "detections",
         conflicts_with_all = [
-            "measurements", "stiffness", "identify_stiffness", "plan", "plan_file",
+            "stiffness", "identify_stiffness", "plan", "plan_file",
             "reference_link", "joint_errors", "prior", "significant", "cv", "freeze", "free"
         ]
     )]

@@ -4,6 +4,7 @@ use crate::cli::{CriterionChoice, PlanArgs, StageChoice};
 use crate::progress::Display;
 use treecal::calibration::Criterion;
 use treecal::workflow::plan::{self, plan_with_progress, PlanConfig, PlanStage};
+use treecal::workflow::plan_camera::{check_camera_plan_output, plan_camera, CameraPlanConfig};
 use treecal::workflow::source::RobotSource;
 use treecal::Result;
 
@@ -17,11 +18,7 @@ fn config(args: PlanArgs) -> PlanConfig {
         poses: args.poses as usize,
         torso_poses: args.torso_poses as usize,
         candidates: args.candidates as usize,
-        criterion: match args.criterion {
-            CriterionChoice::O1 => Criterion::O1,
-            CriterionChoice::D => Criterion::D,
-            CriterionChoice::O3 => Criterion::O3,
-        },
+        criterion: criterion(args.criterion),
         targets: args.targets,
         stage: match args.stage {
             StageChoice::All => PlanStage::All,
@@ -37,7 +34,48 @@ fn config(args: PlanArgs) -> PlanConfig {
     }
 }
 
+/// `plan --camera`: the camera plan.
+fn run_camera(args: PlanArgs, camera: std::path::PathBuf) -> Result<()> {
+    let out = args.out.clone();
+    let config = CameraPlanConfig {
+        robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
+        package_paths: args.package_path,
+        collision_check: args.collision_check.into(),
+        tools: args.tools,
+        camera_file: camera,
+        poses: args.poses as usize,
+        candidates: args.candidates as usize,
+        criterion: criterion(args.criterion),
+        pixel_sigma: args.pixel_sigma,
+        max_view_angle: args.max_view_angle.to_radians(),
+        seed: args.seed,
+    };
+    check_camera_plan_output(&config, &out)?;
+    let display = Display::new("plan", true);
+    let outcome = plan_camera(&config, &|p| display.update(p));
+    display.finish();
+    let outcome = outcome?;
+    outcome.write(&out)?;
+    crate::output::print(&outcome.text)?;
+    for note in &outcome.notes {
+        crate::output::note(note);
+    }
+    crate::output::note(format_args!("wrote {}", out.display()));
+    Ok(())
+}
+
+fn criterion(choice: CriterionChoice) -> Criterion {
+    match choice {
+        CriterionChoice::O1 => Criterion::O1,
+        CriterionChoice::D => Criterion::D,
+        CriterionChoice::O3 => Criterion::O3,
+    }
+}
+
 pub fn run(args: PlanArgs) -> Result<()> {
+    if let Some(camera) = args.camera.clone() {
+        return run_camera(args, camera);
+    }
     let out = args.out.clone();
     let config = config(args);
     plan::check_output(&config, &out)?;
