@@ -15,6 +15,7 @@ use crate::error::{Error, Result};
 use crate::kinematics::{FlexibilityModel, GravitySigns, McpcModel};
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;
+use rayon::prelude::*;
 
 /// The default number of folds of `--model auto` without `--cv`.
 pub const DEFAULT_FOLDS: usize = 5;
@@ -191,10 +192,12 @@ pub fn cross_validate(
 ) -> Result<CrossValidation> {
     let folds = grouped_folds(measurements, k, seed);
     let postures = super::model_choice::posture_groups(measurements).len();
-    let mut evaluated = Vec::new();
-    for spec in candidates {
-        evaluated.push(evaluate(input, spec, measurements, &folds)?);
-    }
+    // Candidates and folds are independent fits: run in parallel, collected in order, so the
+    // table is the same on any number of threads.
+    let mut evaluated = candidates
+        .par_iter()
+        .map(|spec| evaluate(input, spec, measurements, &folds))
+        .collect::<Result<Vec<_>>>()?;
     // A row is left out of the choice when most fits that trained on it flagged it.
     let (mut trained, mut flagged) = (
         vec![0usize; measurements.len()],
@@ -333,27 +336,34 @@ fn evaluate(
     };
     let mut errors = vec![None; measurements.len()];
     let mut flags = vec![[0, 0]; measurements.len()];
-    for fold in folds.iter().filter(|f| !f.is_empty()) {
-        let (held, train): (Vec<usize>, Vec<usize>) =
-            (0..measurements.len()).partition(|i| fold.binary_search(i).is_ok());
-        let pick = |rows: &[usize]| -> Vec<Measurement> {
-            rows.iter().map(|&i| measurements[i].clone()).collect()
-        };
-        // A held-out row of a later session is predicted in that session's frame as the
-        // fold's fit found it (every session has training rows: folds split postures, not
-        // sessions); in the first session's frame the moved frames would swamp the model.
-        let outcome =
-            fit_fold(input, &calibration, spec, &pick(&train)).and_then(|(run, identified)| {
-                let predict = CalibrationInput {
-                    flexibility: identified.as_ref().or(calibration.flexibility),
-                    ..calibration
-                };
-                let rows = validation_in_training_frames(&pick(&held), run.sessions.as_ref());
-                Ok((
-                    position_errors(&predict, &run, &rows)?,
-                    run.robust.outliers(),
-                ))
-            });
+    let split = |fold: &Vec<usize>| -> (Vec<usize>, Vec<usize>) {
+        (0..measurements.len()).partition(|i| fold.binary_search(i).is_ok())
+    };
+    let pick = |rows: &[usize]| -> Vec<Measurement> {
+        rows.iter().map(|&i| measurements[i].clone()).collect()
+    };
+    let used: Vec<&Vec<usize>> = folds.iter().filter(|f| !f.is_empty()).collect();
+    // A held-out row of a later session is predicted in that session's frame as the fold's
+    // fit found it (every session has training rows: folds split postures, not sessions); in
+    // the first session's frame the moved frames would swamp the model.
+    let outcomes: Vec<Result<(Vec<f64>, Vec<usize>)>> = used
+        .par_iter()
+        .map(|fold| {
+            let (held, train) = split(fold);
+            let (run, identified) = fit_fold(input, &calibration, spec, &pick(&train))?;
+            let predict = CalibrationInput {
+                flexibility: identified.as_ref().or(calibration.flexibility),
+                ..calibration
+            };
+            let rows = validation_in_training_frames(&pick(&held), run.sessions.as_ref());
+            Ok((
+                position_errors(&predict, &run, &rows)?,
+                run.robust.outliers(),
+            ))
+        })
+        .collect();
+    for (fold, outcome) in used.into_iter().zip(outcomes) {
+        let (held, train) = split(fold);
         match outcome {
             Ok((found, outliers)) => {
                 for (&i, e) in held.iter().zip(found) {
@@ -388,7 +398,7 @@ fn fit_fold(
     train: &[Measurement],
 ) -> Result<(CalibrationRun, Option<FlexibilityModel>)> {
     if !spec.identify_stiffness {
-        return Ok((run_model(calibration, spec.significant, train, &[])?, None));
+        return Ok((run_model(calibration, spec, train, &[])?, None));
     }
     let Some((prior, options)) = input.stiffness else {
         return Err(Error::InvalidData {
@@ -407,7 +417,7 @@ fn fit_fold(
                 flexibility,
                 ..*calibration
             };
-            run_model(&input, spec.significant, train, &[])
+            run_model(&input, spec, train, &[])
         },
         |run: &CalibrationRun| Fitted {
             model: run.report.model.clone(),
