@@ -283,6 +283,11 @@ fn reason(
         ),
     };
     match next {
+        // The chosen one is not the lowest (a significance rule): say which is, not "next".
+        Some((name, rms)) if rms < best => format!(
+            "'{}' is chosen by the held-out RMS over {k} folds of {postures} postures{without}: {best:.3} mm (lowest: '{name}' {rms:.3} mm)",
+            rows[i].model
+        ),
         Some((name, rms)) => format!(
             "'{}' has the lowest held-out RMS over {k} folds of {postures} postures{without}: {best:.3} mm (next: '{name}' {rms:.3} mm)",
             rows[i].model
