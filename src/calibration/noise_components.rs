@@ -91,7 +91,7 @@ pub fn variance_components(
                 .sum()
         })
         .collect();
-    if rows.iter().any(|&r| r == 0) || free.is_empty() {
+    if rows.contains(&0) || free.is_empty() {
         return Ok(Vec::new());
     }
     let (jacobian, residual) = weighted_jacobian(
@@ -187,7 +187,7 @@ pub fn balanced_rotation_sigma(components: &[NoiseComponent]) -> Option<f64> {
     let of = |kind| components.iter().find(|c| c.kind == kind);
     let (position, rotation) = (of(RowKind::Position)?, of(RowKind::Rotation)?);
     let ratio = rotation.scale / position.scale;
-    (ratio.is_finite() && ratio > 0.0).then(|| rotation.assumed_sigma * ratio)
+    (ratio.is_finite() && ratio > 0.0).then_some(rotation.assumed_sigma * ratio)
 }
 
 #[cfg(test)]

@@ -55,8 +55,8 @@ pub enum MeasurementFrameChoice {
 /// "Noise model from the data").
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum NoiseChoice {
-    /// The declared σ's, unless the model is chosen by the data (`--model adaptive|auto`) and
-    /// the geometry fit shows model error: then the σ ratio the residuals show.
+    /// The declared σ's; when the model is chosen by cross-validation, the σ ratio the
+    /// residuals show is one more candidate (`geometry+estimated noise (corrections ≥ 2σ)`).
     #[default]
     Adaptive,
     /// Always the σ ratio the residuals show (variance components; the position σ kept).

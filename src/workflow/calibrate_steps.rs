@@ -295,21 +295,17 @@ pub(super) fn identify(
     let (mut run, mut options, mut nominal, mut noise) = fit(&spec, &declared)?;
     let mut adaptive = false;
     if data_decide {
+        // With `--noise estimated` the geometry fit estimated the σ ratio (variance
+        // components) and every candidate keeps it; by default (`adaptive`) the estimate is a
+        // candidate of its own, each fold estimating its own ratio.
         let model_error = shows_model_error(&run);
-        // Under model error the σ ratio of the row kinds is the residuals' (variance
-        // components), estimated on the geometry fit and kept for every candidate.
-        if model_error && config.noise == NoiseChoice::Adaptive {
-            let estimating = ModelSpec {
-                estimate_noise: true,
-                ..spec
-            };
-            (run, options, nominal, noise) = fit(&estimating, &declared)?;
-        }
         adaptive = config.model == ModelChoice::Adaptive && model_error;
         if config.model == ModelChoice::Auto || model_error || config.cv.is_some() {
             let (chosen, cv) = choose(ModelChoice::Auto, &options)?;
             if (config.model == ModelChoice::Auto || model_error) && chosen != spec {
-                (run, options, nominal, _) = fit(&chosen, &options)?;
+                let estimated = noise.take();
+                (run, options, nominal, noise) = fit(&chosen, &options)?;
+                noise = noise.or(estimated);
                 spec = chosen;
             }
             cross_validation = cv;
@@ -526,6 +522,19 @@ fn choose_model(
         flexibility.is_some(),
         candidate_prior.is_some(),
     );
+    // The σ ratio from the data as a candidate, where there is a ratio (poses: two row kinds).
+    let poses = data
+        .measurements
+        .iter()
+        .any(|m| matches!(m.observation, crate::measurement::Observation::Pose(_)));
+    if config.noise == NoiseChoice::Adaptive && poses {
+        list.push(ModelSpec {
+            estimate_noise: true,
+            significant: Some(2.0),
+            compensate: flexibility.is_some(),
+            ..ModelSpec::default()
+        });
+    }
     if let Some(level) = level {
         let mine = asked(level);
         if !list.contains(&mine) {

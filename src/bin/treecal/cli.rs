@@ -613,7 +613,7 @@ pub struct CheckArgs {
 /// `--noise`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum NoiseArg {
-    /// Estimated under model error when the data choose the model.
+    /// Declared; estimated as a cross-validation candidate.
     Adaptive,
     /// Always estimated from the residuals.
     Estimated,
@@ -684,8 +684,8 @@ pub struct CalibrateArgs {
     pub significant: Option<f64>,
     /// How rotation rows weigh against position rows: `estimated` (the σ ratio the fit's
     /// residuals show, by variance components; --position-sigma kept), `declared`
-    /// (--position-sigma and --rotation-sigma as given), `adaptive` (estimated when the model is
-    /// chosen by the data and the geometry fit shows model error).
+    /// (--position-sigma and --rotation-sigma as given), `adaptive` (declared; the estimated
+    /// ratio is a cross-validation candidate when the data choose the model).
     #[arg(long, value_enum, default_value = "adaptive")]
     pub noise: NoiseArg,
     /// Never free the parameters whose name matches PATTERN (glob on the names of params.yaml,
