@@ -15,7 +15,8 @@ use treecal::measurement::{Measurement, Observation};
 use treecal::tree::{detect_branches, KinematicTree};
 use treecal::workflow::cross_validation::{candidates, cross_validate, CrossValidationInput};
 use treecal::workflow::model_choice::{
-    glob_match, grouped_folds, posture_groups, prepare, ModelLevel, ModelSpec, ParameterPatterns,
+    fit_noise, glob_match, grouped_folds, posture_groups, prepare, ModelLevel, ModelSpec,
+    ParameterPatterns,
 };
 
 fn humanoid() -> (KinematicTree, treecal::Branches, McpcModel) {
@@ -36,14 +37,27 @@ fn measure(
     noise: f64,
     seed: u64,
 ) -> Vec<Measurement> {
+    measure_with_noise(tree, truth, count, [noise, noise], seed)
+}
+
+/// [`measure`] with position noise `noise[0]` (m) and rotation noise `noise[1]` (rad), each
+/// coordinate uniform with that standard deviation.
+fn measure_with_noise(
+    tree: &KinematicTree,
+    truth: &McpcModel,
+    count: usize,
+    noise: [f64; 2],
+    seed: u64,
+) -> Vec<Measurement> {
     let mut rng = rng(seed);
     let mut data = Vec::new();
     for _ in 0..count {
         let q = random_configuration(tree, &mut rng);
         for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
-            let mut jitter = || rng.random_range(-1.0..1.0) * noise * 3f64.sqrt();
-            let shift = nalgebra::Vector3::new(jitter(), jitter(), jitter());
-            let turn = nalgebra::Vector3::new(jitter(), jitter(), jitter());
+            let mut jitter = |sigma: f64| rng.random_range(-1.0..1.0) * sigma * 3f64.sqrt();
+            let shift =
+                nalgebra::Vector3::new(jitter(noise[0]), jitter(noise[0]), jitter(noise[0]));
+            let turn = nalgebra::Vector3::new(jitter(noise[1]), jitter(noise[1]), jitter(noise[1]));
             let noisy = treecal::math::Pose::from_parts(
                 (pose.translation.vector + shift).into(),
                 nalgebra::UnitQuaternion::from_scaled_axis(turn) * pose.rotation,
@@ -516,4 +530,53 @@ fn the_default_model_follows_cross_validation_only_under_model_error() {
     let asked = treecal::workflow::calibrate(&config(5e-5 / 30.0, true)).unwrap();
     assert_eq!(asked.report["model"]["name"], "geometry+prior");
     assert!(!explained(&asked));
+}
+
+/// The noise model from the data: with rotation noise ten times smaller than the declared
+/// ratio says, the variance components find the true ratio (within 20 %) and the refit weighs
+/// the rotation rows by it; with the declared ratio right, the estimate stays at it. The
+/// degrees of freedom of the two kinds add up to the rows less the rank.
+#[test]
+fn variance_components_recover_the_noise_ratio() {
+    let (tree, branches, nominal) = humanoid();
+    let truth = perturbed(&nominal, 0.005, 21);
+    let plan = Plan::simultaneous();
+    let declared = IdentificationOptions {
+        position_sigma: 1e-4,
+        rotation_sigma: 1e-3,
+        ..Default::default()
+    };
+    let input = CalibrationInput {
+        tree: &tree,
+        branches: &branches,
+        nominal: &nominal,
+        flexibility: None,
+        plan: &plan,
+        options: &declared,
+        measurement_frame: MeasurementFrame::Base,
+    };
+    for (true_rotation, seed) in [(1e-4, 22), (1e-3, 23)] {
+        let data = measure_with_noise(&tree, &truth, 40, [1e-4, true_rotation], seed);
+        let (run, options, noise) = fit_noise(&input, &data, &[]).unwrap();
+        let noise = noise.expect("poses have two row kinds");
+        let ratio = noise.rotation_sigma / true_rotation;
+        assert!((0.8..1.25).contains(&ratio), "{noise:#?}");
+        assert_eq!(options.rotation_sigma, noise.rotation_sigma);
+        assert!(noise.converged && noise.rounds <= 3, "{noise:#?}");
+        let identification = &run.report.stages[0].identification;
+        let dof: f64 = noise.last.iter().map(|c| c.redundancy).sum();
+        let expected = (identification.rows - identification.rank) as f64;
+        assert!((dof - expected).abs() < 1e-6, "{dof} vs {expected}");
+        // Settled: both kinds' residuals at the same multiple of their σ.
+        let [a, b] = [noise.last[0].scale, noise.last[1].scale];
+        assert!((a / b - 1.0).abs() < 0.05, "{a} vs {b}");
+        if true_rotation == 1e-3 {
+            assert!((noise.ratio_change() - 1.0).abs() < 0.2, "{noise:#?}");
+        } else {
+            // Declared 10× too large: the first fit's estimate says so (within 50 %: the
+            // wrong weights let the rotation rows absorb more), the refits settle it.
+            let first = noise.first[1].estimated_sigma() / noise.first[0].estimated_sigma();
+            assert!((0.5..1.5).contains(&first), "{noise:#?}");
+        }
+    }
 }

@@ -563,3 +563,20 @@ fn a_pose_file_with_position_only_rows_reads_each_row_as_written() {
         "{error}"
     );
 }
+
+/// Writes the lab's files (training.csv, validation.csv of split seed 7, the URDF and the
+/// stiffness file's paths in paths.txt) into the folder `TREECAL_SECOND_ROBOT_DIR`, for runs
+/// of the CLI by hand (docs/identification.md's measurements); ignored by default.
+#[test]
+#[ignore = "writes files for manual runs; set TREECAL_SECOND_ROBOT_DIR"]
+fn write_the_second_robot_lab_files() {
+    let Some(dir) = std::env::var_os("TREECAL_SECOND_ROBOT_DIR") else {
+        return;
+    };
+    let dir = PathBuf::from(dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let robot = second_robot(2028);
+    lab_files(&robot, 7, &dir);
+    let paths = format!("{}\n{}\n", robot.urdf.display(), robot.stiffness.display());
+    std::fs::write(dir.join("paths.txt"), paths).unwrap();
+}

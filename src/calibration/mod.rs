@@ -38,6 +38,7 @@ pub mod initial_guess;
 mod linear_algebra;
 mod linearise;
 mod loss;
+pub mod noise_components;
 mod normal_equations;
 mod observability;
 pub mod observation;

@@ -51,6 +51,20 @@ pub enum MeasurementFrameChoice {
     File(PathBuf),
 }
 
+/// How the rotation rows are weighed against the position rows (`--noise`; docs/identification.md,
+/// "Noise model from the data").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum NoiseChoice {
+    /// The declared σ's; when the model is chosen by cross-validation, the σ ratio the
+    /// residuals show is one more candidate (`geometry+estimated noise (corrections ≥ 2σ)`).
+    #[default]
+    Adaptive,
+    /// Always the σ ratio the residuals show (variance components; the position σ kept).
+    Estimated,
+    /// Always the declared σ's.
+    Declared,
+}
+
 /// The frame the stiffness file's gravity vector is given in.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum GravityFrame {
@@ -119,6 +133,8 @@ pub struct CalibrateConfig {
     pub prior_scale: f64,
     /// Keep only the corrections of at least this many standard deviations (`--significant`).
     pub significant: Option<f64>,
+    /// How the rotation rows are weighed against the position rows (`--noise`).
+    pub noise: NoiseChoice,
     /// `--freeze` and `--free` patterns.
     pub patterns: ParameterPatterns,
     /// Cross-validate the model candidates over this many folds (`--cv`); `--model auto`
@@ -185,6 +201,7 @@ impl Default for CalibrateConfig {
             prior: false,
             prior_scale: 1.0,
             significant: None,
+            noise: NoiseChoice::Adaptive,
             patterns: ParameterPatterns::default(),
             cv: None,
         }

@@ -1,7 +1,7 @@
 //! The named steps of [`super::calibrate::calibrate`]: checking the configuration, reading,
 //! identifying and exporting (rendering is in `calibrate_outputs`).
 
-use super::calibrate::{CalibrateConfig, GravityFrame, MeasurementFrameChoice};
+use super::calibrate::{CalibrateConfig, GravityFrame, MeasurementFrameChoice, NoiseChoice};
 use super::checks::unused_stage_rows;
 use super::cross_validation::{
     candidates, cross_validate, markdown as cross_validation_markdown, CrossValidation,
@@ -9,7 +9,8 @@ use super::cross_validation::{
 };
 use super::export::export_notes;
 use super::model_choice::{
-    prepare, run_model, shows_model_error, ModelChoice, ModelLevel, ModelSpec,
+    prepare, run_model, run_model_with_noise, shows_model_error, ModelChoice, ModelLevel,
+    ModelSpec, NoiseEstimate,
 };
 use super::note::Note;
 use super::source::{add_measured_points, measured_branches, LoadedRobot, MeasuredPoints};
@@ -190,7 +191,18 @@ pub(super) struct Identified {
     pub spec: ModelSpec,
     /// The cross-validation table (`--cv`, `--model auto`).
     pub cross_validation: Option<CrossValidation>,
+    /// The noise estimated from the residuals (`estimate_noise`), if any.
+    pub noise: Option<NoiseEstimate>,
 }
+
+/// A fit of one model: the run, its options (the rotation σ estimated when asked), the
+/// nominal model with the level's parameters, and the noise estimate.
+type Fit = (
+    CalibrationRun,
+    IdentificationOptions,
+    McpcModel,
+    Option<NoiseEstimate>,
+);
 
 /// With `--identify-stiffness`: the report's summary and the identified stiffness.
 pub(super) type IdentifiedStiffness = Option<(StiffnessSummary, Stiffness)>;
@@ -226,27 +238,26 @@ pub(super) fn identify(
     }
     let stiffness = Stiffnesses::new(config, loaded)?;
     let flexibility = stiffness.in_play.clone();
-    let options = IdentificationOptions {
+    let declared = IdentificationOptions {
         position_sigma: config.position_sigma,
         rotation_sigma: config.rotation_sigma,
         robust: config.robust,
         ..IdentificationOptions::default()
     };
     let candidate_prior = stiffness.candidate_prior(config, loaded);
-    let choose = |model| {
+    let choose = |model, options: &IdentificationOptions| {
         choose_model(
             config,
             model,
             loaded,
             [flexibility.as_ref(), candidate_prior],
             &plan,
-            &options,
+            options,
             data,
         )
     };
-    let (mut spec, mut cross_validation) = choose(config.model)?;
-    let fit = |spec: &ModelSpec| -> Result<(CalibrationRun, IdentificationOptions, McpcModel)> {
-        let prepared = prepare(spec, tree, &loaded.nominal, &options, &config.patterns)?;
+    let fit = |spec: &ModelSpec, options: &IdentificationOptions| -> Result<Fit> {
+        let prepared = prepare(spec, tree, &loaded.nominal, options, &config.patterns)?;
         let input = CalibrationInput {
             tree,
             branches: &loaded.branches,
@@ -256,33 +267,50 @@ pub(super) fn identify(
             options: &prepared.options,
             measurement_frame: loaded.frame,
         };
-        let run = run_model(
-            &input,
-            spec.significant,
-            &data.measurements,
-            &data.validation,
-        )?;
-        Ok((run, prepared.options, prepared.nominal))
+        let (run, noise) =
+            run_model_with_noise(&input, spec, &data.measurements, &data.validation)?;
+        let mut options = prepared.options;
+        if let Some(noise) = &noise {
+            options.rotation_sigma = noise.rotation_sigma;
+        }
+        Ok((run, options, prepared.nominal, noise))
     };
-    let (mut run, mut options, mut nominal) = fit(&spec)?;
     // The default: the full geometry, unless its fit shows model error; then as `auto`. A
     // model asked for by flags (prior, joint errors, significance) is kept.
     let asked_extras =
         config.prior || config.harmonics || config.backlash || config.significant.is_some();
-    let adaptive =
-        config.model == ModelChoice::Adaptive && !asked_extras && shows_model_error(&run);
-    if adaptive {
-        let chosen = match &cross_validation {
-            Some(cv) => (
-                cv.chosen.map_or(spec, |i| cv.rows[i].spec),
-                cross_validation.clone(),
-            ),
-            None => choose(ModelChoice::Auto)?,
-        };
-        if chosen.0 != spec {
-            (run, options, nominal) = fit(&chosen.0)?;
+    let data_decide = match config.model {
+        ModelChoice::Auto => true,
+        ModelChoice::Adaptive => !asked_extras,
+        ModelChoice::Level(_) => false,
+    };
+    let (mut spec, mut cross_validation) = if data_decide {
+        (
+            asked_spec(config, ModelLevel::Geometry, flexibility.is_some()),
+            None,
+        )
+    } else {
+        choose(config.model, &declared)?
+    };
+    let (mut run, mut options, mut nominal, mut noise) = fit(&spec, &declared)?;
+    let mut adaptive = false;
+    if data_decide {
+        // With `--noise estimated` the geometry fit estimated the σ ratio (variance
+        // components) and every candidate keeps it; by default (`adaptive`) the estimate is a
+        // candidate of its own, each fold estimating its own ratio.
+        let model_error = shows_model_error(&run);
+        adaptive = config.model == ModelChoice::Adaptive && model_error;
+        if config.model == ModelChoice::Auto || model_error || config.cv.is_some() {
+            let (chosen, cv) = choose(ModelChoice::Auto, &options)?;
+            if (config.model == ModelChoice::Auto || model_error) && chosen != spec {
+                let estimated = noise.take();
+                (run, options, nominal, noise) = fit(&chosen, &options)?;
+                noise = noise.or(estimated);
+                spec = chosen;
+            }
+            cross_validation = cv;
         }
-        (spec, cross_validation) = chosen;
+        spec.estimate_noise |= noise.is_some();
     }
     notes.extend(cross_validation.as_ref().map(|cv| {
         Note::info(format!(
@@ -313,12 +341,12 @@ pub(super) fn identify(
             flexibility,
             ..input
         };
-        run_model(
-            &input,
-            spec.significant,
-            &data.measurements,
-            &data.validation,
-        )
+        // The rotation σ is the estimated one already (`options`): no second estimate.
+        let spec = ModelSpec {
+            estimate_noise: false,
+            ..spec
+        };
+        run_model(&input, &spec, &data.measurements, &data.validation)
     };
     let mut identified = None;
     let mut final_flexibility = flexibility.clone().filter(|_| spec.compensate);
@@ -361,6 +389,7 @@ pub(super) fn identify(
     };
     let identified_run = Identified {
         run,
+        noise,
         plan_name,
         options,
         plan,
@@ -425,6 +454,21 @@ impl Stiffnesses {
     }
 }
 
+/// The model the flags ask for at `level` (`compensate`: a stiffness is in play).
+fn asked_spec(config: &CalibrateConfig, level: ModelLevel, compensate: bool) -> ModelSpec {
+    ModelSpec {
+        level,
+        harmonics: config.harmonics,
+        backlash: config.backlash,
+        prior: config.prior,
+        prior_scale: config.prior_scale,
+        significant: config.significant,
+        compensate,
+        identify_stiffness: false,
+        estimate_noise: config.noise == NoiseChoice::Estimated,
+    }
+}
+
 /// The model to calibrate: the asked level, or the cross-validation's choice; and the
 /// cross-validation table when asked (`--cv`) or needed (`--model auto`). `flexibility`: the
 /// stiffness in play, and the prior of the identified-stiffness candidate.
@@ -438,16 +482,7 @@ fn choose_model(
     data: &Data,
 ) -> Result<(ModelSpec, Option<CrossValidation>)> {
     let [flexibility, candidate_prior] = flexibility;
-    let asked = |level| ModelSpec {
-        level,
-        harmonics: config.harmonics,
-        backlash: config.backlash,
-        prior: config.prior,
-        prior_scale: config.prior_scale,
-        significant: config.significant,
-        compensate: flexibility.is_some(),
-        identify_stiffness: false,
-    };
+    let asked = |level| asked_spec(config, level, flexibility.is_some());
     let level = match model {
         ModelChoice::Level(level) => Some(level),
         ModelChoice::Adaptive => Some(ModelLevel::Geometry),
@@ -487,6 +522,19 @@ fn choose_model(
         flexibility.is_some(),
         candidate_prior.is_some(),
     );
+    // The σ ratio from the data as a candidate, where there is a ratio (poses: two row kinds).
+    let poses = data
+        .measurements
+        .iter()
+        .any(|m| matches!(m.observation, crate::measurement::Observation::Pose(_)));
+    if config.noise == NoiseChoice::Adaptive && poses {
+        list.push(ModelSpec {
+            estimate_noise: true,
+            significant: Some(2.0),
+            compensate: flexibility.is_some(),
+            ..ModelSpec::default()
+        });
+    }
     if let Some(level) = level {
         let mine = asked(level);
         if !list.contains(&mine) {
@@ -525,6 +573,17 @@ pub(super) fn add_model_choice(
         "model".to_string(),
         serde_json::json!({ "name": result.spec.name(), "spec": result.spec }),
     )];
+    if let Some(noise) = &result.noise {
+        notes.push(Note::info(format!("model: {}", noise.describe())));
+        outputs.markdown.push_str(&format!(
+            "\n## Noise model\n\nThe {} (docs/identification.md, \"Noise model from the data\").\n",
+            noise.describe()
+        ));
+        extra.push((
+            "noise".into(),
+            serde_json::to_value(noise).map_err(|e| invalid("report.json", e.to_string()))?,
+        ));
+    }
     if let Some(cv) = &result.cross_validation {
         extra.push((
             "model_choice".into(),

@@ -38,7 +38,8 @@ pub mod source;
 pub mod verify;
 
 pub use calibrate::{
-    calibrate, CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, ParameterRow,
+    calibrate, CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, NoiseChoice,
+    ParameterRow,
 };
 pub use export::{export, Export, ExportConfig};
 pub use fk::{fk, fk_csv, fk_csv_stream, FkConfig, FkCsvConfig, FkStreamSummary, FkTable};

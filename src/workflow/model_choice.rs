@@ -3,8 +3,14 @@
 //! levels (`--cv K`) and lets `--model auto` choose. See `docs/identification.md`.
 
 use crate::calibration::checks::{SIGMA_FAILED, SIGMA_WARNING};
+use crate::calibration::noise_components::{
+    balanced_rotation_sigma, variance_components, NoiseComponent, MAX_NOISE_ROUNDS,
+    NOISE_RATIO_TOLERANCE,
+};
+use crate::calibration::sessions::validation_in_training_frames;
 use crate::calibration::{
-    run_calibration, CalibrationInput, CalibrationRun, IdentificationOptions, Prior,
+    run_calibration, CalibrationInput, CalibrationRun, Deflected, IdentificationOptions, Prior,
+    Rigid, RowKind,
 };
 use crate::error::{Error, Result};
 use crate::kinematics::{GravitySigns, JointErrorTerms, McpcModel, ParameterOwner};
@@ -75,6 +81,9 @@ pub struct ModelSpec {
     /// Identify the joint and link compliances with the geometry (`--identify-stiffness`,
     /// the stiffness file or the library defaults as the prior) and compensate with them.
     pub identify_stiffness: bool,
+    /// Weigh the rotation rows against the position rows by the σ ratio their residuals show
+    /// (variance components, [`run_model_with_noise`]) instead of the declared one.
+    pub estimate_noise: bool,
 }
 
 impl Default for ModelSpec {
@@ -88,6 +97,7 @@ impl Default for ModelSpec {
             significant: None,
             compensate: false,
             identify_stiffness: false,
+            estimate_noise: false,
         }
     }
 }
@@ -116,6 +126,9 @@ impl ModelSpec {
             name.push_str("+identified stiffness");
         } else if self.compensate {
             name.push_str("+compensated");
+        }
+        if self.estimate_noise {
+            name.push_str("+estimated noise");
         }
         if let Some(k) = self.significant {
             name.push_str(&format!(" (corrections ≥ {k}σ)"));
@@ -217,20 +230,38 @@ pub fn prepare(
     })
 }
 
-/// Runs the calibration of a prepared model; with `significant`, freezes the MCPC corrections
-/// smaller than `k` standard deviations (and the undetermined ones) at nominal and runs again.
+/// Runs the calibration of a prepared model ([`run_model_with_noise`] without its noise
+/// estimate).
 pub fn run_model(
     input: &CalibrationInput<'_>,
-    significant: Option<f64>,
+    spec: &ModelSpec,
     measurements: &[Measurement],
     validation: &[Measurement],
 ) -> Result<CalibrationRun> {
-    let run = with_fitted_frame(run_calibration(input, measurements, validation)?);
-    let Some(k) = significant else {
-        return Ok(run);
+    Ok(run_model_with_noise(input, spec, measurements, validation)?.0)
+}
+
+/// Runs the calibration of a prepared model: with `spec.estimate_noise`, reweighed by the
+/// variance components of its residuals ([`fit_noise`]); with `spec.significant` (`k`),
+/// the MCPC corrections smaller than `k` standard deviations (and the undetermined ones) are
+/// then frozen at nominal and the model is run again.
+pub fn run_model_with_noise(
+    input: &CalibrationInput<'_>,
+    spec: &ModelSpec,
+    measurements: &[Measurement],
+    validation: &[Measurement],
+) -> Result<(CalibrationRun, Option<NoiseEstimate>)> {
+    let (run, options, noise) = if spec.estimate_noise {
+        fit_noise(input, measurements, validation)?
+    } else {
+        let run = with_fitted_frame(run_calibration(input, measurements, validation)?);
+        (run, input.options.clone(), None)
+    };
+    let Some(k) = spec.significant else {
+        return Ok((run, noise));
     };
     let layout = input.nominal.parameter_layout();
-    let mut frozen = input.options.frozen.clone();
+    let mut frozen = options.frozen.clone();
     for (i, estimate) in run.parameters.iter().enumerate() {
         let small = match estimate.std_dev {
             Some(sd) => estimate.change.abs() < k * sd,
@@ -240,19 +271,152 @@ pub fn run_model(
             frozen.push(i);
         }
     }
-    let options = IdentificationOptions {
-        frozen,
-        ..input.options.clone()
-    };
+    let options = IdentificationOptions { frozen, ..options };
     let again = CalibrationInput {
         options: &options,
         ..*input
     };
-    Ok(with_fitted_frame(run_calibration(
-        &again,
-        measurements,
-        validation,
-    )?))
+    let run = with_fitted_frame(run_calibration(&again, measurements, validation)?);
+    Ok((run, noise))
+}
+
+/// What the noise estimation found ([`fit_noise`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NoiseEstimate {
+    /// The declared σ's: position (m), rotation (rad).
+    pub declared: [f64; 2],
+    /// The rotation σ the rows were weighed by in the end (rad; the position σ is kept).
+    pub rotation_sigma: f64,
+    /// Calibrations run after the first.
+    pub rounds: usize,
+    /// Whether the σ ratio settled within [`MAX_NOISE_ROUNDS`].
+    pub converged: bool,
+    /// The variance components of the first fit (the declared σ's).
+    pub first: Vec<NoiseComponent>,
+    /// The variance components of the final fit (equal scales when settled).
+    pub last: Vec<NoiseComponent>,
+}
+
+impl NoiseEstimate {
+    /// The estimated σ ratio rotation:position (rad per m) against the declared one.
+    pub fn ratio_change(&self) -> f64 {
+        self.rotation_sigma / self.declared[1]
+    }
+
+    /// One line for the notes and report.md.
+    pub fn describe(&self) -> String {
+        let part = |c: &NoiseComponent| {
+            let (value, unit) = match c.kind {
+                RowKind::Rotation => (c.estimated_sigma() * 1e3, "mrad"),
+                _ => (c.estimated_sigma() * 1e3, "mm"),
+            };
+            format!(
+                "{} {value:.3} {unit} ({} rows, {:.1} degrees of freedom)",
+                c.kind.name(),
+                c.rows,
+                c.redundancy
+            )
+        };
+        let first: Vec<String> = self.first.iter().map(part).collect();
+        format!(
+            "noise from the data (variance components of the first fit): {}; the rotation rows are weighed at σ {:.3} mrad instead of the declared {:.3} mrad (position σ {:.3} mm kept) after {} refit(s){}",
+            first.join(", "),
+            self.rotation_sigma * 1e3,
+            self.declared[1] * 1e3,
+            self.declared[0] * 1e3,
+            self.rounds,
+            if self.converged { "" } else { ", not settled" }
+        )
+    }
+}
+
+/// The calibration reweighed by its own residuals: after each fit, the variance components of
+/// the position and rotation rows ([`variance_components`]: each kind's residuals over its
+/// redundancy, the degrees of freedom split by its share of the hat matrix) give the σ ratio,
+/// the rotation σ is set to it (the position σ kept, so a prior keeps its weight) and the model
+/// refitted, until the ratio changes by less than [`NOISE_RATIO_TOLERANCE`] (at most
+/// [`MAX_NOISE_ROUNDS`] refits). With one row kind nothing changes (no estimate).
+pub fn fit_noise(
+    input: &CalibrationInput<'_>,
+    measurements: &[Measurement],
+    validation: &[Measurement],
+) -> Result<(CalibrationRun, IdentificationOptions, Option<NoiseEstimate>)> {
+    let mut options = input.options.clone();
+    let fit = |options: &IdentificationOptions| {
+        let input = CalibrationInput { options, ..*input };
+        run_calibration(&input, measurements, validation).map(with_fitted_frame)
+    };
+    let mut run = fit(&options)?;
+    let first = noise_components(input, &options, &run, measurements)?;
+    if first.is_empty() {
+        return Ok((run, options, None));
+    }
+    let declared = [options.position_sigma, options.rotation_sigma];
+    let (mut last, mut rounds, mut converged) = (first.clone(), 0, false);
+    while let Some(sigma) = balanced_rotation_sigma(&last) {
+        // Within three decades of the declared σ: a kind fitted exactly (no residual) must
+        // not get an infinite weight.
+        let sigma = sigma.clamp(declared[1] * 1e-3, declared[1] * 1e3);
+        if (sigma / options.rotation_sigma - 1.0).abs() <= NOISE_RATIO_TOLERANCE {
+            converged = true;
+            break;
+        }
+        if rounds == MAX_NOISE_ROUNDS {
+            break;
+        }
+        options.rotation_sigma = sigma;
+        run = fit(&options)?;
+        rounds += 1;
+        last = noise_components(input, &options, &run, measurements)?;
+    }
+    let estimate = NoiseEstimate {
+        declared,
+        rotation_sigma: options.rotation_sigma,
+        rounds,
+        converged,
+        first,
+        last,
+    };
+    Ok((run, options, Some(estimate)))
+}
+
+/// The variance components of `run` (its measurements in the first session's frame, its
+/// robust weights, every parameter the level frees, each later session's frame block).
+fn noise_components(
+    input: &CalibrationInput<'_>,
+    options: &IdentificationOptions,
+    run: &CalibrationRun,
+    measurements: &[Measurement],
+) -> Result<Vec<NoiseComponent>> {
+    let in_first = validation_in_training_frames(measurements, run.sessions.as_ref());
+    let weighted = IdentificationOptions {
+        observation_weights: run.robust.fit_weights(),
+        ..options.clone()
+    };
+    let model = &run.report.model;
+    let free: Vec<usize> = (0..model.parameter_count())
+        .filter(|i| !options.frozen.contains(i))
+        .collect();
+    let blocks: Vec<Vec<usize>> = run
+        .sessions
+        .iter()
+        .flat_map(|s| s.frames.iter().skip(1))
+        .map(|frame| {
+            (0..measurements.len())
+                .filter(|&i| measurements[i].session == frame.name)
+                .collect()
+        })
+        .collect();
+    match input.flexibility {
+        Some(flexibility) => {
+            let predictor = Deflected {
+                tree: input.tree,
+                flexibility,
+            };
+            variance_components(model, &in_first, &predictor, &free, &weighted, &blocks)
+        }
+        None => variance_components(model, &in_first, &Rigid, &free, &weighted, &blocks),
+    }
 }
 
 /// With the measurement frame as parameters, the frame the reports and the registration give

@@ -2,7 +2,8 @@
 //! notes on stderr, report.md on stdout, the files in `--out`.
 
 use crate::cli::{
-    CalibrateArgs, GravityFrame, JointErrorArg, MeasurementFrame, ModelArg, PlanArg, PlanChoice,
+    CalibrateArgs, GravityFrame, JointErrorArg, MeasurementFrame, ModelArg, NoiseArg, PlanArg,
+    PlanChoice,
 };
 use std::path::Path;
 use treecal::workflow::calibrate_camera::{
@@ -10,8 +11,8 @@ use treecal::workflow::calibrate_camera::{
 };
 use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
-    calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, PlanSource, RobotSource,
-    StiffnessSource,
+    calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, NoiseChoice, PlanSource,
+    RobotSource, StiffnessSource,
 };
 use treecal::{Error, Result};
 
@@ -80,6 +81,11 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
         prior: args.prior,
         prior_scale: args.prior_scale,
         significant: args.significant,
+        noise: match args.noise {
+            NoiseArg::Adaptive => NoiseChoice::Adaptive,
+            NoiseArg::Estimated => NoiseChoice::Estimated,
+            NoiseArg::Declared => NoiseChoice::Declared,
+        },
         patterns: ParameterPatterns {
             freeze: args.freeze.clone(),
             free: args.free.clone(),

@@ -633,6 +633,17 @@ pub struct CheckArgs {
     pub pixel_sigma: f64,
 }
 
+/// `--noise`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum NoiseArg {
+    /// Declared; estimated as a cross-validation candidate.
+    Adaptive,
+    /// Always estimated from the residuals.
+    Estimated,
+    /// Always as declared.
+    Declared,
+}
+
 /// `--model`.
 #[derive(Clone, Copy, ValueEnum)]
 pub enum ModelArg {
@@ -694,6 +705,12 @@ pub struct CalibrateArgs {
     /// frozen at nominal, the rest refitted).
     #[arg(long, value_name = "K")]
     pub significant: Option<f64>,
+    /// How rotation rows weigh against position rows: `estimated` (the σ ratio the fit's
+    /// residuals show, by variance components; --position-sigma kept), `declared`
+    /// (--position-sigma and --rotation-sigma as given), `adaptive` (declared; the estimated
+    /// ratio is a cross-validation candidate when the data choose the model).
+    #[arg(long, value_enum, default_value = "adaptive")]
+    pub noise: NoiseArg,
     /// Never free the parameters whose name matches PATTERN (glob on the names of params.yaml,
     /// e.g. 'arm_7_joint *'); repeatable.
     #[arg(long, value_name = "PATTERN")]
