@@ -193,8 +193,7 @@ fn lab_files(
     if mode == ObservationMode::Mixed {
         // The tracker rows in the robot's root frame (the simulated tracker's frame).
         let robot = setup.rig.robot_model(setup.augmented)?;
-        let csv =
-            crate::io::measurements_to_csv(setup.tree, &robot, &data.tracker)?;
+        let csv = crate::io::measurements_to_csv(setup.tree, &robot, &data.tracker)?;
         files.push(("tracker.csv".to_owned(), csv.into_bytes()));
     }
     files.extend([
