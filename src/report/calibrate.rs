@@ -47,7 +47,7 @@ fn sigma_json<S: serde::Serializer>(
 }
 
 /// The `schema_version` of `report.json` (its layout is documented in docs/file-formats.md).
-pub const REPORT_SCHEMA: &str = "treecal.report/3";
+pub const REPORT_SCHEMA: &str = "treecal.report/2";
 
 /// One stage's solver outcome.
 #[derive(Debug, Clone, Serialize)]

@@ -37,9 +37,8 @@ pub struct RecordedTool {
     pub postures: Vec<RecordedPosture>,
 }
 
-/// One recorded posture: the joint values in the order of [`RecordedTool::joints`] (written
-/// since `treecal.report/3`: an array is a tenth of the memory of a map at 10⁵ rows), or by
-/// joint name (`treecal.report/2` files, still read).
+/// One recorded posture: the joint values by joint name (what `calibrate` writes: report.json
+/// is labelled, no positional arrays), or in the order of [`RecordedTool::joints`] (read too).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum RecordedPosture {
@@ -94,7 +93,15 @@ pub fn record(
             let postures = chain
                 .postures
                 .iter()
-                .map(|posture| RecordedPosture::Values(posture.clone()))
+                .map(|posture| {
+                    RecordedPosture::Named(
+                        joints
+                            .iter()
+                            .zip(posture)
+                            .map(|(joint, &value)| (joint.name.clone(), value))
+                            .collect(),
+                    )
+                })
                 .collect();
             RecordedTool {
                 tool: tree.link(tool.link).name.clone(),

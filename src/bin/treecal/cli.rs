@@ -706,8 +706,8 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "K")]
     pub significant: Option<f64>,
     /// How rotation rows weigh against position rows: `estimated` (the σ ratio the fit's
-    /// residuals show, by variance components; --position-sigma kept), `declared`
-    /// (--position-sigma and --rotation-sigma as given), `adaptive` (declared; the estimated
+    /// residuals show, by variance components; the position σ kept), `declared`
+    /// (the position and rotation σ as given), `adaptive` (declared; the estimated
     /// ratio is a cross-validation candidate when the data choose the model).
     #[arg(long, value_enum, default_value = "adaptive")]
     pub noise: NoiseArg,
