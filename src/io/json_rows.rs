@@ -14,7 +14,7 @@ use std::io::Write;
 /// Containers opened at this depth or less are indented (1: the top-level object).
 pub const PRETTY_DEPTH: usize = 5;
 
-/// Serialises `value` as JSON indented to [`PRETTY_DEPTH`], one line per deeper container,
+/// Serialises `value` as JSON indented to `PRETTY_DEPTH` (5), one line per deeper container,
 /// with a final newline.
 pub fn to_json_rows<T: serde::Serialize>(value: &T) -> Result<String> {
     let mut counter = Counter(0);

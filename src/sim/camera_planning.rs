@@ -4,7 +4,7 @@
 //! informative as possible.
 //!
 //! Each candidate's block is the stacked pixel Jacobian of every target it shows over the
-//! fit's unknowns ([`Rig::unknowns`]: robot parameters, estimated camera and target poses and
+//! fit's unknowns (`Rig::unknowns`: robot parameters, estimated camera and target poses and
 //! intrinsics), rows divided by the pixel σ, columns scaled by their RMS norm over the whole
 //! candidate pool (so that criteria of different sets compare). Its information `A_cᵀA_c` is
 //! kept (an image has more rows than there are unknowns). The choice is a greedy pick on

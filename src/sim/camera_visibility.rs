@@ -12,7 +12,7 @@ use crate::math::{Pose, Vec3};
 use crate::tree::{KinematicTree, LinkId};
 use nalgebra::Vector2;
 
-/// The rules of [`visible_views`].
+/// The rules of `visible_views`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VisibilityRules {
     /// A board is seen when the angle between its face normal and the direction to the
