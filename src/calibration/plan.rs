@@ -292,8 +292,8 @@ fn largest_change(after: &[f64], before: &[f64]) -> f64 {
 }
 
 /// Eq. (26): the linear D_f of every measurement, once, at the starting model (under linear
-/// compensation only).
-fn linear_offsets(
+/// compensation only); robust estimation standardises residuals with the same `D_f`.
+pub(super) fn linear_offsets(
     compensation: Compensation<'_>,
     model: &McpcModel,
     measurements: &[Measurement],

@@ -15,7 +15,7 @@ use super::observation::{
     kind_of, norms_by_row_kind, standardized_norm, Nuisance, RobotState, Tools,
 };
 use super::options::IdentificationOptions;
-use super::plan::{calibrate, CalibrationReport, Compensation, Plan};
+use super::plan::{calibrate, linear_offsets, CalibrationReport, Compensation, Plan};
 use super::predictor::{Cached, Predictor};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
@@ -152,7 +152,7 @@ pub fn calibrate_robust(
             &weighted(weights),
         )
     };
-    let offsets = linear_offsets(model, measurements, compensation)?;
+    let offsets = linear_offsets(compensation, model, measurements)?;
     let residuals_at = |model: &McpcModel| {
         residuals(
             model,
@@ -251,28 +251,6 @@ pub fn residuals(
         });
     }
     Ok(out)
-}
-
-/// The linear flexibility errors `D_f` at the starting model, as the plan computes them for
-/// [`Compensation::Linear`]; `None` otherwise.
-fn linear_offsets(
-    model: &McpcModel,
-    measurements: &[Measurement],
-    compensation: Compensation<'_>,
-) -> Result<Option<Vec<Vector6<f64>>>> {
-    let Compensation::Linear(source) = compensation else {
-        return Ok(None);
-    };
-    measurements
-        .iter()
-        .map(|m| {
-            Ok(source
-                .flexibility
-                .for_payload(m.payload)?
-                .tool_deflections(source.tree, model, &m.q)?[m.tool])
-        })
-        .collect::<Result<Vec<_>>>()
-        .map(Some)
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 use super::calibrate_camera_judge::{held_out, pixel_residuals, verdict_findings};
 use super::camera_tracker::{registered, registration};
 use super::checks::{check_outputs, Output};
-use super::simulate_camera::with_camera_link;
+use super::simulate_camera::with_camera_links;
 use super::source::{branches, RobotSource};
 use super::Note;
 use crate::calibration::{Finding, Verdict};
@@ -401,16 +401,13 @@ fn load(config: &CameraCalibrateConfig, notes: &mut Vec<Note>) -> Result<Setup> 
     let (text, origin) = (robot.text, robot.origin);
     let import = robot.import;
     let contents = read_camera_file(&config.camera_file, &import.tree)?;
-    let mut branches = branches(&import, config.tools.as_deref(), None)?;
-    if config.tools.is_none() {
-        for camera in &contents.cameras {
-            if let Mount::Link(link) = camera.mount {
-                if let Some(extended) = with_camera_link(&import.tree, &branches, link, notes)? {
-                    branches = extended;
-                }
-            }
-        }
-    }
+    let branches = with_camera_links(
+        &import.tree,
+        branches(&import, config.tools.as_deref(), None)?,
+        &contents.cameras,
+        config.tools.is_some(),
+        notes,
+    )?;
     let nominal = McpcModel::from_tree(&import.tree, &branches)?;
     let (rig, augmented) =
         Rig::build(&import.tree, &nominal, &contents.cameras, &contents.targets)?;

@@ -2,10 +2,10 @@
 //! fit ([`crate::camera::camera_identifiability`]), with the unobservable combinations said
 //! in words.
 
-use super::simulate_camera::with_camera_link;
+use super::simulate_camera::with_camera_links;
 use super::source::{branches, RobotSource};
 use super::Note;
-use crate::camera::{camera_identifiability, CameraIdentifiability, CameraProblem, Mount, Rig};
+use crate::camera::{camera_identifiability, CameraIdentifiability, CameraProblem, Rig};
 use crate::io::camera_yaml::read_camera_file;
 use crate::io::detections_csv::read_detections;
 use crate::io::StatedUnits;
@@ -48,16 +48,13 @@ pub fn check_camera(config: &CameraCheckConfig) -> Result<CameraCheck> {
     let import = robot.import;
     let tree = &import.tree;
     let contents = read_camera_file(&config.camera_file, tree)?;
-    let mut branches = branches(&import, config.tools.as_deref(), None)?;
-    if config.tools.is_none() {
-        for camera in &contents.cameras {
-            if let Mount::Link(link) = camera.mount {
-                if let Some(extended) = with_camera_link(tree, &branches, link, &mut notes)? {
-                    branches = extended;
-                }
-            }
-        }
-    }
+    let branches = with_camera_links(
+        tree,
+        branches(&import, config.tools.as_deref(), None)?,
+        &contents.cameras,
+        config.tools.is_some(),
+        &mut notes,
+    )?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
     let (rig, augmented) = Rig::build(tree, &nominal, &contents.cameras, &contents.targets)?;
     let views = read_detections(&config.detections, tree, &rig, &StatedUnits::default())?;

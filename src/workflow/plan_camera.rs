@@ -6,12 +6,12 @@
 
 use super::checker::{collision_checker, collision_statement};
 use super::checks::{check_outputs, Output};
-use super::simulate_camera::with_camera_link;
+use super::simulate_camera::with_camera_links;
 use super::source::{branches, RobotSource};
 use super::{Note, Progress, ProgressFn};
 use crate::calibration::identifiability::Criterion;
 use crate::camera::Rig;
-use crate::camera::{Mount, View};
+use crate::camera::View;
 use crate::error::{Error, Result};
 use crate::io::camera_yaml::read_camera_file;
 use crate::io::write_atomically;
@@ -100,16 +100,13 @@ pub fn plan_camera(config: &CameraPlanConfig, progress: ProgressFn<'_>) -> Resul
     let import = robot.import;
     let tree = &import.tree;
     let contents = read_camera_file(&config.camera_file, tree)?;
-    let mut branches = branches(&import, config.tools.as_deref(), None)?;
-    if config.tools.is_none() {
-        for camera in &contents.cameras {
-            if let Mount::Link(link) = camera.mount {
-                if let Some(extended) = with_camera_link(tree, &branches, link, &mut notes)? {
-                    branches = extended;
-                }
-            }
-        }
-    }
+    let branches = with_camera_links(
+        tree,
+        branches(&import, config.tools.as_deref(), None)?,
+        &contents.cameras,
+        config.tools.is_some(),
+        &mut notes,
+    )?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
     let (rig, augmented) = Rig::build(tree, &nominal, &contents.cameras, &contents.targets)?;
     let checker = collision_checker(

@@ -214,6 +214,28 @@ fn lab_files(
     Ok(files)
 }
 
+/// [`with_camera_link`] for every camera of a camera file mounted on a link, when the tools
+/// are the default ones (`tools_given` false): `branches` extended by each camera's link.
+pub(super) fn with_camera_links(
+    tree: &crate::KinematicTree,
+    mut branches: crate::Branches,
+    cameras: &[CameraSpec],
+    tools_given: bool,
+    notes: &mut Vec<Note>,
+) -> Result<crate::Branches> {
+    if tools_given {
+        return Ok(branches);
+    }
+    for camera in cameras {
+        if let crate::camera::Mount::Link(link) = camera.mount {
+            if let Some(extended) = with_camera_link(tree, &branches, link, notes)? {
+                branches = extended;
+            }
+        }
+    }
+    Ok(branches)
+}
+
 /// With the default tools, a camera on a link moved by joints on no branch (a head camera
 /// behind its neck) would see the boards through joints the model does not have: the
 /// branches are detected again with the camera's link as one more observed link, so that
