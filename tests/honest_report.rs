@@ -374,7 +374,7 @@ fn the_written_urdf_and_registration_are_what_was_validated() {
         ..CalibrateConfig::default()
     };
     let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
-    let report = &outcome.report;
+    let report = &outcome.report();
     assert!(outcome.usable(), "{:?}", outcome.verdict);
     let codes: Vec<&str> = outcome
         .verdict
@@ -481,7 +481,8 @@ fn a_compensated_geometry_is_never_shipped_alone_when_worse_than_nominal() {
     };
     let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
     assert!(outcome.usable(), "{:?}", outcome.verdict);
-    let artifact = &outcome.report["artifact"];
+    let report = outcome.report();
+    let artifact = &report["artifact"];
     let rms = |key: &str| number(&artifact[key]["errors"]["rms_position_mm"]);
     let (alone, compensated, before) = (
         rms("urdf_alone"),
@@ -520,7 +521,7 @@ fn a_compensated_geometry_is_never_shipped_alone_when_worse_than_nominal() {
         "{alone} vs {again}"
     );
     // The compensated prediction reported per row is the compensated pair as written.
-    let in_memory = number(&outcome.report["validation_strata"]["strata"][0]["rms_position_mm"]);
+    let in_memory = number(&report["validation_strata"]["strata"][0]["rms_position_mm"]);
     assert!(
         (in_memory - compensated).abs() < 1e-6 * compensated,
         "{in_memory} vs {compensated}"

@@ -414,8 +414,9 @@ fn a_table_carries_points_and_sessions_like_a_csv() {
     let sessions = MeasurementSource::Table(points_table(&text, true));
     let with_sessions = calibrate(&config(sessions)).unwrap();
     assert!(with_sessions.usable(), "{:?}", with_sessions.verdict);
-    let training = with_sessions.report["sessions"]["training"]
+    let report = with_sessions.report();
+    let training = report["sessions"]["training"]
         .as_array()
-        .unwrap_or_else(|| panic!("{}", with_sessions.report["sessions"]));
+        .unwrap_or_else(|| panic!("{}", report["sessions"]));
     assert_eq!(training.len(), 2);
 }

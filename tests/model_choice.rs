@@ -517,18 +517,19 @@ fn the_default_model_follows_cross_validation_only_under_model_error() {
             .any(|n| n.text.contains("model error") && n.text.contains("cross-validation"))
     };
     let clean = treecal::workflow::calibrate(&config(5e-5, false)).unwrap();
-    assert_eq!(clean.report["model"]["name"], "geometry");
+    assert_eq!(clean.report()["model"]["name"], "geometry");
     assert!(!explained(&clean));
     let error = treecal::workflow::calibrate(&config(5e-5 / 30.0, false)).unwrap();
-    let choice = &error.report["model_choice"];
+    let error_report = error.report();
+    let choice = &error_report["model_choice"];
     let chosen = choice["chosen"].as_u64().unwrap() as usize;
     assert_eq!(
-        error.report["model"]["name"],
+        error_report["model"]["name"],
         choice["rows"][chosen]["model"]
     );
     assert!(explained(&error), "{:#?}", error.notes);
     let asked = treecal::workflow::calibrate(&config(5e-5 / 30.0, true)).unwrap();
-    assert_eq!(asked.report["model"]["name"], "geometry+prior");
+    assert_eq!(asked.report()["model"]["name"], "geometry+prior");
     assert!(!explained(&asked));
 }
 

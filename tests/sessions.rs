@@ -341,7 +341,8 @@ fn the_report_names_every_session_with_its_rows_and_frame() {
         ..Default::default()
     };
     let result = treecal::workflow::calibrate(&config).unwrap();
-    let sessions = &result.report["sessions"];
+    let report = result.report();
+    let sessions = &report["sessions"];
     let training = sessions["training"].as_array().unwrap();
     assert_eq!(training.len(), 3, "{sessions}");
     // Rigid fit of series-elastic joints: the frames carry part of the model error, so only

@@ -47,7 +47,7 @@ pub(crate) fn calibrate_tiago(kind: &str, validation: &Path, out: &Path) -> serd
     let calibration = calibrate(&config).expect("calibrate");
     assert!(calibration.usable(), "{:?}", calibration.verdict);
     calibration.write(out).expect("write");
-    calibration.report
+    calibration.report()
 }
 
 /// calibrate's per-row validation position errors (after), by row id.

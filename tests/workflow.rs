@@ -91,8 +91,8 @@ fn calibrate_from_a_csv_and_from_arrays_gives_identical_parameters() {
     assert_eq!(from_csv.urdf, from_table.urdf);
     assert!(from_csv.urdf.is_some());
     // The reports differ only where they name the source.
-    assert_eq!(from_csv.report["stages"], from_table.report["stages"]);
-    assert!(from_table.report["context"]["measurements"]
+    assert_eq!(from_csv.report()["stages"], from_table.report()["stages"]);
+    assert!(from_table.report()["context"]["measurements"]
         .as_str()
         .unwrap()
         .starts_with("measurements (arrays)"));
@@ -120,7 +120,7 @@ fn calibrate_writes_what_the_cli_writes() {
     assert_eq!(Some(written), calibration.urdf);
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_json_close(&report, &calibration.report, "report");
+    assert_json_close(&report, &calibration.report(), "report");
     for note in &calibration.notes {
         assert!(
             run.stderr.contains(&format!("treecal: {note}")),

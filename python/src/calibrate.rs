@@ -34,7 +34,13 @@ impl PyCalibration {
     /// report.json's content.
     #[getter]
     fn report_json(&self) -> PyResult<String> {
-        serde_json::to_string(&self.inner.report).map_err(|e| invalid(e.to_string()))
+        let bytes = self
+            .inner
+            .files
+            .iter()
+            .find(|(name, _)| name == "report.json")
+            .map_or(&[][..], |(_, bytes)| bytes.as_slice());
+        String::from_utf8(bytes.to_vec()).map_err(|e| invalid(e.to_string()))
     }
 
     /// report.md.

@@ -1,5 +1,6 @@
 //! Joint-value CSV files (`treecal fk`): a header naming joints, one configuration per row.
 
+use super::csv_fields::CsvFields;
 use crate::error::{Error, Result};
 use crate::limits::{
     self, check_count, check_text_size, Quantity, MAX_CSV_BYTES, MAX_CSV_COLUMNS, MAX_CSV_ROWS,
@@ -22,6 +23,11 @@ pub struct CsvTable {
 /// may be `\n`, `\r\n` or a lone `\r`; rows and columns are limited to
 /// [`MAX_CSV_ROWS`] and [`MAX_CSV_COLUMNS`]. Linear in the size of the text.
 pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
+    parse_csv_fields(text, origin).map(CsvFields::into_table)
+}
+
+/// [`parse_csv`] into the compact [`CsvFields`] (one text buffer, no `String` per field).
+pub fn parse_csv_fields(text: &str, origin: &str) -> Result<CsvFields> {
     check_text_size(text, MAX_CSV_BYTES, origin)?;
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     super::csv_scan::check_csv_shape(text, origin)?;
@@ -42,17 +48,21 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
         .flexible(true)
         .from_reader(text.as_bytes());
     let mut lines = LineCounter::new(text);
-    let mut headers: Option<Vec<String>> = None;
-    let mut header_line = 1;
-    let mut records = Vec::new();
-    for record in reader.records() {
-        let record = record.map_err(|e| Error::InvalidData {
-            origin: match e.position() {
-                Some(p) => format!("{origin}:{}", lines.line_at(p.byte())),
-                None => origin.to_owned(),
-            },
-            message: format!("not readable as CSV: {e}"),
-        })?;
+    let mut table: Option<CsvFields> = None;
+    let mut record = csv::StringRecord::new();
+    loop {
+        let more = reader
+            .read_record(&mut record)
+            .map_err(|e| Error::InvalidData {
+                origin: match e.position() {
+                    Some(p) => format!("{origin}:{}", lines.line_at(p.byte())),
+                    None => origin.to_owned(),
+                },
+                message: format!("not readable as CSV: {e}"),
+            })?;
+        if !more {
+            break;
+        }
         let line = record.position().map_or(0, |p| lines.line_at(p.byte()));
         if record.len() > MAX_CSV_COLUMNS {
             check_count(
@@ -62,27 +72,18 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
                 "columns",
             )?;
         }
-        let fields: Vec<String> = record.iter().map(str::to_owned).collect();
-        if fields.iter().all(String::is_empty) {
+        if record.iter().all(str::is_empty) {
             continue;
         }
-        match &headers {
+        match &mut table {
             None => {
-                headers = Some(fields);
-                header_line = line;
+                table = Some(CsvFields::new(
+                    record.iter().map(str::to_owned).collect(),
+                    line,
+                ))
             }
-            Some(h) => {
-                if fields.len() != h.len() {
-                    return Err(Error::InvalidData {
-                        origin: format!("{origin}:{line}"),
-                        message: format!(
-                            "row has {} fields but the header has {}",
-                            fields.len(),
-                            h.len()
-                        ),
-                    });
-                }
-                if records.len() == MAX_CSV_ROWS {
+            Some(table) => {
+                if table.len() == MAX_CSV_ROWS {
                     check_count(
                         MAX_CSV_ROWS + 1,
                         MAX_CSV_ROWS,
@@ -90,20 +91,16 @@ pub fn parse_csv(text: &str, origin: &str) -> Result<CsvTable> {
                         "data rows",
                     )?;
                 }
-                records.push((line, fields));
+                table.push_row(line, &record, origin)?;
             }
         }
     }
-    let headers = headers.ok_or_else(|| Error::InvalidData {
+    let table = table.ok_or_else(|| Error::InvalidData {
         origin: origin.to_owned(),
         message: "the file is empty; it needs a header row naming joints".into(),
     })?;
-    check_unique_columns(&headers, &format!("{origin}:{header_line}"))?;
-    Ok(CsvTable {
-        headers,
-        header_line,
-        records,
-    })
+    check_unique_columns(&table.headers, &format!("{origin}:{}", table.header_line))?;
+    Ok(table)
 }
 
 /// Whether `text` has a `\r` that is not followed by `\n`.

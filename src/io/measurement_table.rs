@@ -3,7 +3,7 @@
 //! limits, tool names and the length-scale and degree/radian diagnoses are the file's, with
 //! messages naming the table's `origin`, the row id and the column instead of a file line.
 
-use super::joints_csv::CsvTable;
+use super::csv_fields::CsvFields;
 use super::measurements_csv::{
     measurements_from_table, MeasurementReadOptions, MeasurementSet, ObservationKind, Places,
 };
@@ -146,7 +146,7 @@ impl MeasurementTable {
             rotation: None,
             line: None,
         };
-        let table = self.as_csv_table();
+        let table = self.as_csv_table()?;
         measurements_from_table(
             &table,
             &stated,
@@ -287,7 +287,7 @@ impl MeasurementTable {
 
     /// The table laid out as a CSV as read: numbers written in full precision (`{}` prints
     /// the shortest text that reads back to the same `f64`), NaN as an empty cell.
-    fn as_csv_table(&self) -> CsvTable {
+    fn as_csv_table(&self) -> Result<CsvFields> {
         let text = |value: f64| {
             if value.is_nan() {
                 String::new()
@@ -309,28 +309,24 @@ impl MeasurementTable {
                 .iter()
                 .map(|c| c.to_string()),
         );
-        let records = (0..self.tools.len())
-            .map(|row| {
-                let mut fields = Vec::with_capacity(headers.len());
-                fields.extend(self.ids.as_ref().map(|ids| ids[row].trim().to_owned()));
-                fields.extend(
-                    self.stages
-                        .as_ref()
-                        .map(|stages| stages[row].trim().to_owned()),
-                );
-                fields.push(self.tools[row].trim().to_owned());
-                for labels in [&self.sessions, &self.points].into_iter().flatten() {
-                    fields.push(labels[row].trim().to_owned());
-                }
-                fields.extend(self.joints[row].iter().map(|&v| text(v)));
-                fields.extend(self.observations.row(row).iter().map(|&v| text(v)));
-                (row + 1, fields)
-            })
-            .collect();
-        CsvTable {
-            headers,
-            header_line: 0,
-            records,
+        let mut table = CsvFields::new(headers, 0);
+        let mut fields: Vec<String> = Vec::with_capacity(table.headers.len());
+        for row in 0..self.tools.len() {
+            fields.clear();
+            fields.extend(self.ids.as_ref().map(|ids| ids[row].trim().to_owned()));
+            fields.extend(
+                self.stages
+                    .as_ref()
+                    .map(|stages| stages[row].trim().to_owned()),
+            );
+            fields.push(self.tools[row].trim().to_owned());
+            for labels in [&self.sessions, &self.points].into_iter().flatten() {
+                fields.push(labels[row].trim().to_owned());
+            }
+            fields.extend(self.joints[row].iter().map(|&v| text(v)));
+            fields.extend(self.observations.row(row).iter().map(|&v| text(v)));
+            table.push_row(row + 1, fields.iter().map(String::as_str), &self.origin)?;
         }
+        Ok(table)
     }
 }

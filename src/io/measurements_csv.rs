@@ -2,7 +2,8 @@
 //! values of the joints that move the tool and the observation (a position, a pose, or three
 //! targets A, B, C), in metres and radians or the units the options name.
 
-use super::joints_csv::{parse_csv, CsvTable};
+use super::csv_fields::{CsvFields, CsvRow};
+use super::joints_csv::parse_csv_fields;
 pub use super::observations::ObservationKind;
 use super::observations::{
     column_quantity, observation, ColumnQuantity, KINDS, LAYOUTS, OBSERVATION_COLUMNS,

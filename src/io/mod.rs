@@ -6,6 +6,7 @@ pub mod camera_yaml;
 mod collada;
 pub mod contacts_csv;
 pub mod contacts_yaml;
+mod csv_fields;
 mod csv_scan;
 pub mod detections_csv;
 mod joint_log;

@@ -222,8 +222,6 @@ pub struct Calibration {
     pub notes: Vec<Note>,
     /// Every MCPC parameter.
     pub parameters: Vec<ParameterRow>,
-    /// The content of report.json.
-    pub report: serde_json::Value,
     /// report.md.
     pub report_markdown: String,
     /// The calibrated URDF; `None` when the verdict failed or the model cannot be exported.
@@ -254,24 +252,26 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
     )?;
     notes.extend(outputs.verdict.reasons.iter().map(Note::from));
     // For `treecal verify`: the calibrated ranges, and where the folder came from.
-    super::postures::add_to_report(
+    outputs.report_parts.postures = super::postures::add_to_report(
         loaded.robot.tree(),
         &result.run.report.model,
         &data.measurements,
         &mut outputs.report,
     )?;
+    // report.json is rendered last and is the largest output: what only led to it goes first.
+    let parameters = std::mem::take(&mut result.run.parameters);
+    drop((data, result));
     let provenance = super::provenance::calibrate_record(config, started)?;
     super::provenance::attach(
         &provenance,
         "report.json",
-        &mut outputs.report,
+        (&mut outputs.report, &outputs.report_parts),
         &mut outputs.files,
     )?;
     Ok(Calibration {
         verdict: outputs.verdict,
         notes,
-        parameters: result.run.parameters,
-        report: outputs.report,
+        parameters,
         report_markdown: outputs.markdown,
         urdf: outputs.urdf,
         files: outputs.files,
@@ -280,6 +280,16 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
 }
 
 impl Calibration {
+    /// The content of report.json, parsed from the file's text (`files`): at 10⁵ rows a
+    /// value of some hundreds of MB, so the calibration holds only the text.
+    pub fn report(&self) -> serde_json::Value {
+        self.files
+            .iter()
+            .find(|(name, _)| name == "report.json")
+            .and_then(|(_, bytes)| serde_json::from_slice(bytes).ok())
+            .unwrap_or(serde_json::Value::Null)
+    }
+
     /// Whether the result may be used (verdict `ok` or `warning`).
     pub fn usable(&self) -> bool {
         self.verdict.usable()

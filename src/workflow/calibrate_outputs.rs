@@ -7,7 +7,7 @@ use super::calibrate_steps::{Data, Identified, IdentifiedStiffness, Loaded};
 use crate::calibration::identifiability::NamedCombination;
 use crate::calibration::robust::{DataSet, OUTLIER_WEIGHT};
 use crate::calibration::{CalibrationRun, ChosenFrame, Finding, Verdict};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::{stiffness_to_yaml, to_yaml};
 use crate::report::{
     calibration_markdown, calibration_plots, calibration_summary, outlier_rows, parameter_file,
@@ -189,7 +189,9 @@ fn down_weighted_finding(run: &CalibrationRun, ids: &[String]) -> Option<Finding
 /// Everything the outcome holds besides the parameters and notes.
 pub(super) struct Outputs {
     pub verdict: Verdict,
+    /// report.json's small keys; its rows are in `report_parts` (`report_json`).
     pub report: serde_json::Value,
+    pub report_parts: super::report_json::ReportParts,
     pub markdown: String,
     pub urdf: Option<String>,
     pub files: Vec<(String, Vec<u8>)>,
@@ -254,11 +256,6 @@ pub(super) fn outputs(
     {
         params.push_str(&to_yaml(&serde_json::json!({ "added_links": added }))?);
     }
-    let json_error = |e: serde_json::Error| Error::InvalidData {
-        origin: "report.json".into(),
-        message: e.to_string(),
-    };
-    let report = serde_json::to_value(&summary).map_err(json_error)?;
     if let Some((stiffness_summary, _)) = &identified {
         markdown.push_str(&stiffness_markdown(stiffness_summary));
         params.push_str(&to_yaml(
@@ -274,6 +271,8 @@ pub(super) fn outputs(
     markdown.push_str(&deploy.markdown);
     let html = super::calibrate_html::report_html(loaded, data, result, &summary, &plots, &deploy)?;
     let urdf = export.map(|e| e.urdf);
+    // report.json's rows stay typed until the file is rendered (`report_json`).
+    let (report, report_parts) = super::report_json::summary_value(summary)?;
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     if let Some(urdf) = &urdf {
         files.push(("calibrated.urdf".into(), urdf.clone().into_bytes()));
@@ -299,6 +298,7 @@ pub(super) fn outputs(
     Ok(Outputs {
         verdict,
         report,
+        report_parts,
         markdown,
         urdf,
         files,

@@ -31,6 +31,7 @@ pub mod plan_camera;
 pub mod postures;
 pub mod progress;
 pub mod provenance;
+mod report_json;
 pub mod simulate;
 mod simulate_camera;
 mod simulate_contacts;

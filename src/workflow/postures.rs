@@ -2,6 +2,7 @@
 //! (`"identification_postures"`) so that `treecal verify` judges fresh rows against the same
 //! calibrated ranges, with the same code ([`ChainPostures::stratum`]), months later.
 
+use super::report_json::{ReportParts, ToolPostures};
 use crate::calibration::validation::{chain_postures, ChainPostures};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
@@ -79,17 +80,7 @@ pub fn record(
         .iter()
         .zip(&chains)
         .map(|(tool, chain)| {
-            let joints: Vec<RecordedJoint> = chain
-                .dofs
-                .iter()
-                .zip(chain.ranges())
-                .map(|(&(dof, angle), (min, max))| RecordedJoint {
-                    name: tree.joint(tree.dofs()[dof]).name.clone(),
-                    kind: if angle { "revolute" } else { "prismatic" }.into(),
-                    min,
-                    max,
-                })
-                .collect();
+            let joints = recorded_joints(tree, chain);
             let postures = chain
                 .postures
                 .iter()
@@ -111,9 +102,27 @@ pub fn record(
         })
         .collect();
     RecordedPostures {
-        units: "revolute joints rad, prismatic joints m".into(),
+        units: UNITS.into(),
         tools,
     }
+}
+
+/// [`RecordedPostures::units`].
+const UNITS: &str = "revolute joints rad, prismatic joints m";
+
+/// The joints of `chain` with their calibrated ranges.
+fn recorded_joints(tree: &KinematicTree, chain: &ChainPostures) -> Vec<RecordedJoint> {
+    chain
+        .dofs
+        .iter()
+        .zip(chain.ranges())
+        .map(|(&(dof, angle), (min, max))| RecordedJoint {
+            name: tree.joint(tree.dofs()[dof]).name.clone(),
+            kind: if angle { "revolute" } else { "prismatic" }.into(),
+            min,
+            max,
+        })
+        .collect()
 }
 
 /// The recorded postures of each tool of `model` (of `tree`), in `model`'s configuration
@@ -189,10 +198,11 @@ pub(super) fn insert_key(report: &mut serde_json::Value, key: &str, value: serde
 }
 
 /// Sets `key` to `value` in `report` and renders the JSON file `file` among `files` from it
-/// (`io::to_json_rows`: rendered from the value, never parsed back, which at 10⁵ rows would
-/// hold a second copy of a report of hundreds of MB).
+/// with its typed `parts` ([`super::report_json::render`]: never parsed back, which at 10⁵ rows
+/// would hold a second copy of a report of hundreds of MB).
 pub(super) fn set_report_key(
     report: &mut serde_json::Value,
+    parts: &ReportParts,
     files: &mut [(String, Vec<u8>)],
     file: &str,
     key: &str,
@@ -200,25 +210,41 @@ pub(super) fn set_report_key(
 ) -> Result<()> {
     insert_key(report, key, value);
     if let Some((_, bytes)) = files.iter_mut().find(|(name, _)| name == file) {
-        *bytes = crate::io::to_json_rows(report)?.into_bytes();
+        *bytes = super::report_json::render(report, parts)?.into_bytes();
     }
     Ok(())
 }
 
-/// Records the identification postures of a calibration in its report.json value (the file
-/// is rendered from it once, when the report is complete).
+/// Records the identification postures of a calibration in its report.json value: the tools
+/// and their joints there, the postures themselves returned typed (the file is rendered with
+/// them once, when the report is complete).
 pub(super) fn add_to_report(
     tree: &KinematicTree,
     model: &McpcModel,
     identification: &[Measurement],
     report: &mut serde_json::Value,
-) -> Result<()> {
-    let value = serde_json::to_value(record(tree, model, identification)).map_err(|e| {
-        Error::InvalidData {
-            origin: "report.json".into(),
-            message: e.to_string(),
-        }
+) -> Result<Vec<ToolPostures>> {
+    let chains = chain_postures(model, identification);
+    let mut parts = Vec::with_capacity(chains.len());
+    let mut tools = Vec::with_capacity(chains.len());
+    for (tool, chain) in model.tools().iter().zip(chains) {
+        let joints = recorded_joints(tree, &chain);
+        let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
+        parts.push(ToolPostures::new(&names, chain.postures));
+        tools.push(RecordedTool {
+            tool: tree.link(tool.link).name.clone(),
+            joints,
+            postures: Vec::new(),
+        });
+    }
+    let record = RecordedPostures {
+        units: UNITS.into(),
+        tools,
+    };
+    let value = serde_json::to_value(record).map_err(|e| Error::InvalidData {
+        origin: "report.json".into(),
+        message: e.to_string(),
     })?;
     insert_key(report, POSTURES_KEY, value);
-    Ok(())
+    Ok(parts)
 }

@@ -2,6 +2,7 @@
 //! notes when it started, and at its end records its settings, inputs and seeds; report.json
 //! refers to the file (`"provenance"`).
 
+use super::report_json::ReportParts;
 use crate::error::Result;
 use crate::io::{input_file, utc_iso8601, Program, ProvenanceRecord, RunFacts};
 use std::path::PathBuf;
@@ -73,15 +74,15 @@ pub fn settings_text<T: std::fmt::Debug>(config: &T) -> String {
 }
 
 /// Adds provenance.yaml to `files` and `"provenance": "provenance.yaml"` to the JSON report
-/// `file` among them (and to `report`, its parsed form).
+/// `file` among them (and to `report`, its value without its typed `parts`).
 pub(super) fn attach(
     record: &ProvenanceRecord,
     file: &str,
-    report: &mut serde_json::Value,
+    (report, parts): (&mut serde_json::Value, &ReportParts),
     files: &mut Vec<(String, Vec<u8>)>,
 ) -> Result<()> {
     let reference = serde_json::Value::String(PROVENANCE_FILE.into());
-    super::postures::set_report_key(report, files, file, "provenance", reference)?;
+    super::postures::set_report_key(report, parts, files, file, "provenance", reference)?;
     files.push((PROVENANCE_FILE.into(), record.to_yaml()?.into_bytes()));
     Ok(())
 }

@@ -340,7 +340,12 @@ pub fn simulate_with_progress(
         &[("master", config.seed)],
         started,
     )?;
-    super::provenance::attach(&record, "results.json", &mut results, &mut files)?;
+    super::provenance::attach(
+        &record,
+        "results.json",
+        (&mut results, &Default::default()),
+        &mut files,
+    )?;
     let measurements_csv = match (config.measurement_format, reports.first()) {
         (Some(format), Some(first)) => Some(measurements_csv(format, tree, &nominal, first)?),
         _ => None,

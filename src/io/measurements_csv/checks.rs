@@ -140,8 +140,8 @@ impl Repeats {
         }
     }
 
-    pub(super) fn see(&mut self, fields: &[String], line: usize) {
-        let key = self.fingerprint(fields);
+    pub(super) fn see(&mut self, row: CsvRow<'_>) {
+        let (key, line) = (self.fingerprint(row), row.line);
         if let Some(&first) = self.first_line.get(&key) {
             self.found.push((line, first));
         } else {
@@ -150,13 +150,13 @@ impl Repeats {
     }
 
     /// The row's fingerprint, its id left out.
-    fn fingerprint(&self, fields: &[String]) -> (u64, u64) {
+    fn fingerprint(&self, fields: CsvRow<'_>) -> (u64, u64) {
         use std::hash::{DefaultHasher, Hash, Hasher};
         let mut digests = [DefaultHasher::new(), DefaultHasher::new()];
         // Different first inputs make the two digests independent.
         0u8.hash(&mut digests[0]);
         1u8.hash(&mut digests[1]);
-        for (column, field) in fields.iter().enumerate() {
+        for (column, field) in fields.fields().enumerate() {
             let field = if Some(column) == self.id { "" } else { field };
             for digest in &mut digests {
                 field.hash(digest);

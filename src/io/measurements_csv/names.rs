@@ -7,7 +7,7 @@ use super::*;
 /// appearance: the measured tools, read without a robot model (so that the arms can be built
 /// from them). An error when there is no `tool` column or no data row.
 pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
-    let table = parse_csv(text, origin)?;
+    let table = parse_csv_fields(text, origin)?;
     let column = table
         .headers
         .iter()
@@ -19,16 +19,16 @@ pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
                 .into(),
         })?;
     let mut names: Vec<String> = Vec::new();
-    for (line, fields) in &table.records {
-        let name = &fields[column];
+    for row in table.rows() {
+        let (line, name) = (row.line, row.field(column));
         if name.is_empty() {
             return Err(Error::InvalidData {
                 origin: format!("{origin}:{line}:tool"),
                 message: "the tool is empty; name the measured tool link".into(),
             });
         }
-        if !names.contains(name) {
-            names.push(name.clone());
+        if !names.iter().any(|n| n == name) {
+            names.push(name.to_owned());
         }
     }
     if names.is_empty() {
@@ -44,12 +44,17 @@ pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
 /// first appearance, read without a robot model: `None` for a missing `tool` column (the
 /// tool then comes from `--tools`) and for a missing or empty `point`.
 pub fn measured_targets(text: &str, origin: &str) -> Result<Vec<(Option<String>, Option<String>)>> {
-    let table = parse_csv(text, origin)?;
+    let table = parse_csv_fields(text, origin)?;
     let column = |name: &str| table.headers.iter().position(|h| h == name);
     let (tool, point) = (column("tool"), column(POINT_COLUMN));
     let mut pairs: Vec<(Option<String>, Option<String>)> = Vec::new();
-    for (line, fields) in &table.records {
-        let value = |c: Option<usize>| c.map(|c| fields[c].clone()).filter(|v| !v.is_empty());
+    for row in table.rows() {
+        let line = row.line;
+        let value = |c: Option<usize>| {
+            c.map(|c| row.field(c))
+                .filter(|v| !v.is_empty())
+                .map(str::to_owned)
+        };
         let pair = (value(tool), value(point));
         if tool.is_some() && pair.0.is_none() {
             return Err(Error::InvalidData {

@@ -44,8 +44,8 @@ pub fn parse_measurements(
 }
 
 /// The table and the stated units of measurement CSV text.
-fn parse_table(text: &str, origin: &str) -> Result<(CsvTable, StatedUnits)> {
-    let table = parse_csv(text, origin).map_err(|e| match e {
+fn parse_table(text: &str, origin: &str) -> Result<(CsvFields, StatedUnits)> {
+    let table = parse_csv_fields(text, origin).map_err(|e| match e {
         Error::InvalidData { origin, message } if message.starts_with("the file is empty") => {
             Error::InvalidData {
                 origin,
@@ -62,7 +62,7 @@ fn parse_table(text: &str, origin: &str) -> Result<(CsvTable, StatedUnits)> {
 /// The measurements of `table` (a CSV as read, or arrays laid out as one) whose stated units
 /// are `header`: the one validation shared by files and arrays.
 pub(in crate::io) fn measurements_from_table(
-    table: &CsvTable,
+    table: &CsvFields,
     header: &StatedUnits,
     places: Places,
     origin: &str,
@@ -88,7 +88,7 @@ pub(in crate::io) fn measurements_from_table(
         origin,
     )?;
     let (warnings, notes) = header_remarks(table, &columns, places, origin, tree, options);
-    if table.records.is_empty() {
+    if table.is_empty() {
         return Err(Error::InvalidData {
             origin: origin.to_owned(),
             message: "the file has a header but no data rows; add one row per measurement".into(),
@@ -110,9 +110,9 @@ pub(in crate::io) fn measurements_from_table(
         tool_dofs: tool_dofs(tree, model),
     };
     let mut set = MeasurementSet {
-        measurements: Vec::with_capacity(table.records.len()),
-        ids: Vec::with_capacity(table.records.len()),
-        lines: Vec::with_capacity(table.records.len()),
+        measurements: Vec::with_capacity(table.len()),
+        ids: Vec::with_capacity(table.len()),
+        lines: Vec::with_capacity(table.len()),
         observation: columns.observation,
         warnings,
         notes,
@@ -125,12 +125,12 @@ pub(in crate::io) fn measurements_from_table(
         repeats: Repeats::new(columns.id),
         position_rows: Vec::new(),
     };
-    for (row, (line, fields)) in table.records.iter().enumerate() {
-        let (id, measurement) = reader.read_row(row, *line, fields, &mut tally)?;
+    for (index, row) in table.rows().enumerate() {
+        let (id, measurement) = reader.read_row(index, row, &mut tally)?;
         set.measurements.push(measurement);
         set.ids.push(id);
-        set.lines.push(*line);
-        tally.repeats.see(fields, *line);
+        set.lines.push(row.line);
+        tally.repeats.see(row);
     }
     set.warnings.extend(limit_warnings(
         &tally.outside,
@@ -148,7 +148,7 @@ pub(in crate::io) fn measurements_from_table(
 
 /// The header's warnings (ignored columns the file does not have) and notes (columns skipped).
 fn header_remarks(
-    table: &CsvTable,
+    table: &CsvFields,
     columns: &Columns,
     places: Places,
     origin: &str,
@@ -204,7 +204,7 @@ fn tool_dofs(tree: &KinematicTree, model: &McpcModel) -> Vec<Vec<usize>> {
 
 /// What every row is read against.
 struct RowReader<'a> {
-    table: &'a CsvTable,
+    table: &'a CsvFields,
     columns: &'a Columns,
     places: Places,
     origin: &'a str,
@@ -230,7 +230,7 @@ struct Tally {
 struct Row<'r> {
     line: usize,
     id: String,
-    fields: &'r [String],
+    fields: CsvRow<'r>,
 }
 
 impl RowReader<'_> {
@@ -255,14 +255,14 @@ impl RowReader<'_> {
     fn read_row(
         &self,
         index: usize,
-        line: usize,
-        fields: &[String],
+        fields: CsvRow<'_>,
         tally: &mut Tally,
     ) -> Result<(String, Measurement)> {
         let columns = self.columns;
+        let line = fields.line;
         let row = Row {
             line,
-            id: match columns.id.map(|column| fields[column].as_str()) {
+            id: match columns.id.map(|column| fields.field(column)) {
                 Some(id) if !id.is_empty() => id.to_owned(),
                 _ => line.to_string(),
             },
@@ -271,8 +271,9 @@ impl RowReader<'_> {
         let id = self.id(&row, index, tally)?;
         let text = |column: Option<usize>| {
             column
-                .map(|column| fields[column].clone())
+                .map(|column| fields.field(column))
                 .filter(|s| !s.is_empty())
+                .map(str::to_owned)
         };
         let (stage, session) = (text(columns.stage), text(columns.session));
         let payload = self.payload(&row)?;
@@ -301,7 +302,7 @@ impl RowReader<'_> {
                     "the id is empty; give every row an id, or remove the id column".into(),
                 ))
             }
-            Some(column) => row.fields[column].clone(),
+            Some(column) => row.fields[column].to_owned(),
             None => (index + 1).to_string(),
         };
         if let Some(first) = tally.first_line_of_id.insert(id.clone(), row.line) {
@@ -343,10 +344,10 @@ impl RowReader<'_> {
         let tool_names = &self.tool_names;
         let tool_column = columns.tool.unwrap_or(0);
         let tool_name = match columns.tool {
-            Some(column) => row.fields[column].as_str(),
+            Some(column) => row.fields.field(column),
             None => self.options.tool.as_deref().unwrap_or(tool_names[0]),
         };
-        let point = columns.point.map(|column| row.fields[column].as_str());
+        let point = columns.point.map(|column| row.fields.field(column));
         let measured = measured_link_name(tool_name, point);
         let tool = tool_names
             .iter()

@@ -1,0 +1,240 @@
+//! report.json assembled from typed parts: the report's small keys are a `serde_json::Value`
+//! (workflow steps add keys to it), while its per-row arrays — every arm's `rows` and every
+//! tool's identification `postures` — stay typed and are serialised straight into the file.
+//!
+//! As `serde_json::Value`s (maps keeping their key order) those arrays were most of the peak
+//! memory of a large calibration (10⁵ configurations: 125 MB of postures and about as much of
+//! rows, beside the 93 MB file). The file is the same byte for byte: the typed parts go
+//! through the same serialiser and formatter, in the same key order (a posture's joints by
+//! name, as the `BTreeMap` they were written from).
+
+use crate::error::{Error, Result};
+use crate::report::{ArmReport, CalibrationSummary, RowErrors};
+use serde::ser::{SerializeMap, SerializeSeq};
+use serde::{Serialize, Serializer};
+use serde_json::Value;
+
+/// The report.json keys whose arms carry `rows`, in [`ReportParts::rows`] order.
+const ROW_SETS: [&str; 2] = ["identification", "validation"];
+
+/// The per-row arrays of report.json, kept typed; [`render`] writes them at their places.
+#[derive(Debug, Default)]
+pub(crate) struct ReportParts {
+    /// Per set of [`ROW_SETS`], per arm (in the report's order), its rows.
+    rows: [Vec<Vec<RowErrors>>; 2],
+    /// Per tool of `"identification_postures"`, its postures.
+    pub postures: Vec<ToolPostures>,
+}
+
+/// One tool's identification postures, written as labelled maps (joint name → value).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ToolPostures {
+    /// The joint names in the order the maps list them (sorted), each with the index of its
+    /// value in a posture.
+    order: Vec<(String, usize)>,
+    /// Per identification row of the tool, one value per joint (rad, m).
+    postures: Vec<Vec<f64>>,
+}
+
+impl ToolPostures {
+    /// The postures of a chain whose joints are `names` (a posture's values in that order).
+    pub fn new(names: &[String], postures: Vec<Vec<f64>>) -> Self {
+        let mut order: Vec<(String, usize)> = names
+            .iter()
+            .cloned()
+            .enumerate()
+            .map(|(i, n)| (n, i))
+            .collect();
+        order.sort();
+        Self { order, postures }
+    }
+}
+
+/// The report value of `summary` with every arm's `rows` empty, and the rows themselves.
+pub(crate) fn summary_value(mut summary: CalibrationSummary) -> Result<(Value, ReportParts)> {
+    let take = |arms: &mut Vec<ArmReport>| -> Vec<Vec<RowErrors>> {
+        arms.iter_mut()
+            .map(|a| std::mem::take(&mut a.rows))
+            .collect()
+    };
+    let rows = [
+        take(&mut summary.identification),
+        take(&mut summary.validation),
+    ];
+    let value = serde_json::to_value(&summary).map_err(json_error)?;
+    Ok((
+        value,
+        ReportParts {
+            rows,
+            postures: Vec::new(),
+        },
+    ))
+}
+
+/// report.json's text: `report` with `parts` at their places, laid out by
+/// [`crate::io::to_json_rows`].
+pub(crate) fn render(report: &Value, parts: &ReportParts) -> Result<String> {
+    crate::io::to_json_rows(&Spliced { report, parts })
+}
+
+fn json_error(e: serde_json::Error) -> Error {
+    Error::InvalidData {
+        origin: "report.json".into(),
+        message: e.to_string(),
+    }
+}
+
+/// The report with its parts.
+struct Spliced<'a> {
+    report: &'a Value,
+    parts: &'a ReportParts,
+}
+
+impl Serialize for Spliced<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        let Value::Object(map) = self.report else {
+            return self.report.serialize(serializer);
+        };
+        let mut out = serializer.serialize_map(Some(map.len()))?;
+        for (key, value) in map {
+            if let Some(set) = ROW_SETS.iter().position(|s| s == key) {
+                let arms = Each {
+                    value,
+                    part: |i: usize| {
+                        self.parts.rows[set]
+                            .get(i)
+                            .map(|rows| ("rows", Part::Rows(rows)))
+                    },
+                };
+                out.serialize_entry(key, &arms)?;
+            } else if key == super::postures::POSTURES_KEY {
+                out.serialize_entry(
+                    key,
+                    &Postures {
+                        value,
+                        parts: self.parts,
+                    },
+                )?;
+            } else {
+                out.serialize_entry(key, value)?;
+            }
+        }
+        out.end()
+    }
+}
+
+/// A typed part.
+#[derive(Clone, Copy)]
+enum Part<'a> {
+    Rows(&'a [RowErrors]),
+    Postures(&'a ToolPostures),
+}
+
+impl Serialize for Part<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            Part::Rows(rows) => rows.serialize(serializer),
+            Part::Postures(tool) => {
+                let mut seq = serializer.serialize_seq(Some(tool.postures.len()))?;
+                for posture in &tool.postures {
+                    seq.serialize_element(&Labelled { tool, posture })?;
+                }
+                seq.end()
+            }
+        }
+    }
+}
+
+/// One posture as a map joint name → value.
+struct Labelled<'a> {
+    tool: &'a ToolPostures,
+    posture: &'a [f64],
+}
+
+impl Serialize for Labelled<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(Some(self.tool.order.len()))?;
+        for (name, index) in &self.tool.order {
+            map.serialize_entry(name, &self.posture.get(*index))?;
+        }
+        map.end()
+    }
+}
+
+/// An array of objects whose `i`-th element has the key `part(i).0` replaced by `part(i).1`
+/// (other values as they are).
+struct Each<'a, F> {
+    value: &'a Value,
+    part: F,
+}
+
+impl<'a, F: Fn(usize) -> Option<(&'static str, Part<'a>)>> Serialize for Each<'a, F> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        let Value::Array(items) = self.value else {
+            return self.value.serialize(serializer);
+        };
+        let mut seq = serializer.serialize_seq(Some(items.len()))?;
+        for (i, item) in items.iter().enumerate() {
+            match (item, (self.part)(i)) {
+                (Value::Object(map), Some((name, part))) => {
+                    seq.serialize_element(&With { map, name, part })?
+                }
+                _ => seq.serialize_element(item)?,
+            }
+        }
+        seq.end()
+    }
+}
+
+/// An object with the value of key `name` replaced by `part`.
+struct With<'a> {
+    map: &'a serde_json::Map<String, Value>,
+    name: &'static str,
+    part: Part<'a>,
+}
+
+impl Serialize for With<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        let mut out = serializer.serialize_map(Some(self.map.len()))?;
+        for (key, value) in self.map {
+            if key == self.name {
+                out.serialize_entry(key, &self.part)?;
+            } else {
+                out.serialize_entry(key, value)?;
+            }
+        }
+        out.end()
+    }
+}
+
+/// `"identification_postures"`: its `tools` with their postures.
+struct Postures<'a> {
+    value: &'a Value,
+    parts: &'a ReportParts,
+}
+
+impl Serialize for Postures<'_> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
+        let Value::Object(map) = self.value else {
+            return self.value.serialize(serializer);
+        };
+        let mut out = serializer.serialize_map(Some(map.len()))?;
+        for (key, value) in map {
+            if key == "tools" {
+                let tools = Each {
+                    value,
+                    part: |i: usize| {
+                        self.parts
+                            .postures
+                            .get(i)
+                            .map(|tool| ("postures", Part::Postures(tool)))
+                    },
+                };
+                out.serialize_entry(key, &tools)?;
+            } else {
+                out.serialize_entry(key, value)?;
+            }
+        }
+        out.end()
+    }
+}
