@@ -120,7 +120,7 @@ fn fixed_frames_that_cannot_explain_the_data_fail() {
     assert_eq!(finding.status, Status::Failed);
     assert_eq!(finding.code, "measurement-frame");
     assert!(
-        finding.message.contains("hint: --measurement-frame fit"),
+        finding.message.contains("hint: `measurement_frame` fit"),
         "{}",
         finding.message
     );

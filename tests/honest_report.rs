@@ -282,8 +282,8 @@ fn a_large_sigma_ratio_says_how_much_is_unexplained() {
         finding
             .message
             .contains(&format!("about {unexplained:.4} mm RMS unexplained"))
-            && finding.message.contains("--cv")
-            && finding.message.contains("--model auto")
+            && finding.message.contains("`cv`")
+            && finding.message.contains("`model` auto")
             && finding.message.contains("validation RMS in mm"),
         "{}",
         finding.message

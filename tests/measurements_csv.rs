@@ -187,7 +187,7 @@ fn round_trips_in_millimetres_degrees_and_three_targets() {
             .unwrap_err()
             .to_string();
         assert!(
-            conflict.starts_with("mm.csv:1: --angle-unit rad contradicts"),
+            conflict.starts_with("mm.csv:1: `angle_unit` rad contradicts"),
             "{conflict}"
         );
         let bare = text.split_once('\n').unwrap().1;
@@ -279,7 +279,7 @@ fn unit_flags_scale_lengths_and_angles() {
     assert!("mm".parse::<LengthUnit>().is_ok() && "deg".parse::<AngleUnit>().is_ok());
     let message = "cm".parse::<LengthUnit>().unwrap_err().to_string();
     assert!(
-        message.contains("--length-unit") && message.contains("m or mm"),
+        message.starts_with("`length_unit`: ") && message.contains("m or mm"),
         "{message}"
     );
 }
@@ -793,7 +793,7 @@ fn angle_unit_mistakes_are_one_diagnosis() {
         .unwrap_err()
         .to_string();
     assert!(
-        error.starts_with("d.csv: ") && error.contains("look like degrees; give --angle-unit deg"),
+        error.starts_with("d.csv: ") && error.contains("look like degrees; give `angle_unit` deg"),
         "{error}"
     );
     // Read with its units comment, the same file is fine and warns of nothing.
@@ -809,7 +809,7 @@ fn angle_unit_mistakes_are_one_diagnosis() {
         .unwrap_err()
         .to_string();
     assert!(
-        error.contains("look like radians; give --angle-unit rad"),
+        error.contains("look like radians; give `angle_unit` rad"),
         "{error}"
     );
 

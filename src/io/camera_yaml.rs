@@ -300,7 +300,9 @@ pub fn parse_camera_file(
 
 fn at(origin: &str, key: &str, error: Error) -> Error {
     match error {
-        Error::InvalidData { message, .. } => bad(origin, key, message),
+        Error::InvalidData { message, .. } | Error::InvalidSetting { message, .. } => {
+            bad(origin, key, message)
+        }
         other => other,
     }
 }

@@ -100,7 +100,7 @@ pub fn outliers_markdown(
     if robust.loss == RobustLoss::Off {
         let _ = writeln!(
             out,
-            "Robust estimation is off (--robust off): every measurement has weight 1.\n"
+            "Robust estimation is off (`robust` off): every measurement has weight 1.\n"
         );
         return out;
     }

@@ -113,13 +113,13 @@ impl VerifyVerdict {
     pub fn sentence(&self) -> String {
         match self.max_error_mm {
             Some(max) => format!(
-                "verdict: {} (RMS position error {:.3} mm {} --max-error {max} mm)",
+                "verdict: {} (RMS position error {:.3} mm {} `max_error` {max} mm)",
                 if self.passed { "passed" } else { "failed" },
                 self.rms_position_mm,
                 if self.passed { "within" } else { "above" },
             ),
             None => format!(
-                "RMS position error {:.3} mm (no --max-error: no verdict)",
+                "RMS position error {:.3} mm (no `max_error`: no verdict)",
                 self.rms_position_mm
             ),
         }

@@ -498,7 +498,7 @@ fn unobservable_finding(base: &UnobservableBase) -> Finding {
     Finding::note(
         "unobservable-base",
         format!(
-            "the measurement frame was fitted, so {} cannot be seen: calibrated.urdf's root is the fitted (tracker-side) frame, not the physical base; it lies {:.2} mm and {:.3}° from the registered nominal robot's root, which moves the tool positions in the URDF's own root frame by {:.2}–{:.2} mm over the measured configurations. Use calibrated.urdf with {REGISTRATION_FILE} (written beside it; --measurement-frame {REGISTRATION_FILE} reads it) to reproduce the validated figures, or measure in the robot's base frame",
+            "the measurement frame was fitted, so {} cannot be seen: calibrated.urdf's root is the fitted (tracker-side) frame, not the physical base; it lies {:.2} mm and {:.3}° from the registered nominal robot's root, which moves the tool positions in the URDF's own root frame by {:.2}–{:.2} mm over the measured configurations. Use calibrated.urdf with {REGISTRATION_FILE} (written beside it; `measurement_frame` {REGISTRATION_FILE} reads it) to reproduce the validated figures, or measure in the robot's base frame",
             base.transform,
             base.translation_mm,
             base.rotation_deg,
@@ -518,10 +518,10 @@ fn how_to_use(fitted: bool, compensation_file: Option<&str>, rigid_only: bool) -
     }
     match (compensation_file, rigid_only) {
         (Some(file), true) => text.push_str(&format!(
-            ". It holds the rigid-only geometry (for controllers that do not model deflections); {COMPENSATED_URDF} with {file} predicts the deflections under gravity (treecal's flexibility model: the URDF, --stiffness {file}) and is the better prediction"
+            ". It holds the rigid-only geometry (for controllers that do not model deflections); {COMPENSATED_URDF} with {file} predicts the deflections under gravity (treecal's flexibility model: the URDF, `stiffness` {file}) and is the better prediction"
         )),
         (Some(file), false) => text.push_str(&format!(
-            ". Its geometry assumes the deflections under gravity are predicted with {file} (treecal's flexibility model: the URDF, --stiffness {file}); used alone it gives the \"alone\" figure"
+            ". Its geometry assumes the deflections under gravity are predicted with {file} (treecal's flexibility model: the URDF, `stiffness` {file}); used alone it gives the \"alone\" figure"
         )),
         (None, _) => {}
     }

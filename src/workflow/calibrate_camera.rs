@@ -157,8 +157,8 @@ struct Setup {
 /// Calibrates from the files of `config`; writes nothing.
 pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCalibration> {
     if !(config.pixel_sigma.is_finite() && config.pixel_sigma > 0.0 && config.pixel_sigma <= 1e3) {
-        return Err(Error::InvalidData {
-            origin: "--pixel-sigma".into(),
+        return Err(Error::InvalidSetting {
+            setting: "pixel_sigma".into(),
             message: format!(
                 "{} px: give the detector's noise, a positive number of pixels (0.1 to a few)",
                 config.pixel_sigma

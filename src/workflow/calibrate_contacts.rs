@@ -112,7 +112,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             (
                 train.into_iter().map(|(_, r)| r).collect(),
                 held.into_iter().map(|(_, r)| r).collect::<Vec<_>>(),
-                Some("no --validation file: every fifth row is held out"),
+                Some("no `validation` file: every fifth row is held out"),
             )
         }
     };

@@ -77,7 +77,7 @@ fn context(
                     "; chosen by cross-validation"
                 }
             ),
-            (None, false) => "not compensated (no --stiffness)".into(),
+            (None, false) => "not compensated (no `stiffness`)".into(),
         },
         sigma: [config.position_sigma, config.rotation_sigma],
         // Why it was chosen is the verdict's measurement-frame reason.
@@ -176,7 +176,7 @@ fn down_weighted_finding(run: &CalibrationRun, ids: &[String]) -> Option<Finding
     Some(Finding::warning(
         "down-weighted",
         format!(
-            "{} of {} identification rows were down-weighted by the robust {} loss and kept in the fit with less weight: {}{}; check them (a bumped target, a wrong row), every one is listed with its weight in report.md and report.json (`weight`); compare with --robust off or --robust cauchy",
+            "{} of {} identification rows were down-weighted by the robust {} loss and kept in the fit with less weight: {}{}; check them (a bumped target, a wrong row), every one is listed with its weight in report.md and report.json (`weight`); compare with `robust` off or `robust` cauchy",
             rows.len(),
             weights.len(),
             run.robust.loss,

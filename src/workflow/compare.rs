@@ -289,8 +289,8 @@ fn displacement(a: &Folder, b: &Folder) -> Result<Option<Displacement>> {
 pub fn compare(config: &CompareConfig) -> Result<Comparison> {
     let started = Started::now();
     if !(config.k.is_finite() && config.k > 0.0) {
-        return Err(Error::InvalidData {
-            origin: "--k".into(),
+        return Err(Error::InvalidSetting {
+            setting: "k".into(),
             message: format!(
                 "{} must be a positive number of standard deviations",
                 config.k

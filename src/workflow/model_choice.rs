@@ -189,10 +189,10 @@ pub fn prepare(
         .collect();
     for pattern in patterns.freeze.iter().chain(&patterns.free) {
         if !names.iter().any(|n| glob_match(pattern, n)) {
-            return Err(Error::InvalidData {
-                origin: "--freeze/--free".into(),
+            return Err(Error::InvalidSetting {
+                setting: "freeze".into(),
                 message: format!(
-                    "'{pattern}' matches no parameter; names are like '{}' (see params.yaml)",
+                    "'{pattern}' (in `freeze` or `free`) matches no parameter; names are like '{}' (see params.yaml)",
                     names.first().cloned().unwrap_or_default()
                 ),
             });

@@ -89,8 +89,8 @@ pub fn check_camera_plan_output(config: &CameraPlanConfig, out: &Path) -> Result
 pub fn plan_camera(config: &CameraPlanConfig, progress: ProgressFn<'_>) -> Result<CameraPosePlan> {
     let angle = config.max_view_angle;
     if !(angle > 0.0 && angle < std::f64::consts::FRAC_PI_2) {
-        return Err(Error::InvalidData {
-            origin: "--max-view-angle".into(),
+        return Err(Error::InvalidSetting {
+            setting: "max_view_angle".into(),
             message: format!("{angle} rad: give an angle between 0 and 90° (in degrees)"),
         });
     }

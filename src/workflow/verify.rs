@@ -213,11 +213,11 @@ fn no_robot(config: &VerifyConfig) -> Error {
     match &config.calibration {
         Some(dir) => invalid(
             &dir.display().to_string(),
-            "holds no calibrated.urdf (a failed verdict writes none): give the deployed URDF with --robot",
+            "holds no calibrated.urdf (a failed verdict writes none): give the deployed URDF with `robot`",
         ),
         None => invalid(
             "verify",
-            "no robot: give --calibration (a calibrate output folder) or --robot (the deployed URDF)",
+            "no robot: give `calibration` (a calibrate output folder) or `robot` (the deployed URDF)",
         ),
     }
 }
@@ -239,8 +239,8 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     let started = super::provenance::Started::now();
     super::checks::sigmas(config.position_sigma, config.rotation_sigma)?;
     if let Some(max) = config.max_error_mm.filter(|m| !(m.is_finite() && *m > 0.0)) {
-        return Err(invalid(
-            "--max-error",
+        return Err(Error::setting(
+            "max_error",
             format!("{max} must be a positive number of mm"),
         ));
     }
@@ -300,7 +300,7 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     };
     if chains.is_none() {
         notes.push(Note::info(
-            "no calibration record (report.json with identification_postures): the rows are not sorted into strata; give --calibration with the calibrate output folder",
+            "no calibration record (report.json with identification_postures): the rows are not sorted into strata; give `calibration` with the calibrate output folder",
         ));
     }
     let rows = scored_rows(&loaded, &set, &predicted, chains.as_deref());
@@ -329,9 +329,9 @@ fn measurement_frame(
         (VerifyFrame::Base, _) => Ok((VerifyFrame::Base, None)),
         (frame, Some(path)) => Ok((frame, Some(read_registration(path)?))),
         (VerifyFrame::Fit, None) => Ok((VerifyFrame::Fit, None)),
-        (VerifyFrame::Registration, None) => Err(invalid(
-            "--frame registration",
-            "no registration: the calibration folder holds no registration.yaml (its frame was the robot's root frame: use --frame base) and none was given with --registration",
+        (VerifyFrame::Registration, None) => Err(Error::setting(
+            "frame",
+            "registration: no registration: the calibration folder holds no registration.yaml (its frame was the robot's root frame: use `frame` base) and none was given with `registration`",
         )),
     }
 }
