@@ -22,10 +22,6 @@ const KNOWN_LONG: &[&str] = &[
     "calibration/solver.rs",
     // The calibrate report's renderer (the verdict's single owner is the next round).
     "report/calibrate.rs",
-    // The clap definitions: one struct per subcommand, long but flat.
-    "bin/treecal/cli.rs",
-    "calibration/stiffness/problem.rs",
-    "io/camera_yaml.rs",
     "sim/camera_setup.rs",
     "sim/contacts.rs",
     "workflow/calibrate_artifact.rs",
