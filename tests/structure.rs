@@ -44,14 +44,14 @@ const KNOWN_TANGLED: &[&str] = &[
     "calibration/stiffness/mod.rs",
     "calibration/stiffness/selection.rs",
     "report/calibrate.rs",
-    // Uses `report::calibrate::ArmReport`, which the calibrate report defines.
+    // Uses `report::ArmReport`, which the calibrate report defines.
     "report/strata.rs",
     "workflow/calibrate.rs",
     "workflow/calibrate_artifact.rs",
     "workflow/calibrate_html.rs",
     "workflow/calibrate_outputs.rs",
     "workflow/calibrate_steps.rs",
-    // Takes `workflow::calibrate::CalibrateConfig`.
+    // Takes `workflow::CalibrateConfig`.
     "workflow/provenance.rs",
     "workflow/simulate.rs",
     "workflow/simulate_camera.rs",

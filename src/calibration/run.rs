@@ -1,7 +1,6 @@
 //! A calibration from measured data, end to end: hold-out, initial guess, the plan, parameter
 //! uncertainties and the errors before and after, per arm (`treecal calibrate`).
 
-pub use super::frame::MeasurementFrame;
 use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame};
 pub use super::hold_out::{hold_out, hold_out_indices};
 use super::initial_guess::InitialGuess;

@@ -12,20 +12,23 @@
 //! - [`fit`] and [`calibrate_camera`]: the joint fit of the robot, the rig's poses and the
 //!   intrinsics from pixels, mixed with tracker rows if there are any.
 
-pub mod check;
-pub mod fit;
-pub mod model;
-pub mod observation;
-pub mod rig;
+pub(crate) mod check;
+pub(crate) mod fit;
+pub(crate) mod model;
+pub(crate) mod observation;
+pub(crate) mod rig;
 mod solve;
-pub mod target;
+pub(crate) mod target;
 
+pub use check::explain;
 pub use check::{
     camera_identifiability, explain as explain_identifiability, CameraIdentifiability,
 };
+pub use fit::kind_scales;
 pub use fit::{
     CameraFitOptions, CameraFitReport, CameraProblem, KindScale, RejectedPoint, Unknown,
 };
+pub use model::MIN_DEPTH;
 pub use model::{Intrinsics, Projection, Rejection, INTRINSIC_COUNT, INTRINSIC_NAMES};
 pub use observation::{linearise_view, predict_pixels, View, ViewPrediction};
 pub use rig::{CameraSpec, Mount, Rig, RigCamera, RigTarget, TargetSpec};

@@ -3,8 +3,8 @@
 
 use super::plot::{error_plot_svg, ErrorPlot, Series};
 use super::strata::{StrataRow, ValidationStrata};
-use crate::calibration::validation::Stratum;
 use crate::calibration::ErrorSummary;
+use crate::calibration::Stratum;
 use crate::error::Result;
 use crate::math::{rpy_from_rotation, Pose};
 use serde::Serialize;
@@ -255,7 +255,7 @@ fn frame_words(c: &VerifyContext) -> String {
         "fit" => format!(
             "refitted to the fresh rows, the geometry fixed: {} parameter(s) ({} per session, {} session(s)); nothing else is fitted",
             c.refitted_parameters,
-            crate::calibration::sessions::FRAME_BLOCK_PARAMETERS,
+            crate::calibration::FRAME_BLOCK_PARAMETERS,
             c.sessions.len()
         ),
         "registration" => "the calibration's registration as written (nothing refitted)".into(),

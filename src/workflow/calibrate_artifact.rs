@@ -14,7 +14,7 @@ use crate::io::{parse_registration, parse_stiffness};
 use crate::kinematics::{FlexibilityModel, McpcModel, Stiffness};
 use crate::math::{rpy_from_rotation, Pose};
 use crate::measurement::{Measurement, Observation};
-use crate::report::artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
+use crate::report::{ArtifactReport, ArtifactScore, UnobservableBase};
 use crate::tree::{detect_branches, KinematicTree};
 use crate::urdf::{export_urdf_with, parse_urdf, ExportOptions, ExportReport};
 
@@ -403,10 +403,8 @@ pub(super) fn assess(
         scored_links: exported_links(loaded, export),
     };
     // Rows of other sessions are placed in the training frame, as the run scored them.
-    let validation = &crate::calibration::sessions::validation_in_training_frames(
-        &data.validation,
-        run.sessions.as_ref(),
-    );
+    let validation =
+        &crate::calibration::validation_in_training_frames(&data.validation, run.sessions.as_ref());
     let gravity = config.gravity_frame;
     let alone_name = with_registration("calibrated.urdf");
     let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;

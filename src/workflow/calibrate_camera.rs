@@ -18,12 +18,12 @@ use crate::camera::{
     CameraSpec, Mount, Rig, TargetSpec, Unknown, INTRINSIC_NAMES,
 };
 use crate::error::{Error, Result};
-use crate::io::camera_yaml::{camera_file_yaml, read_camera_file, CameraFileContents};
-use crate::io::detections_csv::{parse_detections, read_detections};
+use crate::io::{camera_file_yaml, read_camera_file, CameraFileContents};
 use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit, StatedUnits};
+use crate::io::{parse_detections, read_detections};
 use crate::math::{rpy_from_rotation, Pose};
 use crate::measurement::Measurement;
-use crate::report::camera::{
+use crate::report::{
     camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,
     RobotParameter,
 };

@@ -4,7 +4,7 @@
 
 use crate::calibration::{Finding, Termination};
 use crate::camera::{predict_pixels, CameraFitReport, Intrinsics, RejectedPoint, Rig, View};
-use crate::report::camera::{HeldOut, PixelResiduals, TargetResiduals};
+use crate::report::{HeldOut, PixelResiduals, TargetResiduals};
 use crate::McpcModel;
 use std::path::Path;
 

@@ -4,9 +4,9 @@
 use super::calibrate::CalibrateConfig;
 use super::calibrate_artifact::{assess, CompensationFile, COMPENSATED_URDF, REGISTRATION_FILE};
 use super::calibrate_steps::{Data, Identified, IdentifiedStiffness, Loaded};
-use crate::calibration::identifiability::NamedCombination;
-use crate::calibration::robust::{DataSet, OUTLIER_WEIGHT};
+use crate::calibration::NamedCombination;
 use crate::calibration::{CalibrationRun, ChosenFrame, Finding, Verdict};
+use crate::calibration::{DataSet, OUTLIER_WEIGHT};
 use crate::error::{Error, Result};
 use crate::io::{stiffness_to_yaml, to_yaml};
 use crate::report::{
@@ -129,7 +129,7 @@ fn summary(
     }
     run.findings
         .extend(down_weighted_finding(run, &data.ids[0]));
-    crate::calibration::columns::mark_consequences(&mut run.findings);
+    crate::calibration::mark_consequences(&mut run.findings);
     let changed: Vec<String> = export
         .iter()
         .flat_map(|e| e.changes.iter().map(|c| c.joint.clone()))

@@ -317,7 +317,7 @@ pub(super) fn identify(
                 ModelChoice::Auto => cv.reason.clone(),
                 ModelChoice::Adaptive if adaptive => format!(
                     "the geometry fit leaves residuals over {}× the declared noise (model error), so the model is chosen by cross-validation: {}; `model` geometry keeps the full geometry",
-                    crate::calibration::checks::SIGMA_WARNING,
+                    crate::calibration::SIGMA_WARNING,
                     cv.reason
                 ),
                 _ => "as asked; `model` auto would choose by the cross-validation in report.md".into(),
@@ -365,7 +365,7 @@ pub(super) fn identify(
                     model: run.report.model.clone(),
                     // Every session's rows in the first session's frame, by the frames the
                     // run fitted.
-                    measurements: crate::calibration::sessions::validation_in_training_frames(
+                    measurements: crate::calibration::validation_in_training_frames(
                         &data.measurements,
                         run.sessions.as_ref(),
                     ),
@@ -375,7 +375,7 @@ pub(super) fn identify(
             let report = sequence.stiffness;
             let mut run = sequence.again;
             run.findings
-                .extend(crate::calibration::checks::stiffness_below_zero(&report));
+                .extend(crate::calibration::stiffness_below_zero(&report));
             let file = identified_stiffness(stiffness, tree, &loaded.nominal, &report.estimates);
             identified = Some((StiffnessSummary::new(&report, config.stiffness_prior), file));
             final_flexibility = Some(report.flexibility);

@@ -4,14 +4,14 @@
 //! ([`crate::camera::calibrate_camera`]). See `docs/camera.md` section 6.
 
 use super::calibrate::MeasurementFrameChoice;
-use crate::calibration::initial_guess::fit_rigid_transform;
+use crate::calibration::fit_rigid_transform;
 use crate::camera::Rig;
 use crate::error::{Error, Result};
 use crate::io::{read_measurements, MeasurementReadOptions, MeasurementSet};
 use crate::io::{AngleUnit, LengthUnit};
 use crate::math::{rpy_from_rotation, Vec3};
 use crate::measurement::{Measurement, Observation};
-use crate::report::camera::TrackerRegistration;
+use crate::report::TrackerRegistration;
 use crate::tree::KinematicTree;
 use crate::McpcModel;
 use std::path::PathBuf;

@@ -92,7 +92,7 @@ impl Default for CheckConfig {
             plan: PlanSource::Auto,
             position_sigma: DEFAULT_POSITION_SIGMA,
             rotation_sigma: DEFAULT_ROTATION_SIGMA,
-            condition_limit: crate::calibration::identifiability::DEFAULT_CONDITION_LIMIT,
+            condition_limit: crate::calibration::DEFAULT_CONDITION_LIMIT,
             seed: 0,
             identify_stiffness: false,
             stiffness: None,
@@ -171,7 +171,7 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
     let model = McpcModel::from_tree(tree, &branches)?;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
-    notes.extend(crate::calibration::gauge::gauge_summary(&model, tree).map(Note::info));
+    notes.extend(crate::calibration::gauge_summary(&model, tree).map(Note::info));
     let requested = requested_plan(&config.plan)?;
     let rows = rows(
         config,

@@ -8,7 +8,7 @@ use super::checker::{collision_checker, collision_statement};
 use super::checks::{check_outputs, count, sigmas, Output};
 use super::source::{NominalRobot, RobotSource};
 use super::{no_progress, Note, Progress, ProgressFn};
-use crate::calibration::identifiability::DEFAULT_CONDITION_LIMIT;
+use crate::calibration::DEFAULT_CONDITION_LIMIT;
 use crate::calibration::{
     Criterion, IdentifiabilityReport, ObservationKind, ParameterSet, PoseRow,
     DEFAULT_POSITION_SIGMA, DEFAULT_ROTATION_SIGMA,
@@ -166,7 +166,7 @@ pub fn plan_with_progress(config: &PlanConfig, progress: ProgressFn<'_>) -> Resu
     let tree = &import.tree;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
-    notes.extend(crate::calibration::gauge::gauge_summary(&model, tree).map(Note::info));
+    notes.extend(crate::calibration::gauge_summary(&model, tree).map(Note::info));
     let checker = collision_checker(
         &config.robot,
         tree,

@@ -2,7 +2,7 @@
 //! (`"identification_postures"`) so that `treecal verify` judges fresh rows against the same
 //! calibrated ranges, with the same code ([`ChainPostures::stratum`]), months later.
 
-use crate::calibration::validation::{chain_postures, ChainPostures};
+use crate::calibration::{chain_postures, ChainPostures};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;

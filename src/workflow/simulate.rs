@@ -13,8 +13,8 @@ use crate::io::{
 };
 use crate::kinematics::{FlexibilityModel, Stiffness};
 use crate::limits;
-use crate::report::plot::arm_error_plots;
-use crate::report::simulate::simulation_markdown;
+use crate::report::arm_error_plots;
+use crate::report::simulation_markdown;
 use crate::sim::CollisionCheck;
 use crate::sim::ErrorRanges;
 use crate::sim::PlanningOptions;
@@ -135,7 +135,7 @@ pub struct SimulateConfig {
     pub estimate_intrinsics: bool,
     /// Contacts to simulate instead of `observation` (issue 29; `docs/contacts.md`): each kind
     /// with `poses + torso_poses` configurations; empty: none.
-    pub contacts: Vec<crate::sim::contacts::ContactChoice>,
+    pub contacts: Vec<crate::sim::ContactChoice>,
     /// σ of the encoder noise on the recorded configurations of a contact simulation (rad).
     pub encoder_noise: f64,
     /// Flush contacts: tables (sessions, one plane each) and tools pressing on each (1 or 2).
@@ -205,7 +205,7 @@ pub struct Simulation {
     pub measurements_csv: Option<String>,
     /// Every trial of a camera simulation (empty for the tracker experiment, whose trials are
     /// `reports`).
-    pub camera_reports: Vec<crate::sim::camera::CameraTrialReport>,
+    pub camera_reports: Vec<crate::sim::CameraTrialReport>,
 }
 
 impl Simulation {
@@ -215,7 +215,7 @@ impl Simulation {
         notes: Vec<Note>,
         results: serde_json::Value,
         markdown: String,
-        camera_reports: Vec<crate::sim::camera::CameraTrialReport>,
+        camera_reports: Vec<crate::sim::CameraTrialReport>,
     ) -> Result<Self> {
         let files = vec![
             ("summary.md".to_owned(), markdown.clone().into_bytes()),
@@ -270,7 +270,7 @@ pub fn simulate_with_progress(
     let tree = &import.tree;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
-    notes.extend(crate::calibration::gauge::gauge_summary(&nominal, tree).map(Note::info));
+    notes.extend(crate::calibration::gauge_summary(&nominal, tree).map(Note::info));
     let stiffness = stiffness(config, tree, &nominal)?;
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
     let model_flexibility = truth_flexibility.scaled(1.0 / config.model_stiffness_scale)?;

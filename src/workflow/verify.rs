@@ -5,8 +5,8 @@
 //! One code path with `calibrate`'s validation: the predictions are
 //! `calibrate_artifact::Scoring::predict`'s, the row errors
 //! `calibrate_artifact::row_errors`, the strata
-//! [`crate::calibration::validation::ChainPostures::stratum`] on the postures report.json
-//! records, the figures [`crate::report::strata::ValidationStrata::of_rows`]. Only the
+//! [`crate::calibration::ChainPostures::stratum`] on the postures report.json
+//! records, the figures [`crate::report::ValidationStrata::of_rows`]. Only the
 //! nuisance a fresh session needs is refitted: its measurement frame (six parameters per
 //! session), or nothing with [`VerifyFrame::Registration`] (docs/workflows.md, "Verify").
 
@@ -16,14 +16,14 @@ use super::calibrate_steps::Loaded;
 use super::note::Note;
 use super::postures::{chains_of, RecordedPostures, POSTURES_KEY};
 use super::source::{MeasurementSource, RobotSource, StiffnessSource};
-use crate::calibration::sessions::{fit_session_frame, Sessions, FRAME_BLOCK_PARAMETERS};
-use crate::calibration::validation::{ChainPostures, Stratum};
 use crate::calibration::IdentificationOptions;
+use crate::calibration::{fit_session_frame, Sessions, FRAME_BLOCK_PARAMETERS};
+use crate::calibration::{ChainPostures, Stratum};
 use crate::error::{Error, Result};
 use crate::io::{read_registration, AngleUnit, LengthUnit, MeasurementReadOptions};
 use crate::math::Pose;
 use crate::measurement::Measurement;
-use crate::report::verify::{VerifyReport, VerifyRow, VerifySession};
+use crate::report::{VerifyReport, VerifyRow, VerifySession};
 use crate::tree::KinematicTree;
 use std::path::{Path, PathBuf};
 
@@ -305,7 +305,7 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     }
     let rows = scored_rows(&loaded, &set, &predicted, chains.as_deref());
     let report = VerifyReport::new(
-        crate::report::verify::VerifyContext {
+        crate::report::VerifyContext {
             robot: tree.name().to_owned(),
             files: names,
             measurements: config.measurements.origin(),
@@ -490,7 +490,7 @@ fn finish(
     let markdown = report.markdown();
     let json = crate::io::to_json(&report)?;
     let svg = report.plot()?;
-    let html = crate::report::html_page::markdown_page("treecal verify", &markdown, &[&svg]);
+    let html = crate::report::markdown_page("treecal verify", &markdown, &[&svg]);
     let files = vec![
         ("report.md".to_owned(), markdown.clone().into_bytes()),
         ("report.html".to_owned(), html.into_bytes()),

@@ -2,9 +2,9 @@
 //! payload, and its linearisation (weighted residual and Jacobian over the free geometry and
 //! the compliance scales).
 
-use crate::calibration::observation::{kind_of, Nuisance, RobotState, Tools};
 use crate::calibration::options::IdentificationOptions;
-use crate::calibration::solver::Termination;
+use crate::calibration::Termination;
+use crate::calibration::{kind_of, Nuisance, RobotState, Tools};
 use crate::error::{Error, Result};
 use crate::kinematics::{ComplianceBasis, ComplianceParameter};
 use crate::kinematics::{FlexibilityModel, McpcModel};
