@@ -1,31 +1,31 @@
 //! Identification of MCPC parameters from measurements (paper section 4, done robustly).
 //!
-//! - [`observation`]: the observation seam: what a kind of measurement predicts, its
+//! - `observation`: the observation seam: what a kind of measurement predicts, its
 //!   residual, Jacobian and noise model ([`MeasurementKind`]); positions and poses today.
-//! - [`identifiability`]: rank, condition number, observability indices O1–O5 and the
+//! - `identifiability`: rank, condition number, observability indices O1–O5 and the
 //!   unidentifiable parameter combinations of a set of configurations, before measuring.
-//! - [`frame`]: which measurement frame (root, fitted, known), and the unit-scale check.
-//! - [`gauge`]: the root's placement, invisible from a reference link, and the parameters
+//! - `frame`: which measurement frame (root, fitted, known), and the unit-scale check.
+//! - `gauge`: the root's placement, invisible from a reference link, and the parameters
 //!   that fix it.
-//! - [`initial_guess`](mod@initial_guess): closed-form measurement frame and tool frames to start from.
-//! - [`run`]: a calibration from measured data end to end (hold-out, initial guess, plan,
+//! - `initial_guess`: closed-form measurement frame and tool frames to start from.
+//! - `run`: a calibration from measured data end to end (hold-out, initial guess, plan,
 //!   uncertainties, errors before and after per arm).
-//! - [`plan`]: staged (paper section 5.3.1) and simultaneous calibration plans.
-//! - [`solver`]: the iterative least-squares identification of eq. (26)–(29) with row
+//! - `plan`: staged (paper section 5.3.1) and simultaneous calibration plans.
+//! - `solver`: the iterative least-squares identification of eq. (26)–(29) with row
 //!   weighting, column scaling, an SVD rank decision and Levenberg–Marquardt damping.
-//! - [`stiffness`]: compliance scale factors identified jointly with the MCPC parameters
+//! - `stiffness`: compliance scale factors identified jointly with the MCPC parameters
 //!   (`--identify-stiffness`), and what a set of measurements can determine of them.
-//! - [`robust`]: robust estimation (Huber or Cauchy by IRLS): blunders named and left out.
-//! - [`baseline`]: the fair "before": the nominal robot registered like the calibrated one.
-//! - [`validation`]: where validation configurations lie (repeat, inside, outside the
+//! - `robust`: robust estimation (Huber or Cauchy by IRLS): blunders named and left out.
+//! - `baseline`: the fair "before": the nominal robot registered like the calibrated one.
+//! - `validation`: where validation configurations lie (repeat, inside, outside the
 //!   identification ranges).
-//! - [`columns`]: joint columns that look swapped or shifted, named by joint, and the
+//! - `columns`: joint columns that look swapped or shifted, named by joint, and the
 //!   findings that follow from them marked as probable consequences.
-//! - [`sessions`]: one measurement frame per measurement session (a nuisance block per
+//! - `sessions`: one measurement frame per measurement session (a nuisance block per
 //!   session), fitted with the geometry; validation in the training frame and re-registered.
-//! - [`checks`]: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
+//! - `checks`: the checks of a finished calibration (redundancy, rank, σ̂, conditioning,
 //!   validation) that feed the verdict.
-//! - [`verdict`]: the `ok` / `warning` / `failed` verdict that ends every calibration.
+//! - `verdict`: the `ok` / `warning` / `failed` verdict that ends every calibration.
 
 pub(crate) mod baseline;
 pub(crate) mod checks;

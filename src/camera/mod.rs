@@ -2,14 +2,14 @@
 //! fixed in the world looks at boards and markers on other links (or in the world), and the
 //! pixels it records calibrate the tree. See `docs/camera.md`.
 //!
-//! - [`model`]: the pinhole camera with Brown–Conrady distortion, its projection and the
+//! - `model`: the pinhole camera with Brown–Conrady distortion, its projection and the
 //!   projection's analytic Jacobians.
-//! - [`target`]: boards (a grid of corners) and single markers.
-//! - [`rig`]: cameras and targets mounted on the MCPC model as extra tool frames, so that their
+//! - `target`: boards (a grid of corners) and single markers.
+//! - `rig`: cameras and targets mounted on the MCPC model as extra tool frames, so that their
 //!   poses and pose Jacobians come from the robot's own kinematics.
-//! - [`observation`]: one image of one target, its predicted pixels and their Jacobians.
-//! - [`check`]: what a camera data set determines, before fitting, said in words.
-//! - [`fit`] and [`calibrate_camera`]: the joint fit of the robot, the rig's poses and the
+//! - `observation`: one image of one target, its predicted pixels and their Jacobians.
+//! - `check`: what a camera data set determines, before fitting, said in words.
+//! - `fit` and [`calibrate_camera`]: the joint fit of the robot, the rig's poses and the
 //!   intrinsics from pixels, mixed with tracker rows if there are any.
 
 pub(crate) mod check;
