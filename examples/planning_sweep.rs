@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use treecal::io::{parse_stiffness, write_atomically};
 use treecal::kinematics::FlexibilityModel;
-use treecal::report::plot::{line_plot_svg, Curve, LinePlot};
+use treecal::report::{line_plot_svg, Curve, LinePlot};
 use treecal::sim::run_trials;
 use treecal::sim::CollisionChecker;
 use treecal::sim::PlanningOptions;

@@ -68,6 +68,23 @@ pub enum Error {
         /// What is wrong and what to do.
         message: String,
     },
+    /// A setting (a field of a workflow config: a CLI flag, a Python keyword) has a bad value.
+    ///
+    /// `setting` is the setting's snake_case name (`length_unit`); the message names other
+    /// settings in backticks (`` `joint_length_unit` ``) so that each front end can show its
+    /// own spelling (`--joint-length-unit` on the command line, `joint_length_unit=` in Python).
+    #[error("`{setting}`: {message}")]
+    InvalidSetting {
+        /// The setting's snake_case name, e.g. `length_unit`.
+        setting: String,
+        /// What is wrong and what to do.
+        message: String,
+    },
+    /// Something that cannot happen did: a bug in treecal, not in the input.
+    #[error(
+        "internal error (a bug in treecal; please report it with the command that caused it): {0}"
+    )]
+    Internal(String),
     /// A configuration vector has the wrong size.
     #[error("configuration has {got} values but the robot has {expected} independent joints")]
     ConfigurationSize {
@@ -76,6 +93,44 @@ pub enum Error {
         /// Number of values given.
         got: usize,
     },
+}
+
+impl Error {
+    /// An [`Error::InvalidSetting`] for `setting` (snake_case, e.g. `length_unit`).
+    pub fn setting(setting: &str, message: impl Into<String>) -> Self {
+        Error::InvalidSetting {
+            setting: setting.to_owned(),
+            message: message.into(),
+        }
+    }
+}
+
+/// `text` with each setting it names in backticks (`` `length_unit` ``) spelled as a front end
+/// spells it: `spell` gives the front end's name (`--length-unit`, `length_unit`) or `None` for
+/// text that is not one of its settings, which is left as it is.
+pub fn name_settings(text: &str, spell: impl Fn(&str) -> Option<String>) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(start) = rest.find('`') {
+        out.push_str(&rest[..start]);
+        let after = &rest[start + 1..];
+        let end = after
+            .find(|c: char| !(c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_'))
+            .unwrap_or(after.len());
+        let name = &after[..end];
+        match spell(name).filter(|_| !name.is_empty() && after[end..].starts_with('`')) {
+            Some(spelled) => {
+                out.push_str(&spelled);
+                rest = &after[end + 1..];
+            }
+            None => {
+                out.push('`');
+                rest = after;
+            }
+        }
+    }
+    out.push_str(rest);
+    out
 }
 
 /// Shorthand for results of this crate.
@@ -133,5 +188,20 @@ mod tests {
             "; did you mean 'left_joint1'?"
         );
         assert_eq!(did_you_mean("completely_else", names), "");
+    }
+
+    #[test]
+    fn settings_are_spelled_by_the_front_end() {
+        let spell = |name: &str| (name == "length_unit").then(|| "--length-unit".to_owned());
+        let error = Error::setting("length_unit", "'cm' is not a length unit; see `fit`");
+        assert_eq!(
+            name_settings(&error.to_string(), spell),
+            "--length-unit: 'cm' is not a length unit; see `fit`"
+        );
+        assert_eq!(
+            name_settings("give `length_unit` mm, `length_unit`, `", spell),
+            "give --length-unit mm, --length-unit, `"
+        );
+        assert_eq!(name_settings("`length_unit", spell), "`length_unit");
     }
 }

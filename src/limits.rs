@@ -184,20 +184,21 @@ pub fn check(value: f64, quantity: Quantity, origin: impl FnOnce() -> String) ->
     }
 }
 
-/// `value` if it lies in `range` (inclusive), else an error naming `flag`.
-pub fn check_range(value: f64, range: (f64, f64), flag: &str, unit: &str) -> Result<f64> {
+/// `value` if it lies in `range` (inclusive), else an [`Error::InvalidSetting`] naming
+/// `setting` (snake_case, e.g. `position_sigma`).
+pub fn check_range(value: f64, range: (f64, f64), setting: &str, unit: &str) -> Result<f64> {
     if value >= range.0 && value <= range.1 {
         Ok(value)
     } else {
-        Err(Error::InvalidData {
-            origin: flag.to_owned(),
-            message: format!(
+        Err(Error::setting(
+            setting,
+            format!(
                 "{} {unit} is outside [{}, {}] {unit} (docs/file-formats.md, \"Limits\")",
                 shown(value),
                 shown(range.0),
                 shown(range.1)
             ),
-        })
+        ))
     }
 }
 

@@ -515,7 +515,7 @@ fn legged_robots_and_drones_have_no_automatic_arms() {
         let tree = load_urdf(&dir.join(file)).unwrap().tree;
         let message = detect_branches(&tree, None).unwrap_err().to_string();
         assert!(
-            message.contains(expected) && message.contains("--tools"),
+            message.contains(expected) && message.contains("`tools`"),
             "{file}: {message}"
         );
     }

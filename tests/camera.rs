@@ -5,11 +5,9 @@
 use crate::common::{simulated_robonaut, SimulatedRobot};
 use treecal::camera::{linearise_view, Intrinsics, Rig, View, INTRINSIC_COUNT};
 use treecal::kinematics::McpcModel;
-use treecal::sim::camera::{
-    run_camera_trial, CameraSetup, CameraSimulationOptions, ObservationMode,
-};
-use treecal::sim::camera_setup::{camera_rig, CameraRigOptions};
 use treecal::sim::NoiseModel;
+use treecal::sim::{camera_rig, CameraRigOptions};
+use treecal::sim::{run_camera_trial, CameraSetup, CameraSimulationOptions, ObservationMode};
 
 fn rig(robot: &SimulatedRobot, options: &CameraRigOptions) -> (Rig, McpcModel) {
     camera_rig(
@@ -234,8 +232,8 @@ targets:
 
 #[test]
 fn the_camera_file_and_detections_are_read_with_named_errors() {
-    use treecal::io::camera_yaml::parse_camera_file;
-    use treecal::io::detections_csv::parse_detections;
+    use treecal::io::parse_camera_file;
+    use treecal::io::parse_detections;
     use treecal::io::StatedUnits;
     let robot = simulated_robonaut();
     let contents = parse_camera_file(CAMERA_FILE, "cameras.yaml", &robot.tree).unwrap();
@@ -322,9 +320,9 @@ fn the_camera_file_and_detections_are_read_with_named_errors() {
 /// still recovers the arms (noise-free).
 #[test]
 fn a_head_cameras_neck_is_calibrated_with_the_default_tools() {
-    use treecal::workflow::simulate::{ObservationChoice, SimulateConfig};
-    use treecal::workflow::source::RobotSource;
-    let outcome = treecal::workflow::simulate::simulate(&SimulateConfig {
+    use treecal::workflow::RobotSource;
+    use treecal::workflow::{ObservationChoice, SimulateConfig};
+    let outcome = treecal::workflow::simulate(&SimulateConfig {
         robot: RobotSource::File(crate::common::robot("humanoid/humanoid.urdf")),
         observation: ObservationChoice::Camera,
         camera_link: Some("camera".into()),
@@ -478,12 +476,11 @@ fn detections_csv(
 #[test]
 fn check_camera_files_name_the_torso_without_the_pole() {
     use rand::SeedableRng;
-    use treecal::workflow::check_camera::{check_camera, CameraCheckConfig};
-    use treecal::workflow::source::RobotSource;
+    use treecal::workflow::RobotSource;
+    use treecal::workflow::{check_camera, CameraCheckConfig};
     let robot = simulated_robonaut();
     let contents =
-        treecal::io::camera_yaml::parse_camera_file(CAMERA_FILE, "cameras.yaml", &robot.tree)
-            .unwrap();
+        treecal::io::parse_camera_file(CAMERA_FILE, "cameras.yaml", &robot.tree).unwrap();
     let (rig, model) = Rig::build(
         &robot.tree,
         &robot.nominal,

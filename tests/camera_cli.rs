@@ -48,12 +48,10 @@ fn tool_errors(dir: &Path, urdf: &Path) -> (f64, f64, f64) {
     let load = |path: &Path| treecal::urdf::load_urdf(path).unwrap().tree;
     let truth = load(&dir.join("sim/truth.urdf"));
     let fitted = load(urdf);
-    let nominal = treecal::urdf::parse_urdf(
-        treecal::workflow::source::BUILT_IN_ROBONAUT,
-        "built-in robonaut",
-    )
-    .unwrap()
-    .tree;
+    let nominal =
+        treecal::urdf::parse_urdf(treecal::workflow::BUILT_IN_ROBONAUT, "built-in robonaut")
+            .unwrap()
+            .tree;
     let mut rng = crate::common::rng(11);
     let (mut sum, mut max, mut before, mut n) = (0.0, 0.0f64, 0.0, 0.0);
     for _ in 0..30 {

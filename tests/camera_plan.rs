@@ -4,11 +4,11 @@
 
 use crate::common::cli::{assert_success, treecal};
 use crate::common::simulated_robonaut;
-use treecal::calibration::identifiability::Criterion;
+use treecal::calibration::Criterion;
 use treecal::camera::predict_pixels;
-use treecal::sim::camera_planning::{plan_camera_poses, CameraPlanningOptions};
-use treecal::sim::camera_setup::{camera_rig, CameraRigOptions};
-use treecal::sim::camera_visibility::{rigid_group, Sight, VisibilityRules};
+use treecal::sim::{camera_rig, CameraRigOptions};
+use treecal::sim::{plan_camera_poses, CameraPlanningOptions};
+use treecal::sim::{rigid_group, Sight, VisibilityRules};
 
 #[test]
 fn planned_camera_configurations_are_visible_and_beat_random_ones() {

@@ -3,7 +3,7 @@
 
 use crate::common::cli::{assert_success, path_str, treecal};
 use crate::verify::{calibrate_tiago, session};
-use treecal::workflow::compare::{compare, CompareConfig};
+use treecal::workflow::{compare, CompareConfig};
 
 #[test]
 fn a_folder_compared_with_itself_lists_none() {

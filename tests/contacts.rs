@@ -7,11 +7,11 @@ use crate::common;
 use nalgebra::DMatrix;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use treecal::calibration::observation::{kind_of, Nuisance, NuisanceBlock, RobotState, Tools};
+use treecal::calibration::{kind_of, Nuisance, NuisanceBlock, RobotState, Tools};
 use treecal::kinematics::ToolJacobian;
 use treecal::math::{Pose, Vec3};
 use treecal::measurement::{Contact, ContactFace, ContactPlane, Observation};
-use treecal::sim::contacts::{run_contact_trial, ContactChoice, ContactSimulation};
+use treecal::sim::{run_contact_trial, ContactChoice, ContactSimulation};
 use treecal::tree::KinematicTree;
 use treecal::{detect_branches, load_urdf, McpcModel};
 
@@ -169,11 +169,7 @@ fn contact_jacobians_match_finite_differences() {
     }
 }
 
-fn trial(
-    kinds: &[ContactChoice],
-    encoder_sigma: f64,
-    seed: u64,
-) -> treecal::sim::contacts::ContactTrial {
+fn trial(kinds: &[ContactChoice], encoder_sigma: f64, seed: u64) -> treecal::sim::ContactTrial {
     let (tree, nominal) = robonaut();
     let settings = ContactSimulation {
         kinds: kinds.to_vec(),
@@ -259,8 +255,7 @@ fn flush_names_the_height_offset_alias() {
         per_kind: 30,
         ..ContactSimulation::default()
     };
-    let scene =
-        treecal::sim::contacts::contact_scene(&tree, &nominal, &settings, &mut rng).expect("scene");
+    let scene = treecal::sim::contact_scene(&tree, &nominal, &settings, &mut rng).expect("scene");
     let count = nominal.parameter_count();
     let face = scene.nuisance.block("face left_tool").expect("face block");
     let offset = scene.nuisance.offset(face);
@@ -379,8 +374,8 @@ fn flush_contacts_of_a_standing_humanoid_round_trip_through_the_cli() {
 /// Contacts files with mistakes: errors name the file, line and column, and what to do.
 #[test]
 fn contact_files_with_mistakes_are_errors_naming_the_place() {
-    use treecal::io::contacts_csv::parse_contacts;
-    use treecal::io::contacts_yaml::parse_contact_setup;
+    use treecal::io::parse_contact_setup;
+    use treecal::io::parse_contacts;
     let (tree, _) = robonaut();
     let error = |text: &str| {
         parse_contacts(text, "c.csv", &tree)

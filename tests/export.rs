@@ -732,7 +732,7 @@ fn palm_on_the_wrist_joint_is_exported_dropped_or_with_an_added_link() {
         .to_string();
     assert!(
         message.contains("l_hand")
-            && message.contains("--add-tool-links")
+            && message.contains("`add_tool_links`")
             && message.contains("l_hand_calibrated"),
         "{message}"
     );

@@ -120,7 +120,7 @@ fn fixed_frames_that_cannot_explain_the_data_fail() {
     assert_eq!(finding.status, Status::Failed);
     assert_eq!(finding.code, "measurement-frame");
     assert!(
-        finding.message.contains("hint: --measurement-frame fit"),
+        finding.message.contains("hint: `measurement_frame` fit"),
         "{}",
         finding.message
     );
@@ -164,7 +164,7 @@ fn lengths_a_thousand_times_off_are_named() {
         for frame in [Pose::identity(), far_tracker()] {
             let (nominal, data) = measured(path, 3, &frame);
             check_length_scale(&nominal, &data).unwrap();
-            for (factor, unit) in [(1e3, "--length-unit mm"), (1e-3, "--length-unit m")] {
+            for (factor, unit) in [(1e3, "`length_unit` mm"), (1e-3, "`length_unit` m")] {
                 let scaled: Vec<Measurement> = data
                     .iter()
                     .map(|m| {

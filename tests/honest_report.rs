@@ -9,11 +9,11 @@ use nalgebra::{UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde_json::Value;
-use treecal::calibration::validation::{strata, Stratum};
 use treecal::calibration::{
     run_calibration, CalibrationInput, CalibrationRun, IdentificationOptions, MeasurementFrame,
     Plan,
 };
+use treecal::calibration::{strata, Stratum};
 use treecal::io::{
     measurements_to_csv_with, parse_registration, read_stiffness, AngleUnit, LengthUnit,
     MeasurementWriteOptions,
@@ -276,14 +276,14 @@ fn a_large_sigma_ratio_says_how_much_is_unexplained() {
         .expect("a sigma-ratio warning");
     let id = &result.report.stages[0].identification;
     let unexplained =
-        treecal::calibration::checks::unexplained_mm(id.residual_rms_position, id.residual_scale);
+        treecal::calibration::unexplained_mm(id.residual_rms_position, id.residual_scale);
     assert!(unexplained > 0.9 * id.residual_rms_position * 1e3);
     assert!(
         finding
             .message
             .contains(&format!("about {unexplained:.4} mm RMS unexplained"))
-            && finding.message.contains("--cv")
-            && finding.message.contains("--model auto")
+            && finding.message.contains("`cv`")
+            && finding.message.contains("`model` auto")
             && finding.message.contains("validation RMS in mm"),
         "{}",
         finding.message

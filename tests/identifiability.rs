@@ -5,12 +5,12 @@ use crate::common::cli::*;
 use crate::common::*;
 use nalgebra::DMatrix;
 use rand::RngExt;
-use treecal::calibration::identifiability::{
-    describe_terms, scaled_singular_values, weighted_jacobian,
-};
 use treecal::calibration::{
     analyse, criterion_value, observability_indices, Criterion, IdentifiabilityOptions,
     IdentifiabilityReport, ObservationKind, ParameterSet, PoseRow,
+};
+use treecal::calibration::{
+    describe_terms, planned_weighted_jacobian as weighted_jacobian, scaled_singular_values,
 };
 use treecal::kinematics::McpcModel;
 use treecal::tree::{detect_branches, Branches, KinematicTree};

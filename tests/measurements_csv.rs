@@ -187,7 +187,7 @@ fn round_trips_in_millimetres_degrees_and_three_targets() {
             .unwrap_err()
             .to_string();
         assert!(
-            conflict.starts_with("mm.csv:1: --angle-unit rad contradicts"),
+            conflict.starts_with("mm.csv:1: `angle_unit` rad contradicts"),
             "{conflict}"
         );
         let bare = text.split_once('\n').unwrap().1;
@@ -279,7 +279,7 @@ fn unit_flags_scale_lengths_and_angles() {
     assert!("mm".parse::<LengthUnit>().is_ok() && "deg".parse::<AngleUnit>().is_ok());
     let message = "cm".parse::<LengthUnit>().unwrap_err().to_string();
     assert!(
-        message.contains("--length-unit") && message.contains("m or mm"),
+        message.starts_with("`length_unit`: ") && message.contains("m or mm"),
         "{message}"
     );
 }
@@ -346,7 +346,7 @@ fn every_bad_value_is_reported_at_its_line_and_column() {
         (with_cell("id", ""), &plain, "bad.csv:3:id", "the id is empty"),
         (format!("{HEADER}\n{ROW}\n\n{ROW}\n"), &plain, "bad.csv:4:id", "id '1' was already used on line 2"),
         (HEADER.replace(",left_joint6", "") + "\n" + &ROW.replace(",0.8,", ",") + "\n", &plain, "bad.csv:2:left_joint6", "has no column 'left_joint6'"),
-        (HEADER.replace(",tool", "") + "\n" + &ROW.replace(",left_tool", "") + "\n", &plain, "bad.csv:1", "no 'tool' column; add one naming the measured tool link of each row (one of 'left_tool', 'right_tool'), or name the one measured tool with --tools"),
+        (HEADER.replace(",tool", "") + "\n" + &ROW.replace(",left_tool", "") + "\n", &plain, "bad.csv:1", "no 'tool' column; add one naming the measured tool link of each row (one of 'left_tool', 'right_tool'), or name the one measured tool with `tools`"),
         (HEADER.replace(",z", "") + "\n" + &ROW.replace(",3", "") + "\n", &plain, "bad.csv:1", "the observation columns x,y are not a complete layout; give exactly x,y,z (a position); x,y,z with qw,qx,qy,qz"),
         (format!("{HEADER},qw\n{ROW},1\n"), &plain, "bad.csv:1", "x,y,z,qw are not a complete layout"),
         (HEADER.replace(",x,y,z", "") + "\n" + &ROW.replace(",1,2,3", "") + "\n", &plain, "bad.csv:1", "no observation columns"),
@@ -565,7 +565,7 @@ fn ignored_columns_are_skipped_and_others_are_errors() {
     assert_eq!(set.measurements.len(), 1);
     assert_eq!(
         set.notes,
-        ["bad.csv:1: 2 column(s) neither a joint of 'robonaut' nor a measurement column, not read: 'timestamp', 'tracker_rms'; list them with --ignore-columns to silence this note"]
+        ["bad.csv:1: 2 column(s) neither a joint of 'robonaut' nor a measurement column, not read: 'timestamp', 'tracker_rms'; list them with `ignore_columns` to silence this note"]
     );
     let only_one = MeasurementReadOptions {
         ignore_columns: vec!["timestamp".into()],
@@ -793,7 +793,7 @@ fn angle_unit_mistakes_are_one_diagnosis() {
         .unwrap_err()
         .to_string();
     assert!(
-        error.starts_with("d.csv: ") && error.contains("look like degrees; give --angle-unit deg"),
+        error.starts_with("d.csv: ") && error.contains("look like degrees; give `angle_unit` deg"),
         "{error}"
     );
     // Read with its units comment, the same file is fine and warns of nothing.
@@ -809,7 +809,7 @@ fn angle_unit_mistakes_are_one_diagnosis() {
         .unwrap_err()
         .to_string();
     assert!(
-        error.contains("look like radians; give --angle-unit rad"),
+        error.contains("look like radians; give `angle_unit` rad"),
         "{error}"
     );
 

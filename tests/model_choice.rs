@@ -13,8 +13,8 @@ use treecal::calibration::{
 use treecal::kinematics::{GravitySigns, JointErrorTerms, McpcModel};
 use treecal::measurement::{Measurement, Observation};
 use treecal::tree::{detect_branches, KinematicTree};
-use treecal::workflow::cross_validation::{candidates, cross_validate, CrossValidationInput};
-use treecal::workflow::model_choice::{
+use treecal::workflow::{candidates, cross_validate, CrossValidationInput};
+use treecal::workflow::{
     fit_noise, glob_match, grouped_folds, posture_groups, prepare, ModelLevel, ModelSpec,
     ParameterPatterns,
 };

@@ -5,7 +5,7 @@ use crate::common;
 use nalgebra::{DMatrix, Vector6};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use treecal::calibration::observation::{
+use treecal::calibration::{
     kind_of, norms_by_row_kind, standardized_norm, Noise, Nuisance, NuisanceBlock, RobotState,
     RowKind, Tools,
 };

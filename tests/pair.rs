@@ -235,7 +235,7 @@ fn repetitive_motion_is_refused_unless_the_offset_is_given() {
     let mut config = logs(dir.path(), "left_tool", &motion, &recording);
     let error = pair(&config).unwrap_err().to_string();
     assert!(
-        error.contains("ambiguous") && error.contains("--clock-offset"),
+        error.contains("ambiguous") && error.contains("`clock_offset`"),
         "{error}"
     );
     config.clock_offset = Some(recording.offset());

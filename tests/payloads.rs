@@ -2,7 +2,7 @@
 //! payload, and simulated identification data drawn at several payloads.
 
 use crate::common::{random_configuration, rng, robot, simulated_robonaut};
-use treecal::calibration::solver::weighted_residual;
+use treecal::calibration::weighted_residual;
 use treecal::calibration::{
     analyse_compliance, Deflected, DeflectedWithDerivative, IdentificationOptions, Predictor,
     Rigid, StiffnessOptions,

@@ -5,7 +5,7 @@
 //! Set `TREECAL_PLOT_EXAMPLE=/some/file.svg` to have the Fig. 7 look-alike written there for a
 //! visual check.
 
-use treecal::report::plot::{error_plot_svg, line_plot_svg, Curve, ErrorPlot, LinePlot, Series};
+use treecal::report::{error_plot_svg, line_plot_svg, Curve, ErrorPlot, LinePlot, Series};
 
 fn series(label: &str, values: Vec<f64>) -> Series {
     Series {

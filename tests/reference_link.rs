@@ -342,7 +342,7 @@ fn inspect_lists_legs_head_and_arms_with_roles() {
 /// free parameters and reproduces the truth relative to the sole at fresh configurations.
 #[test]
 fn noise_free_recovery_from_a_sole() {
-    use treecal::calibration::plan::{calibrate, Compensation, Plan};
+    use treecal::calibration::{calibrate, Compensation, Plan};
     use treecal::calibration::{initial_guess, IdentificationOptions};
     use treecal::measurement::{Measurement, Observation};
     use treecal::sim::{true_model, ErrorRanges};

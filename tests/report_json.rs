@@ -296,10 +296,7 @@ fn check_and_inspect_json_carry_a_schema_version_and_labels() {
     let inspect = treecal(&["inspect", "--format", "json"]);
     assert_success(&inspect, "inspect --format json");
     let value: Value = serde_json::from_str(&inspect.stdout).unwrap();
-    assert_eq!(
-        value["schema_version"],
-        treecal::report::inspect::INSPECT_SCHEMA
-    );
+    assert_eq!(value["schema_version"], treecal::report::INSPECT_SCHEMA);
 }
 
 /// With `--identify-stiffness` the stiffness block comes last and the order stays (it was

@@ -3,7 +3,7 @@
 //! (`common::second_robot`).
 
 use crate::common::second_robot::{second_robot, SecondRobot, SESSIONS};
-use treecal::calibration::sessions::{fit_session_frame, Sessions};
+use treecal::calibration::{fit_session_frame, Sessions};
 use treecal::calibration::{
     run_calibration, CalibrationInput, CalibrationRun, IdentificationOptions, MeasurementFrame,
     Plan, Status,

@@ -187,11 +187,11 @@ fn noise_free_identification_recovers_the_identifiable_compliances() {
         "{:?}",
         report.held_below_zero
     );
-    assert!(treecal::calibration::checks::stiffness_below_zero(&report).is_none());
+    assert!(treecal::calibration::stiffness_below_zero(&report).is_none());
     let mut held = report.clone();
     held.held_below_zero
         .push("left_joint1 GI_p: fitted at -0.093, below zero; held at the prior".into());
-    let finding = treecal::calibration::checks::stiffness_below_zero(&held).unwrap();
+    let finding = treecal::calibration::stiffness_below_zero(&held).unwrap();
     assert_eq!(finding.status, treecal::calibration::Status::Warning);
     assert!(finding
         .message

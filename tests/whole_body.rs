@@ -289,10 +289,10 @@ fn simulate_from_a_foot_with_compliant_joints() {
 }
 
 fn simulate_check_and_plan(stiffness_yaml: &str, limit_mm: f64) {
-    use treecal::workflow::check::{check, CheckConfig};
-    use treecal::workflow::plan::{plan, PlanConfig};
-    use treecal::workflow::simulate::{simulate, SimulateConfig};
-    use treecal::workflow::source::{RobotSource, StiffnessSource};
+    use treecal::workflow::{check, CheckConfig};
+    use treecal::workflow::{plan, PlanConfig};
+    use treecal::workflow::{simulate, SimulateConfig};
+    use treecal::workflow::{RobotSource, StiffnessSource};
     let dir = tempfile::tempdir().unwrap();
     let stiffness = dir.path().join("stiffness.yaml");
     std::fs::write(&stiffness, stiffness_yaml).unwrap();

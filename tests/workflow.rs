@@ -342,7 +342,7 @@ fn fk_names_unknown_and_implied_joints() {
     );
     // No joints given: every joint at 0, as a CSV without columns.
     let zero = fk(&config(&[], vec![vec![]])).unwrap();
-    let tree = treecal::parse_urdf(treecal::workflow::source::BUILT_IN_ROBONAUT, "r")
+    let tree = treecal::parse_urdf(treecal::workflow::BUILT_IN_ROBONAUT, "r")
         .unwrap()
         .tree;
     let tip = tree.link_id("left_tool").unwrap();

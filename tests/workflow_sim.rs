@@ -3,10 +3,10 @@
 
 use crate::common::cli::*;
 use std::path::Path;
-use treecal::workflow::check::{check, CheckConfig};
-use treecal::workflow::plan::{plan, PlanConfig};
-use treecal::workflow::simulate::{simulate, SimulateConfig};
-use treecal::workflow::source::PlanSource;
+use treecal::workflow::PlanSource;
+use treecal::workflow::{check, CheckConfig};
+use treecal::workflow::{plan, PlanConfig};
+use treecal::workflow::{simulate, SimulateConfig};
 
 /// The number after `needle` in `text` (up to the next `,` `;` or space).
 fn number_after<'a>(text: &'a str, needle: &str) -> Vec<&'a str> {
@@ -255,7 +255,7 @@ fn simulate_candidates_are_the_candidates_said() {
     };
     assert!(simulate(&config).is_ok());
     let planned = SimulateConfig {
-        poses_from: treecal::workflow::simulate::PosesFrom::Planned,
+        poses_from: treecal::workflow::PosesFrom::Planned,
         candidates: 6,
         ..config
     };

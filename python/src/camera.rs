@@ -7,7 +7,7 @@ use crate::{invalid, to_py};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use std::path::PathBuf;
-use treecal::workflow::calibrate_camera::{
+use treecal::workflow::{
     calibrate_camera_files, CameraCalibrateConfig, CameraCalibration, CameraTrackerInput,
     DetectionsSource,
 };
@@ -89,7 +89,7 @@ impl PyCameraCalibration {
     }
 }
 
-/// Runs `treecal::workflow::calibrate_camera::calibrate_camera_files`; arguments as
+/// Runs `treecal::workflow::calibrate_camera_files`; arguments as
 /// `treecal.calibrate` documents them (`detections`: a CSV path; `detections_csv`: CSV text).
 #[pyfunction]
 #[pyo3(signature = (*, robot, camera, detections, detections_csv, validation, measurements,

@@ -24,53 +24,64 @@ pyo3::create_exception!(
      calibration that cannot run. The message is the CLI's `treecal: error:` text."
 );
 
-/// The Python exception carrying `error`'s message, with the CLI flags it names turned into
-/// this package's keyword arguments.
+/// The Python exception carrying `error`'s message, with the settings it names spelled as this
+/// package's keyword arguments.
 pub(crate) fn to_py(error: treecal::Error) -> PyErr {
     TreecalError::new_err(python_names(&error.to_string()))
 }
 
-/// The library's messages name the CLI's flags; Python users set the same things with these
-/// keyword arguments (of `calibrate`, `fk`, `Measurements` and `Calibration.write`).
+/// The one table from the library's settings (snake_case, named in backticks in its messages)
+/// to the keyword arguments that set them (of `calibrate`, `fk`, `Measurements` and
+/// `Calibration.write`).
 const KEYWORDS: &[(&str, &str)] = &[
-    ("add-tool-links", "add_tool_links"),
-    ("angle-unit", "angle_unit"),
+    ("add_tool_links", "add_tool_links"),
+    ("angle_unit", "angle_unit"),
     ("calibration", "calibration"),
     ("camera", "camera"),
     ("detections", "detections"),
     ("frame", "frame"),
-    ("gravity-frame", "gravity_frame"),
-    ("identify-stiffness", "identify_stiffness"),
-    ("ignore-columns", "ignore_columns"),
-    ("joint-length-unit", "joint_length_unit"),
+    ("gravity_frame", "gravity_frame"),
+    ("identify_stiffness", "identify_stiffness"),
+    ("ignore_columns", "ignore_columns"),
+    ("joint_length_unit", "joint_length_unit"),
     ("joints", "joints"),
-    ("length-unit", "length_unit"),
-    ("max-error", "max_error"),
-    ("measurement-frame", "measurement_frame"),
+    ("length_unit", "length_unit"),
+    ("max_error", "max_error"),
+    ("measurement_frame", "measurement_frame"),
     ("measurements", "measurements"),
     ("out", "out_dir"),
-    ("pixel-sigma", "pixel_sigma"),
+    ("pixel_sigma", "pixel_sigma"),
     ("plan", "plan"),
-    ("plan-file", "plan"),
-    ("position-sigma", "position_sigma"),
+    ("plan_file", "plan"),
+    ("position_sigma", "position_sigma"),
     ("registration", "registration"),
     ("robot", "robot"),
     ("robust", "robust"),
-    ("rotation-sigma", "rotation_sigma"),
+    ("rotation_sigma", "rotation_sigma"),
     ("seed", "seed"),
     ("stiffness", "stiffness"),
-    ("stiffness-prior", "stiffness_prior"),
+    ("stiffness_prior", "stiffness_prior"),
     ("strict", "strict"),
     ("tip", "tip"),
     ("tools", "tools"),
     ("validation", "validation"),
 ];
 
-/// `message` with each `--flag` of [`KEYWORDS`] replaced by its keyword argument (other flags,
-/// of commands the binding does not offer, are left as they are).
+/// The keyword argument that sets `setting`, if the binding offers one.
+fn keyword(setting: &str) -> Option<&'static str> {
+    KEYWORDS
+        .iter()
+        .find(|(s, _)| *s == setting)
+        .map(|(_, keyword)| *keyword)
+}
+
+/// `message` with each setting of [`KEYWORDS`] named in backticks, or as a CLI flag in the
+/// messages that still name one (`--length-unit`), replaced by its keyword argument; others
+/// are left as they are.
 fn python_names(message: &str) -> String {
-    let mut out = String::with_capacity(message.len());
-    let mut rest = message;
+    let named = treecal::error::name_settings(message, |s| keyword(s).map(str::to_owned));
+    let mut out = String::with_capacity(named.len());
+    let mut rest = named.as_str();
     while let Some(start) = rest.find("--") {
         out.push_str(&rest[..start]);
         let after = &rest[start + 2..];
@@ -78,8 +89,8 @@ fn python_names(message: &str) -> String {
             .find(|c: char| !(c.is_ascii_lowercase() || c == '-'))
             .unwrap_or(after.len());
         let flag = after[..end].trim_end_matches('-');
-        match KEYWORDS.iter().find(|(f, _)| *f == flag) {
-            Some((_, keyword)) if !flag.is_empty() => {
+        match keyword(&flag.replace('-', "_")) {
+            Some(keyword) if !flag.is_empty() => {
                 out.push_str(keyword);
                 rest = &after[flag.len()..];
             }

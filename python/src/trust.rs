@@ -1,12 +1,12 @@
 //! `treecal.verify` and `treecal.compare`: `treecal::workflow::verify` and
-//! `treecal::workflow::compare::compare` with plain Python arguments.
+//! `treecal::workflow::compare` with plain Python arguments.
 
 use crate::calibrate::parse_unit;
 use crate::measurements::{measurement_source, SourceArg};
 use crate::{invalid, to_py};
 use pyo3::prelude::*;
 use std::path::PathBuf;
-use treecal::workflow::compare::CompareConfig;
+use treecal::workflow::CompareConfig;
 use treecal::workflow::{GravityFrame, StiffnessSource, VerifyConfig, VerifyFrame};
 
 /// Runs `treecal::workflow::verify`; writes the files into `out_dir` when given. Returns
@@ -76,7 +76,7 @@ pub fn verify(
     Ok((json, verification.markdown.clone(), verification.passed()))
 }
 
-/// Runs `treecal::workflow::compare::compare`; writes the files into `out_dir` when given.
+/// Runs `treecal::workflow::compare`; writes the files into `out_dir` when given.
 /// Returns `(report.json text, report.md)`.
 #[pyfunction]
 #[pyo3(signature = (a, b, *, k, out_dir))]
@@ -90,7 +90,7 @@ pub fn compare(
     let config = CompareConfig { a, b, k };
     let comparison = py
         .detach(|| {
-            let comparison = treecal::workflow::compare::compare(&config)?;
+            let comparison = treecal::workflow::compare(&config)?;
             if let Some(out) = &out_dir {
                 comparison.write(out)?;
             }

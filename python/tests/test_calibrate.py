@@ -237,6 +237,17 @@ def test_bad_arguments_raise_treecal_errors():
         treecal.calibrate(measurements="nowhere.csv")
 
 
+def test_a_bad_setting_names_the_keyword():
+    # The library names the setting; Python shows the keyword argument, never the CLI's flag.
+    with pytest.raises(treecal.TreecalError) as raised:
+        treecal.calibrate(measurements=EXAMPLE_CSV, length_unit="cm")
+    assert str(raised.value).startswith("length_unit: 'cm' is not a length unit"), raised.value
+    with pytest.raises(treecal.TreecalError) as raised:
+        treecal.calibrate(measurements=EXAMPLE_CSV, position_sigma=-1.0)
+    message = str(raised.value)
+    assert message.startswith("position_sigma: ") and "--" not in message and "`" not in message
+
+
 def test_measurements_carry_sessions_and_points():
     table = treecal.Measurements(
         tools=["left_link6", "left_link6"],

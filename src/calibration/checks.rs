@@ -177,7 +177,7 @@ pub fn residual_scale(stage: &StageReport) -> Option<Finding> {
         Some(Finding::failed(
             "sigma-ratio",
             format!(
-                "stage '{}': σ̂ = {scale:.4e}: the residuals ({residuals}) are far larger than any measurement noise; typical causes: lengths in mm read as m (--length-unit), angles in degrees read as radians (--angle-unit), swapped or mislabelled tool columns, the wrong robot or measurement frame, large deflections left uncompensated (--stiffness)",
+                "stage '{}': σ̂ = {scale:.4e}: the residuals ({residuals}) are far larger than any measurement noise; typical causes: lengths in mm read as m (`length_unit`), angles in degrees read as radians (`angle_unit`), swapped or mislabelled tool columns, the wrong robot or measurement frame, large deflections left uncompensated (`stiffness`)",
                 stage.name
             ),
         ))
@@ -185,7 +185,7 @@ pub fn residual_scale(stage: &StageReport) -> Option<Finding> {
         Some(Finding::warning(
             "sigma-ratio",
             format!(
-                "stage '{}': σ̂ = {scale:.1}: the residuals ({residuals}) are {scale:.0}× the assumed noise: the model leaves about {} mm RMS unexplained (the residual beyond the declared noise, in quadrature). That is model error — compare richer models with --cv or let --model auto choose (flexibility: --stiffness; backlash, joint-angle errors, a wrong tool) — or a noise larger than --position-sigma / --rotation-sigma say; either way the accuracy to trust is the validation RMS in mm (report.md), whatever σ is declared; the standard deviations are scaled by σ̂",
+                "stage '{}': σ̂ = {scale:.1}: the residuals ({residuals}) are {scale:.0}× the assumed noise: the model leaves about {} mm RMS unexplained (the residual beyond the declared noise, in quadrature). That is model error — compare richer models with `cv` or let `model` auto choose (flexibility: `stiffness`; backlash, joint-angle errors, a wrong tool) — or a noise larger than `position_sigma` / `rotation_sigma` say; either way the accuracy to trust is the validation RMS in mm (report.md), whatever σ is declared; the standard deviations are scaled by σ̂",
                 stage.name,
                 readable(unexplained_mm(id.residual_rms_position, scale)),
             ),
@@ -248,7 +248,7 @@ pub fn stiffness_below_zero(report: &super::StiffnessReport) -> Option<Finding> 
         Finding::warning(
             "stiffness-below-zero",
             format!(
-                "the stiffness fit put {} compliance scale(s) at or below zero, which no robot has, and holds them at the prior: {}. The data ask for a negative compliance there, so something the fit holds fixed is off (a compliance kept at the prior nearby, the stiffness file's structure, or the geometry); measure at a second payload (payload_kg) or give a wider --stiffness-prior, and trust these compliances less",
+                "the stiffness fit put {} compliance scale(s) at or below zero, which no robot has, and holds them at the prior: {}. The data ask for a negative compliance there, so something the fit holds fixed is off (a compliance kept at the prior nearby, the stiffness file's structure, or the geometry); measure at a second payload (payload_kg) or give a wider `stiffness_prior`, and trust these compliances less",
                 held.len(),
                 held.join("; ")
             ),

@@ -168,7 +168,7 @@ fn decide(
         MeasurementFrame::Auto if explains => (
             ChosenFrame::Root,
             format!(
-                "root frame chosen (--measurement-frame auto): the data are already in the \
+                "root frame chosen (`measurement_frame` auto): the data are already in the \
                  robot's root frame ({numbers}), so the exported URDF's root is the physical base"
             ),
             false,
@@ -176,7 +176,7 @@ fn decide(
         MeasurementFrame::Auto => (
             ChosenFrame::Fitted,
             format!(
-                "fitted frame chosen (--measurement-frame auto): the root frame cannot explain \
+                "fitted frame chosen (`measurement_frame` auto): the root frame cannot explain \
                  the data ({numbers}), so they are in another frame (a tracker's); the exported \
                  URDF's root is the fitted frame"
             ),
@@ -185,42 +185,42 @@ fn decide(
         MeasurementFrame::Fit if explains => (
             ChosenFrame::Fitted,
             format!(
-                "fitted frame (--measurement-frame fit; {numbers}); the data look as if they \
+                "fitted frame (`measurement_frame` fit; {numbers}); the data look as if they \
                  are in the root frame already, and the exported URDF's root is the fitted \
-                 frame, off the physical base by the errors it absorbed: --measurement-frame \
+                 frame, off the physical base by the errors it absorbed: `measurement_frame` \
                  auto or base would keep the base"
             ),
             false,
         ),
         MeasurementFrame::Fit => (
             ChosenFrame::Fitted,
-            format!("fitted frame (--measurement-frame fit; {numbers})"),
+            format!("fitted frame (`measurement_frame` fit; {numbers})"),
             false,
         ),
         MeasurementFrame::Base if explains => (
             ChosenFrame::Root,
-            format!("root frame (--measurement-frame base; {numbers})"),
+            format!("root frame (`measurement_frame` base; {numbers})"),
             false,
         ),
         MeasurementFrame::Base => (
             ChosenFrame::Root,
             format!(
-                "root frame (--measurement-frame base) cannot explain the data ({numbers}): the \
-                 data are not in the robot's root frame; hint: --measurement-frame fit (or auto)"
+                "root frame (`measurement_frame` base) cannot explain the data ({numbers}): the \
+                 data are not in the robot's root frame; hint: `measurement_frame` fit (or auto)"
             ),
             true,
         ),
         MeasurementFrame::Known(_) if explains => (
             ChosenFrame::Known,
-            format!("registration given (--measurement-frame FILE; {numbers})"),
+            format!("registration given (`measurement_frame` FILE; {numbers})"),
             false,
         ),
         MeasurementFrame::Known(_) => (
             ChosenFrame::Known,
             format!(
-                "registration given (--measurement-frame FILE) cannot explain the data \
+                "registration given (`measurement_frame` FILE) cannot explain the data \
                  ({numbers}): the registration does not match the data (is it the robot base \
-                 in the tracker frame, in the stated units?); hint: --measurement-frame fit"
+                 in the tracker frame, in the stated units?); hint: `measurement_frame` fit"
             ),
             true,
         ),
@@ -244,9 +244,9 @@ pub fn check_length_scale(nominal: &McpcModel, measurements: &[Measurement]) -> 
         return Ok(());
     }
     let (looks, fix) = if scale > 1.0 {
-        ("millimetres read as metres", "--length-unit mm")
+        ("millimetres read as metres", "`length_unit` mm")
     } else {
-        ("metres read as millimetres", "--length-unit m")
+        ("metres read as millimetres", "`length_unit` m")
     };
     Err(Error::InvalidData {
         origin: "measurements".into(),
@@ -254,7 +254,7 @@ pub fn check_length_scale(nominal: &McpcModel, measurements: &[Measurement]) -> 
             "the measured positions are {scale:.3e} times the size the robot's nominal \
              kinematics predict (a closed-form fit with scale): they look like {looks}; give \
              {fix} (or state `# units: length=…` in the file; prismatic joint values may need \
-             --joint-length-unit)"
+             `joint_length_unit`)"
         ),
     })
 }

@@ -50,7 +50,7 @@ pub fn hold_out_indices(
         return Err(Error::InvalidData {
             origin: "measurements".into(),
             message: format!(
-                "{} configurations (not counting torso-stage ones) are too few to hold out a validation set; give one with --validation",
+                "{} configurations (not counting torso-stage ones) are too few to hold out a validation set; give one with `validation`",
                 eligible.len()
             ),
         });

@@ -28,7 +28,7 @@ pub struct IdentificationOptions {
     pub step_tolerance: f64,
     /// Stop when an accepted step lowers the cost by less than this fraction.
     pub cost_tolerance: f64,
-    /// Per-measurement weights (robust estimation, [`super::robust`]): measurement `i`'s rows
+    /// Per-measurement weights (robust estimation, `super::robust`): measurement `i`'s rows
     /// are multiplied by `√weights[i]`, so its share of the cost is `weights[i]·½‖r_i‖²`.
     /// Empty: every weight is 1 (the plain least-squares problem, bit for bit).
     pub observation_weights: Vec<f64>,

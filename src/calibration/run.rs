@@ -1,7 +1,6 @@
 //! A calibration from measured data, end to end: hold-out, initial guess, the plan, parameter
 //! uncertainties and the errors before and after, per arm (`treecal calibrate`).
 
-pub use super::frame::MeasurementFrame;
 use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame};
 pub use super::hold_out::{hold_out, hold_out_indices};
 use super::initial_guess::InitialGuess;
@@ -351,7 +350,7 @@ fn outlier_finding(
     Some(Finding::warning(
         "outliers",
         format!(
-            "{identification} of {} identification and {flagged} of {validation} validation measurements are outliers by the robust {} loss (residuals beyond {:.0}–{:.0} robust σ, robust σ = {:.3} of the assumed noise): the identification ones were left out of the fit, the validation ones are marked and still counted in every validation figure; see \"outliers\" in report.json, check those rows (a bumped target, a wrong row), or compare with --robust off",
+            "{identification} of {} identification and {flagged} of {validation} validation measurements are outliers by the robust {} loss (residuals beyond {:.0}–{:.0} robust σ, robust σ = {:.3} of the assumed noise): the identification ones were left out of the fit, the validation ones are marked and still counted in every validation figure; see \"outliers\" in report.json, check those rows (a bumped target, a wrong row), or compare with `robust` off",
             identification + kept_identification,
             robust.loss,
             robust.loss.outlier_norm(3),

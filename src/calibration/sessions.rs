@@ -120,7 +120,7 @@ pub struct SessionsReport {
     pub frames: Vec<SessionFrame>,
     /// Alternations of calibration and frame fits (0 with one training session).
     pub rounds: usize,
-    /// Whether the frames settled within [`MAX_ROUNDS`].
+    /// Whether the frames settled within `MAX_ROUNDS`.
     pub converged: bool,
     /// Per validation session, the held-out figures.
     pub validation: Vec<SessionValidation>,

@@ -171,33 +171,11 @@ pub fn parse_camera_file(
                 .in_radians(),
         ),
     };
-    let pose = |entry: &PoseEntry, place: &str| -> Result<Pose> {
-        let values = entry.xyz.iter().chain(entry.rpy.iter());
-        if !values.clone().all(|v| v.is_finite() && v.abs() <= 1e4) {
-            return Err(bad(
-                origin,
-                place,
-                "the pose has a value that is not a finite number of at most 1e4".into(),
-            ));
-        }
-        let [x, y, z] = entry.xyz.map(|v| v * length);
-        let [r, p, w] = entry.rpy.map(|v| v * angle);
-        Ok(Pose::from_parts(
-            Translation3::new(x, y, z),
-            rotation_from_rpy(r, p, w),
-        ))
-    };
-    let mount = |link: &str, place: &str| -> Result<Mount> {
-        if link == "world" {
-            return Ok(Mount::World);
-        }
-        tree.link_id(link).map(Mount::Link).map_err(|e| {
-            bad(
-                origin,
-                place,
-                format!("{e}; or `world` for one fixed in the world"),
-            )
-        })
+    let reader = Reader {
+        origin,
+        tree,
+        length,
+        angle,
     };
     let mut names = std::collections::HashSet::new();
     let mut cameras = Vec::new();
@@ -206,27 +184,7 @@ pub fn parse_camera_file(
         if !names.insert(entry.name.clone()) {
             return Err(bad(origin, &place, "a second camera of this name".into()));
         }
-        let intrinsics = Intrinsics {
-            fx: entry.intrinsics.fx,
-            fy: entry.intrinsics.fy,
-            cx: entry.intrinsics.cx,
-            cy: entry.intrinsics.cy,
-            distortion: entry.distortion.unwrap_or([0.0; 5]),
-            width: entry.image.width,
-            height: entry.image.height,
-        };
-        if let Some(problem) = intrinsics.problem() {
-            return Err(bad(origin, &place, problem));
-        }
-        let estimate = entry.estimate.clone().unwrap_or(vec![Estimated::Pose]);
-        cameras.push(CameraSpec {
-            name: entry.name.clone(),
-            mount: mount(&entry.link, &place)?,
-            mount_from_camera: pose(&entry.pose, &place)?,
-            intrinsics,
-            estimate_pose: estimate.contains(&Estimated::Pose),
-            estimate_intrinsics: estimate.contains(&Estimated::Intrinsics),
-        });
+        cameras.push(reader.camera(entry, &place)?);
     }
     if cameras.is_empty() {
         return Err(bad(origin, "cameras", "no camera is described".into()));
@@ -241,66 +199,144 @@ pub fn parse_camera_file(
                 "a second camera or target of this name".into(),
             ));
         }
-        let shape = match (&entry.board, &entry.marker) {
-            (Some(board), None) => {
-                let spacing = board.spacing * length;
-                if board.rows == 0 || board.columns == 0 || board.rows * board.columns > 100_000 {
-                    return Err(bad(
-                        origin,
-                        &place,
-                        "a board needs 1 to 100000 corners".into(),
-                    ));
-                }
-                if !(spacing.is_finite() && spacing > 0.0 && spacing <= 10.0) {
-                    return Err(bad(
-                        origin,
-                        &place,
-                        "the board spacing must be positive (at most 10 m)".into(),
-                    ));
-                }
-                TargetShape::Board {
-                    rows: board.rows,
-                    columns: board.columns,
-                    spacing,
-                }
-            }
-            (None, Some(_)) => TargetShape::Marker,
-            _ => {
-                return Err(bad(
-                    origin,
-                    &place,
-                    "give either `board: {rows, columns, spacing}` or `marker: {}`".into(),
-                ))
-            }
+        targets.push(reader.target(entry, &place)?);
+    }
+    Ok(CameraFileContents { cameras, targets })
+}
+
+/// What every entry of one camera file is read with: the file, the robot and the file's units
+/// (metres and radians per unit).
+struct Reader<'a> {
+    origin: &'a str,
+    tree: &'a KinematicTree,
+    length: f64,
+    angle: f64,
+}
+
+impl Reader<'_> {
+    /// An entry's pose, in metres and radians.
+    fn pose(&self, entry: &PoseEntry, place: &str) -> Result<Pose> {
+        let values = entry.xyz.iter().chain(entry.rpy.iter());
+        if !values.clone().all(|v| v.is_finite() && v.abs() <= 1e4) {
+            return Err(bad(
+                self.origin,
+                place,
+                "the pose has a value that is not a finite number of at most 1e4".into(),
+            ));
+        }
+        let [x, y, z] = entry.xyz.map(|v| v * self.length);
+        let [r, p, w] = entry.rpy.map(|v| v * self.angle);
+        Ok(Pose::from_parts(
+            Translation3::new(x, y, z),
+            rotation_from_rpy(r, p, w),
+        ))
+    }
+
+    /// The link (or the world) an entry is mounted on.
+    fn mount(&self, link: &str, place: &str) -> Result<Mount> {
+        if link == "world" {
+            return Ok(Mount::World);
+        }
+        self.tree.link_id(link).map(Mount::Link).map_err(|e| {
+            bad(
+                self.origin,
+                place,
+                format!("{e}; or `world` for one fixed in the world"),
+            )
+        })
+    }
+
+    /// One `cameras:` entry.
+    fn camera(&self, entry: &CameraEntry, place: &str) -> Result<CameraSpec> {
+        let intrinsics = Intrinsics {
+            fx: entry.intrinsics.fx,
+            fy: entry.intrinsics.fy,
+            cx: entry.intrinsics.cx,
+            cy: entry.intrinsics.cy,
+            distortion: entry.distortion.unwrap_or([0.0; 5]),
+            width: entry.image.width,
+            height: entry.image.height,
         };
+        if let Some(problem) = intrinsics.problem() {
+            return Err(bad(self.origin, place, problem));
+        }
+        let estimate = entry.estimate.clone().unwrap_or(vec![Estimated::Pose]);
+        Ok(CameraSpec {
+            name: entry.name.clone(),
+            mount: self.mount(&entry.link, place)?,
+            mount_from_camera: self.pose(&entry.pose, place)?,
+            intrinsics,
+            estimate_pose: estimate.contains(&Estimated::Pose),
+            estimate_intrinsics: estimate.contains(&Estimated::Intrinsics),
+        })
+    }
+
+    /// One `targets:` entry.
+    fn target(&self, entry: &TargetEntry, place: &str) -> Result<TargetSpec> {
+        let shape = self.shape(entry, place)?;
         if entry
             .estimate
             .as_ref()
             .is_some_and(|e| e.contains(&Estimated::Intrinsics))
         {
             return Err(bad(
-                origin,
-                &place,
+                self.origin,
+                place,
                 "a target has no intrinsics; estimate: [pose] or []".into(),
             ));
         }
-        targets.push(TargetSpec {
+        Ok(TargetSpec {
             name: entry.name.clone(),
-            mount: mount(&entry.link, &place)?,
-            mount_from_target: pose(&entry.pose, &place)?,
+            mount: self.mount(&entry.link, place)?,
+            mount_from_target: self.pose(&entry.pose, place)?,
             shape,
             estimate_pose: entry
                 .estimate
                 .as_ref()
                 .is_none_or(|e| e.contains(&Estimated::Pose)),
-        });
+        })
     }
-    Ok(CameraFileContents { cameras, targets })
+
+    /// A target's board (corners, spacing in metres) or marker.
+    fn shape(&self, entry: &TargetEntry, place: &str) -> Result<TargetShape> {
+        match (&entry.board, &entry.marker) {
+            (Some(board), None) => {
+                let spacing = board.spacing * self.length;
+                if board.rows == 0 || board.columns == 0 || board.rows * board.columns > 100_000 {
+                    return Err(bad(
+                        self.origin,
+                        place,
+                        "a board needs 1 to 100000 corners".into(),
+                    ));
+                }
+                if !(spacing.is_finite() && spacing > 0.0 && spacing <= 10.0) {
+                    return Err(bad(
+                        self.origin,
+                        place,
+                        "the board spacing must be positive (at most 10 m)".into(),
+                    ));
+                }
+                Ok(TargetShape::Board {
+                    rows: board.rows,
+                    columns: board.columns,
+                    spacing,
+                })
+            }
+            (None, Some(_)) => Ok(TargetShape::Marker),
+            _ => Err(bad(
+                self.origin,
+                place,
+                "give either `board: {rows, columns, spacing}` or `marker: {}`".into(),
+            )),
+        }
+    }
 }
 
 fn at(origin: &str, key: &str, error: Error) -> Error {
     match error {
-        Error::InvalidData { message, .. } => bad(origin, key, message),
+        Error::InvalidData { message, .. } | Error::InvalidSetting { message, .. } => {
+            bad(origin, key, message)
+        }
         other => other,
     }
 }

@@ -83,7 +83,7 @@ pub fn parse_joint_log_csv(
         .ok_or_else(|| Error::InvalidData {
             origin: format!("{origin}:{}", table.header_line),
             message: format!(
-                "no time column '{}' (columns: {}); name it with --joints-time-column",
+                "no time column '{}' (columns: {}); name it with `joints_time_column`",
                 options.time_column,
                 table.headers.join(", ")
             ),

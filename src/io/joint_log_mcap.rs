@@ -174,7 +174,7 @@ fn choose_topic(
         ))),
         (None, 1) => Ok(topics.keys().next().cloned().unwrap_or_default()),
         (None, _) => Err(fail(format!(
-            "{JOINT_STATE_SCHEMA} messages on several topics: {}; choose one with --joint-topic",
+            "{JOINT_STATE_SCHEMA} messages on several topics: {}; choose one with `joint_topic`",
             listed()
         ))),
     }

@@ -2,13 +2,13 @@
 //! mcap.
 
 mod bounded;
-pub mod camera_yaml;
+pub(crate) mod camera_yaml;
 mod collada;
-pub mod contacts_csv;
-pub mod contacts_yaml;
+pub(crate) mod contacts_csv;
+pub(crate) mod contacts_yaml;
 mod csv_fields;
 mod csv_scan;
-pub mod detections_csv;
+pub(crate) mod detections_csv;
 mod joint_log;
 mod joint_log_mcap;
 mod joint_log_read;
@@ -50,6 +50,15 @@ pub use ros_joint_state::{decode_joint_state, JointStateMessage};
 pub use tracker_log::TRACKER_KEYS;
 
 pub use bounded::{read_bytes, read_text};
+pub use camera_yaml::{camera_file_yaml, parse_camera_file, read_camera_file, CameraFileContents};
+pub use contacts_csv::{
+    contacts_to_csv, parse_contacts, read_contacts, ContactKind, ContactRow, ContactTable,
+};
+pub use contacts_yaml::{
+    contact_setup_to_yaml, parse_contact_setup, read_contact_setup, BarSetup, ContactSetup,
+    FreeSetup, PoseEntry, SigmaSetup, ToolSetup,
+};
+pub use detections_csv::{detections_to_csv, parse_detections, read_detections, DETECTION_COLUMNS};
 pub use joint_log::{parse_joint_log_csv, read_joint_log, JointLog, JointLogOptions};
 pub use joints_csv::{
     append_poses, configurations, joint_value, parse_csv, pose_fields, ColumnMapping, CsvTable,

@@ -72,7 +72,7 @@ pub fn pose_rows(
                     return Err(Error::InvalidData {
                         origin: format!("{origin}:{line}:tool"),
                         message: format!(
-                            "'{text}' is not a tool of '{}'; use one of {} (or --tools to choose others)",
+                            "'{text}' is not a tool of '{}'; use one of {} (or `tools` to choose others)",
                             tree.name(),
                             tool_names.join(", ")
                         ),

@@ -45,10 +45,12 @@ pub fn parse_registration(text: &str, origin: &str) -> Result<Pose> {
          yaw]`: the robot base in the tracker frame (see docs/file-formats.md)",
     )?;
     let unit_error = |key: &str, e: Error| match e {
-        Error::InvalidData { message, .. } => Error::InvalidData {
-            origin: format!("{origin}: units.{key}"),
-            message,
-        },
+        Error::InvalidData { message, .. } | Error::InvalidSetting { message, .. } => {
+            Error::InvalidData {
+                origin: format!("{origin}: units.{key}"),
+                message,
+            }
+        }
         other => other,
     };
     let length: LengthUnit = file

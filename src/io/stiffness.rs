@@ -226,7 +226,7 @@ pub fn parse_stiffness(
     if !content {
         return Err(Error::InvalidData {
             origin: origin.to_owned(),
-            message: "the stiffness file is empty; give the robot's stiffness and payloads (docs/flexibility.md; `{}` takes every default explicitly), or leave out --stiffness to calibrate a rigid robot".into(),
+            message: "the stiffness file is empty; give the robot's stiffness and payloads (docs/flexibility.md; `{}` takes every default explicitly), or leave out `stiffness` to calibrate a rigid robot".into(),
         });
     }
     crate::limits::check_yaml_depth(text, origin)?;

@@ -38,10 +38,7 @@ impl FromStr for TrackerColumns {
     fn from_str(text: &str) -> Result<Self> {
         let mut columns = Self::default();
         for item in text.split(',').map(str::trim).filter(|i| !i.is_empty()) {
-            let fail = |message: String| Error::InvalidData {
-                origin: "--tracker-columns".into(),
-                message,
-            };
+            let fail = |message: String| Error::setting("tracker_columns", message);
             let (key, column) = item
                 .split_once('=')
                 .ok_or_else(|| fail(format!("'{item}' is not key=column, e.g. x=TX")))?;
@@ -111,8 +108,8 @@ pub fn parse_tracker_log(
     let (used, pose) = used_columns(&table, origin, options)?;
     let rate = match options.rate {
         Some(r) if !(r.is_finite() && r > 0.0) => {
-            return Err(fail(
-                "--tracker-rate".into(),
+            return Err(Error::setting(
+                "tracker_rate",
                 format!("{r} is not a positive frame rate"),
             ))
         }
@@ -222,7 +219,7 @@ fn used_columns(
     };
     if !required.is_empty() {
         return Err(fail(header_place, format!(
-            "no column {} (columns: {}); rename the columns or map them with --tracker-columns, e.g. time=Time,x=TX,y=TY,z=TZ",
+            "no column {} (columns: {}); rename the columns or map them with `tracker_columns`, e.g. time=Time,x=TX,y=TY,z=TZ",
             required.join(", "),
             table.headers.join(", ")
         )));

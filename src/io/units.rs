@@ -38,13 +38,13 @@ impl FromStr for LengthUnit {
         match text.trim() {
             "m" => Ok(LengthUnit::Metre),
             "mm" => Ok(LengthUnit::Millimetre),
-            other => Err(Error::InvalidData {
-                origin: "--length-unit".into(),
-                message: format!(
+            other => Err(Error::setting(
+                "length_unit",
+                format!(
                     "'{}' is not a length unit; use m or mm",
                     crate::limits::cut(other)
                 ),
-            }),
+            )),
         }
     }
 }
@@ -84,13 +84,13 @@ impl FromStr for AngleUnit {
         match text.trim() {
             "rad" => Ok(AngleUnit::Radian),
             "deg" => Ok(AngleUnit::Degree),
-            other => Err(Error::InvalidData {
-                origin: "--angle-unit".into(),
-                message: format!(
+            other => Err(Error::setting(
+                "angle_unit",
+                format!(
                     "'{}' is not an angle unit; use rad or deg",
                     crate::limits::cut(other)
                 ),
-            }),
+            )),
         }
     }
 }
@@ -208,7 +208,9 @@ pub fn parse_units_header(text: &str, origin: &str) -> Result<StatedUnits> {
                     ))
                 })?;
                 let bad = |e: Error| match e {
-                    Error::InvalidData { message, .. } => fail(format!("{key}: {message}")),
+                    Error::InvalidData { message, .. } | Error::InvalidSetting { message, .. } => {
+                        fail(format!("{key}: {message}"))
+                    }
                     other => other,
                 };
                 match key {
@@ -266,7 +268,7 @@ pub fn resolve_units(
             (Some(f), Some(s)) if f != s => Err(Error::InvalidData {
                 origin: place.to_owned(),
                 message: format!(
-                    "{} {} contradicts the file's units comment ({}={}); remove the flag or \
+                    "{} {} contradicts the file's units comment ({}={}); remove the setting or \
                      correct the comment",
                     names.0,
                     symbol(f),
@@ -282,7 +284,7 @@ pub fn resolve_units(
         flags.length,
         header.length,
         LengthUnit::symbol,
-        ("--length-unit", "length"),
+        ("`length_unit`", "length"),
         &place,
     )?
     .unwrap_or_default();
@@ -290,7 +292,7 @@ pub fn resolve_units(
         flags.angle,
         header.angle,
         AngleUnit::symbol,
-        ("--angle-unit", "angle"),
+        ("`angle_unit`", "angle"),
         &place,
     )?
     .unwrap_or_default();
@@ -298,7 +300,7 @@ pub fn resolve_units(
         flags.joint_length,
         header.joint_length,
         LengthUnit::symbol,
-        ("--joint-length-unit", "joint_length"),
+        ("`joint_length_unit`", "joint_length"),
         &place,
     )?
     .unwrap_or(length);
@@ -360,7 +362,7 @@ mod tests {
         };
         let error = resolve_units(&conflict, &new, "f").unwrap_err().to_string();
         assert!(
-            error.contains("--length-unit m contradicts") && error.contains("f:1"),
+            error.contains("`length_unit` m contradicts") && error.contains("f:1"),
             "{error}"
         );
         assert_eq!(

@@ -69,7 +69,7 @@ pub fn check_output_folder(folder: &Path, ours: &dyn Fn(&str) -> bool) -> Result
     if folder.exists() {
         if !folder.is_dir() {
             return Err(refuse(
-                "is a file, not a folder; give --out a folder".into(),
+                "is a file, not a folder; give `out` a folder".into(),
             ));
         }
         let mut foreign = Vec::new();
@@ -84,7 +84,7 @@ pub fn check_output_folder(folder: &Path, ours: &dyn Fn(&str) -> bool) -> Result
         if !foreign.is_empty() {
             foreign.sort();
             return Err(refuse(format!(
-                "holds {} entr{} treecal did not write ({}); the output replaces the whole folder, so give --out a new or empty folder, or a previous output of this command",
+                "holds {} entr{} treecal did not write ({}); the output replaces the whole folder, so give `out` a new or empty folder, or a previous output of this command",
                 foreign.len(),
                 if foreign.len() == 1 { "y" } else { "ies" },
                 foreign.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
@@ -165,7 +165,7 @@ fn folder_name(folder: &Path) -> Result<String> {
         Some(name) if !folder.ends_with("..") => Ok(name.to_string_lossy().into_owned()),
         _ => Err(Error::InvalidData {
             origin: folder.display().to_string(),
-            message: "names no folder that can be replaced; give --out a named folder, e.g. \
+            message: "names no folder that can be replaced; give `out` a named folder, e.g. \
                       out/calibrate"
                 .into(),
         }),

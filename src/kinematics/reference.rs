@@ -37,7 +37,7 @@ impl McpcModel {
     /// is what absorbs it (the reference end of the chain plays the part a tool frame plays
     /// at a tool). Without it the ankle axis of a sole would be pinned where the closed-form
     /// frame put it. The root link's placement between the chains is then a six-dimensional
-    /// gauge freedom, which [`crate::calibration::gauge`] fixes.
+    /// gauge freedom, which `crate::calibration::gauge` fixes.
     pub fn set_reference(&mut self, reference: Option<ReferenceLink>) -> Result<()> {
         let Some(reference) = reference else {
             self.reference = None;

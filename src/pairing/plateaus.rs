@@ -244,7 +244,7 @@ fn lonely_run_reason(
     }
     if mostly_still {
         return format!(
-            "the target was still for {still:.2} s of the joints' {duration:.2} s but in no part for {:.2} s: its speed crossed the threshold in between (tracker noise? raise --still-marker-speed)",
+            "the target was still for {still:.2} s of the joints' {duration:.2} s but in no part for {:.2} s: its speed crossed the threshold in between (tracker noise? raise `still_marker_speed`)",
             options.min_duration
         );
     }

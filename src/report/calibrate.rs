@@ -7,8 +7,8 @@ use super::outliers::{outliers_markdown, robust_summary, OutlierRow, RobustSumma
 use super::plot::arm_error_plots_by_id;
 use super::stiffness::StiffnessSummary;
 use super::strata::ValidationStrata;
-use crate::calibration::robust::DataSet;
-use crate::calibration::validation::Stratum;
+use crate::calibration::DataSet;
+use crate::calibration::Stratum;
 use crate::calibration::{
     ArmResiduals, CalibrationRun, ErrorSummary, IdentificationOptions, ParameterEstimate, Status,
     Verdict,
@@ -96,7 +96,7 @@ pub struct CalibrationSummary {
     #[serde(serialize_with = "crate::serde_labels::before_after")]
     pub initial_guess_rms_m: [f64; 2],
     /// How the measurement frame was refined jointly with the parameters, if it was.
-    pub frame_refinement: Option<crate::calibration::run::FrameRefinement>,
+    pub frame_refinement: Option<crate::calibration::FrameRefinement>,
     /// Plan repetitions.
     pub cycles: usize,
     /// Per stage.

@@ -199,7 +199,7 @@ fn list(out: &mut String, title: &str, combinations: &[NamedCombination]) {
     if combinations.len() > LISTED {
         let _ = writeln!(
             out,
-            "    … and {} more (see --format yaml)",
+            "    … and {} more (see `format` yaml)",
             combinations.len() - LISTED
         );
     }

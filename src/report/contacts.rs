@@ -5,12 +5,12 @@
 
 use crate::calibration::{identify_with_nuisance, IdentificationOptions, Nuisance, Rigid};
 use crate::error::Result;
-use crate::io::contacts_csv::ContactKind;
+use crate::io::ContactKind;
 use crate::kinematics::McpcModel;
 use crate::math::{Pose, Vec3};
 use crate::measurement::{Contact, Measurement, Observation};
 use crate::tree::KinematicTree;
-use crate::workflow::contact_fit::{contact_violations, plane_start, ContactFit, ContactProblem};
+use crate::workflow::{contact_violations, plane_start, ContactFit, ContactProblem};
 use serde_json::json;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;

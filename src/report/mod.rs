@@ -1,34 +1,62 @@
 //! Human- and machine-readable reports.
 
-pub mod artifact;
-pub mod calibrate;
-pub mod camera;
-pub mod check;
-pub mod compare;
-pub mod contacts;
-pub mod html;
-pub mod html_chart;
+pub(crate) mod artifact;
+pub(crate) mod calibrate;
+pub(crate) mod camera;
+pub(crate) mod check;
+pub(crate) mod compare;
+pub(crate) mod contacts;
+pub(crate) mod html;
+pub(crate) mod html_chart;
 mod html_escape;
-pub mod html_page;
-pub mod inspect;
-pub mod outliers;
-pub mod pairing;
-pub mod plot;
-pub mod sessions;
-pub mod simulate;
-pub mod stiffness;
-pub mod strata;
-pub mod verify;
+pub(crate) mod html_page;
+pub(crate) mod inspect;
+pub(crate) mod outliers;
+pub(crate) mod pairing;
+pub(crate) mod plot;
+pub(crate) mod sessions;
+pub(crate) mod simulate;
+pub(crate) mod stiffness;
+pub(crate) mod strata;
+pub(crate) mod verify;
 
+pub use artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
 pub use calibrate::{
     calibration_markdown, calibration_plots, calibration_summary, parameter_file, ArmReport,
     BeforeAfter, CalibrationContext, CalibrationSummary, RowErrors, REPORT_SCHEMA,
 };
+pub use calibrate::{FrameValues, ParameterFile, StageOutcome};
+pub use camera::{
+    camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,
+    HeldOut, PixelResiduals, RobotParameter, TargetResiduals, TrackerRegistration,
+};
 pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
+pub use compare::{
+    CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures, COMPARE_SCHEMA,
+};
+pub use contacts::{contact_report, ContactScores, Errors, Scored};
+pub use html::escape;
 pub use html::{calibration_html, HtmlReport, Scene, SceneConfiguration};
+pub use html_chart::parameter_chart_svg;
+pub use html_page::markdown_page;
 pub use inspect::{inspect, InspectReport};
+pub use inspect::{
+    BranchEntry, BranchesReport, JointCounts, LimbEntry, McpcReport, McpcRow, TreeEntry,
+    INSPECT_SCHEMA,
+};
 pub use outliers::{outlier_rows, OutlierRow, RobustSummary};
+pub use outliers::{outliers_markdown, robust_summary};
 pub use pairing::{pairing_markdown, PairingReport};
+pub use plot::{
+    arm_error_plots, arm_error_plots_by_id, error_plot_svg, line_plot_svg, Curve, ErrorPlot,
+    LinePlot, Series,
+};
 pub use sessions::{sessions_markdown, sessions_summary, SessionsSummary};
+pub use sessions::{FrameXyzRpy, SessionRow, ValidationSessionRow};
+pub use simulate::simulation_markdown;
 pub use simulate::{simulation_results, SimulationResults, RESULTS_SCHEMA};
 pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};
+pub use strata::{StrataRow, StratumFigures, ValidationStrata, WorstRow};
+pub use verify::{
+    VerifyContext, VerifyReport, VerifyRow, VerifySession, VerifyVerdict, VERIFY_SCHEMA,
+};

@@ -1,8 +1,8 @@
 //! The outliers of a calibration (robust estimation): the `"outliers"` list of `report.json`
 //! and its table in `report.md`.
 
-use crate::calibration::robust::{DataSet, RobustLoss};
 use crate::calibration::CalibrationRun;
+use crate::calibration::{DataSet, RobustLoss};
 use crate::tree::KinematicTree;
 use serde::Serialize;
 use std::fmt::Write;
@@ -100,7 +100,7 @@ pub fn outliers_markdown(
     if robust.loss == RobustLoss::Off {
         let _ = writeln!(
             out,
-            "Robust estimation is off (--robust off): every measurement has weight 1.\n"
+            "Robust estimation is off (`robust` off): every measurement has weight 1.\n"
         );
         return out;
     }

@@ -66,7 +66,7 @@ fn clock_section(report: &PairingReport) -> String {
         report.offset
     );
     let Some(e) = report.estimate else {
-        return out + "given with --clock-offset: not estimated.\n\n";
+        return out + "given with `clock_offset`: not estimated.\n\n";
     };
     let confidence = match &e.verdict {
         ClockVerdict::Confident => "high: one clear correlation peak".to_string(),

@@ -2,7 +2,7 @@
 //! ("## Sessions"): every training session with its rows and its frame relative to the first,
 //! and every validation session's held-out RMS in the training frame and re-registered.
 
-use crate::calibration::sessions::{session_label, SessionsReport};
+use crate::calibration::{session_label, SessionsReport};
 use crate::math::Pose;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -88,7 +88,7 @@ impl FrameXyzRpy {
 /// The report.json block of `report`.
 pub fn sessions_summary(report: &SessionsReport) -> SessionsSummary {
     SessionsSummary {
-        parameters_per_session: crate::calibration::sessions::FRAME_BLOCK_PARAMETERS,
+        parameters_per_session: crate::calibration::FRAME_BLOCK_PARAMETERS,
         rounds: report.rounds,
         converged: report.converged,
         training: report

@@ -155,7 +155,7 @@ pub fn compliance_identifiability_markdown(
         out,
         "With the geometric parameters free, these configurations determine {determined} of {} compliance parameters (the individual ones, then the common scales of all joints and all links) to ±{:.1} % or better (a third of the prior's ±{:.0} %). \"±\": standard deviation of the compliance scale at the assumed σ's.\n",
         analysis.parameters.len(),
-        prior_sigma * 100.0 * crate::calibration::stiffness::DETERMINED,
+        prior_sigma * 100.0 * crate::calibration::DETERMINED,
         prior_sigma * 100.0
     );
     let _ = writeln!(out, "| parameter | ± | determined |");

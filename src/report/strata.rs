@@ -3,7 +3,7 @@
 //! rows together, and the worst row (`report.json` `"validation_strata"`, report.md).
 
 use super::calibrate::ArmReport;
-use crate::calibration::validation::Stratum;
+use crate::calibration::Stratum;
 use serde::Serialize;
 use std::fmt::Write;
 

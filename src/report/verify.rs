@@ -3,8 +3,8 @@
 
 use super::plot::{error_plot_svg, ErrorPlot, Series};
 use super::strata::{StrataRow, ValidationStrata};
-use crate::calibration::validation::Stratum;
 use crate::calibration::ErrorSummary;
+use crate::calibration::Stratum;
 use crate::error::Result;
 use crate::math::{rpy_from_rotation, Pose};
 use serde::Serialize;
@@ -113,13 +113,13 @@ impl VerifyVerdict {
     pub fn sentence(&self) -> String {
         match self.max_error_mm {
             Some(max) => format!(
-                "verdict: {} (RMS position error {:.3} mm {} --max-error {max} mm)",
+                "verdict: {} (RMS position error {:.3} mm {} `max_error` {max} mm)",
                 if self.passed { "passed" } else { "failed" },
                 self.rms_position_mm,
                 if self.passed { "within" } else { "above" },
             ),
             None => format!(
-                "RMS position error {:.3} mm (no --max-error: no verdict)",
+                "RMS position error {:.3} mm (no `max_error`: no verdict)",
                 self.rms_position_mm
             ),
         }
@@ -255,7 +255,7 @@ fn frame_words(c: &VerifyContext) -> String {
         "fit" => format!(
             "refitted to the fresh rows, the geometry fixed: {} parameter(s) ({} per session, {} session(s)); nothing else is fitted",
             c.refitted_parameters,
-            crate::calibration::sessions::FRAME_BLOCK_PARAMETERS,
+            crate::calibration::FRAME_BLOCK_PARAMETERS,
             c.sessions.len()
         ),
         "registration" => "the calibration's registration as written (nothing refitted)".into(),

@@ -15,7 +15,7 @@
 use super::camera_visibility::Sight;
 use super::collision::CollisionChecker;
 use super::sampling::{sample_configurations, SamplingOptions};
-use crate::calibration::identifiability::{criterion_value, Criterion};
+use crate::calibration::{criterion_value, Criterion};
 use crate::camera::{linearise_view, Unknown, View};
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;

@@ -95,7 +95,7 @@ pub fn camera_rig(
 }
 
 /// The camera and targets of [`camera_rig`] as a user would describe them (a camera file,
-/// [`crate::io::camera_yaml`]).
+/// `crate::io::camera_yaml`).
 pub fn camera_specs(
     tree: &KinematicTree,
     branches: &Branches,

@@ -15,7 +15,7 @@ pub use super::contact_trial::{
     run_contact_trial, ContactTrial, LINEAR_STD,
 };
 use super::truth::ErrorRanges;
-use crate::calibration::observation::{contact_violation, NuisanceBlock, Tools};
+use crate::calibration::{contact_violation, NuisanceBlock, Tools};
 use crate::calibration::{Nuisance, RobotState};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;

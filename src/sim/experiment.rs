@@ -8,11 +8,11 @@ use super::noise::{observe, NoiseModel, Targets};
 use super::planning::{plan_poses, PlanningOptions, PlanningStage};
 use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, with_joint_errors, ErrorRanges, JointErrorRanges};
-use crate::calibration::stiffness::{calibrate_with_stiffness, Fitted, StiffnessOptions};
 use crate::calibration::{
     calibrate_robust, CalibrationReport, Compensation, Deflected, IdentificationOptions,
     ParameterSet, Plan, RobustLoss, RobustReport,
 };
+use crate::calibration::{calibrate_with_stiffness, Fitted, StiffnessOptions};
 use crate::error::Result;
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::math::Pose;
@@ -475,7 +475,7 @@ fn arm_errors(
             let stats: Vec<ErrorStats> = (0..3)
                 .map(|k| ErrorStats::of(&position[tool][k], &orientation[tool][k]))
                 .collect();
-            let removed = crate::calibration::run::removed_percent;
+            let removed = crate::calibration::removed_percent;
             let arm = setup.branches.arm_name(setup.nominal.tools()[tool].link);
             ArmErrors {
                 arm,

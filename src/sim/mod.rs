@@ -1,13 +1,13 @@
 //! Simulation: random and planned configurations and the self-collision checks they must pass.
 
 mod blunders;
-pub mod camera;
-pub mod camera_planning;
-pub mod camera_setup;
-pub mod camera_visibility;
+pub(crate) mod camera;
+pub(crate) mod camera_planning;
+pub(crate) mod camera_setup;
+pub(crate) mod camera_visibility;
 mod collision;
 mod contact_trial;
-pub mod contacts;
+pub(crate) mod contacts;
 mod detmax;
 mod experiment;
 mod mesh;
@@ -20,7 +20,18 @@ mod trial_report;
 mod truth;
 
 pub use blunders::inject_blunders;
+pub use camera::{
+    board_size, camera_trial_data, fit_options, held_out_views, run_camera_trial, CameraSetup,
+    CameraSimulationOptions, CameraTrialData, CameraTrialReport, ObservationMode,
+};
+pub use camera_planning::{plan_camera_poses, CameraPlanReport, CameraPlanningOptions};
+pub use camera_setup::{camera_rig, camera_specs, CameraRigOptions};
+pub use camera_visibility::{rigid_group, Hidden, Sight, VisibilityRules};
 pub use collision::{CollisionCheck, CollisionChecker, CollisionOptions, MeshLoader};
+pub use contacts::{
+    contact_free_parameters, contact_scene, held_out_residual, independent_columns, linear_columns,
+    run_contact_trial, ContactChoice, ContactScene, ContactSimulation, ContactTrial, LINEAR_STD,
+};
 pub use experiment::{
     run_trial, trial_seed, ArmErrors, BlunderReport, ErrorStats, RunSummary, Setup,
     SimulationOptions, TrialReport, TruthJointError,

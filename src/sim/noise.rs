@@ -42,10 +42,10 @@ impl NoiseModel {
     /// Parses `0`/`none`, `at901`, or `CONSTANT_UM+PER_METRE_UM` (e.g. `15+6`, micrometres).
     pub fn parse(text: &str) -> Result<Self> {
         let bad = || {
-            Error::InvalidData {
-            origin: "--noise".into(),
-            message: format!("'{text}' is not a noise model; use 0 (none), at901, or CONSTANT+PER_METRE in µm (e.g. 15+6)"),
-        }
+            Error::setting(
+                "noise",
+                format!("'{text}' is not a noise model; use 0 (none), at901, or CONSTANT+PER_METRE in µm (e.g. 15+6)"),
+            )
         };
         match text.trim() {
             "0" | "none" => Ok(Self::none()),

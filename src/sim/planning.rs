@@ -15,7 +15,7 @@ use super::collision::CollisionChecker;
 use super::detmax::{Design, MAX_ROWS};
 use super::noise::Targets;
 use super::sampling::{sample_configurations, SamplingOptions};
-use crate::calibration::plan::locked_arm_model;
+use crate::calibration::locked_arm_model;
 use crate::calibration::ParameterSet;
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
@@ -27,7 +27,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 
-pub use crate::calibration::identifiability::{criterion_value, Criterion};
+pub use crate::calibration::{criterion_value, Criterion};
 
 /// Which calibration stage the poses are planned for (as [`crate::calibration::ParameterSet`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -434,7 +434,7 @@ fn stage_model(
     candidates: &[Vec<f64>],
     options: &PlanningOptions,
 ) -> Result<(McpcModel, Vec<usize>, Vec<usize>)> {
-    let coupled_frames = crate::calibration::plan::coupled_frames(model, branches);
+    let coupled_frames = crate::calibration::coupled_frames(model, branches);
     // The model the stage identifies, and which of its tools each measurement uses.
     let tool_count = model.tools().len();
     Ok(match options.stage {
@@ -464,7 +464,7 @@ fn stage_model(
             } else {
                 ParameterSet::Arms
             };
-            let columns = crate::calibration::plan::stage_parameters(model, &coupled_frames, set);
+            let columns = crate::calibration::stage_parameters(model, &coupled_frames, set);
             let tools = (0..candidates.len()).flat_map(|_| 0..tool_count).collect();
             (model.clone(), tools, columns)
         }

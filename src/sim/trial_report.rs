@@ -1,7 +1,7 @@
 //! What one simulated calibration trial reports: errors per arm, blunders found, the stages'
 //! summary, the true joint errors.
 
-use crate::calibration::stiffness::ComplianceEstimate;
+use crate::calibration::ComplianceEstimate;
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;

@@ -256,10 +256,10 @@ fn choose_arms(
                 .map(|&i| format!("'{}'", tree.link(tip(i)).name))
                 .collect();
             Err(Error::Branches(if found.is_empty() {
-                "no chain of two or more movable joints ending in a leaf or a hand; name the tool links with --tools".into()
+                "no chain of two or more movable joints ending in a leaf or a hand; name the tool links with `tools`".into()
             } else {
                 format!(
-                    "no arm found: the chains ending at {} are named like legs, heads, fingers or wheels; name the tool links with --tools",
+                    "no arm found: the chains ending at {} are named like legs, heads, fingers or wheels; name the tool links with `tools`",
                     found.join(", ")
                 )
             }))

@@ -422,7 +422,7 @@ fn assign_sides(
         Ok(DecisionRule::GivenOrder)
     } else {
         Err(Error::Branches(format!(
-            "cannot tell left from right for tools '{}' and '{}' (neither names nor y decide); name them with --tools LEFT,RIGHT",
+            "cannot tell left from right for tools '{}' and '{}' (neither names nor y decide); name them with `tools` LEFT,RIGHT",
             tree.link(arms[0].tool.unwrap_or(arms[0].start)).name,
             tree.link(arms[1].tool.unwrap_or(arms[1].start)).name
         )))

@@ -364,7 +364,7 @@ fn on_axis_pose(
             return Err(Error::InvalidRobot {
                 origin: tree.name().to_owned(),
                 message: format!(
-                    "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {:.4} mm off the joint axis, which a URDF joint cannot express, and more than the calibration's uncertainty allows to drop ({:.4} mm); export with --add-tool-links (ExportOptions::add_tool_links) to add a fixed link '{}_calibrated' at the exact calibrated tool frame, or calibrate a tool link below a fixed joint (add a <link> and a fixed <joint> under '{}')",
+                    "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {:.4} mm off the joint axis, which a URDF joint cannot express, and more than the calibration's uncertainty allows to drop ({:.4} mm); export with `add_tool_links` to add a fixed link '{}_calibrated' at the exact calibrated tool frame, or calibrate a tool link below a fixed joint (add a <link> and a fixed <joint> under '{}')",
                     link.name,
                     joint.name,
                     off_axis * 1e3,

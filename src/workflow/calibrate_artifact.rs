@@ -14,7 +14,7 @@ use crate::io::{parse_registration, parse_stiffness};
 use crate::kinematics::{FlexibilityModel, McpcModel, Stiffness};
 use crate::math::{rpy_from_rotation, Pose};
 use crate::measurement::{Measurement, Observation};
-use crate::report::artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
+use crate::report::{ArtifactReport, ArtifactScore, UnobservableBase};
 use crate::tree::{detect_branches, KinematicTree};
 use crate::urdf::{export_urdf_with, parse_urdf, ExportOptions, ExportReport};
 
@@ -403,10 +403,8 @@ pub(super) fn assess(
         scored_links: exported_links(loaded, export),
     };
     // Rows of other sessions are placed in the training frame, as the run scored them.
-    let validation = &crate::calibration::sessions::validation_in_training_frames(
-        &data.validation,
-        run.sessions.as_ref(),
-    );
+    let validation =
+        &crate::calibration::validation_in_training_frames(&data.validation, run.sessions.as_ref());
     let gravity = config.gravity_frame;
     let alone_name = with_registration("calibrated.urdf");
     let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;
@@ -498,7 +496,7 @@ fn unobservable_finding(base: &UnobservableBase) -> Finding {
     Finding::note(
         "unobservable-base",
         format!(
-            "the measurement frame was fitted, so {} cannot be seen: calibrated.urdf's root is the fitted (tracker-side) frame, not the physical base; it lies {:.2} mm and {:.3}° from the registered nominal robot's root, which moves the tool positions in the URDF's own root frame by {:.2}–{:.2} mm over the measured configurations. Use calibrated.urdf with {REGISTRATION_FILE} (written beside it; --measurement-frame {REGISTRATION_FILE} reads it) to reproduce the validated figures, or measure in the robot's base frame",
+            "the measurement frame was fitted, so {} cannot be seen: calibrated.urdf's root is the fitted (tracker-side) frame, not the physical base; it lies {:.2} mm and {:.3}° from the registered nominal robot's root, which moves the tool positions in the URDF's own root frame by {:.2}–{:.2} mm over the measured configurations. Use calibrated.urdf with {REGISTRATION_FILE} (written beside it; `measurement_frame` {REGISTRATION_FILE} reads it) to reproduce the validated figures, or measure in the robot's base frame",
             base.transform,
             base.translation_mm,
             base.rotation_deg,
@@ -518,10 +516,10 @@ fn how_to_use(fitted: bool, compensation_file: Option<&str>, rigid_only: bool) -
     }
     match (compensation_file, rigid_only) {
         (Some(file), true) => text.push_str(&format!(
-            ". It holds the rigid-only geometry (for controllers that do not model deflections); {COMPENSATED_URDF} with {file} predicts the deflections under gravity (treecal's flexibility model: the URDF, --stiffness {file}) and is the better prediction"
+            ". It holds the rigid-only geometry (for controllers that do not model deflections); {COMPENSATED_URDF} with {file} predicts the deflections under gravity (treecal's flexibility model: the URDF, `stiffness` {file}) and is the better prediction"
         )),
         (Some(file), false) => text.push_str(&format!(
-            ". Its geometry assumes the deflections under gravity are predicted with {file} (treecal's flexibility model: the URDF, --stiffness {file}); used alone it gives the \"alone\" figure"
+            ". Its geometry assumes the deflections under gravity are predicted with {file} (treecal's flexibility model: the URDF, `stiffness` {file}); used alone it gives the \"alone\" figure"
         )),
         (None, _) => {}
     }

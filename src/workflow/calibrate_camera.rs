@@ -18,12 +18,12 @@ use crate::camera::{
     CameraSpec, Mount, Rig, TargetSpec, Unknown, INTRINSIC_NAMES,
 };
 use crate::error::{Error, Result};
-use crate::io::camera_yaml::{camera_file_yaml, read_camera_file, CameraFileContents};
-use crate::io::detections_csv::{parse_detections, read_detections};
+use crate::io::{camera_file_yaml, read_camera_file, CameraFileContents};
 use crate::io::{check_output_folder, replace_folder, AngleUnit, LengthUnit, StatedUnits};
+use crate::io::{parse_detections, read_detections};
 use crate::math::{rpy_from_rotation, Pose};
 use crate::measurement::Measurement;
-use crate::report::camera::{
+use crate::report::{
     camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,
     RobotParameter,
 };
@@ -157,8 +157,8 @@ struct Setup {
 /// Calibrates from the files of `config`; writes nothing.
 pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCalibration> {
     if !(config.pixel_sigma.is_finite() && config.pixel_sigma > 0.0 && config.pixel_sigma <= 1e3) {
-        return Err(Error::InvalidData {
-            origin: "--pixel-sigma".into(),
+        return Err(Error::InvalidSetting {
+            setting: "pixel_sigma".into(),
             message: format!(
                 "{} px: give the detector's noise, a positive number of pixels (0.1 to a few)",
                 config.pixel_sigma

@@ -4,7 +4,7 @@
 
 use crate::calibration::{Finding, Termination};
 use crate::camera::{predict_pixels, CameraFitReport, Intrinsics, RejectedPoint, Rig, View};
-use crate::report::camera::{HeldOut, PixelResiduals, TargetResiduals};
+use crate::report::{HeldOut, PixelResiduals, TargetResiduals};
 use crate::McpcModel;
 use std::path::Path;
 
@@ -106,7 +106,7 @@ pub(super) fn verdict_findings(
                 "σ̂ = {scale:.3e}: the pixel residuals ({rms}) are far beyond any detector noise; \
                  typical causes: a wrong camera link or a nominal camera pose far off (fix \
                  `pose` in the camera file), a board's corner order or size unlike the camera \
-                 file's, joint angles in degrees read as radians (--angle-unit), images matched \
+                 file's, joint angles in degrees read as radians (`angle_unit`), images matched \
                  to the wrong configurations"
             ),
         ));
@@ -115,7 +115,7 @@ pub(super) fn verdict_findings(
             "pixel-sigma-ratio",
             format!(
                 "σ̂ = {scale:.1}: the pixel residuals ({rms}) are {scale:.0}× the declared \
-                 --pixel-sigma {} px: the detector is noisier than declared (the standard \
+                 `pixel_sigma` {} px: the detector is noisier than declared (the standard \
                  deviations are scaled by σ̂), or the model misses something (flexibility, \
                  distortion: estimate the intrinsics with `estimate: [pose, intrinsics]`)",
                 pixel_sigma

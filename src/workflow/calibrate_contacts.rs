@@ -15,15 +15,15 @@
 use super::contact_fit::{fit_contacts, plane_start, ContactProblem};
 use super::note::Note;
 use super::source::{branches, RobotSource};
-use crate::calibration::observation::NuisanceBlock;
+use crate::calibration::NuisanceBlock;
 use crate::calibration::{IdentificationOptions, Nuisance};
 use crate::error::{Error, Result};
-use crate::io::contacts_csv::{read_contacts, ContactKind, ContactRow, ContactTable};
-use crate::io::contacts_yaml::{read_contact_setup, ContactSetup};
+use crate::io::{read_contact_setup, ContactSetup};
+use crate::io::{read_contacts, ContactKind, ContactRow, ContactTable};
 use crate::kinematics::McpcModel;
 use crate::math::Pose;
 use crate::measurement::{Contact, ContactFace, ContactPlane, Measurement, Observation};
-use crate::report::contacts::{contact_report, ContactScores};
+use crate::report::{contact_report, ContactScores};
 use crate::tree::KinematicTree;
 use crate::urdf::{export_urdf_with, ExportOptions};
 use std::collections::BTreeMap;
@@ -112,7 +112,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             (
                 train.into_iter().map(|(_, r)| r).collect(),
                 held.into_iter().map(|(_, r)| r).collect::<Vec<_>>(),
-                Some("no --validation file: every fifth row is held out"),
+                Some("no `validation` file: every fifth row is held out"),
             )
         }
     };

@@ -79,7 +79,7 @@ pub(super) fn deployable(
     let changed = changed_geometry(nominal, model);
     if changed > 0 {
         let why = format!(
-            "the calibration changes {changed} geometry parameter(s) of the joint frames, which joint zero offsets alone cannot carry; deploy calibrated.urdf or {OVERLAY_FILE} (calibrate with --model offsets for an offsets-only result)"
+            "the calibration changes {changed} geometry parameter(s) of the joint frames, which joint zero offsets alone cannot carry; deploy calibrated.urdf or {OVERLAY_FILE} (calibrate with `model` offsets for an offsets-only result)"
         );
         let _ = writeln!(markdown, "- no `{OFFSETS_FILE}`: {why}.");
     } else {

@@ -4,9 +4,9 @@
 use super::calibrate::CalibrateConfig;
 use super::calibrate_artifact::{assess, CompensationFile, COMPENSATED_URDF, REGISTRATION_FILE};
 use super::calibrate_steps::{Data, Identified, IdentifiedStiffness, Loaded};
-use crate::calibration::identifiability::NamedCombination;
-use crate::calibration::robust::{DataSet, OUTLIER_WEIGHT};
+use crate::calibration::NamedCombination;
 use crate::calibration::{CalibrationRun, ChosenFrame, Finding, Verdict};
+use crate::calibration::{DataSet, OUTLIER_WEIGHT};
 use crate::error::Result;
 use crate::io::{stiffness_to_yaml, to_yaml};
 use crate::report::{
@@ -77,7 +77,7 @@ fn context(
                     "; chosen by cross-validation"
                 }
             ),
-            (None, false) => "not compensated (no --stiffness)".into(),
+            (None, false) => "not compensated (no `stiffness`)".into(),
         },
         sigma: [config.position_sigma, config.rotation_sigma],
         // Why it was chosen is the verdict's measurement-frame reason.
@@ -129,7 +129,7 @@ fn summary(
     }
     run.findings
         .extend(down_weighted_finding(run, &data.ids[0]));
-    crate::calibration::columns::mark_consequences(&mut run.findings);
+    crate::calibration::mark_consequences(&mut run.findings);
     let changed: Vec<String> = export
         .iter()
         .flat_map(|e| e.changes.iter().map(|c| c.joint.clone()))
@@ -176,7 +176,7 @@ fn down_weighted_finding(run: &CalibrationRun, ids: &[String]) -> Option<Finding
     Some(Finding::warning(
         "down-weighted",
         format!(
-            "{} of {} identification rows were down-weighted by the robust {} loss and kept in the fit with less weight: {}{}; check them (a bumped target, a wrong row), every one is listed with its weight in report.md and report.json (`weight`); compare with --robust off or --robust cauchy",
+            "{} of {} identification rows were down-weighted by the robust {} loss and kept in the fit with less weight: {}{}; check them (a bumped target, a wrong row), every one is listed with its weight in report.md and report.json (`weight`); compare with `robust` off or `robust` cauchy",
             rows.len(),
             weights.len(),
             run.robust.loss,

@@ -30,11 +30,8 @@ use crate::urdf::{export_urdf_with, ExportOptions, ExportReport};
 /// Fraction of the configurations held out for validation without validation data.
 const HOLD_OUT: f64 = 0.2;
 
-fn invalid(origin: &str, message: String) -> Error {
-    Error::InvalidData {
-        origin: origin.into(),
-        message,
-    }
+fn invalid(setting: &str, message: String) -> Error {
+    Error::setting(setting, message)
 }
 
 /// The σ within their bounds (a tiny σ overflows the weighted cost, a huge one hides every
@@ -44,14 +41,14 @@ pub(super) fn check_config(config: &CalibrateConfig) -> Result<()> {
     let prior = config.stiffness_prior;
     if config.identify_stiffness && !(prior.is_finite() && prior > 0.0) {
         return Err(invalid(
-            "--stiffness-prior",
+            "stiffness_prior",
             format!("{prior} must be a positive number"),
         ));
     }
     let scale = config.prior_scale;
     if !(scale.is_finite() && scale > 0.0) {
         return Err(invalid(
-            "--prior-scale",
+            "prior_scale",
             format!("{scale} must be a positive number (1: the default σ)"),
         ));
     }
@@ -92,9 +89,9 @@ impl Loaded {
         let tree = robot.tree();
         if config.identify_stiffness && branches.reference != tree.root() {
             return Err(invalid(
-                "--identify-stiffness",
+                "identify_stiffness",
                 format!(
-                    "stiffness identification needs the URDF root '{}' as the reference link: the flexibility model's loads flow to the root, not into the sole '{}' the robot stands on, so compliances fitted from it would be wrong; calibrate from '{}' with a given --stiffness file (its deflections are then approximate, docs/mcpc.md \"Reference link\"), or identify the stiffness from data measured relative to the root",
+                    "stiffness identification needs the URDF root '{}' as the reference link: the flexibility model's loads flow to the root, not into the sole '{}' the robot stands on, so compliances fitted from it would be wrong; calibrate from '{}' with a given `stiffness` file (its deflections are then approximate, docs/mcpc.md \"Reference link\"), or identify the stiffness from data measured relative to the root",
                     tree.link(tree.root()).name,
                     tree.link(branches.reference).name,
                     tree.link(branches.reference).name,
@@ -162,7 +159,7 @@ pub(super) fn read_data(
     }
     let (kept, held) = hold_out_indices(&all, HOLD_OUT, config.seed)?;
     let validation_source = format!(
-        "{} of {} observations held out from the measurements (a fifth of the configurations, seed {}; give --validation to use your own)",
+        "{} of {} observations held out from the measurements (a fifth of the configurations, seed {}; give `validation` to use your own)",
         held.len(),
         all.len(),
         config.seed
@@ -234,7 +231,7 @@ pub(super) fn identify(
         if config.strict {
             return Err(invalid(&config.measurements.origin(), message));
         }
-        notes.push(Note::warning(message + " (with --strict this is an error)"));
+        notes.push(Note::warning(message + " (with `strict` this is an error)"));
     }
     let stiffness = Stiffnesses::new(config, loaded)?;
     let flexibility = stiffness.in_play.clone();
@@ -319,11 +316,11 @@ pub(super) fn identify(
             match config.model {
                 ModelChoice::Auto => cv.reason.clone(),
                 ModelChoice::Adaptive if adaptive => format!(
-                    "the geometry fit leaves residuals over {}× the declared noise (model error), so the model is chosen by cross-validation: {}; --model geometry keeps the full geometry",
-                    crate::calibration::checks::SIGMA_WARNING,
+                    "the geometry fit leaves residuals over {}× the declared noise (model error), so the model is chosen by cross-validation: {}; `model` geometry keeps the full geometry",
+                    crate::calibration::SIGMA_WARNING,
                     cv.reason
                 ),
-                _ => "as asked; --model auto would choose by the cross-validation in report.md".into(),
+                _ => "as asked; `model` auto would choose by the cross-validation in report.md".into(),
             }
         ))
     }));
@@ -368,7 +365,7 @@ pub(super) fn identify(
                     model: run.report.model.clone(),
                     // Every session's rows in the first session's frame, by the frames the
                     // run fitted.
-                    measurements: crate::calibration::sessions::validation_in_training_frames(
+                    measurements: crate::calibration::validation_in_training_frames(
                         &data.measurements,
                         run.sessions.as_ref(),
                     ),
@@ -378,7 +375,7 @@ pub(super) fn identify(
             let report = sequence.stiffness;
             let mut run = sequence.again;
             run.findings
-                .extend(crate::calibration::checks::stiffness_below_zero(&report));
+                .extend(crate::calibration::stiffness_below_zero(&report));
             let file = identified_stiffness(stiffness, tree, &loaded.nominal, &report.estimates);
             identified = Some((StiffnessSummary::new(&report, config.stiffness_prior), file));
             final_flexibility = Some(report.flexibility);
@@ -494,7 +491,7 @@ fn choose_model(
         (Some(level), None) => return Ok((asked(level), None)),
     };
     if folds < 2 {
-        return Err(invalid("--cv", format!("{folds} folds: give at least 2")));
+        return Err(invalid("cv", format!("{folds} folds: give at least 2")));
     }
     let tree = loaded.robot.tree();
     let input = CrossValidationInput {

@@ -4,14 +4,14 @@
 //! ([`crate::camera::calibrate_camera`]). See `docs/camera.md` section 6.
 
 use super::calibrate::MeasurementFrameChoice;
-use crate::calibration::initial_guess::fit_rigid_transform;
+use crate::calibration::fit_rigid_transform;
 use crate::camera::Rig;
 use crate::error::{Error, Result};
 use crate::io::{read_measurements, MeasurementReadOptions, MeasurementSet};
 use crate::io::{AngleUnit, LengthUnit};
 use crate::math::{rpy_from_rotation, Vec3};
 use crate::measurement::{Measurement, Observation};
-use crate::report::camera::TrackerRegistration;
+use crate::report::TrackerRegistration;
 use crate::tree::KinematicTree;
 use crate::McpcModel;
 use std::path::PathBuf;
@@ -39,23 +39,21 @@ impl CameraTrackerInput {
     /// Checks the σ and the frame choice before anything is read.
     pub(super) fn validate(&self) -> Result<()> {
         for (flag, value) in [
-            ("--position-sigma", self.position_sigma),
-            ("--rotation-sigma", self.rotation_sigma),
+            ("position_sigma", self.position_sigma),
+            ("rotation_sigma", self.rotation_sigma),
         ] {
             if !(value.is_finite() && value > 0.0) {
-                return Err(Error::InvalidData {
-                    origin: flag.into(),
-                    message: format!(
-                        "{value}: give the tracker's noise, a positive number (m, rad)"
-                    ),
-                });
+                return Err(Error::setting(
+                    flag,
+                    format!("{value}: give the tracker's noise, a positive number (m, rad)"),
+                ));
             }
         }
         if let MeasurementFrameChoice::File(path) = &self.frame {
-            return Err(Error::InvalidData {
-                origin: "--measurement-frame".into(),
+            return Err(Error::InvalidSetting {
+                setting: "measurement_frame".into(),
                 message: format!(
-                    "{}: a registration file is not read with --camera; use `fit` (the \
+                    "{}: a registration file is not read with `camera`; use `fit` (the \
                      tracker's frame is fitted with the rest) or `base` (the rows are in the \
                      robot's root frame)",
                     path.display()
@@ -90,7 +88,7 @@ impl CameraTrackerInput {
         {
             return Err(Error::InvalidData {
                 origin: format!("{}:{line}", self.measurements.display()),
-                message: "a contact row is not a tracker row; give contacts with --contacts".into(),
+                message: "a contact row is not a tracker row; give contacts with `contacts`".into(),
             });
         }
         Ok(set)
@@ -131,7 +129,7 @@ pub(super) fn registered(
             origin: input.measurements.display().to_string(),
             message: "the tracker rows do not fix the tracker's frame (fewer than three \
                       positions, or all on a line); measure more configurations, or give \
-                      --measurement-frame base when the rows are in the robot's root frame"
+                      `measurement_frame` base when the rows are in the robot's root frame"
                 .into(),
         });
     };

@@ -92,7 +92,7 @@ impl Default for CheckConfig {
             plan: PlanSource::Auto,
             position_sigma: DEFAULT_POSITION_SIGMA,
             rotation_sigma: DEFAULT_ROTATION_SIGMA,
-            condition_limit: crate::calibration::identifiability::DEFAULT_CONDITION_LIMIT,
+            condition_limit: crate::calibration::DEFAULT_CONDITION_LIMIT,
             seed: 0,
             identify_stiffness: false,
             stiffness: None,
@@ -142,11 +142,8 @@ struct Rows {
     observation: ObservationKind,
 }
 
-fn invalid(flag: &str, message: String) -> Error {
-    Error::InvalidData {
-        origin: flag.into(),
-        message,
-    }
+fn invalid(setting: &str, message: String) -> Error {
+    Error::setting(setting, message)
 }
 
 /// Analyses the pose set; writes nothing.
@@ -174,7 +171,7 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
     let model = McpcModel::from_tree(tree, &branches)?;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
-    notes.extend(crate::calibration::gauge::gauge_summary(&model, tree).map(Note::info));
+    notes.extend(crate::calibration::gauge_summary(&model, tree).map(Note::info));
     let requested = requested_plan(&config.plan)?;
     let rows = rows(
         config,
@@ -206,7 +203,7 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
             StageCheck::skipped(
                 &stage.name,
                 format!(
-                    "no rows labelled {label} (add a `stage` column, or use --plan simultaneous)"
+                    "no rows labelled {label} (add a `stage` column, or use `plan` simultaneous)"
                 ),
             )
         } else {
@@ -293,17 +290,17 @@ fn validate(config: &CheckConfig) -> Result<()> {
     sigmas(config.position_sigma, config.rotation_sigma)?;
     if !(config.condition_limit.is_finite() && config.condition_limit >= 1.0) {
         let message = format!("{} must be a number of at least 1", config.condition_limit);
-        return Err(invalid("--condition-limit", message));
+        return Err(invalid("condition_limit", message));
     }
     if !matches!(config.targets, 1 | 3) {
         return Err(invalid(
-            "--targets",
+            "targets",
             "2 targets give neither a full pose nor a single position; use 3 (a pose) or 1 (a position)".into(),
         ));
     }
     if config.pose_file.is_some() && config.measurements.is_some() {
         let message = "give a pose file or a measurement file, not both".into();
-        return Err(invalid("--pose-file", message));
+        return Err(invalid("pose_file", message));
     }
     Ok(())
 }
@@ -375,7 +372,7 @@ fn rows(
     });
     let (rows, source) = default_rows(config.seed, tree, branches, model, torso)?;
     notes.push(Note::info(format!(
-        "no --pose-file given; analysing the {source}"
+        "no `pose_file` given; analysing the {source}"
     )));
     Ok(Rows {
         rows,
@@ -495,11 +492,11 @@ fn default_rows(
     rows.extend(every_tool(set.arms, "arms"));
     let source = if torso {
         format!(
-            "default random collision-free set (seed {seed}): {DEFAULT_TORSO} torso configurations at {DEFAULT_LOCKS} locked arm configurations, {DEFAULT_ARMS} arm configurations; give your own with --pose-file"
+            "default random collision-free set (seed {seed}): {DEFAULT_TORSO} torso configurations at {DEFAULT_LOCKS} locked arm configurations, {DEFAULT_ARMS} arm configurations; give your own with `pose_file`"
         )
     } else {
         format!(
-            "default random collision-free set (seed {seed}): {DEFAULT_ARMS} configurations; give your own with --pose-file"
+            "default random collision-free set (seed {seed}): {DEFAULT_ARMS} configurations; give your own with `pose_file`"
         )
     };
     Ok((rows, source))
@@ -515,7 +512,7 @@ fn compliance_check(
 ) -> Result<ComplianceIdentifiability> {
     if !(config.stiffness_prior.is_finite() && config.stiffness_prior > 0.0) {
         let message = format!("{} must be a positive number", config.stiffness_prior);
-        return Err(invalid("--stiffness-prior", message));
+        return Err(invalid("stiffness_prior", message));
     }
     let stiffness = match (&config.stiffness, &config.robot) {
         (Some(source), _) => source.read(tree, model)?,

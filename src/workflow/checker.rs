@@ -29,7 +29,7 @@ pub fn collision_checker(
     let mut checker = match check {
         CollisionCheck::Off => {
             notes.push(Note::warning(
-                "--collision-check off: configurations are not checked for self-collision",
+                "`collision_check` off: configurations are not checked for self-collision",
             ));
             return Ok(CollisionChecker::disabled(tree));
         }
@@ -37,7 +37,7 @@ pub fn collision_checker(
             let checker = CollisionChecker::with_options(tree, &CollisionOptions::default())?;
             if checker.skipped_meshes() > 0 {
                 notes.push(Note::warning(format!(
-                    "--collision-check primitives-only: {} collision meshes are not checked, \
+                    "`collision_check` primitives-only: {} collision meshes are not checked, \
                      only the primitive shapes",
                     checker.skipped_meshes()
                 )));
@@ -63,9 +63,9 @@ pub fn collision_checker(
                         .map_or_else(|| tree.name().to_owned(), |p| p.display().to_string()),
                     message: format!(
                         "{line}. Configurations would not be checked for self-collision against \
-                         these links: make the meshes available (--package-path DIR names a \
+                         these links: make the meshes available (`package_path` DIR names a \
                          folder holding their package), or choose a weaker check explicitly \
-                         with --collision-check primitives-only or --collision-check off \
+                         with `collision_check` primitives-only or `collision_check` off \
                          (stated in the output)"
                     ),
                 });
@@ -157,7 +157,7 @@ fn skipped_meshes(checker: &CollisionChecker) -> Option<String> {
     let mut parts = Vec::new();
     if !missing.is_empty() {
         parts.push(format!(
-            "{} files not found (package:// names are searched in --package-path, then ROS_PACKAGE_PATH): {}",
+            "{} files not found (package:// names are searched in `package_path`, then ROS_PACKAGE_PATH): {}",
             missing.len(),
             missing.join(", ")
         ));

@@ -1,27 +1,27 @@
 //! Checks shared by the workflows: counts and ranges of settings (bounds from
-//! [`crate::limits`], named by their command-line flags), and outputs that cannot be written or
+//! [`crate::limits`], named by their settings), and outputs that cannot be written or
 //! would overwrite an input.
 
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 
-/// `value` of `flag` as a count from 1 to `max`.
-pub fn count(flag: &str, value: usize, max: usize) -> Result<usize> {
+/// `value` of `setting` as a count from 1 to `max`.
+pub fn count(setting: &str, value: usize, max: usize) -> Result<usize> {
     if value == 0 {
-        return Err(Error::InvalidData {
-            origin: flag.into(),
-            message: "must be at least 1".into(),
-        });
+        return Err(Error::setting(setting, "must be at least 1"));
     }
-    crate::limits::check_count(value, max, flag, "(the value)")
+    crate::limits::check_count(value, max, setting, "(the value)").map_err(|error| match error {
+        Error::InvalidData { message, .. } => Error::setting(setting, message),
+        other => other,
+    })
 }
 
-/// `--position-sigma` (m) and `--rotation-sigma` (rad) within their bounds: a tiny sigma
+/// `position_sigma` (m) and `rotation_sigma` (rad) within their bounds: a tiny sigma
 /// overflows the weighted cost, a huge one hides every residual.
 pub fn sigmas(position: f64, rotation: f64) -> Result<()> {
     use crate::limits::{check_range, POSITION_SIGMA, ROTATION_SIGMA};
-    check_range(position, POSITION_SIGMA, "--position-sigma", "m")?;
-    check_range(rotation, ROTATION_SIGMA, "--rotation-sigma", "rad")?;
+    check_range(position, POSITION_SIGMA, "position_sigma", "m")?;
+    check_range(rotation, ROTATION_SIGMA, "rotation_sigma", "rad")?;
     Ok(())
 }
 

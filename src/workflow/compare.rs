@@ -10,7 +10,7 @@ use crate::calibration::fit_rigid_transform;
 use crate::error::{Error, Result};
 use crate::io::read_registration;
 use crate::math::{Pose, Vec3};
-use crate::report::compare::{
+use crate::report::{
     CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures,
 };
 use crate::tree::KinematicTree;
@@ -289,8 +289,8 @@ fn displacement(a: &Folder, b: &Folder) -> Result<Option<Displacement>> {
 pub fn compare(config: &CompareConfig) -> Result<Comparison> {
     let started = Started::now();
     if !(config.k.is_finite() && config.k > 0.0) {
-        return Err(Error::InvalidData {
-            origin: "--k".into(),
+        return Err(Error::InvalidSetting {
+            setting: "k".into(),
             message: format!(
                 "{} must be a positive number of standard deviations",
                 config.k
@@ -312,7 +312,7 @@ pub fn compare(config: &CompareConfig) -> Result<Comparison> {
     }
     let (moved, judged) = moved(&a.parameters, &b.parameters, config.k);
     let mut report = CompareReport {
-        schema_version: crate::report::compare::COMPARE_SCHEMA,
+        schema_version: crate::report::COMPARE_SCHEMA,
         robot: a.tree.name().to_owned(),
         k: config.k,
         parameters_judged: judged,
@@ -342,7 +342,7 @@ pub fn compare(config: &CompareConfig) -> Result<Comparison> {
     let plots: Vec<&str> = plot.iter().map(String::as_str).collect();
     files.push((
         "report.html".to_owned(),
-        crate::report::html_page::markdown_page("treecal compare", &markdown, &plots).into_bytes(),
+        crate::report::markdown_page("treecal compare", &markdown, &plots).into_bytes(),
     ));
     if let Some(svg) = plot {
         files.push(("displacement.svg".to_owned(), svg.into_bytes()));

@@ -1,17 +1,17 @@
 //! The contact calibration's problem and its two fits (`calibrate --contacts`, issue 29):
 //! what [`super::calibrate_contacts`] builds and fits and `report::contacts` renders.
 
-use crate::calibration::observation::{contact_violation, Tools};
+use crate::calibration::{contact_violation, Tools};
 use crate::calibration::{
     identify_with_nuisance, IdentificationOptions, IdentificationReport, Nuisance, Rigid,
     RobotState,
 };
 use crate::error::Result;
-use crate::io::contacts_csv::ContactKind;
+use crate::io::ContactKind;
 use crate::kinematics::McpcModel;
 use crate::math::{Pose, Vec3};
 use crate::measurement::{Contact, Measurement, Observation};
-use crate::sim::contacts::contact_free_parameters;
+use crate::sim::contact_free_parameters;
 use nalgebra::{Matrix3, UnitQuaternion};
 use std::collections::BTreeMap;
 

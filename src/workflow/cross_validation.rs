@@ -7,7 +7,7 @@
 use super::model_choice::{
     grouped_folds, position_errors, prepare, run_model, ModelLevel, ModelSpec, ParameterPatterns,
 };
-use crate::calibration::sessions::validation_in_training_frames;
+use crate::calibration::validation_in_training_frames;
 use crate::calibration::{
     calibrate_with_stiffness, CalibrationInput, CalibrationRun, Fitted, StiffnessOptions,
 };

@@ -2,16 +2,16 @@
 //! `--free`, `--prior`, `--joint-errors`), and the cross-validation that compares model
 //! levels (`--cv K`) and lets `--model auto` choose. See `docs/identification.md`.
 
-use crate::calibration::checks::{SIGMA_FAILED, SIGMA_WARNING};
-use crate::calibration::noise_components::{
+use crate::calibration::validation_in_training_frames;
+use crate::calibration::{
     balanced_rotation_sigma, variance_components, NoiseComponent, MAX_NOISE_ROUNDS,
     NOISE_RATIO_TOLERANCE,
 };
-use crate::calibration::sessions::validation_in_training_frames;
 use crate::calibration::{
     run_calibration, CalibrationInput, CalibrationRun, Deflected, IdentificationOptions, Prior,
     Rigid, RowKind,
 };
+use crate::calibration::{SIGMA_FAILED, SIGMA_WARNING};
 use crate::error::{Error, Result};
 use crate::kinematics::{GravitySigns, JointErrorTerms, McpcModel, ParameterOwner};
 use crate::measurement::{Measurement, Observation};
@@ -189,10 +189,10 @@ pub fn prepare(
         .collect();
     for pattern in patterns.freeze.iter().chain(&patterns.free) {
         if !names.iter().any(|n| glob_match(pattern, n)) {
-            return Err(Error::InvalidData {
-                origin: "--freeze/--free".into(),
+            return Err(Error::InvalidSetting {
+                setting: "freeze".into(),
                 message: format!(
-                    "'{pattern}' matches no parameter; names are like '{}' (see params.yaml)",
+                    "'{pattern}' (in `freeze` or `free`) matches no parameter; names are like '{}' (see params.yaml)",
                     names.first().cloned().unwrap_or_default()
                 ),
             });

@@ -400,12 +400,12 @@ fn clock_offset(
         ClockVerdict::Refused(why) => Err(Error::InvalidData {
             origin: format!("{} and {}", config.joints.display(), config.tracker.display()),
             message: format!(
-                "{why}; give the offset with --clock-offset SECONDS (joint-log time = tracker time + offset)"
+                "{why}; give the offset with `clock_offset` SECONDS (joint-log time = tracker time + offset)"
             ),
         }),
         ClockVerdict::Doubtful(why) => {
             notes.push(Note::warning(format!(
-                "clock offset {:+.4} s has low confidence: {why}; check the pairing report, or give it with --clock-offset",
+                "clock offset {:+.4} s has low confidence: {why}; check the pairing report, or give it with `clock_offset`",
                 estimate.offset
             )));
             Ok((estimate.offset, Some(estimate)))

@@ -8,7 +8,7 @@ use super::checker::{collision_checker, collision_statement};
 use super::checks::{check_outputs, count, sigmas, Output};
 use super::source::{NominalRobot, RobotSource};
 use super::{no_progress, Note, Progress, ProgressFn};
-use crate::calibration::identifiability::DEFAULT_CONDITION_LIMIT;
+use crate::calibration::DEFAULT_CONDITION_LIMIT;
 use crate::calibration::{
     Criterion, IdentifiabilityReport, ObservationKind, ParameterSet, PoseRow,
     DEFAULT_POSITION_SIGMA, DEFAULT_ROTATION_SIGMA,
@@ -166,7 +166,7 @@ pub fn plan_with_progress(config: &PlanConfig, progress: ProgressFn<'_>) -> Resu
     let tree = &import.tree;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
-    notes.extend(crate::calibration::gauge::gauge_summary(&model, tree).map(Note::info));
+    notes.extend(crate::calibration::gauge_summary(&model, tree).map(Note::info));
     let checker = collision_checker(
         &config.robot,
         tree,
@@ -391,36 +391,35 @@ fn with_noise(
         options.position_sigma = sigma;
         options.rotation_sigma = std::f64::consts::SQRT_2 * sigma / TARGET_SPACING;
         notes.push(Note::info(format!(
-            "rows weighted by the {text} noise: --position-sigma {:e} --rotation-sigma {:e} (give check the same to see the same O1)",
+            "rows weighted by the {text} noise: `position_sigma` {:e} `rotation_sigma` {:e} (give check the same to see the same O1)",
             options.position_sigma, options.rotation_sigma
         )));
     }
     Ok(options)
 }
 
-fn invalid(flag: &str, message: String) -> Error {
-    Error::InvalidData {
-        origin: flag.into(),
-        message,
-    }
+fn invalid(setting: &str, message: String) -> Error {
+    Error::setting(setting, message)
 }
 
 /// The settings' ranges; the workspace box as two corners.
 fn validate(config: &PlanConfig) -> Result<Option<(Vec3, Vec3)>> {
-    count("--poses", config.poses, limits::MAX_POSES)?;
-    count("--candidates", config.candidates, limits::MAX_CANDIDATES)?;
+    count("poses", config.poses, limits::MAX_POSES)?;
+    count("candidates", config.candidates, limits::MAX_CANDIDATES)?;
     if config.torso_poses > limits::MAX_POSES {
-        count("--torso-poses", config.torso_poses, limits::MAX_POSES)?;
+        count("torso_poses", config.torso_poses, limits::MAX_POSES)?;
     }
     sigmas(config.position_sigma, config.rotation_sigma)?;
     if !matches!(config.targets, 1 | 3) {
         return Err(invalid(
-            "--targets",
+            "targets",
             "use 1 (a position) or 3 (a frame)".into(),
         ));
     }
     for value in config.workspace.iter().flatten() {
-        limits::check(*value, limits::Quantity::Length, || "--workspace".into())?;
+        if let Some(problem) = limits::magnitude_problem(*value, limits::Quantity::Length) {
+            return Err(invalid("workspace", problem));
+        }
     }
     match config.workspace.as_deref() {
         None => Ok(None),
@@ -428,7 +427,7 @@ fn validate(config: &PlanConfig) -> Result<Option<(Vec3, Vec3)>> {
             Ok(Some((Vec3::new(*x0, *y0, *z0), Vec3::new(*x1, *y1, *z1))))
         }
         Some(values) => Err(invalid(
-            "--workspace",
+            "workspace",
             format!(
                 "give six numbers xmin,ymin,zmin,xmax,ymax,zmax (metres, base frame), not {}",
                 values.len()

@@ -9,15 +9,15 @@ use super::checks::{check_outputs, Output};
 use super::simulate_camera::with_camera_links;
 use super::source::{branches, RobotSource};
 use super::{Note, Progress, ProgressFn};
-use crate::calibration::identifiability::Criterion;
+use crate::calibration::Criterion;
 use crate::camera::Rig;
 use crate::camera::View;
 use crate::error::{Error, Result};
-use crate::io::camera_yaml::read_camera_file;
+use crate::io::read_camera_file;
 use crate::io::write_atomically;
-use crate::sim::camera_planning::{plan_camera_poses, CameraPlanReport, CameraPlanningOptions};
-use crate::sim::camera_visibility::{Sight, VisibilityRules};
 use crate::sim::CollisionCheck;
+use crate::sim::{plan_camera_poses, CameraPlanReport, CameraPlanningOptions};
+use crate::sim::{Sight, VisibilityRules};
 use crate::tree::KinematicTree;
 use crate::McpcModel;
 use std::fmt::Write;
@@ -89,8 +89,8 @@ pub fn check_camera_plan_output(config: &CameraPlanConfig, out: &Path) -> Result
 pub fn plan_camera(config: &CameraPlanConfig, progress: ProgressFn<'_>) -> Result<CameraPosePlan> {
     let angle = config.max_view_angle;
     if !(angle > 0.0 && angle < std::f64::consts::FRAC_PI_2) {
-        return Err(Error::InvalidData {
-            origin: "--max-view-angle".into(),
+        return Err(Error::InvalidSetting {
+            setting: "max_view_angle".into(),
             message: format!("{angle} rad: give an angle between 0 and 90° (in degrees)"),
         });
     }

@@ -3,7 +3,7 @@
 //! calibrated ranges, with the same code ([`ChainPostures::stratum`]), months later.
 
 use super::report_json::{ReportParts, ToolPostures};
-use crate::calibration::validation::{chain_postures, ChainPostures};
+use crate::calibration::{chain_postures, ChainPostures};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;

@@ -13,8 +13,8 @@ use crate::io::{
 };
 use crate::kinematics::{FlexibilityModel, Stiffness};
 use crate::limits;
-use crate::report::plot::arm_error_plots;
-use crate::report::simulate::simulation_markdown;
+use crate::report::arm_error_plots;
+use crate::report::simulation_markdown;
 use crate::sim::CollisionCheck;
 use crate::sim::ErrorRanges;
 use crate::sim::PlanningOptions;
@@ -135,7 +135,7 @@ pub struct SimulateConfig {
     pub estimate_intrinsics: bool,
     /// Contacts to simulate instead of `observation` (issue 29; `docs/contacts.md`): each kind
     /// with `poses + torso_poses` configurations; empty: none.
-    pub contacts: Vec<crate::sim::contacts::ContactChoice>,
+    pub contacts: Vec<crate::sim::ContactChoice>,
     /// σ of the encoder noise on the recorded configurations of a contact simulation (rad).
     pub encoder_noise: f64,
     /// Flush contacts: tables (sessions, one plane each) and tools pressing on each (1 or 2).
@@ -205,7 +205,7 @@ pub struct Simulation {
     pub measurements_csv: Option<String>,
     /// Every trial of a camera simulation (empty for the tracker experiment, whose trials are
     /// `reports`).
-    pub camera_reports: Vec<crate::sim::camera::CameraTrialReport>,
+    pub camera_reports: Vec<crate::sim::CameraTrialReport>,
 }
 
 impl Simulation {
@@ -215,7 +215,7 @@ impl Simulation {
         notes: Vec<Note>,
         results: serde_json::Value,
         markdown: String,
-        camera_reports: Vec<crate::sim::camera::CameraTrialReport>,
+        camera_reports: Vec<crate::sim::CameraTrialReport>,
     ) -> Result<Self> {
         let files = vec![
             ("summary.md".to_owned(), markdown.clone().into_bytes()),
@@ -250,7 +250,7 @@ pub fn simulate_with_progress(
     let started = super::provenance::Started::now();
     validate(config)?;
     if !config.contacts.is_empty() {
-        crate::limits::check_range(config.encoder_noise, (0.0, 0.1), "--encoder-noise", "rad")?;
+        crate::limits::check_range(config.encoder_noise, (0.0, 0.1), "encoder_noise", "rad")?;
         return super::simulate_contacts::simulate_contacts(config, progress);
     }
     if config.observation != ObservationChoice::Tracker {
@@ -270,7 +270,7 @@ pub fn simulate_with_progress(
     let tree = &import.tree;
     notes.extend(branches.roles_summary(tree).map(Note::info));
     notes.extend(branches.reference_summary(tree).map(Note::info));
-    notes.extend(crate::calibration::gauge::gauge_summary(&nominal, tree).map(Note::info));
+    notes.extend(crate::calibration::gauge_summary(&nominal, tree).map(Note::info));
     let stiffness = stiffness(config, tree, &nominal)?;
     let truth_flexibility = FlexibilityModel::new(tree, &nominal, &stiffness)?;
     let model_flexibility = truth_flexibility.scaled(1.0 / config.model_stiffness_scale)?;
@@ -395,99 +395,96 @@ pub fn check_outputs(
     check_paths(&outputs, &inputs)
 }
 
-fn invalid(flag: &str, message: String) -> Error {
-    Error::InvalidData {
-        origin: flag.into(),
-        message,
-    }
+fn invalid(setting: &str, message: String) -> Error {
+    Error::setting(setting, message)
 }
 
 /// The settings' ranges and counts ([`crate::limits`]), named by their flags.
 fn validate(config: &SimulateConfig) -> Result<()> {
     for (value, flag) in [
-        (config.truth_harmonics, "--truth-harmonics"),
-        (config.truth_backlash, "--truth-backlash"),
+        (config.truth_harmonics, "truth_harmonics"),
+        (config.truth_backlash, "truth_backlash"),
     ] {
         limits::check_range(value, (0.0, 0.5), flag, "rad")?;
     }
     limits::check_range(
         config.angle_error,
         (0.0, std::f64::consts::PI),
-        "--angle-error",
+        "angle_error",
         "rad",
     )?;
     limits::check_range(
         config.length_error,
         (0.0, limits::MAX_LENGTH),
-        "--length-error",
+        "length_error",
         "m",
     )?;
     let scale = (1.0 / limits::MAX_FACTOR, limits::MAX_FACTOR);
     limits::check_range(
         config.model_stiffness_scale,
         scale,
-        "--model-stiffness-scale",
+        "model_stiffness_scale",
         "",
     )?;
     for (flag, value) in [
-        ("--poses", config.poses),
-        ("--validation-poses", config.validation_poses),
-        ("--trials", config.trials),
+        ("poses", config.poses),
+        ("validation_poses", config.validation_poses),
+        ("trials", config.trials),
     ] {
         count(flag, value, limits::MAX_POSES)?;
     }
     if config.torso_poses > limits::MAX_POSES {
-        count("--torso-poses", config.torso_poses, limits::MAX_POSES)?;
+        count("torso_poses", config.torso_poses, limits::MAX_POSES)?;
     }
     if !(config.outliers.is_finite() && (0.0..=1.0).contains(&config.outliers)) {
         let message = format!("{} is not a fraction between 0 and 1", config.outliers);
-        return Err(invalid("--outliers", message));
+        return Err(invalid("outliers", message));
     }
     if !(config.outlier_size_mm.is_finite() && config.outlier_size_mm > 0.0) {
         let message = format!("{} mm must be positive", config.outlier_size_mm);
-        return Err(invalid("--outlier-size", message));
+        return Err(invalid("outlier_size", message));
     }
     if !matches!(config.targets, 1 | 3) {
         return Err(invalid(
-            "--targets",
+            "targets",
             "use 1 (a position) or 3 (a frame)".into(),
         ));
     }
     if config.measurement_format == Some(MeasurementFormat::Tracker) && config.targets != 3 {
-        let message = "tracker writes three targets per tool; use it with --targets 3".into();
-        return Err(invalid("--measurement-format", message));
+        let message = "tracker writes three targets per tool; use it with `targets` 3".into();
+        return Err(invalid("measurement_format", message));
     }
     if config.poses_from == PosesFrom::Planned {
         validate_candidates(config)?;
     }
     if config.observation != ObservationChoice::Tracker {
-        limits::check_range(config.pixel_sigma, (0.0, 1e3), "--pixel-sigma", "px")?;
+        limits::check_range(config.pixel_sigma, (0.0, 1e3), "pixel_sigma", "px")?;
         if config.poses + config.torso_poses == 0 {
             return Err(invalid(
-                "--poses",
-                "a camera simulation needs at least one configuration (--poses + --torso-poses)"
+                "poses",
+                "a camera simulation needs at least one configuration (`poses` + `torso_poses`)"
                     .into(),
             ));
         }
         for (flag, set) in [
-            ("--measurement-format", config.measurement_format.is_some()),
-            ("--identify-stiffness", config.identify_stiffness),
-            ("--poses-from", config.poses_from == PosesFrom::Planned),
-            ("--outliers", config.outliers > 0.0),
+            ("measurement_format", config.measurement_format.is_some()),
+            ("identify_stiffness", config.identify_stiffness),
+            ("poses_from", config.poses_from == PosesFrom::Planned),
+            ("outliers", config.outliers > 0.0),
         ] {
             if set {
                 return Err(invalid(
                     flag,
                     "is not available with camera observations (rigid robot, random visible \
-                     configurations); use --observation tracker"
+                     configurations); use `observation` tracker"
                         .into(),
                 ));
             }
         }
     } else if config.camera_link.is_some() || !config.world_board || config.estimate_intrinsics {
         return Err(invalid(
-            "--observation",
-            "--camera-link, --no-world-board and --estimate-intrinsics need --observation camera or mixed".into(),
+            "observation",
+            "`camera_link`, `no_world_board` and `estimate_intrinsics` need `observation` camera or mixed".into(),
         ));
     }
     Ok(())
@@ -496,16 +493,16 @@ fn validate(config: &SimulateConfig) -> Result<()> {
 /// Each planned set is chosen from `candidates` configurations: no fewer than it has poses
 /// (the count used is the count said).
 fn validate_candidates(config: &SimulateConfig) -> Result<()> {
-    count("--candidates", config.candidates, limits::MAX_CANDIDATES)?;
+    count("candidates", config.candidates, limits::MAX_CANDIDATES)?;
     let largest = config.poses.max(config.torso_poses);
     if config.candidates < largest {
         let flag = if config.poses >= config.torso_poses {
-            "--poses"
+            "`poses`"
         } else {
-            "--torso-poses"
+            "`torso_poses`"
         };
         return Err(invalid(
-            "--candidates",
+            "candidates",
             format!(
                 "{} candidates cannot give {flag} {largest}; ask for at least as many candidates as poses",
                 config.candidates
@@ -527,15 +524,15 @@ fn stiffness(
         (None, RobotSource::BuiltIn) => StiffnessSource::BuiltIn.read(tree, nominal)?,
         (None, _) => {
             let message =
-                "a robot given with --robot needs its stiffness file (see docs/flexibility.md)";
-            return Err(invalid("--stiffness", message.into()));
+                "a robot given with `robot` needs its stiffness file (see docs/flexibility.md)";
+            return Err(invalid("stiffness", message.into()));
         }
     };
     for &mass in &config.payloads {
-        limits::check_range(mass, (0.0, limits::MAX_MASS), "--payloads", "kg")?;
+        limits::check_range(mass, (0.0, limits::MAX_MASS), "payloads", "kg")?;
     }
     if let Some(mass) = config.payload {
-        limits::check_range(mass, (0.0, limits::MAX_MASS), "--payload", "kg")?;
+        limits::check_range(mass, (0.0, limits::MAX_MASS), "payload", "kg")?;
         for payload in &mut stiffness.payloads {
             payload.mass = mass;
         }
@@ -543,7 +540,7 @@ fn stiffness(
     if let Some(k) = config.joint_stiffness {
         if !(k.is_finite() && k >= limits::MIN_STIFFNESS) {
             return Err(invalid(
-                "--joint-stiffness",
+                "joint_stiffness",
                 format!(
                     "{k} N·m/rad must be a number of at least {:e} (docs/file-formats.md, \"Limits\")",
                     limits::MIN_STIFFNESS

@@ -6,13 +6,13 @@ use super::simulate::{ObservationChoice, SimulateConfig, Simulation};
 use super::source::branches;
 use super::{Note, Progress, ProgressFn};
 use crate::camera::{CameraSpec, Rig, TargetShape, TargetSpec};
-use crate::sim::camera::{
+use crate::sim::ErrorRanges;
+use crate::sim::NoiseModel;
+use crate::sim::{
     board_size, camera_trial_data, held_out_views, run_camera_trial, CameraSetup,
     CameraSimulationOptions, CameraTrialReport, ObservationMode,
 };
-use crate::sim::camera_setup::{camera_specs, CameraRigOptions};
-use crate::sim::ErrorRanges;
-use crate::sim::NoiseModel;
+use crate::sim::{camera_specs, CameraRigOptions};
 use crate::{McpcModel, Result};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -178,8 +178,8 @@ fn lab_files(
     mode: ObservationMode,
     lab: &LabFiles<'_>,
 ) -> Result<Vec<(String, Vec<u8>)>> {
-    use crate::io::camera_yaml::camera_file_yaml;
-    use crate::io::detections_csv::detections_to_csv;
+    use crate::io::camera_file_yaml;
+    use crate::io::detections_to_csv;
     let data = camera_trial_data(setup, options, mode, 0)?;
     let held_out = held_out_views(setup, options, &data, options.validation_poses.max(1))?;
     let truth = setup.rig.robot_model(&data.truth)?.with_offsets_absorbed();

@@ -4,15 +4,15 @@
 use super::simulate::{SimulateConfig, Simulation};
 use super::source::NominalRobot;
 use super::{Note, Progress, ProgressFn};
-use crate::io::contacts_csv::{contacts_to_csv, ContactKind, ContactRow};
-use crate::io::contacts_yaml::{
+use crate::io::{
     contact_setup_to_yaml, BarSetup, ContactSetup, FreeSetup, PoseEntry, SigmaSetup, ToolSetup,
 };
+use crate::io::{contacts_to_csv, ContactKind, ContactRow};
 use crate::math::Pose;
 use crate::measurement::{Contact, Measurement, Observation};
-use crate::sim::contacts::{run_contact_trial, ContactScene, ContactSimulation, ContactTrial};
 use crate::sim::trial_seed;
 use crate::sim::ErrorRanges;
+use crate::sim::{run_contact_trial, ContactScene, ContactSimulation, ContactTrial};
 use crate::{McpcModel, Result};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;

@@ -196,7 +196,7 @@ pub fn measured_branches(
                     MeasurementSource::Table(table) => table.place_of_tool(name),
                 },
                 message: format!(
-                    "{e}; the tool column names the measured tool links (points on one body: name the body's link with --tools)"
+                    "{e}; the tool column names the measured tool links (points on one body: name the body's link with `tools`)"
                 ),
             })
         })
@@ -259,7 +259,7 @@ pub fn add_measured_points(
         let Some(tool) = tool.or_else(|| body.clone()) else {
             return Err(Error::InvalidData {
                 origin,
-                message: "the measurements have no 'tool' column; add one naming the measured tool link of each row, or name the one measured tool (the body the points are on) with --tools".into(),
+                message: "the measurements have no 'tool' column; add one naming the measured tool link of each row, or name the one measured tool (the body the points are on) with `tools`".into(),
             });
         };
         let (name, parent) = match (&point, &body) {

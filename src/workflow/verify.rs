@@ -5,8 +5,8 @@
 //! One code path with `calibrate`'s validation: the predictions are
 //! `calibrate_artifact::Scoring::predict`'s, the row errors
 //! `calibrate_artifact::row_errors`, the strata
-//! [`crate::calibration::validation::ChainPostures::stratum`] on the postures report.json
-//! records, the figures [`crate::report::strata::ValidationStrata::of_rows`]. Only the
+//! [`crate::calibration::ChainPostures::stratum`] on the postures report.json
+//! records, the figures [`crate::report::ValidationStrata::of_rows`]. Only the
 //! nuisance a fresh session needs is refitted: its measurement frame (six parameters per
 //! session), or nothing with [`VerifyFrame::Registration`] (docs/workflows.md, "Verify").
 
@@ -16,14 +16,14 @@ use super::calibrate_steps::Loaded;
 use super::note::Note;
 use super::postures::{chains_of, RecordedPostures, POSTURES_KEY};
 use super::source::{MeasurementSource, RobotSource, StiffnessSource};
-use crate::calibration::sessions::{fit_session_frame, Sessions, FRAME_BLOCK_PARAMETERS};
-use crate::calibration::validation::{ChainPostures, Stratum};
 use crate::calibration::IdentificationOptions;
+use crate::calibration::{fit_session_frame, Sessions, FRAME_BLOCK_PARAMETERS};
+use crate::calibration::{ChainPostures, Stratum};
 use crate::error::{Error, Result};
 use crate::io::{read_registration, AngleUnit, LengthUnit, MeasurementReadOptions};
 use crate::math::Pose;
 use crate::measurement::Measurement;
-use crate::report::verify::{VerifyReport, VerifyRow, VerifySession};
+use crate::report::{VerifyReport, VerifyRow, VerifySession};
 use crate::tree::KinematicTree;
 use std::path::{Path, PathBuf};
 
@@ -213,11 +213,11 @@ fn no_robot(config: &VerifyConfig) -> Error {
     match &config.calibration {
         Some(dir) => invalid(
             &dir.display().to_string(),
-            "holds no calibrated.urdf (a failed verdict writes none): give the deployed URDF with --robot",
+            "holds no calibrated.urdf (a failed verdict writes none): give the deployed URDF with `robot`",
         ),
         None => invalid(
             "verify",
-            "no robot: give --calibration (a calibrate output folder) or --robot (the deployed URDF)",
+            "no robot: give `calibration` (a calibrate output folder) or `robot` (the deployed URDF)",
         ),
     }
 }
@@ -239,8 +239,8 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     let started = super::provenance::Started::now();
     super::checks::sigmas(config.position_sigma, config.rotation_sigma)?;
     if let Some(max) = config.max_error_mm.filter(|m| !(m.is_finite() && *m > 0.0)) {
-        return Err(invalid(
-            "--max-error",
+        return Err(Error::setting(
+            "max_error",
             format!("{max} must be a positive number of mm"),
         ));
     }
@@ -300,12 +300,12 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     };
     if chains.is_none() {
         notes.push(Note::info(
-            "no calibration record (report.json with identification_postures): the rows are not sorted into strata; give --calibration with the calibrate output folder",
+            "no calibration record (report.json with identification_postures): the rows are not sorted into strata; give `calibration` with the calibrate output folder",
         ));
     }
     let rows = scored_rows(&loaded, &set, &predicted, chains.as_deref());
     let report = VerifyReport::new(
-        crate::report::verify::VerifyContext {
+        crate::report::VerifyContext {
             robot: tree.name().to_owned(),
             files: names,
             measurements: config.measurements.origin(),
@@ -329,9 +329,9 @@ fn measurement_frame(
         (VerifyFrame::Base, _) => Ok((VerifyFrame::Base, None)),
         (frame, Some(path)) => Ok((frame, Some(read_registration(path)?))),
         (VerifyFrame::Fit, None) => Ok((VerifyFrame::Fit, None)),
-        (VerifyFrame::Registration, None) => Err(invalid(
-            "--frame registration",
-            "no registration: the calibration folder holds no registration.yaml (its frame was the robot's root frame: use --frame base) and none was given with --registration",
+        (VerifyFrame::Registration, None) => Err(Error::setting(
+            "frame",
+            "registration: no registration: the calibration folder holds no registration.yaml (its frame was the robot's root frame: use `frame` base) and none was given with `registration`",
         )),
     }
 }
@@ -490,7 +490,7 @@ fn finish(
     let markdown = report.markdown();
     let json = crate::io::to_json(&report)?;
     let svg = report.plot()?;
-    let html = crate::report::html_page::markdown_page("treecal verify", &markdown, &[&svg]);
+    let html = crate::report::markdown_page("treecal verify", &markdown, &[&svg]);
     let files = vec![
         ("report.md".to_owned(), markdown.clone().into_bytes()),
         ("report.html".to_owned(), html.into_bytes()),

@@ -6,14 +6,14 @@ use crate::cli::{
     PlanChoice,
 };
 use std::path::Path;
-use treecal::workflow::calibrate_camera::{
-    calibrate_camera_files, CameraCalibrateConfig, CameraTrackerInput, DetectionsSource,
-};
-use treecal::workflow::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, NoiseChoice, PlanSource,
     RobotSource, StiffnessSource,
 };
+use treecal::workflow::{
+    calibrate_camera_files, CameraCalibrateConfig, CameraTrackerInput, DetectionsSource,
+};
+use treecal::workflow::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::{Error, Result};
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
@@ -96,9 +96,7 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
 
 /// `calibrate --contacts C.csv --contact-setup S.yaml` (issue 29).
 fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<()> {
-    use treecal::workflow::calibrate_contacts::{
-        calibrate_contacts, ContactCalibrateConfig, CONTACT_OUTPUTS,
-    };
+    use treecal::workflow::{calibrate_contacts, ContactCalibrateConfig, CONTACT_OUTPUTS};
     treecal::io::check_output_folder(&args.out, &|name| CONTACT_OUTPUTS.contains(&name))?;
     let calibration = calibrate_contacts(&ContactCalibrateConfig {
         robot: RobotSource::from_path(args.robot.clone()),
@@ -166,7 +164,7 @@ fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<
 /// report on stdout, and an error when the verdict says the result is not usable.
 fn finish(
     args: &CalibrateArgs,
-    notes: &[treecal::workflow::note::Note],
+    notes: &[treecal::workflow::Note],
     report_markdown: &str,
     written: Result<()>,
     usable: bool,

@@ -1,9 +1,9 @@
 //! `treecal check`: flags → [`CheckConfig`] → [`check`] → print.
 
 use crate::cli::{AngleUnit, CheckArgs, Format, PlanChoice};
-use treecal::workflow::check::{check, CheckConfig};
-use treecal::workflow::check_camera::{check_camera, CameraCheckConfig};
-use treecal::workflow::source::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
+use treecal::workflow::{check, CheckConfig};
+use treecal::workflow::{check_camera, CameraCheckConfig};
+use treecal::workflow::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
 use treecal::Result;
 
 fn config(args: CheckArgs) -> CheckConfig {

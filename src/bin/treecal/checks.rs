@@ -1,3 +1,3 @@
 //! Checks shared by the subcommands: the library's (`treecal::workflow::checks`).
 
-pub use treecal::workflow::checks::{check_outputs, Output};
+pub use treecal::workflow::{check_outputs, Output};

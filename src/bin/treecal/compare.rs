@@ -2,7 +2,7 @@
 //! report.md on stdout, the files in `--out`.
 
 use crate::cli_trust::CompareArgs;
-use treecal::workflow::compare::{compare, CompareConfig};
+use treecal::workflow::{compare, CompareConfig};
 use treecal::Result;
 
 pub fn run(args: CompareArgs) -> Result<()> {

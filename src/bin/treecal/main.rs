@@ -17,6 +17,7 @@ mod output;
 mod pair;
 mod plan;
 mod progress;
+mod settings;
 mod simulate;
 mod to_mcpc;
 mod verify;

@@ -8,6 +8,7 @@ use treecal::{Error, Result};
 /// Prints `text` on standard output. A closed pipe is not an error (the reader has what it
 /// wanted); any other failure (a full disk behind a redirection) is.
 pub fn print(text: &str) -> Result<()> {
+    let text = crate::settings::with_flags(text);
     let mut stdout = std::io::stdout().lock();
     match stdout
         .write_all(text.as_bytes())
@@ -21,8 +22,9 @@ pub fn print(text: &str) -> Result<()> {
     }
 }
 
-/// Prints `treecal: {text}` on standard error; failures are ignored (there is nowhere left to
-/// report them).
+/// Prints `treecal: {text}` on standard error, the settings it names spelled as flags;
+/// failures are ignored (there is nowhere left to report them).
 pub fn note(text: impl std::fmt::Display) {
+    let text = crate::settings::with_flags(&text.to_string());
     let _ = writeln!(std::io::stderr().lock(), "treecal: {text}");
 }

@@ -2,7 +2,7 @@
 
 use crate::cli::PairArgs;
 use treecal::pairing::PlateauOptions;
-use treecal::workflow::pair::report_path;
+use treecal::workflow::report_path;
 use treecal::workflow::{pair, PairConfig, RobotSource};
 use treecal::Result;
 

@@ -3,9 +3,9 @@
 use crate::cli::{CriterionChoice, PlanArgs, StageChoice};
 use crate::progress::Display;
 use treecal::calibration::Criterion;
-use treecal::workflow::plan::{self, plan_with_progress, PlanConfig, PlanStage};
-use treecal::workflow::plan_camera::{check_camera_plan_output, plan_camera, CameraPlanConfig};
-use treecal::workflow::source::RobotSource;
+use treecal::workflow::RobotSource;
+use treecal::workflow::{self, plan_with_progress, PlanConfig, PlanStage};
+use treecal::workflow::{check_camera_plan_output, plan_camera, CameraPlanConfig};
 use treecal::Result;
 
 fn config(args: PlanArgs) -> PlanConfig {
@@ -78,7 +78,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
     }
     let out = args.out.clone();
     let config = config(args);
-    plan::check_output(&config, &out)?;
+    workflow::check_output(&config, &out)?;
     let display = Display::new("plan", true);
     let outcome = plan_with_progress(&config, &|p| display.update(p));
     display.finish();

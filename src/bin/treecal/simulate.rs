@@ -3,16 +3,16 @@
 use crate::cli::{MeasurementFormat, ObservationArg, PlanChoice, PosesFrom, SimulateArgs};
 use crate::progress::Display;
 use treecal::io::write_atomically;
-use treecal::sim::contacts::ContactChoice;
-use treecal::workflow::simulate::{self, simulate_with_progress, SimulateConfig};
-use treecal::workflow::source::{PlanSource, RobotSource, StiffnessSource};
+use treecal::sim::ContactChoice;
+use treecal::workflow::{self, simulate_with_progress, SimulateConfig};
+use treecal::workflow::{PlanSource, RobotSource, StiffnessSource};
 use treecal::Result;
 
 /// The contacts and the one instrument (tracker, camera) of `--observation`'s list; mixtures
 /// of contacts with an instrument are not simulated yet.
 fn observations(
     list: &[ObservationArg],
-) -> Result<(simulate::ObservationChoice, Vec<ContactChoice>)> {
+) -> Result<(workflow::ObservationChoice, Vec<ContactChoice>)> {
     let mut contacts = Vec::new();
     let mut instruments = Vec::new();
     for item in list {
@@ -21,11 +21,11 @@ fn observations(
             ObservationArg::Plane => contacts.push(ContactChoice::Plane),
             ObservationArg::Touch => contacts.push(ContactChoice::Touch),
             ObservationArg::Bar => contacts.push(ContactChoice::Bar),
-            ObservationArg::Tracker => instruments.push(simulate::ObservationChoice::Tracker),
-            ObservationArg::Camera => instruments.push(simulate::ObservationChoice::Camera),
-            ObservationArg::Mixed => instruments.push(simulate::ObservationChoice::Mixed),
+            ObservationArg::Tracker => instruments.push(workflow::ObservationChoice::Tracker),
+            ObservationArg::Camera => instruments.push(workflow::ObservationChoice::Camera),
+            ObservationArg::Mixed => instruments.push(workflow::ObservationChoice::Mixed),
             ObservationArg::RigidTracker => {
-                instruments.push(simulate::ObservationChoice::RigidTracker)
+                instruments.push(workflow::ObservationChoice::RigidTracker)
             }
         }
     }
@@ -75,14 +75,14 @@ fn config(args: SimulateArgs) -> Result<SimulateConfig> {
         model_stiffness_scale: args.model_stiffness_scale,
         identify_stiffness: args.identify_stiffness,
         poses_from: match args.poses_from {
-            PosesFrom::Random => simulate::PosesFrom::Random,
-            PosesFrom::Planned => simulate::PosesFrom::Planned,
+            PosesFrom::Random => workflow::PosesFrom::Random,
+            PosesFrom::Planned => workflow::PosesFrom::Planned,
         },
         candidates: args.candidates as usize,
         measurement_format: args.write_measurements.as_ref().map(|_| {
             match args.measurement_format {
-                MeasurementFormat::Si => simulate::MeasurementFormat::Si,
-                MeasurementFormat::Tracker => simulate::MeasurementFormat::Tracker,
+                MeasurementFormat::Si => workflow::MeasurementFormat::Si,
+                MeasurementFormat::Tracker => workflow::MeasurementFormat::Tracker,
             }
         }),
         observation,
@@ -100,7 +100,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     let out = args.out.clone();
     let measurements = args.write_measurements.clone();
     let config = config(args)?;
-    simulate::check_outputs(&config, &out, measurements.as_deref())?;
+    workflow::check_simulate_outputs(&config, &out, measurements.as_deref())?;
     let display = Display::new("simulate", config.trials > 1);
     let outcome = simulate_with_progress(&config, &|p| display.update(p));
     display.finish();

@@ -152,7 +152,7 @@ impl Noise {
 /// their nuisance parameters — the measurement frame and the tool offsets — are part of the
 /// MCPC parameter vector ([`crate::kinematics::ParameterOwner`]). Contacts have planes,
 /// contact points and faces, bar lengths ([`crate::measurement::Contact`]); the solver steps
-/// them with the model's parameters ([`crate::calibration::solver::identify_with_nuisance`]).
+/// them with the model's parameters ([`crate::calibration::identify_with_nuisance`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Nuisance {
     /// The blocks, in flat-index order.

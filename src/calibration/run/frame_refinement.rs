@@ -3,8 +3,8 @@
 
 use super::input::CalibrationInput;
 use crate::calibration::outcome::FrameRefinement;
-use crate::calibration::plan::{calibrate, CalibrationReport, Compensation};
 use crate::calibration::predictor::Deflected;
+use crate::calibration::{calibrate, CalibrationReport, Compensation};
 use crate::error::Result;
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::math::Pose;

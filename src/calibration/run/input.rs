@@ -1,8 +1,8 @@
 //! What a calibration from data is run on and how.
 
-use crate::calibration::frame::MeasurementFrame;
 use crate::calibration::options::IdentificationOptions;
-use crate::calibration::plan::Plan;
+use crate::calibration::MeasurementFrame;
+use crate::calibration::Plan;
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::tree::{Branches, KinematicTree};
 

@@ -10,7 +10,7 @@ use super::covariance::covariance;
 use super::problem::{Fit, Problem};
 use super::GROUPS;
 use crate::calibration::linear_algebra::{column_scales, scale_columns, singular_decomposition};
-use crate::calibration::solver::Termination;
+use crate::calibration::Termination;
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use nalgebra::DVector;

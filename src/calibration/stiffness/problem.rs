@@ -2,9 +2,9 @@
 //! payload, and its linearisation (weighted residual and Jacobian over the free geometry and
 //! the compliance scales).
 
-use crate::calibration::observation::{kind_of, Nuisance, RobotState, Tools};
 use crate::calibration::options::IdentificationOptions;
-use crate::calibration::solver::Termination;
+use crate::calibration::Termination;
+use crate::calibration::{kind_of, Nuisance, RobotState, Tools};
 use crate::error::{Error, Result};
 use crate::kinematics::{ComplianceBasis, ComplianceParameter};
 use crate::kinematics::{FlexibilityModel, McpcModel};
@@ -138,23 +138,7 @@ impl<'a> Problem<'a> {
             .iter()
             .map(|(_, b)| b.scaled(&effective))
             .collect::<Result<Vec<_>>>()?;
-        // Distinct (configuration, payload) pairs: several tools measured there share them.
-        let mut groups: Vec<(&[f64], usize)> = Vec::new();
-        let group_of: Vec<usize> = self
-            .measurements
-            .iter()
-            .zip(&self.basis_of)
-            .map(|(m, &basis)| {
-                let key = (m.q.as_slice(), basis);
-                match groups.iter().rposition(|g| *g == key) {
-                    Some(g) => g,
-                    None => {
-                        groups.push(key);
-                        groups.len() - 1
-                    }
-                }
-            })
-            .collect();
+        let (groups, group_of) = self.groups();
         let mut poses: Vec<Vec<Pose>> = Vec::with_capacity(groups.len());
         let mut compliance: Vec<Vec<DMatrix<f64>>> = Vec::new();
         for &(q, basis) in &groups {
@@ -168,29 +152,11 @@ impl<'a> Problem<'a> {
                 poses.push(flexibilities[basis].deflected_tool_poses(self.tree, model, q)?);
             }
         }
-        // Per group and free parameter, the change of every tool pose per unit parameter.
-        let mut geometry: Vec<Vec<Vec<Vector6<f64>>>> = Vec::new();
-        if with_jacobian {
-            geometry = vec![Vec::with_capacity(self.free.len()); groups.len()];
-            let step = 1e-7;
-            let values = model.parameters();
-            let mut shifted = model.clone();
-            for &p in self.free {
-                shifted.set_parameter(p, values[p] + step)?;
-                for (g, &(q, basis)) in groups.iter().enumerate() {
-                    let moved =
-                        flexibilities[basis].deflected_tool_poses(self.tree, &shifted, q)?;
-                    geometry[g].push(
-                        moved
-                            .iter()
-                            .zip(&poses[g])
-                            .map(|(a, b)| pose_error(a, b) / step)
-                            .collect(),
-                    );
-                }
-                shifted.set_parameter(p, values[p])?;
-            }
-        }
+        let geometry = if with_jacobian {
+            self.geometry_motions(model, &flexibilities, &groups, &poses)?
+        } else {
+            Vec::new()
+        };
         let count_of = self.parameters().len();
         let is_fitted: Vec<bool> = (0..count_of).map(|j| fitted.contains(&j)).collect();
         let noise = self.options.noise();
@@ -246,6 +212,58 @@ impl<'a> Problem<'a> {
             row += kind.rows();
         }
         Ok(Linearisation { residual, jacobian })
+    }
+
+    /// The distinct (configuration, payload basis) pairs, which several tools measured there
+    /// share, and each measurement's pair.
+    fn groups(&self) -> (Vec<(&[f64], usize)>, Vec<usize>) {
+        let mut groups: Vec<(&[f64], usize)> = Vec::new();
+        let group_of: Vec<usize> = self
+            .measurements
+            .iter()
+            .zip(&self.basis_of)
+            .map(|(m, &basis)| {
+                let key = (m.q.as_slice(), basis);
+                match groups.iter().rposition(|g| *g == key) {
+                    Some(g) => g,
+                    None => {
+                        groups.push(key);
+                        groups.len() - 1
+                    }
+                }
+            })
+            .collect();
+        (groups, group_of)
+    }
+
+    /// Per group and free parameter, the change of every deflected tool pose per unit
+    /// parameter (forward differences from `poses`).
+    fn geometry_motions(
+        &self,
+        model: &McpcModel,
+        flexibilities: &[FlexibilityModel],
+        groups: &[(&[f64], usize)],
+        poses: &[Vec<Pose>],
+    ) -> Result<Vec<Vec<Vec<Vector6<f64>>>>> {
+        let mut geometry = vec![Vec::with_capacity(self.free.len()); groups.len()];
+        let step = 1e-7;
+        let values = model.parameters();
+        let mut shifted = model.clone();
+        for &p in self.free {
+            shifted.set_parameter(p, values[p] + step)?;
+            for (g, &(q, basis)) in groups.iter().enumerate() {
+                let moved = flexibilities[basis].deflected_tool_poses(self.tree, &shifted, q)?;
+                geometry[g].push(
+                    moved
+                        .iter()
+                        .zip(&poses[g])
+                        .map(|(a, b)| pose_error(a, b) / step)
+                        .collect(),
+                );
+            }
+            shifted.set_parameter(p, values[p])?;
+        }
+        Ok(geometry)
     }
 
     /// Row `k` of compliance column `c` from the motions per unit individual scale

@@ -58,7 +58,7 @@ pub(super) fn limit_warnings(
             message: format!(
                 "{revolute} of {revolute_values} revolute joint values are outside their limits \
                 when read as radians{first}, and {explained} of them are within the limits when \
-                read as degrees: the joint values look like degrees; give --angle-unit deg (or \
+                read as degrees: the joint values look like degrees; give `angle_unit` deg (or \
                 state `# units: angle=deg` in the file)"
             ),
         });
@@ -111,7 +111,7 @@ pub(super) fn angles_look_like_radians(
             message: format!(
                 "all {} non-zero revolute joint values are within ±{largest_in_degrees:.3} deg, \
                 too small a motion to calibrate from: the joint values look like radians; \
-                give --angle-unit rad (or state `# units: angle=rad` in the file)",
+                give `angle_unit` rad (or state `# units: angle=rad` in the file)",
                 count
             ),
         });

@@ -97,7 +97,7 @@ pub(super) fn classify(
             origin: places.header(origin, header_line, None),
             message: format!(
                 "the header has no 'tool' column; add one naming the measured tool link of each \
-                 row (one of {}), or name the one measured tool with --tools",
+                 row (one of {}), or name the one measured tool with `tools`",
                 quoted_list(&names)
             ),
         });

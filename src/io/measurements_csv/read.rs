@@ -167,7 +167,7 @@ fn header_remarks(
     if !columns.skipped.is_empty() {
         let listed: Vec<&str> = columns.skipped.iter().map(|(_, s)| s.as_str()).collect();
         notes.push(format!(
-            "{}: {} column(s) neither a joint of '{}' nor a measurement column, not read: {}; list them with --ignore-columns to silence this note",
+            "{}: {} column(s) neither a joint of '{}' nor a measurement column, not read: {}; list them with `ignore_columns` to silence this note",
             places.header(origin, table.header_line, None),
             listed.len(),
             tree.name(),
