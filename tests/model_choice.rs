@@ -390,6 +390,7 @@ fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
             measurement_frame: MeasurementFrame::Base,
         },
         patterns: &patterns,
+        joint_steps: 0,
         stiffness: None,
     };
     let list = vec![
@@ -419,12 +420,12 @@ fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
     let mut truth = harmonic.clone();
     truth.set_parameters(&values).unwrap();
     let data = measure(&tree, &truth, 40, 5e-5, 12);
-    let cv = cross_validate(&input, &list, &data, 4, 1).unwrap();
+    let cv = cross_validate(&input, &list, &data, 4, 1, 1).unwrap();
     assert_eq!(cv.chosen, Some(2), "{cv:#?}");
     let mut plain = nominal.clone();
     plain.set_parameters(&values[..geometry]).unwrap();
     let data = measure(&tree, &plain, 40, 5e-5, 13);
-    let cv = cross_validate(&input, &list, &data, 4, 1).unwrap();
+    let cv = cross_validate(&input, &list, &data, 4, 1, 1).unwrap();
     let chosen = cv.chosen.unwrap();
     assert_eq!(cv.rows[chosen].spec.level, ModelLevel::Geometry, "{cv:#?}");
     assert!(
@@ -435,6 +436,135 @@ fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
         }
     );
     assert!(cv.rows[0].rms_mm.unwrap() > 2.0 * cv.rows[1].rms_mm.unwrap());
+}
+
+/// The one-standard-error rule on simulated truth, for several data and fold seeds: offsets-only
+/// truth gives `offsets` (the full geometry fits it as well: a tie, which goes to the simpler
+/// model whatever the table's order), full geometric truth a geometry level; each row's
+/// difference to the reference comes with its standard error.
+#[test]
+fn the_one_standard_error_rule_picks_the_true_level_for_several_seeds() {
+    let (tree, branches, nominal) = humanoid();
+    let options = IdentificationOptions::default();
+    let plan = Plan::simultaneous();
+    let patterns = ParameterPatterns::default();
+    let input = CrossValidationInput {
+        calibration: CalibrationInput {
+            tree: &tree,
+            branches: &branches,
+            nominal: &nominal,
+            flexibility: None,
+            plan: &plan,
+            options: &options,
+            measurement_frame: MeasurementFrame::Base,
+        },
+        patterns: &patterns,
+        joint_steps: 0,
+        stiffness: None,
+    };
+    // The geometry first: the rule, not the order, must prefer offsets on a tie.
+    let list = vec![
+        spec(ModelLevel::Geometry, false, false),
+        spec(ModelLevel::Offsets, false, false),
+    ];
+    let offsets = prepare(&list[1], &tree, &nominal, &options, &patterns).unwrap();
+    for seed in [1u64, 2, 3] {
+        let mut truth = perturbed(&offsets.nominal, 0.02, 100 + seed);
+        let mut values = truth.parameters();
+        for &p in &offsets.options.frozen {
+            values[p] = offsets.nominal.parameters()[p];
+        }
+        truth.set_parameters(&values).unwrap();
+        let data = measure(&tree, &truth, 30, 5e-5, 200 + seed);
+        let cv = cross_validate(&input, &list, &data, 4, 2, seed).unwrap();
+        assert_eq!(cv.chosen, Some(1), "offsets truth, seed {seed}: {cv:#?}");
+        assert_eq!(cv.seeds, vec![seed, seed + 1]);
+        let best = cv.best.unwrap();
+        for (i, row) in cv.rows.iter().enumerate() {
+            assert!(row.difference_mm.unwrap() >= 0.0, "{cv:#?}");
+            assert_eq!(row.difference_se_mm.is_none(), i == best, "{cv:#?}");
+        }
+        let geometry = perturbed(&nominal, 0.005, 300 + seed);
+        let data = measure(&tree, &geometry, 30, 5e-5, 400 + seed);
+        let cv = cross_validate(&input, &list, &data, 4, 2, seed).unwrap();
+        assert_eq!(cv.chosen, Some(0), "geometric truth, seed {seed}: {cv:#?}");
+        let [g, o] = [0, 1].map(|i| cv.rows[i].choice_rms_mm.unwrap());
+        assert!(o > 10.0 * g, "{cv:#?}");
+        assert!(cv.reason.contains("lowest"), "{}", cv.reason);
+    }
+}
+
+/// The forward steps offer one joint's harmonics or backlash at a time: on the 7-DoF arm with
+/// backlash on arm_4 only, the cross-validation's first step is `backlash(arm_4_joint)`; on
+/// the same geometry without it, no joint term.
+#[test]
+fn forward_steps_choose_backlash_on_the_joint_that_has_it() {
+    let tree = treecal::load_urdf(&repo().join("tests/data/second_robot_arm.urdf"))
+        .unwrap()
+        .tree;
+    let tool = tree.link_id("arm_tool_link").unwrap();
+    let branches = detect_branches(&tree, Some(&[tool])).unwrap();
+    let nominal = McpcModel::from_tree(&tree, &branches).unwrap();
+    let (options, plan, patterns) = (
+        IdentificationOptions::default(),
+        Plan::simultaneous(),
+        ParameterPatterns::default(),
+    );
+    let input = CrossValidationInput {
+        calibration: CalibrationInput {
+            tree: &tree,
+            branches: &branches,
+            nominal: &nominal,
+            flexibility: None,
+            plan: &plan,
+            options: &options,
+            measurement_frame: MeasurementFrame::Base,
+        },
+        patterns: &patterns,
+        joint_steps: 2,
+        stiffness: None,
+    };
+    let list = vec![spec(ModelLevel::Geometry, false, false)];
+    let rigid = perturbed(&nominal, 0.002, 51);
+    let gravity = GravitySigns::new(&tree, &rigid).unwrap();
+    let terms = JointErrorTerms {
+        backlash: true,
+        ..Default::default()
+    };
+    let mut truth = rigid.with_joint_errors(terms, Some(gravity)).unwrap();
+    let names: Vec<String> = (0..truth.parameter_count())
+        .map(|i| truth.parameter_name(&tree, i))
+        .collect();
+    let mut values = truth.parameters();
+    let i = names
+        .iter()
+        .position(|n| n == "arm_4_joint backlash")
+        .unwrap();
+    values[i] = 0.004;
+    truth.set_parameters(&values).unwrap();
+    let data = measure(&tree, &truth, 40, 3e-5, 52);
+    let cv = cross_validate(&input, &list, &data, 4, 1, 3).unwrap();
+    // The first step is arm_4's backlash: the lowest of the one-joint extensions (a second
+    // step may add another joint's term on noise: seed 3 adds arm_2's backlash).
+    let chosen = &cv.rows[cv.chosen.unwrap()];
+    assert!(chosen.model.contains("arm_4_joint"), "{cv:#?}");
+    let single =
+        |r: &&treecal::workflow::CvRow| r.model.matches("arm_").count() == 1;
+    let first = cv
+        .rows
+        .iter()
+        .filter(single)
+        .min_by(|a, b| {
+            a.choice_rms_mm
+                .unwrap()
+                .total_cmp(&b.choice_rms_mm.unwrap())
+        })
+        .unwrap();
+    assert_eq!(first.model, "geometry+backlash(arm_4_joint)", "{cv:#?}");
+    assert!(cv.rows[0].choice_rms_mm.unwrap() > 3.0 * first.choice_rms_mm.unwrap());
+    let data = measure(&tree, &rigid, 40, 3e-5, 52);
+    let cv = cross_validate(&input, &list, &data, 4, 1, 3).unwrap();
+    assert_eq!(cv.rows[cv.chosen.unwrap()].model, "geometry", "{cv:#?}");
 }
 
 /// `--joint-errors harmonics` writes joint_errors.yaml and says the URDF lacks it; a pattern

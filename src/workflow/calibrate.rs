@@ -140,6 +140,12 @@ pub struct CalibrateConfig {
     /// Cross-validate the model candidates over this many folds (`--cv`); `--model auto`
     /// uses [`super::cross_validation::DEFAULT_FOLDS`] without it.
     pub cv: Option<usize>,
+    /// Fold assignments of the cross-validation (`--cv-repeats`, seeds `seed` …), whose
+    /// squared held-out errors are averaged ([`super::cross_validation::REPEATS`] by default).
+    pub cv_repeats: usize,
+    /// Offer per-joint harmonics and backlash to the cross-validation by forward steps
+    /// (`--cv-joint-steps`, [`super::cross_validation::joint_steps`]).
+    pub cv_joint_steps: bool,
 }
 
 impl CalibrateConfig {
@@ -204,6 +210,8 @@ impl Default for CalibrateConfig {
             noise: NoiseChoice::Adaptive,
             patterns: ParameterPatterns::default(),
             cv: None,
+            cv_repeats: super::cross_validation::REPEATS,
+            cv_joint_steps: false,
         }
     }
 }

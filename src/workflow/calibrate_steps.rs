@@ -5,12 +5,12 @@ use super::calibrate::{CalibrateConfig, GravityFrame, MeasurementFrameChoice, No
 use super::checks::unused_stage_rows;
 use super::cross_validation::{
     candidates, cross_validate, markdown as cross_validation_markdown, CrossValidation,
-    CrossValidationInput, DEFAULT_FOLDS,
+    CrossValidationInput, DEFAULT_FOLDS, MAX_STEPS,
 };
 use super::export::export_notes;
 use super::model_choice::{
-    prepare, run_model, run_model_with_noise, shows_model_error, ModelChoice, ModelLevel,
-    ModelSpec, NoiseEstimate,
+    frame_joints, prepare, run_model, run_model_with_noise, shows_model_error, ModelChoice,
+    ModelLevel, ModelSpec, NoiseEstimate,
 };
 use super::note::Note;
 use super::source::{add_measured_points, measured_branches, LoadedRobot, MeasuredPoints};
@@ -312,7 +312,7 @@ pub(super) fn identify(
     notes.extend(cross_validation.as_ref().map(|cv| {
         Note::info(format!(
             "model: '{}' ({})",
-            spec.name(),
+            spec.named(&frame_joints(loaded.robot.tree(), &loaded.nominal)),
             match config.model {
                 ModelChoice::Auto => cv.reason.clone(),
                 ModelChoice::Adaptive if adaptive => format!(
@@ -463,6 +463,7 @@ fn asked_spec(config: &CalibrateConfig, level: ModelLevel, compensate: bool) -> 
         compensate,
         identify_stiffness: false,
         estimate_noise: config.noise == NoiseChoice::Estimated,
+        ..ModelSpec::default()
     }
 }
 
@@ -505,6 +506,7 @@ fn choose_model(
             measurement_frame: loaded.frame,
         },
         patterns: &config.patterns,
+        joint_steps: if config.cv_joint_steps { MAX_STEPS } else { 0 },
         stiffness: candidate_prior.map(|prior| {
             let options = StiffnessOptions {
                 prior_sigma: config.stiffness_prior,
@@ -538,7 +540,14 @@ fn choose_model(
             list.insert(0, mine);
         }
     }
-    let mut cv = cross_validate(&input, &list, &data.measurements, folds, config.seed)?;
+    let mut cv = cross_validate(
+        &input,
+        &list,
+        &data.measurements,
+        folds,
+        config.cv_repeats,
+        config.seed,
+    )?;
     cv.name_rows(&data.ids[0]);
     let spec = match (level, cv.chosen) {
         (Some(level), _) => asked(level),
@@ -568,7 +577,10 @@ pub(super) fn add_model_choice(
     }
     let mut extra = vec![(
         "model".to_string(),
-        serde_json::json!({ "name": result.spec.name(), "spec": result.spec }),
+        serde_json::json!({
+            "name": result.spec.named(&frame_joints(tree, &result.run.report.model)),
+            "spec": result.spec
+        }),
     )];
     if let Some(noise) = &result.noise {
         notes.push(Note::info(format!("model: {}", noise.describe())));
@@ -590,20 +602,11 @@ pub(super) fn add_model_choice(
     add_before_stiffness(&mut outputs.report, &extra);
     if let Some(cv) = &result.cross_validation {
         outputs.markdown.push_str(&cross_validation_markdown(cv));
-        for row in &cv.rows {
-            let mm = |v: Option<f64>| v.map_or("failed".to_string(), |v| format!("{v:.3} mm"));
-            let without = if cv.left_out_ids.is_empty() {
-                String::new()
-            } else {
-                format!(" ({} without flagged rows)", mm(row.choice_rms_mm))
-            };
-            notes.push(Note::info(format!(
-                "cv: {:<45} {:>3} parameters  held-out RMS {}{without}",
-                row.model,
-                row.parameters,
-                mm(row.rms_mm)
-            )));
-        }
+        notes.extend(
+            super::cross_validation::lines(cv)
+                .into_iter()
+                .map(Note::info),
+        );
     }
     if let Some((_, bytes)) = outputs.files.iter_mut().find(|(n, _)| n == "report.md") {
         *bytes = outputs.markdown.clone().into_bytes();

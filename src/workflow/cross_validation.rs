@@ -4,8 +4,14 @@
 //! fits flag as outliers, by which the choice is made. See `docs/identification.md`
 //! (cross-validation).
 
+mod choice;
+
+use choice::{choose, group_index, Evaluated};
+pub use choice::{paired, CvRow, Paired, RULE, SIGNIFICANT_T};
+
 use super::model_choice::{
-    grouped_folds, position_errors, prepare, run_model, ModelLevel, ModelSpec, ParameterPatterns,
+    frame_joints, grouped_folds, position_errors, prepare, run_model, ModelLevel, ModelSpec,
+    ParameterPatterns,
 };
 use crate::calibration::validation_in_training_frames;
 use crate::calibration::{
@@ -13,6 +19,7 @@ use crate::calibration::{
 };
 use crate::error::{Error, Result};
 use crate::kinematics::{FlexibilityModel, GravitySigns, McpcModel};
+
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;
 use rayon::prelude::*;
@@ -20,11 +27,11 @@ use rayon::prelude::*;
 /// The default number of folds of `--model auto` without `--cv`.
 pub const DEFAULT_FOLDS: usize = 5;
 
-/// Fold assignments per cross-validation (seeds `seed` … `seed + REPEATS − 1`); every row is
-/// held out once per assignment and its errors are pooled (RMS). One for now: on TIAGo the
-/// choice changes with the fold seed (docs/identification.md), but three assignments triple
-/// the run time and have not yet been measured on every data set.
-pub const REPEATS: usize = 1;
+/// Fold assignments per cross-validation without `--cv-repeats` (seeds `seed` … `seed +
+/// REPEATS − 1`); every row is held out once per assignment and its squared errors are
+/// averaged. One split of TIAGo's 37 postures into 5 folds changed the choice with the seed
+/// (docs/identification.md, "The CV is noisy").
+pub const REPEATS: usize = 3;
 
 /// What the cross-validation works on.
 #[derive(Clone, Copy)]
@@ -35,30 +42,12 @@ pub struct CrossValidationInput<'a> {
     pub calibration: CalibrationInput<'a>,
     /// `--freeze` / `--free`.
     pub patterns: &'a ParameterPatterns,
+    /// Forward steps of per-joint harmonics/backlash after the first choice (at most this
+    /// many, [`joint_steps`]; `--cv-joint-steps`): 0 for none.
+    pub joint_steps: usize,
     /// The prior of the identified-stiffness candidates (the stiffness file, or the library
     /// defaults) and the stiffness fit's settings; `None`: no such candidate can run.
     pub stiffness: Option<(&'a FlexibilityModel, StiffnessOptions)>,
-}
-
-/// One candidate's cross-validated error.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct CvRow {
-    /// The candidate's name.
-    pub model: String,
-    /// The candidate.
-    pub spec: ModelSpec,
-    /// Free parameters (before "≥ kσ" freezing; without the identified compliances).
-    pub parameters: usize,
-    /// Held-out RMS position error over every identification row (mm); `None` if a fold
-    /// failed.
-    pub rms_mm: Option<f64>,
-    /// Held-out RMS position error without the rows the training fits flagged as outliers
-    /// ([`CrossValidation::left_out_of_choice`]): what the choice compares (mm).
-    pub choice_rms_mm: Option<f64>,
-    /// The largest held-out position error (mm).
-    pub max_mm: Option<f64>,
-    /// Why a fold failed, if one did.
-    pub error: Option<String>,
 }
 
 /// The cross-validation table and the choice.
@@ -72,8 +61,15 @@ pub struct CrossValidation {
     pub postures: usize,
     /// One row per candidate, in the order tried.
     pub rows: Vec<CvRow>,
-    /// The index of the chosen row (lowest held-out RMS without the flagged rows).
+    /// The seeds of the fold assignments.
+    pub seeds: Vec<u64>,
+    /// The index of the chosen row ([`RULE`]).
     pub chosen: Option<usize>,
+    /// The reference of the rule: the row with the lowest held-out RMS without the flagged
+    /// rows (the identified-stiffness candidate only when significantly lowest).
+    pub best: Option<usize>,
+    /// The rule, in words.
+    pub rule: &'static str,
     /// Why.
     pub reason: String,
     /// Indices of the identification rows left out of the choice: those the robust fits of
@@ -89,30 +85,6 @@ pub struct CrossValidation {
     pub doubt: Option<String>,
 }
 
-/// The identified-stiffness candidate changes what is shipped (a rigid-only URDF and a
-/// compensation file), so it must beat the best other candidate by this many standard errors
-/// of the paired difference of squared held-out errors over the rows (a one-sided test at
-/// about 2.5 %).
-pub const SIGNIFICANT_T: f64 = 2.0;
-
-/// The paired t statistic of `a² − b²` over the rows `kept` (positive: `b` is lower).
-fn paired_t(a: &[Option<f64>], b: &[Option<f64>], kept: &[usize]) -> f64 {
-    let d: Vec<f64> = kept
-        .iter()
-        .filter_map(|&i| Some(a[i]? * a[i]? - b[i]? * b[i]?))
-        .collect();
-    if d.len() < 2 {
-        return 0.0;
-    }
-    let n = d.len() as f64;
-    let mean = d.iter().sum::<f64>() / n;
-    let variance = d.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
-    if variance == 0.0 {
-        return if mean > 0.0 { f64::INFINITY } else { 0.0 };
-    }
-    mean / (variance / n).sqrt()
-}
-
 impl CrossValidation {
     /// Names the rows left out of the choice by their ids (`ids[i]`: the id of
     /// identification row `i`).
@@ -122,13 +94,7 @@ impl CrossValidation {
             .iter()
             .map(|&i| ids.get(i).cloned().unwrap_or_else(|| format!("#{}", i + 1)))
             .collect();
-        self.reason = reason(
-            &self.rows,
-            self.chosen,
-            self.folds,
-            self.postures,
-            &self.left_out_ids,
-        ) + self.doubt.as_deref().unwrap_or("");
+        self.reason = reason(self) + self.doubt.as_deref().unwrap_or("");
     }
 }
 
@@ -196,12 +162,16 @@ pub fn cross_validate(
     candidates: &[ModelSpec],
     measurements: &[Measurement],
     k: usize,
+    repeats: usize,
     seed: u64,
 ) -> Result<CrossValidation> {
-    // Repeated with REPEATS fold assignments (seeds `seed`, `seed + 1`, …): one split of 37
+    // Repeated with `repeats` fold assignments (seeds `seed`, `seed + 1`, …): one split of 37
     // postures into 5 folds is noisy enough to change the choice.
-    let folds: Vec<Vec<usize>> = (0..REPEATS as u64)
-        .flat_map(|r| grouped_folds(measurements, k, seed.wrapping_add(r)))
+    let repeats = repeats.max(1);
+    let seeds: Vec<u64> = (0..repeats as u64).map(|r| seed.wrapping_add(r)).collect();
+    let folds: Vec<Vec<usize>> = seeds
+        .iter()
+        .flat_map(|&s| grouped_folds(measurements, k, s))
         .collect();
     let postures = super::model_choice::posture_groups(measurements).len();
     // Candidates and folds are independent fits: run in parallel, collected in order, so the
@@ -231,95 +201,161 @@ pub fn cross_validate(
         let errors: Vec<f64> = kept.iter().filter_map(|&i| e.errors[i]).collect();
         e.row.choice_rms_mm = Some(rms(&errors) * 1e3);
     }
-    let lowest = |rigid: bool| {
-        evaluated
-            .iter()
-            .enumerate()
-            .filter(|(_, e)| !(rigid && e.row.spec.identify_stiffness))
-            .filter_map(|(i, e)| e.row.choice_rms_mm.map(|rms| (i, rms)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(i, _)| i)
-    };
-    let mut chosen = lowest(false);
-    let mut doubt = None;
-    if let (Some(i), Some(j)) = (chosen, lowest(true)) {
-        if evaluated[i].row.spec.identify_stiffness {
-            let t = paired_t(&evaluated[j].errors, &evaluated[i].errors, &kept);
-            if t < SIGNIFICANT_T {
-                chosen = Some(j);
-                doubt = Some(format!(
-                    "; '{}' was lower, but not significantly over the rows (paired t = {t:.2} < {SIGNIFICANT_T}), and it would ship the URDF with a compensation file",
-                    evaluated[i].row.model
-                ));
-            }
+    let group_of = group_index(
+        &super::model_choice::posture_groups(measurements),
+        measurements.len(),
+    );
+    let mut choice = choose(&mut evaluated, &kept, &group_of);
+    // Forward steps: one joint's harmonics or backlash added to the chosen model, as long as
+    // the rule then chooses one of them.
+    for _ in 0..input.joint_steps.min(MAX_STEPS) {
+        let Some(base) = choice.chosen.map(|i| evaluated[i].row.spec) else {
+            break;
+        };
+        let steps: Vec<ModelSpec> = joint_steps(input, &base, measurements)
+            .into_iter()
+            .filter(|s| !evaluated.iter().any(|e| e.row.spec == *s))
+            .collect();
+        let before = evaluated.len();
+        let mut more = steps
+            .par_iter()
+            .map(|spec| evaluate(input, spec, measurements, &folds))
+            .collect::<Result<Vec<_>>>()?;
+        for e in more.iter_mut().filter(|e| e.row.rms_mm.is_some()) {
+            let errors: Vec<f64> = kept.iter().filter_map(|&i| e.errors[i]).collect();
+            e.row.choice_rms_mm = Some(rms(&errors) * 1e3);
+        }
+        evaluated.extend(more);
+        choice = choose(&mut evaluated, &kept, &group_of);
+        if choice.chosen.is_none_or(|i| i < before) {
+            break;
         }
     }
     let rows: Vec<CvRow> = evaluated.into_iter().map(|e| e.row).collect();
     let left_out_ids: Vec<String> = left_out.iter().map(|i| format!("#{}", i + 1)).collect();
-    Ok(CrossValidation {
+    let mut cv = CrossValidation {
         folds: k.max(1),
-        repeats: REPEATS,
-        reason: reason(&rows, chosen, k.max(1), postures, &left_out_ids)
-            + doubt.as_deref().unwrap_or(""),
-        doubt,
+        repeats,
+        seeds,
+        reason: String::new(),
+        doubt: choice.doubt,
         postures,
         rows,
-        chosen,
+        chosen: choice.chosen,
+        best: choice.best,
+        rule: RULE,
         left_out_of_choice: left_out,
         left_out_ids,
-    })
+    };
+    cv.reason = reason(&cv) + cv.doubt.as_deref().unwrap_or("");
+    Ok(cv)
+}
+
+/// The most forward steps of joint-angle error terms after the rule's first choice (each step
+/// offers one more joint's harmonics or backlash).
+pub const MAX_STEPS: usize = 2;
+
+/// The one-joint extensions of `base`: harmonics on one more revolute joint, backlash on one
+/// more joint whose gravity torque changes sign across the identification postures (with a
+/// constant sign a backlash is a joint offset). None for the identified-stiffness candidate,
+/// or beyond 64 frames.
+pub fn joint_steps(
+    input: &CrossValidationInput<'_>,
+    base: &ModelSpec,
+    measurements: &[Measurement],
+) -> Vec<ModelSpec> {
+    let (tree, nominal) = (input.calibration.tree, input.calibration.nominal);
+    let frames = nominal.frames();
+    if base.identify_stiffness || frames.len() > 64 {
+        return Vec::new();
+    }
+    let revolute = |f: usize| frames[f].kind == crate::kinematics::FrameKind::Revolute;
+    let mut steps = Vec::new();
+    if !(base.harmonics && base.harmonic_frames == 0) {
+        for f in (0..frames.len()).filter(|&f| revolute(f)) {
+            if base.harmonic_frames & (1u64 << f) == 0 {
+                steps.push(ModelSpec {
+                    harmonics: true,
+                    harmonic_frames: base.harmonic_frames | (1u64 << f),
+                    ..*base
+                });
+            }
+        }
+    }
+    let gravity = GravitySigns::new(tree, nominal).ok();
+    if let Some(gravity) = gravity.filter(|_| !(base.backlash && base.backlash_frames == 0)) {
+        let signs: Vec<_> = measurements.iter().map(|m| gravity.signs(&m.q)).collect();
+        for f in (0..frames.len()).filter(|&f| revolute(f)) {
+            let seen = |sign: f64| signs.iter().any(|s| s.get(f).copied() == Some(sign));
+            if base.backlash_frames & (1u64 << f) == 0 && seen(1.0) && seen(-1.0) {
+                steps.push(ModelSpec {
+                    backlash: true,
+                    backlash_frames: base.backlash_frames | (1u64 << f),
+                    ..*base
+                });
+            }
+        }
+    }
+    steps
 }
 
 /// Why the chosen row was chosen.
-fn reason(
-    rows: &[CvRow],
-    chosen: Option<usize>,
-    k: usize,
-    postures: usize,
-    left_out: &[String],
-) -> String {
-    let Some(i) = chosen else {
+fn reason(cv: &CrossValidation) -> String {
+    let (Some(i), Some(best)) = (cv.chosen, cv.best) else {
         return "no candidate ran on every fold".into();
     };
-    let best = rows[i].choice_rms_mm.unwrap_or(f64::NAN);
-    let next = rows
-        .iter()
-        .enumerate()
-        .filter(|(j, _)| *j != i)
-        .filter_map(|(_, r)| r.choice_rms_mm.map(|rms| (r.model.clone(), rms)))
-        .min_by(|a, b| a.1.total_cmp(&b.1));
-    let without = match left_out.len() {
+    let (k, repeats, postures) = (cv.folds, cv.repeats, cv.postures);
+    let without = match cv.left_out_ids.len() {
         0 => String::new(),
         n => format!(
             " without the {n} row(s) the training fits flagged as outliers ({}; every row counts in the table's RMS column)",
-            left_out.join(", ")
+            cv.left_out_ids.join(", ")
         ),
     };
-    match next {
-        // The chosen one is not the lowest (a significance rule): say which is, not "next".
-        Some((name, rms)) if rms < best => format!(
-            "'{}' is chosen by the held-out RMS over {k} folds ×{REPEATS} of {postures} postures{without}: {best:.3} mm (lowest: '{name}' {rms:.3} mm)",
-            rows[i].model
-        ),
-        Some((name, rms)) => format!(
-            "'{}' has the lowest held-out RMS over {k} folds ×{REPEATS} of {postures} postures{without}: {best:.3} mm (next: '{name}' {rms:.3} mm)",
-            rows[i].model
-        ),
-        None => format!("'{}' is the only candidate that ran", rows[i].model),
+    let row = &cv.rows[i];
+    let rms = |r: &CvRow| r.choice_rms_mm.unwrap_or(f64::NAN);
+    let over = format!(
+        "held-out RMS over {k} folds × {repeats} assignments of {postures} postures{without}"
+    );
+    if cv.rows.iter().filter(|r| r.choice_rms_mm.is_some()).count() == 1 {
+        return format!("'{}' is the only candidate that ran", row.model);
     }
+    if i == best {
+        let next = cv
+            .rows
+            .iter()
+            .enumerate()
+            .filter(|(j, r)| *j != i && r.choice_rms_mm.is_some())
+            .min_by(|a, b| rms(a.1).total_cmp(&rms(b.1)));
+        let next = next.map_or(String::new(), |(_, r)| {
+            format!(
+                "; next '{}' {:.3} mm, +{:.3} ± {:.3} mm",
+                r.model,
+                rms(r),
+                r.difference_mm.unwrap_or(f64::NAN),
+                r.difference_se_mm.unwrap_or(f64::NAN)
+            )
+        });
+        return format!(
+            "'{}' has the lowest {over}: {:.3} mm, and no simpler candidate is within one standard error{next}",
+            row.model,
+            rms(row)
+        );
+    }
+    format!(
+        "'{}' is the simplest candidate within one standard error of the lowest {over}: {:.3} mm, +{:.3} ± {:.3} mm against '{}' {:.3} mm",
+        row.model,
+        rms(row),
+        row.difference_mm.unwrap_or(f64::NAN),
+        row.difference_se_mm.unwrap_or(f64::NAN),
+        cv.rows[best].model,
+        rms(&cv.rows[best])
+    )
 }
 
 /// Root mean square (0 for none).
 fn rms(values: &[f64]) -> f64 {
     (values.iter().map(|e| e * e).sum::<f64>() / values.len().max(1) as f64).sqrt()
-}
-
-/// One candidate over every fold: its row, each measurement's held-out error, and per
-/// measurement how many training fits used it and how many flagged it as an outlier.
-struct Evaluated {
-    row: CvRow,
-    errors: Vec<Option<f64>>,
-    flags: Vec<[usize; 2]>,
 }
 
 /// One candidate over every fold.
@@ -344,12 +380,17 @@ fn evaluate(
         ..input.calibration
     };
     let mut row = CvRow {
-        model: spec.name(),
+        model: spec.named(&frame_joints(
+            input.calibration.tree,
+            input.calibration.nominal,
+        )),
         spec: *spec,
         parameters,
         rms_mm: None,
         choice_rms_mm: None,
         max_mm: None,
+        difference_mm: None,
+        difference_se_mm: None,
         error: None,
     };
     let mut errors = vec![None; measurements.len()];
@@ -452,28 +493,64 @@ fn fit_fold(
     Ok((sequence.again, Some(sequence.stiffness.flexibility)))
 }
 
+/// One line per candidate (the `cv:` notes on stderr): held-out RMS, and its difference to
+/// the reference with the standard error.
+pub fn lines(cv: &CrossValidation) -> Vec<String> {
+    let mm = |v: Option<f64>| v.map_or("failed".to_string(), |v| format!("{v:.3} mm"));
+    cv.rows
+        .iter()
+        .map(|row| {
+            let without = if cv.left_out_ids.is_empty() {
+                String::new()
+            } else {
+                format!(" ({} without flagged rows)", mm(row.choice_rms_mm))
+            };
+            let difference = match (row.difference_mm, row.difference_se_mm) {
+                (Some(d), Some(se)) => format!("  {d:+.3} ± {se:.3} mm"),
+                (Some(_), None) => "  (reference)".to_string(),
+                _ => String::new(),
+            };
+            format!(
+                "cv: {:<45} {:>3} parameters  held-out RMS {}{without}{difference}",
+                row.model,
+                row.parameters,
+                mm(row.rms_mm)
+            )
+        })
+        .collect()
+}
+
 /// The table in Markdown (report.md).
 pub fn markdown(cv: &CrossValidation) -> String {
+    let seeds: Vec<String> = cv.seeds.iter().map(u64::to_string).collect();
     let mut text = format!(
-        "\n## Model choice (cross-validation)\n\n{} folds over {} postures (a repeated posture stays in one fold), repeated with {} fold assignments; held-out position error of every identification row (the RMS of its repetitions), each predicted by the model fitted without its fold. The choice compares the RMS without the rows the training fits flagged as outliers ({}); the RMS and max count every row.\n\n| model | free parameters | compensation | held-out RMS (mm) | without flagged rows (mm) | max (mm) |\n| --- | --- | --- | --- | --- | --- |\n",
+        "\n## Model choice (cross-validation)\n\n{} folds over {} postures (a repeated posture stays in one fold), repeated with {} fold assignments (seeds {}); held-out position error of every identification row (the RMS of its repetitions), each predicted by the model fitted without its fold. The choice compares the RMS without the rows the training fits flagged as outliers ({}); the RMS and max count every row. Rule: {}.\n\n| model | free parameters | compensation | held-out RMS (mm) | without flagged rows (mm) | − reference ± SE (mm) | max (mm) |\n| --- | --- | --- | --- | --- | --- | --- |\n",
         cv.folds,
         cv.postures,
         cv.repeats,
+        seeds.join(", "),
         if cv.left_out_ids.is_empty() {
             "none".to_string()
         } else {
             cv.left_out_ids.join(", ")
-        }
+        },
+        cv.rule
     );
     for (i, row) in cv.rows.iter().enumerate() {
-        let mark = if Some(i) == cv.chosen {
-            " **(chosen)**"
-        } else {
-            ""
+        let mark = match (Some(i) == cv.chosen, Some(i) == cv.best) {
+            (true, true) => " **(chosen; reference)**",
+            (true, false) => " **(chosen)**",
+            (false, true) => " (reference)",
+            _ => "",
         };
         let number = |v: Option<f64>| v.map_or("failed".to_string(), |v| format!("{v:.3}"));
+        let difference = match (row.difference_mm, row.difference_se_mm) {
+            (Some(d), Some(se)) => format!("{d:+.3} ± {se:.3}"),
+            (Some(_), None) => "0".to_string(),
+            _ => "—".to_string(),
+        };
         text.push_str(&format!(
-            "| {}{mark} | {} | {} | {} | {} | {} |\n",
+            "| {}{mark} | {} | {} | {} | {} | {difference} | {} |\n",
             row.model,
             row.parameters,
             if row.spec.identify_stiffness {

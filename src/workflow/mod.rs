@@ -60,15 +60,16 @@ pub use checks::{check_outputs, count, sigmas, unused_stage_rows, Output};
 pub use compare::{compare, CompareConfig, Comparison, COMPARE_FILES};
 pub use contact_fit::{contact_violations, fit_contacts, plane_start, ContactFit, ContactProblem};
 pub use cross_validation::{
-    candidates, cross_validate, markdown, CrossValidation, CrossValidationInput, CvRow,
-    DEFAULT_FOLDS, REPEATS, SIGNIFICANT_T,
+    candidates, cross_validate, joint_steps, lines as cross_validation_lines, markdown, paired,
+    CrossValidation, CrossValidationInput, CvRow, Paired, DEFAULT_FOLDS, MAX_STEPS, REPEATS, RULE,
+    SIGNIFICANT_T,
 };
 pub use export::export_notes;
 pub use export::{export, Export, ExportConfig};
 pub use fk::{fk, fk_csv, fk_csv_stream, FkConfig, FkCsvConfig, FkStreamSummary, FkTable};
 pub use model::{from_mcpc, inspect, to_mcpc, Inspection, McpcTableText, ModelConfig};
 pub use model_choice::{
-    fit_noise, glob_match, grouped_folds, position_errors, posture_groups, prepare, run_model,
+    fit_noise, frame_joints, glob_match, grouped_folds, position_errors, posture_groups, prepare, run_model,
     run_model_with_noise, shows_model_error, ModelChoice, ModelLevel, ModelSpec, NoiseEstimate,
     ParameterPatterns, PreparedModel, POSTURE_TOLERANCE,
 };

@@ -69,6 +69,12 @@ pub struct ModelSpec {
     pub harmonics: bool,
     /// Backlash terms.
     pub backlash: bool,
+    /// With `harmonics`: only the joints of these frames have harmonic terms (bit `f`: the
+    /// model's frame `f`); 0: every revolute joint. Set by the cross-validation's forward steps
+    /// ([`super::cross_validation::joint_steps`]).
+    pub harmonic_frames: u64,
+    /// With `backlash`: only the joints of these frames have backlash terms; 0: every one.
+    pub backlash_frames: u64,
     /// The default Gaussian prior on the nominal values ([`Prior::default_for`]).
     pub prior: bool,
     /// The prior's σ times this (1: the documented defaults; 0.5: twice as tight).
@@ -92,6 +98,8 @@ impl Default for ModelSpec {
             level: ModelLevel::default(),
             harmonics: false,
             backlash: false,
+            harmonic_frames: 0,
+            backlash_frames: 0,
             prior: false,
             prior_scale: 1.0,
             significant: None,
@@ -107,6 +115,12 @@ impl ModelSpec {
     /// stiffness compensates the deflections, `+identified stiffness` when the compliances are
     /// identified too (a rigid model has neither), so no two candidates share a name.
     pub fn name(&self) -> String {
+        self.named(&[])
+    }
+
+    /// [`Self::name`] with the joints of per-joint terms named (`joints[f]`: the joint of
+    /// frame `f`, [`frame_joints`]; `#f` where missing), e.g. `offsets+backlash(arm_6_joint)`.
+    pub fn named(&self, joints: &[String]) -> String {
         let mut name = match self.level {
             ModelLevel::Offsets => "offsets".to_string(),
             ModelLevel::Geometry => "geometry".to_string(),
@@ -117,9 +131,20 @@ impl ModelSpec {
                 name.push_str(&format!("×{}", self.prior_scale));
             }
         }
-        for (on, part) in [(self.harmonics, "+harmonics"), (self.backlash, "+backlash")] {
+        let terms = [
+            (self.harmonics, "+harmonics", self.harmonic_frames),
+            (self.backlash, "+backlash", self.backlash_frames),
+        ];
+        for (on, part, frames) in terms {
             if on {
                 name.push_str(part);
+            }
+            if on && frames != 0 {
+                let listed: Vec<String> = (0..64)
+                    .filter(|f| frames & (1u64 << f) != 0)
+                    .map(|f| joints.get(f).cloned().unwrap_or_else(|| format!("#{f}")))
+                    .collect();
+                name.push_str(&format!("({})", listed.join(",")));
             }
         }
         if self.identify_stiffness {
@@ -211,9 +236,20 @@ pub fn prepare(
                         | crate::kinematics::ParameterKind::Cosine
                         | crate::kinematics::ParameterKind::Backlash
                 );
+            let by_frames = match (owner, kind) {
+                (
+                    ParameterOwner::Frame(f),
+                    crate::kinematics::ParameterKind::Sine
+                    | crate::kinematics::ParameterKind::Cosine,
+                ) => outside(spec.harmonic_frames, *f),
+                (ParameterOwner::Frame(f), crate::kinematics::ParameterKind::Backlash) => {
+                    outside(spec.backlash_frames, *f)
+                }
+                _ => false,
+            };
             let by_user = patterns.freeze.iter().any(|p| glob_match(p, &names[*i]));
             let freed = patterns.free.iter().any(|p| glob_match(p, &names[*i]));
-            (by_level || by_user) && !freed
+            (by_level || by_frames || by_user) && !freed
         })
         .map(|(i, _)| i)
         .collect();
@@ -228,6 +264,20 @@ pub fn prepare(
             ..options.clone()
         },
     })
+}
+
+/// Whether frame `f` is outside the per-joint `mask` (0: every frame is inside).
+fn outside(mask: u64, f: usize) -> bool {
+    mask != 0 && (f >= 64 || mask & (1u64 << f) == 0)
+}
+
+/// The joint of each of the model's frames, by name.
+pub fn frame_joints(tree: &KinematicTree, model: &McpcModel) -> Vec<String> {
+    model
+        .frames()
+        .iter()
+        .map(|f| tree.joint(f.joint).name.clone())
+        .collect()
 }
 
 /// Runs the calibration of a prepared model ([`run_model_with_noise`] without its noise

@@ -91,6 +91,8 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
             free: args.free.clone(),
         },
         cv: args.cv,
+        cv_repeats: args.cv_repeats,
+        cv_joint_steps: args.cv_joint_steps,
     }
 }
 

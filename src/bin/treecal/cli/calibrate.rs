@@ -94,6 +94,15 @@ pub struct CalibrateArgs {
     /// report.json `model_choice`); --model auto uses 5 without it.
     #[arg(long, value_name = "K")]
     pub cv: Option<usize>,
+    /// Repeat the cross-validation over R fold assignments (seeds --seed, --seed + 1, …) and
+    /// average each row's squared held-out errors: the choice no longer rests on one split.
+    #[arg(long, value_name = "R", default_value_t = treecal::workflow::REPEATS)]
+    pub cv_repeats: usize,
+    /// After the cross-validation's choice, offer one more joint's harmonics or backlash at a
+    /// time (at most two steps; each costs about one more cross-validation): per-joint errors
+    /// such as "harmonics on arm_6" chosen by the same rule (docs/identification.md).
+    #[arg(long)]
+    pub cv_joint_steps: bool,
     /// Measurement CSV (one row per tool observation); not with --contacts; with --camera,
     /// tracker rows fitted together with the pixels (mixed data, each with its σ).
     #[arg(long, value_name = "M.csv", required_unless_present_any = ["contacts", "camera"])]
@@ -125,7 +134,7 @@ pub struct CalibrateArgs {
         requires = "detections",
         conflicts_with_all = [
             "stiffness", "identify_stiffness", "plan", "plan_file",
-            "reference_link", "joint_errors", "prior", "significant", "cv", "freeze", "free"
+            "reference_link", "joint_errors", "prior", "significant", "cv", "cv_repeats", "cv_joint_steps", "freeze", "free"
         ]
     )]
     pub camera: Option<PathBuf>,
