@@ -2,6 +2,7 @@
 
 mod blunders;
 pub mod camera;
+pub mod camera_contacts;
 pub mod camera_planning;
 pub mod camera_setup;
 pub mod camera_visibility;

@@ -191,6 +191,7 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         views: &views,
         tracker: &tracker,
         unknowns: setup.rig.unknowns(&setup.augmented, true),
+        contacts: Default::default(),
     };
     let mut options = CameraFitOptions {
         pixel_sigma: config.pixel_sigma,
