@@ -36,6 +36,8 @@ use std::path::{Path, PathBuf};
 pub const CALIBRATED_CAMERAS: &str = "cameras_calibrated.yaml";
 
 pub use super::calibrate_camera_judge::{PIXEL_SIGMA_FAILED, PIXEL_SIGMA_WARNING};
+use super::camera_contacts::CameraContacts;
+pub use super::camera_contacts::CameraContactsInput;
 pub use super::camera_tracker::CameraTrackerInput;
 
 /// Settings of [`calibrate_camera_files`].
@@ -56,6 +58,9 @@ pub struct CameraCalibrateConfig {
     pub pixel_sigma: f64,
     /// Tracker rows fitted with the pixels (mixed data), each kind with its own σ.
     pub tracker: Option<CameraTrackerInput>,
+    /// Contacts fitted with the pixels (touch, bar, flush, point), each row kind with the
+    /// setup's σ.
+    pub contacts: Option<CameraContactsInput>,
     /// Unit of revolute joints in the CSVs [default: the file's `# units:` comment, else rad].
     pub angle_unit: Option<AngleUnit>,
     /// Unit of prismatic joints [default: the comment's, else m].
@@ -110,6 +115,8 @@ impl CameraCalibrateConfig {
             },
             self.validation.as_deref(),
             self.tracker.as_ref().map(|t| t.measurements.as_path()),
+            self.contacts.as_ref().map(|c| c.contacts.as_path()),
+            self.contacts.as_ref().map(|c| c.setup.as_path()),
         ]
         .into_iter()
         .flatten()
@@ -186,15 +193,31 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         None => None,
     };
     let tracker = read_tracker(config, &mut setup, &mut notes)?;
+    let contacts = match &config.contacts {
+        Some(input) => Some(CameraContacts::read(
+            input,
+            &setup.tree,
+            &setup.augmented,
+            &mut notes,
+        )?),
+        None => None,
+    };
+    let mut unknowns = setup.rig.unknowns(&setup.augmented, true);
+    unknowns.extend(contacts.iter().flat_map(CameraContacts::unknowns));
     let problem = CameraProblem {
         rig: &setup.rig,
         views: &views,
         tracker: &tracker,
-        unknowns: setup.rig.unknowns(&setup.augmented, true),
-        contacts: Default::default(),
+        unknowns,
+        contacts: contacts
+            .as_ref()
+            .map_or_else(Default::default, CameraContacts::rows),
     };
     let mut options = CameraFitOptions {
         pixel_sigma: config.pixel_sigma,
+        contact_noise: contacts
+            .as_ref()
+            .map_or_else(Default::default, CameraContacts::noise),
         ..CameraFitOptions::default()
     };
     if let Some(input) = &config.tracker {

@@ -12,6 +12,7 @@ pub mod calibrate_deploy;
 mod calibrate_html;
 mod calibrate_outputs;
 mod calibrate_steps;
+mod camera_contacts;
 mod camera_tracker;
 pub mod check;
 pub mod check_camera;

@@ -213,6 +213,16 @@ fn lab_files(
         ),
         ("truth.urdf".to_owned(), urdf.urdf.into_bytes()),
     ]);
+    if let Some((scene, _)) = &data.contacts {
+        // contacts.csv, contacts-validation.csv and contact-setup.yaml, for `calibrate
+        // --camera … --contacts contacts.csv --contact-setup contact-setup.yaml`.
+        files.extend(super::simulate_contacts::lab_files(
+            setup.tree,
+            setup.augmented,
+            scene,
+            None,
+        )?);
+    }
     Ok(files)
 }
 
