@@ -324,7 +324,9 @@ pub struct SimulateArgs {
     /// σ) or `rigid-tracker` (the tracker at the camera simulation's configurations); or a
     /// comma list of contacts (docs/contacts.md): `flush` (the first tool's face flush with a
     /// plane), `plane` (its contact point on a plane), `touch` (the first two tools' contact
-    /// points touch), `bar` (they hold a 0.3 m bar), --poses + --torso-poses configurations each.
+    /// points touch), `bar` (they hold a 0.3 m bar), --poses + --torso-poses configurations each;
+    /// contacts with `camera`, `mixed` or `rigid-tracker` (e.g. `camera,touch`) are fitted with
+    /// the camera's observations.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "tracker")]
     pub observation: Vec<ObservationArg>,
     /// Encoder noise σ on the recorded configurations of a contact simulation (rad).
@@ -729,12 +731,13 @@ pub struct CalibrateArgs {
     pub measurements: Option<PathBuf>,
     /// Contacts CSV (docs/contacts.md, docs/file-formats.md): calibrate from contacts — faces
     /// flush on a plane, points on a plane, touches, a bar — instead of --measurements; with
-    /// --contact-setup. --validation then takes held-out contacts.
+    /// --contact-setup. --validation then takes held-out contacts; with --camera, the contacts
+    /// are fitted with the pixels (--validation: held-out detections).
     #[arg(
         long,
         value_name = "C.csv",
         requires = "contact_setup",
-        conflicts_with_all = ["measurements", "camera"]
+        conflicts_with = "measurements"
     )]
     pub contacts: Option<PathBuf>,
     /// The contacts' setup (YAML): reference link, tools with their nominal contact faces and
