@@ -8,11 +8,10 @@
 //! model's tool Jacobians at each contact's configuration (the contact's tools are robot
 //! tools, numbered before the rig's extra tools), hands them to the kind as a
 //! [`RobotState`], and scatters the columns into its own unknowns: a model parameter is
-//! [`Unknown::Parameter`], a contact's nuisance value (a plane, a contact point, a face, a bar)
-//! [`Unknown::Nuisance`]; intrinsics have no contact column. See `docs/camera.md` §6 and
+//! `Unknown::Parameter`, a contact's nuisance value (a plane, a contact point, a face, a bar)
+//! `Unknown::Nuisance`; intrinsics have no contact column. See `docs/camera.md` §6 and
 //! `docs/contacts.md`.
 
-use super::fit::Unknown;
 use crate::calibration::observation::Tools;
 use crate::calibration::{kind_of, Noise, Nuisance, RobotState, RowKind};
 use crate::error::{Error, Result};
@@ -78,34 +77,21 @@ impl ContactRows<'_> {
     }
 }
 
-/// The model-parameter and nuisance unknowns as flat seam indices (the model's parameters,
-/// then the nuisance values), with their positions among `unknowns`.
-fn seam_columns(unknowns: &[Unknown], parameter_count: usize) -> (Vec<usize>, Vec<usize>) {
-    unknowns
-        .iter()
-        .enumerate()
-        .filter_map(|(position, unknown)| match *unknown {
-            Unknown::Parameter(p) => Some((p, position)),
-            Unknown::Nuisance(k) => Some((parameter_count + k, position)),
-            Unknown::Intrinsic { .. } => None,
-        })
-        .unzip()
-}
-
 /// Writes the contacts' weighted residuals (each row over its σ in `noise`) into `residual`
 /// from row `start` on and, when `jacobian` has rows, their weighted Jacobian over
-/// `unknowns`, at `model` and `nuisance`.
+/// the unknowns, at `model` and `nuisance`: `(flat, positions)` are the unknowns that are model
+/// parameters or nuisance values as flat seam indices (the model's parameters, then the
+/// nuisance values) and their positions among the unknowns.
 pub(super) fn add_contact_rows(
     contacts: &ContactRows<'_>,
     (model, nuisance): (&McpcModel, &Nuisance),
-    unknowns: &[Unknown],
+    (flat, positions): (&[usize], &[usize]),
     noise: &Noise,
     start: usize,
     residual: &mut DVector<f64>,
     jacobian: &mut DMatrix<f64>,
 ) -> Result<()> {
     let with_jacobian = jacobian.nrows() > 0;
-    let (flat, positions) = seam_columns(unknowns, model.parameter_count());
     let mut cached_jacobians: Option<(&[f64], Vec<ToolJacobian>)> = None;
     let mut cached_poses: Option<(&[f64], Vec<Pose>)> = None;
     let mut row = start;

@@ -445,10 +445,11 @@ impl CameraProblem<'_> {
             }
             row += count;
         }
+        let (flat, positions) = seam_columns(&self.unknowns, state.model.parameter_count());
         add_contact_rows(
             &self.contacts,
             (&state.model, &state.nuisance),
-            &self.unknowns,
+            (&flat, &positions),
             &options.contact_noise,
             row,
             &mut residual,
@@ -486,6 +487,20 @@ impl CameraProblem<'_> {
                 .collect(),
         })
     }
+}
+
+/// The model-parameter and nuisance unknowns as flat seam indices (the model's parameters,
+/// then the nuisance values), with their positions among `unknowns`.
+fn seam_columns(unknowns: &[Unknown], parameter_count: usize) -> (Vec<usize>, Vec<usize>) {
+    unknowns
+        .iter()
+        .enumerate()
+        .filter_map(|(position, unknown)| match *unknown {
+            Unknown::Parameter(p) => Some((p, position)),
+            Unknown::Nuisance(k) => Some((parameter_count + k, position)),
+            Unknown::Intrinsic { .. } => None,
+        })
+        .unzip()
 }
 
 /// The tool poses of `model` at `q`, recomputed only when `q` changes.

@@ -193,31 +193,24 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         None => None,
     };
     let tracker = read_tracker(config, &mut setup, &mut notes)?;
-    let contacts = match &config.contacts {
-        Some(input) => Some(CameraContacts::read(
-            input,
-            &setup.tree,
-            &setup.augmented,
-            &mut notes,
-        )?),
-        None => None,
-    };
+    let contacts = CameraContacts::read_optional(
+        config.contacts.as_ref(),
+        (&setup.tree, &setup.augmented),
+        &mut notes,
+    )?;
     let mut unknowns = setup.rig.unknowns(&setup.augmented, true);
     unknowns.extend(contacts.iter().flat_map(CameraContacts::unknowns));
+    let (contact_rows, contact_noise) = CameraContacts::parts(contacts.as_ref());
     let problem = CameraProblem {
         rig: &setup.rig,
         views: &views,
         tracker: &tracker,
         unknowns,
-        contacts: contacts
-            .as_ref()
-            .map_or_else(Default::default, CameraContacts::rows),
+        contacts: contact_rows,
     };
     let mut options = CameraFitOptions {
         pixel_sigma: config.pixel_sigma,
-        contact_noise: contacts
-            .as_ref()
-            .map_or_else(Default::default, CameraContacts::noise),
+        contact_noise,
         ..CameraFitOptions::default()
     };
     if let Some(input) = &config.tracker {

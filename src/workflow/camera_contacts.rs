@@ -77,6 +77,22 @@ impl CameraContacts {
         Ok(Self { problem, noise })
     }
 
+    /// [`Self::read`] of `input`, if given.
+    pub(super) fn read_optional(
+        input: Option<&CameraContactsInput>,
+        (tree, model): (&KinematicTree, &McpcModel),
+        notes: &mut Vec<Note>,
+    ) -> Result<Option<Self>> {
+        input
+            .map(|input| Self::read(input, tree, model, notes))
+            .transpose()
+    }
+
+    /// The rows and their σ's for the camera fit (none, default σ's, without contacts).
+    pub(super) fn parts(contacts: Option<&Self>) -> (ContactRows<'_>, Noise) {
+        contacts.map_or_else(Default::default, |c| (c.rows(), c.noise()))
+    }
+
     /// The rows for the camera fit.
     pub(super) fn rows(&self) -> ContactRows<'_> {
         ContactRows {
