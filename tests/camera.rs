@@ -408,6 +408,7 @@ fn camera_identifiability_names_the_torso_only_without_the_world_board() {
                 .filter(|p| !extra.contains(p))
                 .map(Unknown::Parameter)
                 .collect(),
+            contacts: Default::default(),
         };
         let check =
             camera_identifiability(&robot.tree, &robot.branches, &model, &problem, 0.5).unwrap();

@@ -6,6 +6,7 @@ mod branches;
 mod calibrate;
 mod camera;
 mod camera_cli;
+mod camera_contacts;
 mod camera_plan;
 mod cli;
 mod collision;

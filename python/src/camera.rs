@@ -150,6 +150,7 @@ pub fn calibrate_camera(
         validation,
         pixel_sigma,
         tracker,
+        contacts: None,
         angle_unit: parse_unit(angle_unit.as_deref())?,
         length_unit: joint_length.or(length),
         add_tool_links,

@@ -4,10 +4,12 @@
 //! iteration as the tracker identification (`docs/identification.md`), on pixel rows
 //! divided by the pixel σ and tracker rows by theirs. See `docs/camera.md`.
 
+use super::contact_rows::{add_contact_rows, contact_sums, ContactRows};
 use super::model::{Intrinsics, Rejection, INTRINSIC_COUNT, INTRINSIC_NAMES};
 use super::observation::{linearise_view, predict_pixels, View};
 use super::rig::Rig;
 use crate::calibration::Termination;
+use crate::calibration::{Noise, Nuisance};
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::math::{pose_error, Pose};
@@ -32,6 +34,10 @@ pub struct CameraFitOptions {
     pub step_tolerance: f64,
     /// Stop when an accepted step lowers the cost by less than this fraction.
     pub cost_tolerance: f64,
+    /// σ of the contact rows (heights, tilts, gaps, bar lengths; [`Noise`]): contact rows are
+    /// divided by their kind's σ. Its position and rotation σ are not used (tracker rows take
+    /// `position_sigma` and `rotation_sigma`).
+    pub contact_noise: Noise,
 }
 
 impl Default for CameraFitOptions {
@@ -44,6 +50,7 @@ impl Default for CameraFitOptions {
             rank_tolerance: 1e-8,
             step_tolerance: 1e-12,
             cost_tolerance: 1e-10,
+            contact_noise: Noise::default(),
         }
     }
 }
@@ -61,6 +68,9 @@ pub enum Unknown {
         /// Which intrinsic.
         index: usize,
     },
+    /// Nuisance value `k` of the contacts ([`ContactRows::nuisance`], 0-based among its
+    /// values): a plane's height or tilt, a contact point's coordinate, a bar's length.
+    Nuisance(usize),
 }
 
 /// The data and unknowns of a camera calibration.
@@ -74,6 +84,8 @@ pub struct CameraProblem<'a> {
     pub tracker: &'a [Measurement],
     /// What is fitted.
     pub unknowns: Vec<Unknown>,
+    /// Contacts fitted with the pixels (touch, bar, flush, point; none by default).
+    pub contacts: ContactRows<'a>,
 }
 
 /// A detected point left out of the fit, and why.
@@ -120,12 +132,15 @@ pub struct CameraFitReport {
     pub rejected: Vec<RejectedPoint>,
     /// The rows of each kind of observation and their own σ̂ ([`kind_scales`]).
     pub kinds: Vec<KindScale>,
+    /// The contacts' nuisance values at the solution (empty without contacts).
+    pub nuisance: Nuisance,
 }
 
 /// The rows of one kind of observation in a fit and their σ̂.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct KindScale {
-    /// `pixel`, `tracker position` or `tracker rotation`.
+    /// `pixel`, `tracker position`, `tracker rotation` or a contact row kind (`height`,
+    /// `tilt`, `gap`, `length`).
     pub kind: String,
     /// Observations of this kind (detected points, tracker rows).
     pub observations: usize,
@@ -138,7 +153,8 @@ pub struct KindScale {
 }
 
 /// σ̂ per kind of the weighted `residual` of `problem` (pixel rows first, then the tracker
-/// rows in order, position rows before rotation rows), at numerical rank `rank`.
+/// rows in order, position rows before rotation rows, then the contact rows), at numerical
+/// rank `rank`.
 pub fn kind_scales(
     problem: &CameraProblem<'_>,
     residual: &DVector<f64>,
@@ -146,7 +162,8 @@ pub fn kind_scales(
 ) -> Vec<KindScale> {
     let total = residual.len();
     let tracker_rows: usize = problem.tracker.iter().map(|m| m.observation.rows()).sum();
-    let pixel_rows = total.saturating_sub(tracker_rows);
+    let contact_rows = problem.contacts.row_count().min(total);
+    let pixel_rows = total.saturating_sub(tracker_rows + contact_rows);
     // (observations, rows, Σ r²) of pixel, tracker position, tracker rotation.
     let mut sums = [(0, 0, 0.0); 3];
     sums[0] = (
@@ -169,7 +186,14 @@ pub fn kind_scales(
         row += count;
     }
     let kept = 1.0 - rank as f64 / total.max(1) as f64;
-    ["pixel", "tracker position", "tracker rotation"]
+    let scale = |sum: f64, rows: usize| {
+        if kept > 0.0 {
+            (sum / (rows as f64 * kept)).sqrt()
+        } else {
+            f64::NAN
+        }
+    };
+    let instruments = ["pixel", "tracker position", "tracker rotation"]
         .iter()
         .zip(sums)
         .filter(|(_, (_, rows, _))| *rows > 0)
@@ -177,13 +201,23 @@ pub fn kind_scales(
             kind: (*kind).to_owned(),
             observations,
             rows,
-            residual_scale: if kept > 0.0 {
-                (sum / (rows as f64 * kept)).sqrt()
-            } else {
-                f64::NAN
-            },
-        })
-        .collect()
+            residual_scale: scale(sum, rows),
+        });
+    let contacts = contact_sums(
+        &problem.contacts,
+        residual
+            .as_slice()
+            .get(total - contact_rows..)
+            .unwrap_or(&[]),
+    )
+    .into_iter()
+    .map(|(kind, observations, rows, sum)| KindScale {
+        kind: kind.name().to_owned(),
+        observations,
+        rows,
+        residual_scale: scale(sum, rows),
+    });
+    instruments.chain(contacts).collect()
 }
 
 /// The current estimate.
@@ -191,6 +225,7 @@ pub fn kind_scales(
 pub(super) struct State {
     pub(super) model: McpcModel,
     pub(super) intrinsics: Vec<Intrinsics>,
+    pub(super) nuisance: Nuisance,
 }
 
 /// The stacked weighted residual and Jacobian (empty when only the cost is wanted); `None`
@@ -209,6 +244,11 @@ impl CameraProblem<'_> {
                 "camera {} {}",
                 self.rig.cameras[camera].name, INTRINSIC_NAMES[index]
             ),
+            Unknown::Nuisance(k) => self
+                .contacts
+                .nuisance
+                .value_name(k)
+                .unwrap_or_else(|| format!("nuisance {k}")),
         }
     }
 
@@ -217,7 +257,7 @@ impl CameraProblem<'_> {
             origin: "camera calibration".into(),
             message,
         };
-        if self.views.is_empty() && self.tracker.is_empty() {
+        if self.views.is_empty() && self.tracker.is_empty() && self.contacts.is_empty() {
             return Err(bad("no observations".into()));
         }
         let dofs = model
@@ -254,11 +294,18 @@ impl CameraProblem<'_> {
                     "tracker row {index} names no tool or has a bad configuration"
                 )));
             }
+            if matches!(m.observation, Observation::Contact(_)) {
+                return Err(bad(format!(
+                    "tracker row {index} is a contact: give contacts as the problem's contacts"
+                )));
+            }
         }
+        self.contacts.validate(self.rig.robot_tools, dofs)?;
         let count = model.parameter_count();
         for unknown in &self.unknowns {
             let fine = match *unknown {
                 Unknown::Parameter(p) => p < count,
+                Unknown::Nuisance(k) => k < self.contacts.nuisance.len(),
                 Unknown::Intrinsic { camera, index } => {
                     camera < self.rig.cameras.len() && index < INTRINSIC_COUNT
                 }
@@ -310,7 +357,7 @@ impl CameraProblem<'_> {
     ) -> Option<Linearisation> {
         let pixel_rows: usize = kept.iter().flatten().filter(|k| **k).count() * 2;
         let tracker_rows: usize = self.tracker.iter().map(|m| m.observation.rows()).sum();
-        let rows = pixel_rows + tracker_rows;
+        let rows = pixel_rows + tracker_rows + self.contacts.row_count();
         let columns = if with_jacobian {
             self.unknowns.len()
         } else {
@@ -352,7 +399,7 @@ impl CameraProblem<'_> {
                                     {
                                         prediction.wrt_intrinsics[(2 * k + axis, index)]
                                     }
-                                    Unknown::Intrinsic { .. } => 0.0,
+                                    Unknown::Intrinsic { .. } | Unknown::Nuisance(_) => 0.0,
                                 };
                         }
                         row += 1;
@@ -398,6 +445,17 @@ impl CameraProblem<'_> {
             }
             row += count;
         }
+        let (flat, positions) = seam_columns(&self.unknowns, state.model.parameter_count());
+        add_contact_rows(
+            &self.contacts,
+            (&state.model, &state.nuisance),
+            (&flat, &positions),
+            &options.contact_noise,
+            row,
+            &mut residual,
+            &mut jacobian,
+        )
+        .ok()?;
         Some(Linearisation { residual, jacobian })
     }
 
@@ -406,16 +464,21 @@ impl CameraProblem<'_> {
         let mut parameters = state.model.parameters();
         let mut intrinsics: Vec<[f64; INTRINSIC_COUNT]> =
             state.intrinsics.iter().map(Intrinsics::to_vector).collect();
+        let mut nuisance_values = state.nuisance.values();
         for (unknown, delta) in self.unknowns.iter().zip(step.iter()) {
             match *unknown {
                 Unknown::Parameter(p) => parameters[p] += delta,
                 Unknown::Intrinsic { camera, index } => intrinsics[camera][index] += delta,
+                Unknown::Nuisance(k) => nuisance_values[k] += delta,
             }
         }
         let mut model = state.model.clone();
         model.set_parameters(&parameters)?;
+        let mut nuisance = state.nuisance.clone();
+        nuisance.set_values(&nuisance_values)?;
         Ok(State {
             model,
+            nuisance,
             intrinsics: state
                 .intrinsics
                 .iter()
@@ -424,6 +487,20 @@ impl CameraProblem<'_> {
                 .collect(),
         })
     }
+}
+
+/// The model-parameter and nuisance unknowns as flat seam indices (the model's parameters,
+/// then the nuisance values), with their positions among `unknowns`.
+fn seam_columns(unknowns: &[Unknown], parameter_count: usize) -> (Vec<usize>, Vec<usize>) {
+    unknowns
+        .iter()
+        .enumerate()
+        .filter_map(|(position, unknown)| match *unknown {
+            Unknown::Parameter(p) => Some((p, position)),
+            Unknown::Nuisance(k) => Some((parameter_count + k, position)),
+            Unknown::Intrinsic { .. } => None,
+        })
+        .unzip()
 }
 
 /// The tool poses of `model` at `q`, recomputed only when `q` changes.
@@ -446,7 +523,8 @@ fn tracker_error(measured: &Observation, predicted: &Pose) -> Vector6<f64> {
             let d = p - predicted.translation.vector;
             Vector6::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
         }
-        // Contacts are not tracker rows (issue 29; camera + touch mixtures are not wired yet).
+        // Contacts are not tracker rows: they enter through `CameraProblem::contacts`
+        // (`validate` keeps them out of `tracker`).
         Observation::Contact(_) => Vector6::zeros(),
     }
 }

@@ -10,9 +10,11 @@
 //! - `observation`: one image of one target, its predicted pixels and their Jacobians.
 //! - `check`: what a camera data set determines, before fitting, said in words.
 //! - `fit` and [`calibrate_camera`]: the joint fit of the robot, the rig's poses and the
-//!   intrinsics from pixels, mixed with tracker rows if there are any.
+//!   intrinsics from pixels, mixed with tracker rows and contacts (`ContactRows`) if there
+//!   are any.
 
 pub(crate) mod check;
+mod contact_rows;
 pub(crate) mod fit;
 pub(crate) mod model;
 pub(crate) mod observation;
@@ -25,6 +27,7 @@ pub use check::{
     camera_identifiability, explain as explain_identifiability, CameraIdentifiability,
 };
 pub use fit::kind_scales;
+pub use contact_rows::ContactRows;
 pub use fit::{
     CameraFitOptions, CameraFitReport, CameraProblem, KindScale, RejectedPoint, Unknown,
 };

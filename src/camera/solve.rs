@@ -106,6 +106,7 @@ pub fn calibrate_camera(
     let mut state = State {
         model: model.clone(),
         intrinsics: problem.rig.cameras.iter().map(|c| c.intrinsics).collect(),
+        nuisance: problem.contacts.nuisance.clone(),
     };
     let (kept, rejected) = problem.kept_points(&state);
     let cost_of = |lin: &Linearisation| 0.5 * lin.residual.norm_squared();
@@ -190,6 +191,7 @@ pub fn calibrate_camera(
 /// ‖S·x‖ of the model parameters and intrinsics being fitted (the step test's scale).
 fn state_size(problem: &CameraProblem<'_>, state: &State, scales: &DVector<f64>) -> f64 {
     let parameters = state.model.parameters();
+    let nuisance = state.nuisance.values();
     problem
         .unknowns
         .iter()
@@ -200,6 +202,7 @@ fn state_size(problem: &CameraProblem<'_>, state: &State, scales: &DVector<f64>)
                 super::fit::Unknown::Intrinsic { camera, index } => {
                     state.intrinsics[camera].to_vector()[index]
                 }
+                super::fit::Unknown::Nuisance(k) => nuisance.get(k).copied().unwrap_or(0.0),
             };
             (value * s).powi(2)
         })
@@ -276,10 +279,12 @@ fn statistics(
             .tracker
             .iter()
             .map(|m| m.observation.rows())
-            .sum::<usize>();
+            .sum::<usize>()
+        - problem.contacts.row_count();
     let options_sigma = pixel_sigma_of(lin, pixel_rows);
     let kinds = super::fit::kind_scales(problem, &lin.residual, rank);
     Ok(CameraFitReport {
+        nuisance: state.nuisance,
         model: state.model,
         intrinsics: state.intrinsics,
         unknowns: problem.unknowns.clone(),

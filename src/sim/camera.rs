@@ -4,15 +4,18 @@
 //! judged on tool poses against the true robot in its root frame at separate validation
 //! configurations, whatever was observed. The robot is rigid here (no gravity loads).
 
+use super::camera_contacts::{camera_contact_scene, contact_noise, contact_unknowns};
 use super::camera_setup::CameraRigOptions;
 use super::collision::CollisionChecker;
+use super::contacts::{ContactScene, ContactSimulation};
 use super::experiment::trial_seed;
 use super::noise::{observe, NoiseModel, Targets};
 use super::sampling::{sample_configurations, SamplingOptions};
 use super::truth::{true_model, ErrorRanges};
+use crate::calibration::Nuisance;
 use crate::camera::{
-    calibrate_camera, predict_pixels, CameraFitOptions, CameraFitReport, CameraProblem, Rig,
-    TargetShape, Unknown, View,
+    calibrate_camera, predict_pixels, CameraFitOptions, CameraFitReport, CameraProblem,
+    ContactRows, Rig, TargetShape, Unknown, View,
 };
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
@@ -61,6 +64,8 @@ pub struct CameraSimulationOptions {
     pub world_board_always: bool,
     /// The master seed.
     pub seed: u64,
+    /// Contacts the robot also makes, fitted with the pixels (`camera,touch`); `None`: none.
+    pub contacts: Option<ContactSimulation>,
 }
 
 impl Default for CameraSimulationOptions {
@@ -75,6 +80,7 @@ impl Default for CameraSimulationOptions {
             torso_spread: 1.0,
             world_board_always: true,
             seed: 0,
+            contacts: None,
         }
     }
 }
@@ -108,6 +114,8 @@ pub struct CameraTrialReport {
     pub points: usize,
     /// Tracker rows used.
     pub tracker_rows: usize,
+    /// Contacts used (touch, bar, flush, point rows of the fit: 3, 1, 3, 1 each).
+    pub contacts: usize,
     /// Mean validation tool position error before calibration (mm).
     pub before_mean_position_mm: f64,
     /// Mean validation tool position error after calibration (mm).
@@ -129,6 +137,9 @@ pub struct CameraTrialReport {
     pub rank: usize,
     /// The parameters the data cannot determine, by name.
     pub unidentifiable: Vec<String>,
+    /// Each kind's rows and own σ̂ (pixels, tracker rows, contact heights, tilts, gaps, bar
+    /// lengths).
+    pub kinds: Vec<crate::camera::KindScale>,
 }
 
 /// The truth and the observations of one trial.
@@ -146,6 +157,9 @@ pub struct CameraTrialData {
     pub views: Vec<View>,
     /// The tracker rows (none in camera mode).
     pub tracker: Vec<Measurement>,
+    /// The contacts the true robot makes and the fit's starting nuisance values
+    /// ([`CameraSimulationOptions::contacts`]).
+    pub contacts: Option<(ContactScene, Nuisance)>,
 }
 
 /// The truth and observations of trial `trial` in `mode`. Configurations, truth and noise
@@ -188,6 +202,10 @@ pub fn camera_trial_data(
             &mut tracker_rng,
         )
     };
+    let contacts = match &options.contacts {
+        Some(settings) => Some(camera_contact_scene(setup.tree, &truth, settings, seed)?),
+        None => None,
+    };
     Ok(CameraTrialData {
         seed,
         truth,
@@ -195,6 +213,7 @@ pub fn camera_trial_data(
         validation,
         views,
         tracker,
+        contacts,
     })
 }
 
@@ -231,12 +250,25 @@ pub fn run_camera_trial(
         validation,
         views,
         tracker,
+        contacts,
     } = camera_trial_data(setup, options, mode, trial)?;
+    let mut unknowns = setup.rig.unknowns(setup.augmented, !views.is_empty());
+    let contact_rows = match &contacts {
+        Some((scene, start)) => {
+            unknowns.extend(contact_unknowns(scene));
+            ContactRows {
+                rows: &scene.measurements,
+                nuisance: start,
+            }
+        }
+        None => ContactRows::default(),
+    };
     let problem = CameraProblem {
         rig: setup.rig,
         views: &views,
         tracker: &tracker,
-        unknowns: setup.rig.unknowns(setup.augmented, !views.is_empty()),
+        unknowns,
+        contacts: contact_rows,
     };
     let fit_options = fit_options(options);
     let report = calibrate_camera(setup.augmented, &problem, &fit_options)?;
@@ -248,6 +280,7 @@ pub fn run_camera_trial(
         views: views.len(),
         points: views.iter().map(|v| v.points.len()).sum(),
         tracker_rows: tracker.len(),
+        contacts: contact_rows.rows.len(),
         before_mean_position_mm: judged.before_mean,
         mean_position_mm: judged.mean,
         max_position_mm: judged.max,
@@ -258,6 +291,7 @@ pub fn run_camera_trial(
         unknowns: report.unknowns.len(),
         rank: report.rank,
         unidentifiable: unidentifiable_names(setup, &problem, &report),
+        kinds: report.kinds.clone(),
     })
 }
 
@@ -275,6 +309,9 @@ pub fn fit_options(options: &CameraSimulationOptions) -> CameraFitOptions {
         let sigma = options.tracker_noise.sigma(&crate::math::Vec3::zeros());
         fit.position_sigma = sigma;
         fit.rotation_sigma = std::f64::consts::SQRT_2 * sigma / crate::measurement::TARGET_SPACING;
+    }
+    if let Some(contacts) = &options.contacts {
+        fit.contact_noise = contact_noise(contacts);
     }
     fit
 }
@@ -509,7 +546,7 @@ fn judge(
         .iter()
         .map(|u| match u {
             Unknown::Parameter(p) => Some(*p),
-            Unknown::Intrinsic { .. } => None,
+            Unknown::Intrinsic { .. } | Unknown::Nuisance(_) => None,
         })
         .collect();
     for q in validation {

@@ -216,7 +216,7 @@ fn information(
                     Unknown::Intrinsic { camera, index } if camera == view.camera => {
                         prediction.wrt_intrinsics[(r, index)]
                     }
-                    Unknown::Intrinsic { .. } => 0.0,
+                    Unknown::Intrinsic { .. } | Unknown::Nuisance(_) => 0.0,
                 } / pixel_sigma;
             }
             row += 1;

@@ -173,7 +173,11 @@ pub fn run_contact_trial(
 }
 
 /// The true nuisance values, the freed ones moved up to `error` (m, rad) off: the fit's start.
-fn nuisance_start(scene: &ContactScene, error: f64, rng: &mut ChaCha8Rng) -> Result<Nuisance> {
+pub(super) fn nuisance_start(
+    scene: &ContactScene,
+    error: f64,
+    rng: &mut ChaCha8Rng,
+) -> Result<Nuisance> {
     let mut start = scene.nuisance.clone();
     let values: Vec<f64> = start
         .values()

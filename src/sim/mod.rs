@@ -2,6 +2,7 @@
 
 mod blunders;
 pub(crate) mod camera;
+pub(crate) mod camera_contacts;
 pub(crate) mod camera_planning;
 pub(crate) mod camera_setup;
 pub(crate) mod camera_visibility;
@@ -24,6 +25,7 @@ pub use camera::{
     board_size, camera_trial_data, fit_options, held_out_views, run_camera_trial, CameraSetup,
     CameraSimulationOptions, CameraTrialData, CameraTrialReport, ObservationMode,
 };
+pub use camera_contacts::{camera_contact_scene, contact_noise, contact_unknowns};
 pub use camera_planning::{plan_camera_poses, CameraPlanReport, CameraPlanningOptions};
 pub use camera_setup::{camera_rig, camera_specs, CameraRigOptions};
 pub use camera_visibility::{rigid_group, Hidden, Sight, VisibilityRules};

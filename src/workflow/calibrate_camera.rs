@@ -36,6 +36,8 @@ use std::path::{Path, PathBuf};
 pub const CALIBRATED_CAMERAS: &str = "cameras_calibrated.yaml";
 
 pub use super::calibrate_camera_judge::{PIXEL_SIGMA_FAILED, PIXEL_SIGMA_WARNING};
+use super::camera_contacts::CameraContacts;
+pub use super::camera_contacts::CameraContactsInput;
 pub use super::camera_tracker::CameraTrackerInput;
 
 /// Settings of [`calibrate_camera_files`].
@@ -56,6 +58,9 @@ pub struct CameraCalibrateConfig {
     pub pixel_sigma: f64,
     /// Tracker rows fitted with the pixels (mixed data), each kind with its own σ.
     pub tracker: Option<CameraTrackerInput>,
+    /// Contacts fitted with the pixels (touch, bar, flush, point), each row kind with the
+    /// setup's σ.
+    pub contacts: Option<CameraContactsInput>,
     /// Unit of revolute joints in the CSVs [default: the file's `# units:` comment, else rad].
     pub angle_unit: Option<AngleUnit>,
     /// Unit of prismatic joints [default: the comment's, else m].
@@ -110,6 +115,8 @@ impl CameraCalibrateConfig {
             },
             self.validation.as_deref(),
             self.tracker.as_ref().map(|t| t.measurements.as_path()),
+            self.contacts.as_ref().map(|c| c.contacts.as_path()),
+            self.contacts.as_ref().map(|c| c.setup.as_path()),
         ]
         .into_iter()
         .flatten()
@@ -121,6 +128,23 @@ impl CameraCalibrateConfig {
         check_outputs(&[Output::Folder(out)], &self.inputs())?;
         check_output_folder(out, &is_output_file)
     }
+}
+
+/// The fit's σ's: the pixel σ of `config`, its tracker's σ's, the contacts' `contact_noise`.
+fn fit_options(
+    config: &CameraCalibrateConfig,
+    contact_noise: crate::calibration::Noise,
+) -> CameraFitOptions {
+    let mut options = CameraFitOptions {
+        pixel_sigma: config.pixel_sigma,
+        contact_noise,
+        ..CameraFitOptions::default()
+    };
+    if let Some(input) = &config.tracker {
+        options.position_sigma = input.position_sigma;
+        options.rotation_sigma = input.rotation_sigma;
+    }
+    options
 }
 
 /// Whether a file name is one a calibration writes (a previous output may be replaced).
@@ -186,20 +210,22 @@ pub fn calibrate_camera_files(config: &CameraCalibrateConfig) -> Result<CameraCa
         None => None,
     };
     let tracker = read_tracker(config, &mut setup, &mut notes)?;
+    let contacts = CameraContacts::read_optional(
+        config.contacts.as_ref(),
+        (&setup.tree, &setup.augmented),
+        &mut notes,
+    )?;
+    let mut unknowns = setup.rig.unknowns(&setup.augmented, true);
+    unknowns.extend(contacts.iter().flat_map(CameraContacts::unknowns));
+    let (contact_rows, contact_noise) = CameraContacts::parts(contacts.as_ref());
     let problem = CameraProblem {
         rig: &setup.rig,
         views: &views,
         tracker: &tracker,
-        unknowns: setup.rig.unknowns(&setup.augmented, true),
+        unknowns,
+        contacts: contact_rows,
     };
-    let mut options = CameraFitOptions {
-        pixel_sigma: config.pixel_sigma,
-        ..CameraFitOptions::default()
-    };
-    if let Some(input) = &config.tracker {
-        options.position_sigma = input.position_sigma;
-        options.rotation_sigma = input.rotation_sigma;
-    }
+    let options = fit_options(config, contact_noise);
     let fit = calibrate_camera(&setup.augmented, &problem, &options)?;
     let unobservable = explain_identifiability(
         &setup.tree,

@@ -63,6 +63,7 @@ pub fn check_camera(config: &CameraCheckConfig) -> Result<CameraCheck> {
         views: &views,
         tracker: &[],
         unknowns: rig.unknowns(&augmented, true),
+        contacts: Default::default(),
     };
     let report = camera_identifiability(tree, &branches, &augmented, &problem, config.pixel_sigma)?;
     let text = text(&report, views.len());

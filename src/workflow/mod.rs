@@ -12,6 +12,8 @@ pub(crate) mod calibrate_deploy;
 mod calibrate_html;
 mod calibrate_outputs;
 mod calibrate_steps;
+mod camera_contacts;
+pub use camera_contacts::CameraContactsInput;
 mod camera_tracker;
 pub(crate) mod check;
 pub(crate) mod check_camera;

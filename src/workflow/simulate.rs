@@ -133,8 +133,10 @@ pub struct SimulateConfig {
     pub world_board: bool,
     /// Whether the camera's intrinsics are estimated with the robot.
     pub estimate_intrinsics: bool,
-    /// Contacts to simulate instead of `observation` (issue 29; `docs/contacts.md`): each kind
-    /// with `poses + torso_poses` configurations; empty: none.
+    /// Contacts to simulate (issue 29; `docs/contacts.md`): each kind with `poses +
+    /// torso_poses` configurations; empty: none. With `observation` `Tracker` they are
+    /// simulated alone; with `Camera`, `Mixed` or `RigidTracker` they are fitted with the
+    /// camera simulation's observations (`camera,touch`).
     pub contacts: Vec<crate::sim::ContactChoice>,
     /// σ of the encoder noise on the recorded configurations of a contact simulation (rad).
     pub encoder_noise: f64,
@@ -251,7 +253,9 @@ pub fn simulate_with_progress(
     validate(config)?;
     if !config.contacts.is_empty() {
         crate::limits::check_range(config.encoder_noise, (0.0, 0.1), "encoder_noise", "rad")?;
-        return super::simulate_contacts::simulate_contacts(config, progress);
+        if config.observation == ObservationChoice::Tracker {
+            return super::simulate_contacts::simulate_contacts(config, progress);
+        }
     }
     if config.observation != ObservationChoice::Tracker {
         return super::simulate_camera::simulate_camera(config, progress);

@@ -13,6 +13,7 @@ use crate::sim::{
     CameraSimulationOptions, CameraTrialReport, ObservationMode,
 };
 use crate::sim::{camera_specs, CameraRigOptions};
+use crate::sim::ContactSimulation;
 use crate::{McpcModel, Result};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -84,6 +85,7 @@ pub(super) fn simulate_camera(
         pixel_sigma: config.pixel_sigma,
         tracker_noise: NoiseModel::parse(&config.noise)?,
         seed: config.seed,
+        contacts: contact_settings(config),
         ..CameraSimulationOptions::default()
     };
     let mode = match config.observation {
@@ -211,6 +213,16 @@ fn lab_files(
         ),
         ("truth.urdf".to_owned(), urdf.urdf.into_bytes()),
     ]);
+    if let Some((scene, _)) = &data.contacts {
+        // contacts.csv, contacts-validation.csv and contact-setup.yaml, for `calibrate
+        // --camera … --contacts contacts.csv --contact-setup contact-setup.yaml`.
+        files.extend(super::simulate_contacts::lab_files(
+            setup.tree,
+            setup.augmented,
+            scene,
+            None,
+        )?);
+    }
     Ok(files)
 }
 
@@ -272,6 +284,24 @@ pub(super) fn with_camera_link(
     Ok(Some(extended))
 }
 
+/// The contacts beside the camera (`--observation camera,touch`): `None` without any; the
+/// contact simulation's settings (per kind `--poses + --torso-poses` configurations, the
+/// encoder noise, the tables) otherwise.
+fn contact_settings(config: &SimulateConfig) -> Option<ContactSimulation> {
+    (!config.contacts.is_empty()).then(|| ContactSimulation {
+        kinds: config.contacts.clone(),
+        per_kind: config.poses + config.torso_poses,
+        encoder_sigma: config.encoder_noise,
+        tables: config.contact_tables.0,
+        flush_tools: config.contact_tables.1,
+        errors: ErrorRanges {
+            angle: config.angle_error,
+            length: config.length_error,
+        },
+        ..ContactSimulation::default()
+    })
+}
+
 fn mean(values: impl Iterator<Item = f64>) -> f64 {
     let values: Vec<f64> = values.collect();
     values.iter().sum::<f64>() / values.len().max(1) as f64
@@ -300,7 +330,27 @@ fn header(
         None => "no world board".into(),
     };
     let tool_board = shapes.first().map_or_else(String::new, board_size);
-    format!(
+    let contacts = options.contacts.as_ref().map_or_else(String::new, |c| {
+        let noise = crate::sim::camera_contacts::contact_noise(c);
+        format!(
+            " Contacts fitted with the pixels: {} ({} configurations each, drawn over the \
+             whole joint ranges; encoder noise σ {} rad; rows weighed by σ gap {} mm, height \
+             {} mm, tilt {} rad, bar {} mm; contact points {} m off at the start).",
+            c.kinds
+                .iter()
+                .map(|k| k.name())
+                .collect::<Vec<_>>()
+                .join(", "),
+            c.per_kind,
+            c.encoder_sigma,
+            noise.gap * 1e3,
+            noise.height * 1e3,
+            noise.tilt,
+            noise.length * 1e3,
+            c.nuisance_start_error,
+        )
+    });
+    let text = format!(
         "Robot '{robot}', {} trial(s), seed {}; observation: {mode:?}; {} identification \
          configurations (each showing the camera a tool board{}, each board detected when at \
          least {:.0} % of its corners are in the image and it is within {:.0}° of facing the \
@@ -339,23 +389,25 @@ fn header(
         },
         options.pixel_sigma,
         config.noise,
-    )
+    );
+    text + &contacts
 }
 
 /// summary.md: the set-up, one row per trial and the means.
 fn markdown(header: &str, reports: &[CameraTrialReport]) -> String {
     let mut text = format!("# Camera simulation\n\n{header}\n\n");
     text.push_str(
-        "| trial | views | points | tracker rows | before (mm) | mean (mm) | max (mm) | RMS (mm) | predicted RMS (mm) | orientation (deg) | σ̂ | rank / unknowns |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        "| trial | views | points | tracker rows | contacts | before (mm) | mean (mm) | max (mm) | RMS (mm) | predicted RMS (mm) | orientation (deg) | σ̂ | σ̂ by kind | rank / unknowns |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     for (k, r) in reports.iter().enumerate() {
         text.push_str(&format!(
-            "| {} | {} | {} | {} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.3} | {} / {} |\n",
+            "| {} | {} | {} | {} | {} | {:.2} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.3} | {} | {} / {} |\n",
             k + 1,
             r.views,
             r.points,
             r.tracker_rows,
+            r.contacts,
             r.before_mean_position_mm,
             r.mean_position_mm,
             r.max_position_mm,
@@ -363,6 +415,11 @@ fn markdown(header: &str, reports: &[CameraTrialReport]) -> String {
             r.predicted_rms_position_mm,
             r.mean_orientation_deg,
             r.residual_scale,
+            r.kinds
+                .iter()
+                .map(|k| format!("{} {:.2}", k.kind, k.residual_scale))
+                .collect::<Vec<_>>()
+                .join(", "),
             r.rank,
             r.unknowns
         ));

@@ -136,7 +136,7 @@ const SETUP_POINT_ERROR: f64 = 0.01;
 /// Trial 1's contacts as a lab would write them: contacts.csv (training, configurations as
 /// recorded), contacts-validation.csv (held out, exact) and contact-setup.yaml (the nominal
 /// faces, points and planes, the planes [`SETUP_PLANE_ERROR`] off), for `calibrate --contacts`.
-fn lab_files(
+pub(super) fn lab_files(
     tree: &crate::tree::KinematicTree,
     model: &McpcModel,
     scene: &ContactScene,

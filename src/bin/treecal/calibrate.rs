@@ -11,17 +11,18 @@ use treecal::workflow::{
     RobotSource, StiffnessSource,
 };
 use treecal::workflow::{
-    calibrate_camera_files, CameraCalibrateConfig, CameraTrackerInput, DetectionsSource,
+    calibrate_camera_files, CameraCalibrateConfig, CameraContactsInput, CameraTrackerInput, DetectionsSource,
 };
 use treecal::workflow::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::{Error, Result};
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
-    if let (Some(contacts), Some(setup)) = (&args.contacts, &args.contact_setup) {
-        return run_contacts(&args, contacts, setup);
-    }
+    // With --camera, contacts are fitted with the pixels (`run_camera`).
     if let (Some(camera), Some(detections)) = (&args.camera, &args.detections) {
         return run_camera(&args, camera, detections);
+    }
+    if let (Some(contacts), Some(setup)) = (&args.contacts, &args.contact_setup) {
+        return run_contacts(&args, contacts, setup);
     }
     let config = config(&args);
     // The output folder is replaced as a whole at the end: refuse one that holds an input or
@@ -146,6 +147,13 @@ fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<
             length_unit: args.length_unit,
             ignore_columns: args.ignore_columns.clone(),
         }),
+        contacts: match (&args.contacts, &args.contact_setup) {
+            (Some(contacts), Some(setup)) => Some(CameraContactsInput {
+                contacts: contacts.clone(),
+                setup: setup.clone(),
+            }),
+            _ => None,
+        },
         angle_unit: args.angle_unit,
         length_unit: args.joint_length_unit.or(args.length_unit),
         add_tool_links: args.add_tool_links,

@@ -8,8 +8,8 @@ use treecal::workflow::{self, simulate_with_progress, SimulateConfig};
 use treecal::workflow::{PlanSource, RobotSource, StiffnessSource};
 use treecal::Result;
 
-/// The contacts and the one instrument (tracker, camera) of `--observation`'s list; mixtures
-/// of contacts with an instrument are not simulated yet.
+/// The contacts and the one instrument (tracker, camera) of `--observation`'s list; contacts
+/// mix with the camera simulation's instruments (`camera,touch`), not yet with the tracker.
 fn observations(
     list: &[ObservationArg],
 ) -> Result<(workflow::ObservationChoice, Vec<ContactChoice>)> {
@@ -30,12 +30,14 @@ fn observations(
         }
     }
     contacts.dedup();
-    if instruments.len() > 1 || (!instruments.is_empty() && !contacts.is_empty()) {
+    let with_tracker = instruments.contains(&workflow::ObservationChoice::Tracker);
+    if instruments.len() > 1 || (with_tracker && !contacts.is_empty()) {
         return Err(treecal::Error::InvalidData {
             origin: "--observation".into(),
-            message: "give one instrument (tracker, camera, mixed, rigid-tracker) or a list \
-                      of contacts (flush, plane, touch, bar); contacts mixed with an \
-                      instrument are not simulated yet"
+            message: "give one instrument (tracker, camera, mixed, rigid-tracker), a list of \
+                      contacts (flush, plane, touch, bar), or contacts with camera, mixed or \
+                      rigid-tracker (e.g. camera,touch); contacts with the staged tracker \
+                      experiment are not simulated yet"
                 .into(),
         });
     }

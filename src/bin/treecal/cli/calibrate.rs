@@ -109,12 +109,13 @@ pub struct CalibrateArgs {
     pub measurements: Option<PathBuf>,
     /// Contacts CSV (docs/contacts.md, docs/file-formats.md): calibrate from contacts — faces
     /// flush on a plane, points on a plane, touches, a bar — instead of --measurements; with
-    /// --contact-setup. --validation then takes held-out contacts.
+    /// --contact-setup. --validation then takes held-out contacts; with --camera, the contacts
+    /// are fitted with the pixels (--validation: held-out detections).
     #[arg(
         long,
         value_name = "C.csv",
         requires = "contact_setup",
-        conflicts_with_all = ["measurements", "camera"]
+        conflicts_with = "measurements"
     )]
     pub contacts: Option<PathBuf>,
     /// The contacts' setup (YAML): reference link, tools with their nominal contact faces and

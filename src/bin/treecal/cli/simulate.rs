@@ -130,7 +130,9 @@ pub struct SimulateArgs {
     /// σ) or `rigid-tracker` (the tracker at the camera simulation's configurations); or a
     /// comma list of contacts (docs/contacts.md): `flush` (the first tool's face flush with a
     /// plane), `plane` (its contact point on a plane), `touch` (the first two tools' contact
-    /// points touch), `bar` (they hold a 0.3 m bar), --poses + --torso-poses configurations each.
+    /// points touch), `bar` (they hold a 0.3 m bar), --poses + --torso-poses configurations each;
+    /// contacts with `camera`, `mixed` or `rigid-tracker` (e.g. `camera,touch`) are fitted with
+    /// the camera's observations.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "tracker")]
     pub observation: Vec<ObservationArg>,
     /// Encoder noise σ on the recorded configurations of a contact simulation (rad).
