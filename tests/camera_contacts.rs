@@ -4,12 +4,12 @@
 use crate::common::{simulated_robonaut, SimulatedRobot};
 use treecal::camera::{calibrate_camera, CameraProblem, ContactRows, Rig};
 use treecal::kinematics::McpcModel;
+use treecal::sim::contact_unknowns;
+use treecal::sim::{camera_rig, CameraRigOptions};
 use treecal::sim::{
     camera_trial_data, fit_options, run_camera_trial, CameraSetup, CameraSimulationOptions,
     ObservationMode,
 };
-use treecal::sim::contact_unknowns;
-use treecal::sim::{camera_rig, CameraRigOptions};
 use treecal::sim::{ContactChoice, ContactSimulation};
 use treecal::workflow::{simulate, ObservationChoice, SimulateConfig};
 

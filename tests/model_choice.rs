@@ -548,8 +548,7 @@ fn forward_steps_choose_backlash_on_the_joint_that_has_it() {
     // step may add another joint's term on noise: seed 3 adds arm_2's backlash).
     let chosen = &cv.rows[cv.chosen.unwrap()];
     assert!(chosen.model.contains("arm_4_joint"), "{cv:#?}");
-    let single =
-        |r: &&treecal::workflow::CvRow| r.model.matches("arm_").count() == 1;
+    let single = |r: &&treecal::workflow::CvRow| r.model.matches("arm_").count() == 1;
     let first = cv
         .rows
         .iter()

@@ -26,8 +26,8 @@ pub use check::explain;
 pub use check::{
     camera_identifiability, explain as explain_identifiability, CameraIdentifiability,
 };
-pub use fit::kind_scales;
 pub use contact_rows::ContactRows;
+pub use fit::kind_scales;
 pub use fit::{
     CameraFitOptions, CameraFitReport, CameraProblem, KindScale, RejectedPoint, Unknown,
 };

@@ -71,9 +71,9 @@ pub use export::{export, Export, ExportConfig};
 pub use fk::{fk, fk_csv, fk_csv_stream, FkConfig, FkCsvConfig, FkStreamSummary, FkTable};
 pub use model::{from_mcpc, inspect, to_mcpc, Inspection, McpcTableText, ModelConfig};
 pub use model_choice::{
-    fit_noise, frame_joints, glob_match, grouped_folds, position_errors, posture_groups, prepare, run_model,
-    run_model_with_noise, shows_model_error, ModelChoice, ModelLevel, ModelSpec, NoiseEstimate,
-    ParameterPatterns, PreparedModel, POSTURE_TOLERANCE,
+    fit_noise, frame_joints, glob_match, grouped_folds, position_errors, posture_groups, prepare,
+    run_model, run_model_with_noise, shows_model_error, ModelChoice, ModelLevel, ModelSpec,
+    NoiseEstimate, ParameterPatterns, PreparedModel, POSTURE_TOLERANCE,
 };
 pub use note::{Note, NoteLevel};
 pub use pair::report_path;

@@ -6,6 +6,7 @@ use super::simulate::{ObservationChoice, SimulateConfig, Simulation};
 use super::source::branches;
 use super::{Note, Progress, ProgressFn};
 use crate::camera::{CameraSpec, Rig, TargetShape, TargetSpec};
+use crate::sim::ContactSimulation;
 use crate::sim::ErrorRanges;
 use crate::sim::NoiseModel;
 use crate::sim::{
@@ -13,7 +14,6 @@ use crate::sim::{
     CameraSimulationOptions, CameraTrialReport, ObservationMode,
 };
 use crate::sim::{camera_specs, CameraRigOptions};
-use crate::sim::ContactSimulation;
 use crate::{McpcModel, Result};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};

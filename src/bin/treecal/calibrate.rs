@@ -11,7 +11,8 @@ use treecal::workflow::{
     RobotSource, StiffnessSource,
 };
 use treecal::workflow::{
-    calibrate_camera_files, CameraCalibrateConfig, CameraContactsInput, CameraTrackerInput, DetectionsSource,
+    calibrate_camera_files, CameraCalibrateConfig, CameraContactsInput, CameraTrackerInput,
+    DetectionsSource,
 };
 use treecal::workflow::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::{Error, Result};
