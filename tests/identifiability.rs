@@ -511,7 +511,7 @@ fn check_reports_zero_poses_as_poorly_conditioned() {
         .as_array()
         .unwrap()
         .is_empty());
-    assert!(staged.stderr.contains("no `stage` column"), "{staged}");
+    assert!(staged.stderr.contains("no 'stage' column"), "{staged}");
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -339,7 +339,7 @@ fn stage_inputs(
             return Err(Error::InvalidData {
                 origin: format!("stage '{}'", stage.name),
                 message: format!(
-                    "no measurements labelled '{}'; label them (a `stage` column) or use the simultaneous plan",
+                    "no measurements labelled '{}'; label them (a 'stage' column) or use the simultaneous plan",
                     stage.measurements.as_deref().unwrap_or("")
                 ),
             });

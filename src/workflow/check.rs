@@ -189,7 +189,7 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
     let sigmas = (config.position_sigma, config.rotation_sigma);
     let mut stages = Vec::new();
     if !rows.has_stage && plan.stages.iter().any(|s| s.measurements.is_some()) {
-        notes.push(Note::info("the poses have no `stage` column; every row is analysed in the arms stage, and the torso stage needs rows labelled torso (arms locked)"));
+        notes.push(Note::info("the poses have no 'stage' column; every row is analysed in the arms stage, and the torso stage needs rows labelled torso (arms locked)"));
     }
     if rows.has_stage {
         let labels: Vec<Option<&str>> = rows.rows.iter().map(|r| r.stage.as_deref()).collect();
@@ -203,7 +203,7 @@ pub fn check(config: &CheckConfig) -> Result<Check> {
             StageCheck::skipped(
                 &stage.name,
                 format!(
-                    "no rows labelled {label} (add a `stage` column, or use `plan` simultaneous)"
+                    "no rows labelled {label} (add a 'stage' column, or use `plan` simultaneous)"
                 ),
             )
         } else {
