@@ -5,9 +5,19 @@
 //! field. The measurement CSV is read this way ([`parse_csv_fields`]); other readers convert
 //! with [`CsvFields::into_table`].
 
-use super::joints_csv::CsvTable;
 use crate::error::{Error, Result};
 use std::ops::Index;
+
+/// A CSV table as read: header and records with their 1-based line numbers.
+#[derive(Debug, Clone)]
+pub struct CsvTable {
+    /// Column names, trimmed.
+    pub headers: Vec<String>,
+    /// The 1-based line of the header row.
+    pub header_line: usize,
+    /// `(line, fields)` of every data row.
+    pub records: Vec<(usize, Vec<String>)>,
+}
 
 /// A CSV table as read: the header, and every data row's line and fields (trimmed).
 #[derive(Debug, Clone, Default)]

@@ -13,7 +13,8 @@
 //! (units by the `# units:` comment, radians by default; joints without a column are 0).
 //! See `docs/file-formats.md`.
 
-use super::joints_csv::{configurations, parse_csv, CsvTable};
+use super::csv_fields::CsvTable;
+use super::joints_csv::{configurations, parse_csv};
 use super::units::{parse_units_header, resolve_units, StatedUnits};
 use crate::camera::{Rig, View};
 use crate::error::{closest, Error, Result};

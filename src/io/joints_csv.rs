@@ -1,23 +1,12 @@
 //! Joint-value CSV files (`treecal fk`): a header naming joints, one configuration per row.
 
-use super::csv_fields::CsvFields;
+use super::csv_fields::{CsvFields, CsvTable};
 use crate::error::{Error, Result};
 use crate::limits::{
     self, check_count, check_text_size, Quantity, MAX_CSV_BYTES, MAX_CSV_COLUMNS, MAX_CSV_ROWS,
 };
 use crate::math::Pose;
 use crate::tree::{Actuation, JointKind, KinematicTree};
-
-/// A CSV table as read: header and records with their 1-based line numbers.
-#[derive(Debug, Clone)]
-pub struct CsvTable {
-    /// Column names, trimmed.
-    pub headers: Vec<String>,
-    /// The 1-based line of the header row.
-    pub header_line: usize,
-    /// `(line, fields)` of every data row.
-    pub records: Vec<(usize, Vec<String>)>,
-}
 
 /// Parses CSV text: `#` comment lines and blank lines skipped, fields trimmed. Line breaks
 /// may be `\n`, `\r\n` or a lone `\r`; rows and columns are limited to

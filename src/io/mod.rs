@@ -58,11 +58,11 @@ pub use contacts_yaml::{
     contact_setup_to_yaml, parse_contact_setup, read_contact_setup, BarSetup, ContactSetup,
     FreeSetup, PoseEntry, SigmaSetup, ToolSetup,
 };
+pub use csv_fields::CsvTable;
 pub use detections_csv::{detections_to_csv, parse_detections, read_detections, DETECTION_COLUMNS};
 pub use joint_log::{parse_joint_log_csv, read_joint_log, JointLog, JointLogOptions};
 pub use joints_csv::{
-    append_poses, configurations, joint_value, parse_csv, pose_fields, ColumnMapping, CsvTable,
-    POSE_COLUMNS,
+    append_poses, configurations, joint_value, parse_csv, pose_fields, ColumnMapping, POSE_COLUMNS,
 };
 pub use joints_stream::{open_csv_records, CsvRecords};
 pub use json_rows::to_json_rows;

@@ -4,7 +4,8 @@
 //! `[stage,]tool,<joint names…>` in metres and radians, ready to be completed with the measured
 //! columns of the measurement CSV).
 
-use super::joints_csv::{configurations, ColumnMapping, CsvTable};
+use super::csv_fields::CsvTable;
+use super::joints_csv::{configurations, ColumnMapping};
 use crate::calibration::PoseRow;
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;

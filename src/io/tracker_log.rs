@@ -3,8 +3,9 @@
 //! column names (a vendor's export) are mapped with [`TrackerColumns`].
 
 use super::bounded::read_text;
+use super::csv_fields::CsvTable;
 use super::joint_log::{number, MAX_TIME};
-use super::joints_csv::{parse_csv, CsvTable};
+use super::joints_csv::parse_csv;
 use super::units::{parse_units_header, resolve_units, LengthUnit, StatedUnits};
 use crate::error::{Error, Result};
 use crate::limits::{self, Quantity, MAX_CSV_BYTES};

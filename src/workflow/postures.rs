@@ -2,6 +2,7 @@
 //! (`"identification_postures"`) so that `treecal verify` judges fresh rows against the same
 //! calibrated ranges, with the same code ([`ChainPostures::stratum`]), months later.
 
+pub use super::report_json::POSTURES_KEY;
 use super::report_json::{ReportParts, ToolPostures};
 use crate::calibration::{chain_postures, ChainPostures};
 use crate::error::{Error, Result};
@@ -10,9 +11,6 @@ use crate::measurement::Measurement;
 use crate::tree::KinematicTree;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-
-/// The report.json key.
-pub const POSTURES_KEY: &str = "identification_postures";
 
 /// One joint of a tool's chain and its calibrated range.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -14,6 +14,9 @@ use serde::ser::{SerializeMap, SerializeSeq};
 use serde::{Serialize, Serializer};
 use serde_json::Value;
 
+/// The report.json key.
+pub const POSTURES_KEY: &str = "identification_postures";
+
 /// The report.json keys whose arms carry `rows`, in [`ReportParts::rows`] order.
 const ROW_SETS: [&str; 2] = ["identification", "validation"];
 
@@ -107,7 +110,7 @@ impl Serialize for Spliced<'_> {
                     },
                 };
                 out.serialize_entry(key, &arms)?;
-            } else if key == super::postures::POSTURES_KEY {
+            } else if key == POSTURES_KEY {
                 out.serialize_entry(
                     key,
                     &Postures {

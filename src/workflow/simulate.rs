@@ -133,10 +133,8 @@ pub struct SimulateConfig {
     pub world_board: bool,
     /// Whether the camera's intrinsics are estimated with the robot.
     pub estimate_intrinsics: bool,
-    /// Contacts to simulate (issue 29; `docs/contacts.md`): each kind with `poses +
-    /// torso_poses` configurations; empty: none. With `observation` `Tracker` they are
-    /// simulated alone; with `Camera`, `Mixed` or `RigidTracker` they are fitted with the
-    /// camera simulation's observations (`camera,touch`).
+    /// Contacts to simulate (`docs/contacts.md`), `poses + torso_poses` configurations per kind:
+    /// alone with `Tracker`, else fitted with the camera simulation's observations.
     pub contacts: Vec<crate::sim::ContactChoice>,
     /// σ of the encoder noise on the recorded configurations of a contact simulation (rad).
     pub encoder_noise: f64,
