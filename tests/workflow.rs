@@ -126,7 +126,10 @@ fn calibrate_writes_what_the_cli_writes() {
     assert_json_close(&report, &calibration.report(), "report");
     for note in &calibration.notes {
         assert!(
-            run.stderr.contains(&format!("treecal: {note}")),
+            run.stderr.contains(&format!(
+                "treecal: {}",
+                as_cli(&note.to_string(), &run.stderr)
+            )),
             "{note}\n{run}"
         );
     }
