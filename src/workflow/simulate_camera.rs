@@ -288,18 +288,7 @@ pub(super) fn with_camera_link(
 /// contact simulation's settings (per kind `--poses + --torso-poses` configurations, the
 /// encoder noise, the tables) otherwise.
 fn contact_settings(config: &SimulateConfig) -> Option<ContactSimulation> {
-    (!config.contacts.is_empty()).then(|| ContactSimulation {
-        kinds: config.contacts.clone(),
-        per_kind: config.poses + config.torso_poses,
-        encoder_sigma: config.encoder_noise,
-        tables: config.contact_tables.0,
-        flush_tools: config.contact_tables.1,
-        errors: ErrorRanges {
-            angle: config.angle_error,
-            length: config.length_error,
-        },
-        ..ContactSimulation::default()
-    })
+    (!config.contacts.is_empty()).then(|| super::simulate_contacts::contact_settings(config))
 }
 
 fn mean(values: impl Iterator<Item = f64>) -> f64 {

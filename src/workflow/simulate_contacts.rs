@@ -36,18 +36,7 @@ pub(super) fn simulate_contacts(
         &mut notes,
     )?;
     let tree = &import.tree;
-    let settings = ContactSimulation {
-        kinds: config.contacts.clone(),
-        per_kind: config.poses + config.torso_poses,
-        encoder_sigma: config.encoder_noise,
-        tables: config.contact_tables.0,
-        flush_tools: config.contact_tables.1,
-        errors: ErrorRanges {
-            angle: config.angle_error,
-            length: config.length_error,
-        },
-        ..ContactSimulation::default()
-    };
+    let settings = contact_settings(config);
     let done = AtomicUsize::new(0);
     let trials: Vec<ContactTrial> = (0..config.trials)
         .into_par_iter()
@@ -324,4 +313,21 @@ fn markdown(
          not linear over their spread).\n",
     );
     text
+}
+
+/// The contact simulation's settings from the simulate config: per kind `poses + torso_poses`
+/// configurations, the encoder noise, the tables and the geometry error ranges.
+pub(super) fn contact_settings(config: &SimulateConfig) -> ContactSimulation {
+    ContactSimulation {
+        kinds: config.contacts.clone(),
+        per_kind: config.poses + config.torso_poses,
+        encoder_sigma: config.encoder_noise,
+        tables: config.contact_tables.0,
+        flush_tools: config.contact_tables.1,
+        errors: ErrorRanges {
+            angle: config.angle_error,
+            length: config.length_error,
+        },
+        ..ContactSimulation::default()
+    }
 }
