@@ -17,6 +17,7 @@ mod corpus;
 mod deploy;
 mod export;
 mod flexibility;
+mod flexibility_derivative;
 mod frame;
 mod from_mcpc;
 mod hardening;

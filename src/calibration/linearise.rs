@@ -97,7 +97,7 @@ pub(super) fn linearise(
         let key = (m.q.as_slice(), m.payload);
         let tools = if with_jacobian {
             if cached.as_ref().is_none_or(|(k, _)| *k != key) {
-                cached = Some((key, predictor.jacobians_at(model, &m.q, m.payload)?));
+                cached = Some((key, predictor.jacobians_for(model, &m.q, m.payload, free)?));
             }
             Tools::Jacobians(cached.as_ref().map_or(&[][..], |(_, j)| j.as_slice()))
         } else {

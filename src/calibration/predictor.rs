@@ -39,6 +39,20 @@ pub trait Predictor: Sync {
         let _ = payload;
         self.jacobians(model, q)
     }
+
+    /// [`Self::jacobians_at`] where only the columns of the parameters `free` are used: the
+    /// other columns may be left inexact (the deflected-chain Jacobian of
+    /// [`DeflectedWithDerivative`]).
+    fn jacobians_for(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        payload: Option<f64>,
+        free: &[usize],
+    ) -> Result<Vec<ToolJacobian>> {
+        let _ = free;
+        self.jacobians_at(model, q, payload)
+    }
 }
 
 /// The rigid MCPC forward kinematics.
@@ -135,8 +149,8 @@ pub(crate) type Cached<'a, T> = Option<(RowKey<'a>, T)>;
 type CorrectionKey = (Vec<u64>, Option<u64>);
 
 /// A cached Jacobian correction: parameters where it was computed, parameters of the latest
-/// request, and `J_exact − J_chain` per tool.
-type Correction = (Vec<f64>, Vec<f64>, Vec<DMatrix<f64>>);
+/// request, `J_exact − J_chain` per tool, and which columns hold it (the others are zero).
+type Correction = (Vec<f64>, Vec<f64>, Vec<DMatrix<f64>>, Vec<bool>);
 
 /// The cache key of a configuration: its exact bits (`+ 0.0`: −0 and +0 are one key, as
 /// under `==`).
@@ -153,19 +167,22 @@ impl<'a> DeflectedWithDerivative<'a> {
         }
     }
 
-    /// `J_exact − J_chain` at `q`, from the cache or computed now.
+    /// `J_exact − J_chain` at `q` in the columns `wanted` (the others may be zero), from the
+    /// cache or computed now.
     ///
     /// A correction is reused while the parameters stay within [`CORRECTION_RADIUS`] of where
     /// it was computed. Beyond that it is recomputed only once the iterates settle (the last
     /// request was within the radius too): while they still travel, a stale correction steers
     /// as well and costs nothing, and the final one is always within the radius of the
-    /// solution, which keeps the solution's bias from a stale Jacobian negligible.
+    /// solution, which keeps the solution's bias from a stale Jacobian negligible. A reused
+    /// correction that lacks a wanted column gets it computed where the others were.
     fn correction(
         &self,
         model: &McpcModel,
         q: &[f64],
         payload: Option<f64>,
         chain: &[ToolJacobian],
+        wanted: &[usize],
     ) -> Result<Vec<DMatrix<f64>>> {
         let parameters = model.parameters();
         let close = |at: &[f64]| {
@@ -174,57 +191,101 @@ impl<'a> DeflectedWithDerivative<'a> {
                 .all(|(a, b)| (a - b).abs() <= CORRECTION_RADIUS)
         };
         let key = (configuration_key(q), payload.map(f64::to_bits));
+        let mut stale_at = None;
         {
-            let mut cache = self
-                .cache
-                .lock()
-                .unwrap_or_else(|poisoned| poisoned.into_inner());
-            if let Some((at, latest, found)) = cache.get_mut(&key) {
+            let mut cache = self.lock();
+            if let Some((at, latest, found, computed)) = cache.get_mut(&key) {
                 let settled = close(latest);
                 latest.clone_from(&parameters);
                 if close(at) || !settled {
-                    return Ok(found.clone());
+                    if wanted.iter().all(|&c| computed[c]) {
+                        return Ok(found.clone());
+                    }
+                    stale_at = Some(at.clone());
                 }
             } else {
                 // First request: far from the solution, the deflected-chain Jacobian alone
                 // steers well enough; the correction waits until the iterates settle.
                 let zero: Vec<DMatrix<f64>> =
                     chain.iter().map(|c| c.jacobian.map(|_| 0.0)).collect();
-                cache.insert(
-                    key,
-                    (
-                        vec![f64::INFINITY; parameters.len()],
-                        parameters,
-                        zero.clone(),
-                    ),
-                );
-                return Ok(zero);
+                let computed = vec![true; parameters.len()];
+                let entry = (vec![f64::INFINITY; parameters.len()], parameters, zero);
+                cache.insert(key, (entry.0, entry.1, entry.2.clone(), computed));
+                return Ok(entry.2);
             }
         }
-        let step = 1e-7;
-        let base = self.source.predict_at(model, q, payload)?;
-        let mut correction: Vec<DMatrix<f64>> = chain.iter().map(|c| -c.jacobian.clone()).collect();
-        let mut shifted = model.clone();
-        for (index, &value) in parameters.iter().enumerate() {
-            shifted.set_parameter(index, value + step)?;
-            for (tool, pose) in self
-                .source
-                .predict_at(&shifted, q, payload)?
-                .iter()
-                .enumerate()
-            {
-                let column = pose_error(pose, &base[tool]) / step;
-                let mut target = correction[tool].column_mut(index);
-                target += column;
+        if let Some(at) = stale_at {
+            // The missing columns where the others were computed.
+            let mut there = model.clone();
+            there.set_parameters(&at)?;
+            let chain_there = self.source.jacobians_at(&there, q, payload)?;
+            let mut cache = self.lock();
+            let Some((_, _, found, computed)) = cache.get_mut(&key) else {
+                return Err(crate::error::Error::InvalidData {
+                    origin: "exact flexibility compensation".into(),
+                    message: "a cached Jacobian correction went missing".into(),
+                });
+            };
+            let missing: Vec<usize> = wanted.iter().copied().filter(|&c| !computed[c]).collect();
+            self.fill(&there, q, payload, &chain_there, &missing, found)?;
+            for c in missing {
+                computed[c] = true;
             }
-            shifted.set_parameter(index, value)?;
+            return Ok(found.clone());
         }
-        let mut cache = self
-            .cache
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        cache.insert(key, (parameters.clone(), parameters, correction.clone()));
+        let mut correction: Vec<DMatrix<f64>> =
+            chain.iter().map(|c| c.jacobian.map(|_| 0.0)).collect();
+        self.fill(model, q, payload, chain, wanted, &mut correction)?;
+        let mut computed = vec![false; parameters.len()];
+        for &c in wanted {
+            computed[c] = true;
+        }
+        self.lock().insert(
+            key,
+            (parameters.clone(), parameters, correction.clone(), computed),
+        );
         Ok(correction)
+    }
+
+    /// Columns `columns` of `J_exact − J_chain` at `model` into `correction`: the exact
+    /// derivative of the deflected poses by forward differences
+    /// (`FlexibilityModel::deflected_pose_derivatives`) minus the chain's.
+    fn fill(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        payload: Option<f64>,
+        chain: &[ToolJacobian],
+        columns: &[usize],
+        correction: &mut [DMatrix<f64>],
+    ) -> Result<()> {
+        let step = 1e-7;
+        let flexibility = self.source.flexibility.for_payload(payload)?;
+        let base = flexibility.deflected_tool_poses(self.source.tree, model, q)?;
+        let changes = flexibility.deflected_pose_derivatives(
+            self.source.tree,
+            model,
+            q,
+            &base,
+            columns,
+            step,
+        )?;
+        for (&index, tools) in columns.iter().zip(&changes) {
+            for (tool, change) in tools.iter().enumerate() {
+                let mut target = correction[tool].column_mut(index);
+                target.copy_from(&(-chain[tool].jacobian.column(index)));
+                target += change;
+            }
+        }
+        Ok(())
+    }
+
+    fn lock(
+        &self,
+    ) -> std::sync::MutexGuard<'_, std::collections::HashMap<CorrectionKey, Correction>> {
+        self.cache
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 }
 
@@ -248,8 +309,21 @@ impl Predictor for DeflectedWithDerivative<'_> {
         q: &[f64],
         payload: Option<f64>,
     ) -> Result<Vec<ToolJacobian>> {
+        let every: Vec<usize> = (0..model.parameter_count()).collect();
+        self.jacobians_for(model, q, payload, &every)
+    }
+
+    /// Only the columns `free` carry the correction: each costs a deflected chain per
+    /// configuration.
+    fn jacobians_for(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        payload: Option<f64>,
+        free: &[usize],
+    ) -> Result<Vec<ToolJacobian>> {
         let chain = self.source.jacobians_at(model, q, payload)?;
-        let correction = self.correction(model, q, payload, &chain)?;
+        let correction = self.correction(model, q, payload, &chain, free)?;
         Ok(chain
             .into_iter()
             .zip(correction)

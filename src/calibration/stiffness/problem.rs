@@ -8,7 +8,7 @@ use crate::calibration::{kind_of, Nuisance, RobotState, Tools};
 use crate::error::{Error, Result};
 use crate::kinematics::{ComplianceBasis, ComplianceParameter};
 use crate::kinematics::{FlexibilityModel, McpcModel};
-use crate::math::{pose_error, Pose};
+use crate::math::Pose;
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;
 use nalgebra::{DMatrix, DVector, Vector6};
@@ -237,7 +237,8 @@ impl<'a> Problem<'a> {
     }
 
     /// Per group and free parameter, the change of every deflected tool pose per unit
-    /// parameter (forward differences from `poses`).
+    /// parameter (forward differences from `poses`, see
+    /// `FlexibilityModel::deflected_pose_derivatives`).
     fn geometry_motions(
         &self,
         model: &McpcModel,
@@ -245,25 +246,14 @@ impl<'a> Problem<'a> {
         groups: &[(&[f64], usize)],
         poses: &[Vec<Pose>],
     ) -> Result<Vec<Vec<Vec<Vector6<f64>>>>> {
-        let mut geometry = vec![Vec::with_capacity(self.free.len()); groups.len()];
-        let step = 1e-7;
-        let values = model.parameters();
-        let mut shifted = model.clone();
-        for &p in self.free {
-            shifted.set_parameter(p, values[p] + step)?;
-            for (g, &(q, basis)) in groups.iter().enumerate() {
-                let moved = flexibilities[basis].deflected_tool_poses(self.tree, &shifted, q)?;
-                geometry[g].push(
-                    moved
-                        .iter()
-                        .zip(&poses[g])
-                        .map(|(a, b)| pose_error(a, b) / step)
-                        .collect(),
-                );
-            }
-            shifted.set_parameter(p, values[p])?;
-        }
-        Ok(geometry)
+        groups
+            .iter()
+            .zip(poses)
+            .map(|(&(q, basis), base)| {
+                flexibilities[basis]
+                    .deflected_pose_derivatives(self.tree, model, q, base, self.free, 1e-7)
+            })
+            .collect()
     }
 
     /// Row `k` of compliance column `c` from the motions per unit individual scale

@@ -107,7 +107,16 @@ impl FlexibilityModel {
         model: &McpcModel,
         q: &[f64],
     ) -> Result<Deflection> {
-        let evaluation = self.evaluate(tree, model, q)?;
+        Ok(self.deflect_evaluated(model, q, self.evaluate(tree, model, q)?))
+    }
+
+    /// [`Self::deflect`] from the deformations at `q` (`evaluation`).
+    pub(super) fn deflect_evaluated(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        evaluation: Evaluation,
+    ) -> Deflection {
         let Evaluation {
             deformations,
             moved,
@@ -186,7 +195,7 @@ impl FlexibilityModel {
             }
         }
         let [deflected, previous, frames, tool_previous, tools] = all;
-        Ok(Deflection {
+        Deflection {
             chain: ChainFrames {
                 previous,
                 frames,
@@ -201,7 +210,7 @@ impl FlexibilityModel {
             },
             deflected,
             evaluation,
-        })
+        }
     }
 }
 

@@ -77,7 +77,7 @@ impl FlexibilityModel {
     }
 
     /// Checks that `tree` and `model` are the shape this model was built for.
-    fn check(&self, tree: &KinematicTree, model: &McpcModel, q: &[f64]) -> Result<()> {
+    pub(super) fn check(&self, tree: &KinematicTree, model: &McpcModel, q: &[f64]) -> Result<()> {
         tree.check_configuration(q)?;
         let fits = tree.links().len() == self.link_count
             && model.frames().len() == self.joint_compliance.len()
@@ -100,6 +100,24 @@ impl FlexibilityModel {
         q: &[f64],
     ) -> Result<Evaluation> {
         self.check(tree, model, q)?;
+        // Only masses behind joints outside the model need the tree (head, fingers).
+        let tree_poses = if self.uses_tree {
+            tree.link_poses(q)?
+        } else {
+            Vec::new()
+        };
+        Ok(self.evaluate_with(model, q, &tree_poses))
+    }
+
+    /// [`Self::evaluate`] once checked, with the tree's link poses at `q` (empty unless the
+    /// model uses the tree): what does not depend on the MCPC parameters, computed once for
+    /// every parameter a finite difference shifts.
+    pub(crate) fn evaluate_with(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        tree_poses: &[crate::math::Pose],
+    ) -> Evaluation {
         let frames = model.frame_transforms(q);
         let moved: Vec<Transform> = frames
             .iter()
@@ -130,13 +148,7 @@ impl FlexibilityModel {
         } else {
             model.world_from_base_transform().rotation * self.gravity
         };
-        // Only masses behind joints outside the model need the tree (head, fingers).
-        let tree_poses = if self.uses_tree {
-            tree.link_poses(q)?
-        } else {
-            Vec::new()
-        };
-        let positions = self.mass_positions(model, &moved, &tools, &tree_poses);
+        let positions = self.mass_positions(model, &moved, &tools, tree_poses);
         let loads = self.loads(model, &gravity, &positions, tools.len());
         let joints = self.joint_deformations(&moved, &loads);
         let mut segments = self.segment_deformations(&frames, &moved, &tools, &loads);
@@ -145,11 +157,11 @@ impl FlexibilityModel {
             segment.translation = segment.base_from_beam * segment.local.fixed_rows::<3>(0);
             segment.rotation = segment.base_from_beam * segment.local.fixed_rows::<3>(3);
         }
-        Ok(Evaluation {
+        Evaluation {
             deformations: Deformations { joints, segments },
             moved,
             tools,
-        })
+        }
     }
 
     /// Where every mass is, base frame.

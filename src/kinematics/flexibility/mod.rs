@@ -12,12 +12,15 @@
 //! - `apply`: the linear map `D_f = J_f·d_f` (eq. (20)–(24)),
 //!   [`FlexibilityModel::tool_deflections`], and the deflected forward kinematics,
 //!   [`FlexibilityModel::deflected_tool_poses`].
+//! - `derivative`: how the deflected tool poses change with the MCPC parameters,
+//!   [`FlexibilityModel::deflected_pose_derivatives`].
 //!
 //! The model, its sign conventions and the comparison with the paper: `docs/flexibility.md`.
 
 mod apply;
 mod beam;
 mod compliance;
+mod derivative;
 mod loads;
 mod model;
 pub(crate) mod names;
