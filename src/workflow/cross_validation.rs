@@ -6,7 +6,7 @@
 
 mod choice;
 
-use choice::{choose, group_index, Evaluated};
+use choice::{choose, group_index, reference_of, Evaluated};
 pub use choice::{paired, CvRow, Paired, RULE, SIGNIFICANT_T};
 
 use super::model_choice::{
@@ -65,8 +65,8 @@ pub struct CrossValidation {
     pub seeds: Vec<u64>,
     /// The index of the chosen row ([`RULE`]).
     pub chosen: Option<usize>,
-    /// The reference of the rule: the row with the lowest held-out RMS without the flagged
-    /// rows (the identified-stiffness candidate only when significantly lowest).
+    /// The reference of the rule: the full geometry (the lowest row if it is not in the table
+    /// or failed; after a forward step, the model the step extends).
     pub best: Option<usize>,
     /// The rule, in words.
     pub rule: &'static str,
@@ -205,32 +205,14 @@ pub fn cross_validate(
         &super::model_choice::posture_groups(measurements),
         measurements.len(),
     );
-    let mut choice = choose(&mut evaluated, &kept, &group_of);
-    // Forward steps: one joint's harmonics or backlash added to the chosen model, as long as
-    // the rule then chooses one of them.
-    for _ in 0..input.joint_steps.min(MAX_STEPS) {
-        let Some(base) = choice.chosen.map(|i| evaluated[i].row.spec) else {
-            break;
-        };
-        let steps: Vec<ModelSpec> = joint_steps(input, &base, measurements)
-            .into_iter()
-            .filter(|s| !evaluated.iter().any(|e| e.row.spec == *s))
-            .collect();
-        let before = evaluated.len();
-        let mut more = steps
-            .par_iter()
-            .map(|spec| evaluate(input, spec, measurements, &folds))
-            .collect::<Result<Vec<_>>>()?;
-        for e in more.iter_mut().filter(|e| e.row.rms_mm.is_some()) {
-            let errors: Vec<f64> = kept.iter().filter_map(|&i| e.errors[i]).collect();
-            e.row.choice_rms_mm = Some(rms(&errors) * 1e3);
-        }
-        evaluated.extend(more);
-        choice = choose(&mut evaluated, &kept, &group_of);
-        if choice.chosen.is_none_or(|i| i < before) {
-            break;
-        }
-    }
+    let choice = choose_with_steps(
+        input,
+        measurements,
+        &folds,
+        &mut evaluated,
+        &kept,
+        &group_of,
+    )?;
     let rows: Vec<CvRow> = evaluated.into_iter().map(|e| e.row).collect();
     let left_out_ids: Vec<String> = left_out.iter().map(|i| format!("#{}", i + 1)).collect();
     let mut cv = CrossValidation {
@@ -249,6 +231,51 @@ pub fn cross_validate(
     };
     cv.reason = reason(&cv) + cv.doubt.as_deref().unwrap_or("");
     Ok(cv)
+}
+
+/// The [`RULE`] over `evaluated` (the full geometry the reference), then forward steps: one
+/// joint's harmonics or backlash added to the chosen model, each taken only when significantly
+/// lower than the model it extends (that model the reference of the step's choice).
+fn choose_with_steps(
+    input: &CrossValidationInput<'_>,
+    measurements: &[Measurement],
+    folds: &[Vec<usize>],
+    evaluated: &mut Vec<Evaluated>,
+    kept: &[usize],
+    group_of: &[usize],
+) -> Result<choice::Choice> {
+    let mut reference = reference_of(evaluated.iter().map(|e| &e.row.spec));
+    let mut pool: Vec<usize> = (0..evaluated.len()).collect();
+    let mut choice = choose(evaluated, kept, group_of, reference, &pool, SIGNIFICANT_T);
+    for _ in 0..input.joint_steps.min(MAX_STEPS) {
+        let Some(base) = choice.chosen else {
+            break;
+        };
+        let steps: Vec<ModelSpec> = joint_steps(input, &evaluated[base].row.spec, measurements)
+            .into_iter()
+            .filter(|s| !evaluated.iter().any(|e| e.row.spec == *s))
+            .collect();
+        let before = evaluated.len();
+        let mut more = steps
+            .par_iter()
+            .map(|spec| evaluate(input, spec, measurements, folds))
+            .collect::<Result<Vec<_>>>()?;
+        for e in more.iter_mut().filter(|e| e.row.rms_mm.is_some()) {
+            let errors: Vec<f64> = kept.iter().filter_map(|&i| e.errors[i]).collect();
+            e.row.choice_rms_mm = Some(rms(&errors) * 1e3);
+        }
+        evaluated.extend(more);
+        let step_pool: Vec<usize> = (before..evaluated.len()).collect();
+        let threshold = choice::step_threshold(step_pool.len());
+        let step = choose(evaluated, kept, group_of, Some(base), &step_pool, threshold);
+        if step.chosen.is_none_or(|i| i < before) {
+            // No step is significant: the table's differences stay against the last reference.
+            choose(evaluated, kept, group_of, reference, &pool, SIGNIFICANT_T);
+            break;
+        }
+        (reference, pool, choice) = (Some(base), step_pool, step);
+    }
+    Ok(choice)
 }
 
 /// The most forward steps of joint-angle error terms after the rule's first choice (each step
@@ -320,6 +347,21 @@ fn reason(cv: &CrossValidation) -> String {
     if cv.rows.iter().filter(|r| r.choice_rms_mm.is_some()).count() == 1 {
         return format!("'{}' is the only candidate that ran", row.model);
     }
+    let versus = |r: &CvRow| {
+        let (d, se) = (
+            r.difference_mm.unwrap_or(f64::NAN),
+            r.difference_se_mm.unwrap_or(f64::NAN),
+        );
+        format!("{d:+.3} ± {se:.3} mm, paired t = {:.2}", -d / se)
+    };
+    let reference = &cv.rows[best];
+    let paper = if reference_of([&reference.spec]).is_some() && reference.spec.prior {
+        " (the full geometry with the prior on the nominal values: the paper's model)"
+    } else if reference_of([&reference.spec]).is_some() {
+        " (the full geometry, the paper's model)"
+    } else {
+        " (the model the forward step extends)"
+    };
     if i == best {
         let next = cv
             .rows
@@ -329,27 +371,25 @@ fn reason(cv: &CrossValidation) -> String {
             .min_by(|a, b| rms(a.1).total_cmp(&rms(b.1)));
         let next = next.map_or(String::new(), |(_, r)| {
             format!(
-                "; next '{}' {:.3} mm, +{:.3} ± {:.3} mm",
+                "; lowest other '{}' {:.3} mm, {}",
                 r.model,
                 rms(r),
-                r.difference_mm.unwrap_or(f64::NAN),
-                r.difference_se_mm.unwrap_or(f64::NAN)
+                versus(r)
             )
         });
         return format!(
-            "'{}' has the lowest {over}: {:.3} mm, and no simpler candidate is within one standard error{next}",
+            "'{}' is the reference{paper}, {:.3} mm {over}, and no candidate is significantly lower (paired t ≥ {SIGNIFICANT_T} over the postures){next}",
             row.model,
             rms(row)
         );
     }
     format!(
-        "'{}' is the simplest candidate within one standard error of the lowest {over}: {:.3} mm, +{:.3} ± {:.3} mm against '{}' {:.3} mm",
+        "'{}' is the lowest candidate significantly lower than the reference '{}'{paper} {over}: {:.3} mm against {:.3} mm, {}",
         row.model,
+        reference.model,
         rms(row),
-        row.difference_mm.unwrap_or(f64::NAN),
-        row.difference_se_mm.unwrap_or(f64::NAN),
-        cv.rows[best].model,
-        rms(&cv.rows[best])
+        rms(reference),
+        versus(row)
     )
 }
 

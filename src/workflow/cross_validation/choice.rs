@@ -1,6 +1,6 @@
-//! The choice of the cross-validation: the one-standard-error rule over the paired
-//! per-posture differences of held-out errors (docs/identification.md, "Repeated folds and
-//! the one-standard-error rule").
+//! The choice of the cross-validation: the full geometry is the reference, replaced only by a
+//! candidate significantly lower over the paired per-posture differences of held-out errors
+//! (docs/identification.md, "Repeated folds and the choice").
 
 use crate::workflow::ModelSpec;
 
@@ -30,14 +30,50 @@ pub struct CvRow {
     pub error: Option<String>,
 }
 
-/// The identified-stiffness candidate changes what is shipped (a rigid-only URDF and a
-/// compensation file), so it must beat the best other candidate by this many standard errors
-/// of the paired difference of squared held-out errors over the postures ([`paired`]; a
-/// one-sided test at about 2.5 %).
+/// A candidate replaces the reference when its paired t statistic over the posture groups
+/// ([`paired`]: the reference's mean squared held-out error minus the candidate's, over its
+/// standard error) reaches this (a one-sided test at about 2.5 %). The identified stiffness
+/// changes what is shipped (a rigid-only URDF and a compensation file), so it must also beat
+/// the lowest significant rigid candidate by as much.
 pub const SIGNIFICANT_T: f64 = 2.0;
 
 /// How a candidate is chosen (report.md, report.json `model_choice.rule`).
-pub const RULE: &str = "one-standard-error rule: the simplest candidate whose held-out RMS is within one standard error of the lowest (standard errors of the paired per-posture differences; simpler = fewer free parameters, then a prior or the ≥ kσ selection before an unrestricted fit, then the table's order); the identified stiffness only when significantly lowest (paired t ≥ 2)";
+pub const RULE: &str = "the full geometry with the prior on the nominal values (the paper's model; without the prior when it is not a candidate) is the reference; a candidate replaces it only when significantly lower in held-out RMS (paired t ≥ 2 over the postures), and among those the lowest wins; the identified stiffness only when also significantly lower than the lowest significant rigid candidate; a forward step only when significantly lower than the model it extends, its t corrected for the number of joint terms offered (Bonferroni)";
+
+/// The t a forward step must reach when `offered` one-joint extensions compete for it: the
+/// one-sided 2.5 % test corrected for the multiple comparison (Bonferroni, `1 − 0.025/offered`
+/// quantile of the normal distribution), never below [`SIGNIFICANT_T`]. With 11 offers (a
+/// 7-joint arm's harmonics and 4 backlash joints) 2.84: a rigid robot's noise passes 2.0 in
+/// about one of four runs somewhere among 11 offers.
+pub fn step_threshold(offered: usize) -> f64 {
+    normal_quantile_upper(0.025 / offered.max(1) as f64).max(SIGNIFICANT_T)
+}
+
+/// The `z` with `P(Z > z) = p` for a standard normal `Z`, `0 < p ≤ 0.5` (Abramowitz & Stegun
+/// 26.2.23, error below 4.5e-4).
+fn normal_quantile_upper(p: f64) -> f64 {
+    let t = (-2.0 * p.clamp(1e-300, 0.5).ln()).sqrt();
+    t - (2.515517 + 0.802853 * t + 0.010328 * t * t)
+        / (1.0 + 1.432788 * t + 0.189269 * t * t + 0.001308 * t * t * t)
+}
+
+/// The reference of the [`RULE`] in `specs`: the full geometry with the prior on the nominal
+/// values (the paper's model, its weakly determined parameters held near the URDF), else the
+/// plain full geometry; neither selection, joint terms, estimated noise nor identified
+/// stiffness.
+pub fn reference_of<'a>(specs: impl IntoIterator<Item = &'a ModelSpec> + Clone) -> Option<usize> {
+    let full = |s: &ModelSpec, prior: bool| {
+        s.level == crate::workflow::ModelLevel::Geometry
+            && s.prior == prior
+            && !(s.harmonics || s.backlash || s.identify_stiffness || s.estimate_noise)
+            && s.significant.is_none()
+    };
+    specs
+        .clone()
+        .into_iter()
+        .position(|s| full(s, true))
+        .or_else(|| specs.into_iter().position(|s| full(s, false)))
+}
 
 /// The paired comparison of two candidates over the posture groups: the difference of their
 /// mean squared held-out errors (m²) and its standard error, from the per-group sums `a`, `b`
@@ -99,52 +135,37 @@ pub(super) struct Choice {
     pub(super) doubt: Option<String>,
 }
 
-/// The order of simplicity of a row: free parameters (an estimated noise ratio counts as one
-/// more), then a prior or the ≥ kσ selection before an unrestricted fit, then the table's
-/// order.
-fn simplicity(row: &CvRow, index: usize) -> (usize, bool, usize) {
-    let spec = &row.spec;
-    (
-        row.parameters + usize::from(spec.estimate_noise),
-        !(spec.prior || spec.significant.is_some()),
-        index,
-    )
-}
-
-/// The [`RULE`]: sets each row's difference to the reference and its standard error, and
-/// returns the chosen row, the reference and, when the identified stiffness was lowest but
-/// not significantly, why it was not taken.
-pub(super) fn choose(evaluated: &mut [Evaluated], kept: &[usize], group_of: &[usize]) -> Choice {
-    // Per candidate, the sums of squared held-out errors per posture group with a kept row.
-    let groups = group_of.iter().max().map_or(0, |g| g + 1);
-    let mut used = vec![false; groups];
-    for &i in kept {
-        used[group_of[i]] = true;
-    }
-    let sums: Vec<Option<Vec<f64>>> = evaluated
+/// The [`RULE`] over the rows `pool`: sets each row's difference to `reference` (the lowest
+/// row when `reference` is `None` or did not run) and its standard error, and returns the
+/// lowest row of `pool` significantly lower than the reference (else the reference) and, when
+/// the identified stiffness was that row but not significantly lower than the lowest
+/// significant rigid one, why it was not taken.
+pub(super) fn choose(
+    evaluated: &mut [Evaluated],
+    kept: &[usize],
+    group_of: &[usize],
+    reference: Option<usize>,
+    pool: &[usize],
+    threshold: f64,
+) -> Choice {
+    let sums = group_sums(evaluated, kept, group_of);
+    let values: Vec<f64> = evaluated
         .iter()
-        .map(|e| {
-            e.row.choice_rms_mm?;
-            let mut sum = vec![0.0; groups];
-            for &i in kept {
-                sum[group_of[i]] += e.errors[i]? * e.errors[i]?;
-            }
-            Some((0..groups).filter(|&g| used[g]).map(|g| sum[g]).collect())
-        })
+        .map(|e| e.row.choice_rms_mm.unwrap_or(f64::INFINITY))
         .collect();
-    let lowest = |rigid: bool| {
-        (0..evaluated.len())
-            .filter(|&i| sums[i].is_some())
-            .filter(|&i| !(rigid && evaluated[i].row.spec.identify_stiffness))
-            .min_by(|&a, &b| {
-                let rms = |i: usize| evaluated[i].row.choice_rms_mm.unwrap_or(f64::INFINITY);
-                rms(a).total_cmp(&rms(b))
-            })
-    };
-    let (Some(overall), Some(rigid)) = (lowest(false), lowest(true)) else {
+    let rms = |i: usize| values[i];
+    let ran: Vec<usize> = (0..evaluated.len())
+        .filter(|&i| sums[i].is_some())
+        .collect();
+    let lowest =
+        |rows: &mut dyn Iterator<Item = usize>| rows.min_by(|&a, &b| rms(a).total_cmp(&rms(b)));
+    let Some(best) = reference
+        .filter(|&r| sums[r].is_some())
+        .or_else(|| lowest(&mut ran.iter().copied()))
+    else {
         return Choice {
-            chosen: lowest(false),
-            best: lowest(false),
+            chosen: None,
+            best: None,
             doubt: None,
         };
     };
@@ -155,47 +176,73 @@ pub(super) fn choose(evaluated: &mut [Evaluated], kept: &[usize], group_of: &[us
             kept.len(),
         )
     };
+    for &i in &ran {
+        let row = &mut evaluated[i].row;
+        let value = row.choice_rms_mm.unwrap_or(f64::NAN);
+        let reference_rms = values[best];
+        row.difference_mm = Some(value - reference_rms);
+        // rms_i − rms_ref = ΔMSE / (rms_i + rms_ref): the same scale for its SE.
+        row.difference_se_mm =
+            (i != best).then(|| compare(i, best).se * 1e6 / (value + reference_rms));
+    }
+    let significant: Vec<usize> = pool
+        .iter()
+        .copied()
+        .filter(|&i| i != best && sums[i].is_some())
+        .filter(|&i| compare(best, i).t() >= threshold)
+        .collect();
+    let stiffness = |i: usize| evaluated[i].row.spec.identify_stiffness;
+    let Some(winner) = lowest(&mut significant.iter().copied()) else {
+        return Choice {
+            chosen: Some(best),
+            best: Some(best),
+            doubt: None,
+        };
+    };
+    let rigid = lowest(&mut significant.iter().copied().filter(|&i| !stiffness(i)));
     let mut doubt = None;
-    let best = if overall != rigid {
-        let t = compare(rigid, overall).t();
-        if t < SIGNIFICANT_T {
+    let chosen = match rigid.filter(|_| stiffness(winner)) {
+        Some(rigid) if compare(rigid, winner).t() < SIGNIFICANT_T => {
             doubt = Some(format!(
-                "; '{}' was lower, but not significantly over the postures (paired t = {t:.2} < {SIGNIFICANT_T}), and it would ship the URDF with a compensation file",
-                evaluated[overall].row.model
+                "; '{}' was lower, but not significantly lower than '{}' over the postures (paired t = {:.2} < {SIGNIFICANT_T}), and it would ship the URDF with a compensation file",
+                evaluated[winner].row.model,
+                evaluated[rigid].row.model,
+                compare(rigid, winner).t()
             ));
             rigid
-        } else {
-            overall
         }
-    } else {
-        overall
+        _ => winner,
     };
-    let reference = evaluated[best].row.choice_rms_mm.unwrap_or(f64::NAN);
-    let mut within = Vec::new();
-    for i in 0..evaluated.len() {
-        let Some(rms) = evaluated[i].row.choice_rms_mm.filter(|_| sums[i].is_some()) else {
-            continue;
-        };
-        let p = compare(i, best);
-        let row = &mut evaluated[i].row;
-        row.difference_mm = Some(rms - reference);
-        if i != best {
-            // rms_i − rms_best = ΔMSE / (rms_i + rms_best): the same scale for its SE.
-            row.difference_se_mm = Some(p.se * 1e6 / (rms + reference));
-        }
-        let stiffness = row.spec.identify_stiffness && i != best;
-        if i == best || (!stiffness && p.difference <= p.se) {
-            within.push(i);
-        }
-    }
-    let chosen = within
-        .into_iter()
-        .min_by_key(|&i| simplicity(&evaluated[i].row, i));
     Choice {
-        chosen,
+        chosen: Some(chosen),
         best: Some(best),
         doubt,
     }
+}
+
+/// Per candidate, the sums of squared held-out errors per posture group with a kept row
+/// (`None` for a candidate that did not run on every fold).
+fn group_sums(
+    evaluated: &[Evaluated],
+    kept: &[usize],
+    group_of: &[usize],
+) -> Vec<Option<Vec<f64>>> {
+    let groups = group_of.iter().max().map_or(0, |g| g + 1);
+    let mut used = vec![false; groups];
+    for &i in kept {
+        used[group_of[i]] = true;
+    }
+    evaluated
+        .iter()
+        .map(|e| {
+            e.row.choice_rms_mm?;
+            let mut sum = vec![0.0; groups];
+            for &i in kept {
+                sum[group_of[i]] += e.errors[i]? * e.errors[i]?;
+            }
+            Some((0..groups).filter(|&g| used[g]).map(|g| sum[g]).collect())
+        })
+        .collect()
 }
 
 /// One candidate over every fold: its row, each measurement's held-out error, and per
@@ -204,4 +251,17 @@ pub(super) struct Evaluated {
     pub(super) row: CvRow,
     pub(super) errors: Vec<Option<f64>>,
     pub(super) flags: Vec<[usize; 2]>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_step_threshold_is_the_corrected_normal_quantile() {
+        assert!((normal_quantile_upper(0.025) - 1.960).abs() < 1e-3);
+        assert!((normal_quantile_upper(0.025 / 11.0) - 2.836).abs() < 2e-3);
+        assert_eq!(step_threshold(1), SIGNIFICANT_T);
+        assert!(step_threshold(20) > step_threshold(11));
+    }
 }
