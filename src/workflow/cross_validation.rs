@@ -355,12 +355,12 @@ fn reason(cv: &CrossValidation) -> String {
         format!("{d:+.3} ± {se:.3} mm, paired t = {:.2}", -d / se)
     };
     let reference = &cv.rows[best];
-    let paper = if reference_of([&reference.spec]).is_some() && reference.spec.prior {
-        " (the full geometry with the prior on the nominal values: the paper's model)"
-    } else if reference_of([&reference.spec]).is_some() {
-        " (the full geometry, the paper's model)"
-    } else {
-        " (the model the forward step extends)"
+    let paper = match reference_of([&reference.spec]) {
+        Some(_) if reference.spec.prior => {
+            " (the full geometry with the prior on the nominal values: the paper's model)"
+        }
+        Some(_) => " (the full geometry, the paper's model)",
+        None => " (the model the forward step extends)",
     };
     if i == best {
         let next = cv

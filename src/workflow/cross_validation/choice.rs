@@ -178,8 +178,7 @@ pub(super) fn choose(
     };
     for &i in &ran {
         let row = &mut evaluated[i].row;
-        let value = row.choice_rms_mm.unwrap_or(f64::NAN);
-        let reference_rms = values[best];
+        let (value, reference_rms) = (values[i], values[best]);
         row.difference_mm = Some(value - reference_rms);
         // rms_i − rms_ref = ΔMSE / (rms_i + rms_ref): the same scale for its SE.
         row.difference_se_mm =
