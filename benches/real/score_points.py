@@ -14,6 +14,7 @@ Position columns: x,y,z (single target) or ax,ay,az (target A of a three-target 
   --registration FILE   treecal registration YAML (units, xyz, rpy: the root in the tracker frame)
   --fit-frame           fit tracker_from_root (6 DoF) by least squares on --fit-csv (default: --csv)
   --fit-offset          also fit the point offset in --link on --fit-csv
+  --joint-errors FILE   treecal joint_errors.yaml: harmonic terms added to the joint angles
 Without --registration / --fit-frame the URDF root is taken as the tracker frame.
 
 Verified: registered nominal URDF (fit frame+offset on 2021-11-30 pos1, score 184 rows) = 4.570 mm;
@@ -84,7 +85,7 @@ class Scorer:
             sys.exit(f"score: no frame {link} in {urdf}")
         self.frame = self.model.getFrameId(link)
 
-    def link_poses(self, rows, units):
+    def link_poses(self, rows, units, joint_errors=None):
         ls, as_ = scale(units["length"]), scale(units["angle"])
         js = scale(units["joint_length"] or units["length"])
         poses, points = [], []
@@ -95,6 +96,10 @@ class Scorer:
                 if name in r:
                     jt = self.model.joints[j]
                     v = float(r[name])
+                    if joint_errors and name in joint_errors:
+                        e = joint_errors[name]
+                        v_rad = v * as_
+                        v += (e.get("sine", 0.0) * math.sin(v_rad) + e.get("cosine", 0.0) * math.cos(v_rad)) / as_
                     if jt.shortname().startswith("JointModelP"):
                         v *= js
                     else:
@@ -109,6 +114,21 @@ class Scorer:
             pre = "" if key == "x" else "a"
             points.append(np.array([float(r[pre + c]) for c in "xyz"]) * ls)
         return poses, np.array(points)
+
+
+def read_joint_errors(path):
+    """joint_errors.yaml (units rad): {joint: {sine, cosine}}; backlash needs torques: refused."""
+    import re
+    out = {}
+    for line in open(path):
+        m = re.match(r"^\s+(\S+):\s*\{(.*)\}", line)
+        if not m:
+            continue
+        terms = dict((k.strip(), float(v)) for k, v in (t.split(":") for t in m.group(2).split(",")))
+        if terms.get("backlash", 0.0) != 0.0:
+            sys.exit("score: backlash terms are not supported here")
+        out[m.group(1)] = terms
+    return out
 
 
 def predict(frame, poses, offset):
@@ -153,6 +173,7 @@ def main():
     ap.add_argument("--fit-offset", action="store_true")
     ap.add_argument("--fit-csv")
     ap.add_argument("--rows", action="store_true", help="print every row's error")
+    ap.add_argument("--joint-errors", help="treecal joint_errors.yaml (harmonics; backlash is refused)")
     a = ap.parse_args()
     s = Scorer(a.urdf, a.link)
     offset = np.array([float(v) for v in a.offset.split(",")])
@@ -168,7 +189,7 @@ def main():
         fr = predict(frame, poses, offset) - points
         print(f"fit on {a.fit_csv or a.csv}: n={len(points)} RMS {1e3*math.sqrt((fr**2).sum(1).mean()):.3f} mm; offset {offset}")
     _, rows, units = read_rows(a.csv)
-    poses, points = s.link_poses(rows, units)
+    poses, points = s.link_poses(rows, units, read_joint_errors(a.joint_errors) if a.joint_errors else None)
     e = np.linalg.norm(predict(frame, poses, offset) - points, axis=1) * 1e3
     if a.rows:
         for r, v in zip(rows, e):

@@ -56,30 +56,18 @@ pub fn registered_nominal(
         model.set_parameters(&parameters)?;
         Ok(model)
     };
-    let residual_at = |x: &DVector<f64>| -> Result<DVector<f64>> {
-        Ok(weighted_residual(
-            &model_at(x)?,
-            measurements,
-            weights,
-            options,
-        ))
+    let cost_at = |x: &DVector<f64>| -> Result<f64> {
+        let model = model_at(x)?;
+        Ok(chunks(measurements, weights)
+            .map(|(rows, w)| weighted_residual(&model, rows, w, options).norm_squared())
+            .sum())
     };
     let mut x = DVector::zeros(unknowns);
-    let mut residual = residual_at(&x)?;
+    let mut cost = cost_at(&x)?;
     let mut damping = 1e-3;
     for _ in 0..MAX_ITERATIONS {
-        let mut jacobian = DMatrix::zeros(residual.len(), unknowns);
-        for k in 0..unknowns {
-            let (mut plus, mut minus) = (x.clone(), x.clone());
-            plus[k] += STEP;
-            minus[k] -= STEP;
-            let column = (residual_at(&plus)? - residual_at(&minus)?) / (2.0 * STEP);
-            jacobian.set_column(k, &column);
-        }
-        crate::limits::ensure_finite(jacobian.iter(), "the nominal robot's registration")?;
-        let normal = jacobian.tr_mul(&jacobian);
-        let gradient = jacobian.tr_mul(&residual);
-        let cost = residual.norm_squared();
+        let (normal, gradient) =
+            normal_equations(&x, unknowns, &model_at, measurements, weights, options)?;
         let mut improved = false;
         for _ in 0..12 {
             let scale = normal.diagonal().map(|d| d.max(1e-12));
@@ -90,22 +78,77 @@ pub fn registered_nominal(
                 break;
             };
             let trial = &x + &step;
-            let trial_residual = residual_at(&trial)?;
-            if trial_residual.norm_squared() < cost {
+            let trial_cost = cost_at(&trial)?;
+            if trial_cost < cost {
+                let decrease = cost - trial_cost;
                 x = trial;
-                residual = trial_residual;
+                improved = decrease > 1e-12 * cost.max(1e-300);
+                cost = trial_cost;
                 damping = (damping * 0.3).max(1e-12);
-                improved = true;
                 break;
             }
             damping *= 10.0;
         }
-        let decrease = cost - residual.norm_squared();
-        if !improved || decrease <= 1e-12 * cost.max(1e-300) {
+        if !improved {
             break;
         }
     }
     model_at(&x)
+}
+
+/// Measurements per block of the normal equations: the Jacobian is never held for all rows
+/// (10⁵ configurations would keep ~60 MB), only for one block at a time.
+const CHUNK: usize = 2048;
+
+/// `measurements` with their weights in blocks of [`CHUNK`] (weights empty: all 1).
+fn chunks<'a>(
+    measurements: &'a [Measurement],
+    weights: &'a [f64],
+) -> impl Iterator<Item = (&'a [Measurement], &'a [f64])> {
+    measurements
+        .chunks(CHUNK)
+        .enumerate()
+        .map(move |(c, rows)| {
+            let from = (c * CHUNK).min(weights.len());
+            let to = (from + rows.len()).min(weights.len());
+            (rows, &weights[from..to])
+        })
+}
+
+/// JᵀJ and Jᵀr of the weighted residual at `x`, the Jacobian by central differences,
+/// accumulated block by block over the measurements.
+fn normal_equations(
+    x: &DVector<f64>,
+    unknowns: usize,
+    model_at: &dyn Fn(&DVector<f64>) -> Result<McpcModel>,
+    measurements: &[Measurement],
+    weights: &[f64],
+    options: &IdentificationOptions,
+) -> Result<(DMatrix<f64>, DVector<f64>)> {
+    let centre = model_at(x)?;
+    let mut shifted = Vec::with_capacity(unknowns);
+    for k in 0..unknowns {
+        let (mut plus, mut minus) = (x.clone(), x.clone());
+        plus[k] += STEP;
+        minus[k] -= STEP;
+        shifted.push((model_at(&plus)?, model_at(&minus)?));
+    }
+    let mut normal = DMatrix::zeros(unknowns, unknowns);
+    let mut gradient = DVector::zeros(unknowns);
+    for (rows, w) in chunks(measurements, weights) {
+        let residual = weighted_residual(&centre, rows, w, options);
+        let mut jacobian = DMatrix::zeros(residual.len(), unknowns);
+        for (k, (plus, minus)) in shifted.iter().enumerate() {
+            let column = (weighted_residual(plus, rows, w, options)
+                - weighted_residual(minus, rows, w, options))
+                / (2.0 * STEP);
+            jacobian.set_column(k, &column);
+        }
+        crate::limits::ensure_finite(jacobian.iter(), "the nominal robot's registration")?;
+        normal += jacobian.tr_mul(&jacobian);
+        gradient += jacobian.tr_mul(&residual);
+    }
+    Ok((normal, gradient))
 }
 
 /// `frame` moved by `delta` = (translation, rotation vector) in the measurement frame, turned

@@ -9,6 +9,7 @@ pub(crate) mod contacts_yaml;
 mod csv_fields;
 mod csv_scan;
 pub(crate) mod detections_csv;
+mod joint_errors;
 mod joint_log;
 mod joint_log_mcap;
 mod joint_log_read;
@@ -60,6 +61,7 @@ pub use contacts_yaml::{
 };
 pub use csv_fields::CsvTable;
 pub use detections_csv::{detections_to_csv, parse_detections, read_detections, DETECTION_COLUMNS};
+pub use joint_errors::{parse_joint_errors, JointErrorEntry};
 pub use joint_log::{parse_joint_log_csv, read_joint_log, JointLog, JointLogOptions};
 pub use joints_csv::{
     append_poses, configurations, joint_value, parse_csv, pose_fields, ColumnMapping, POSE_COLUMNS,

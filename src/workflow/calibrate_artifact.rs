@@ -5,8 +5,11 @@
 //! at the identification configurations) is exported instead, and the compensated geometry
 //! is kept beside it (`docs/calibration.md`, "Outputs").
 
+use super::artifact_joint_errors::{
+    without_joint_angle_terms, AppliedJointErrors, JOINT_ERRORS_FILE,
+};
 use super::calibrate::{CalibrateConfig, GravityFrame};
-use super::calibrate_steps::{Data, Identified, Loaded};
+use super::calibrate_steps::{joint_errors_yaml, Data, Identified, Loaded};
 use super::source::StiffnessSource;
 use crate::calibration::{calibrate as run_plan, ChosenFrame, Compensation, ErrorSummary, Finding};
 use crate::error::{Error, Result};
@@ -85,6 +88,8 @@ pub(super) struct Scoring<'a> {
     /// Per model tool, the written link scored: the added `<tool>_calibrated` or
     /// `<tool>_marker` link when there is one, else the tool link.
     pub scored_links: Vec<String>,
+    /// joint_errors.yaml's terms, added to the commanded joint angles (none: the URDF alone).
+    pub joint_errors: Option<&'a AppliedJointErrors>,
 }
 
 /// Per model tool of `loaded`, the link `export` scores (see [`Scoring::scored_links`]).
@@ -173,7 +178,9 @@ impl Scoring<'_> {
         measurements
             .iter()
             .map(|m| {
-                let q: Vec<f64> = dof_of.iter().map(|&d| m.q[d]).collect();
+                let turned = self.joint_errors.map(|j| j.apply(&m.q));
+                let commanded = turned.as_deref().unwrap_or(&m.q);
+                let q: Vec<f64> = dof_of.iter().map(|&d| commanded[d]).collect();
                 let mut link_pose = tree.link_pose(scored[m.tool], &q)?;
                 if reference != tree.root() {
                     link_pose = tree.link_pose(reference, &q)?.inverse() * link_pose;
@@ -247,11 +254,13 @@ fn dof_map(original: &KinematicTree, exported: &KinematicTree, origin: &str) -> 
 }
 
 /// The rigid model closest to what the compensated model predicts at the identification
-/// configurations: the plan run on those predictions, without compensation.
+/// configurations (the deflections of `flexibility`, the joint-angle terms of the model): the
+/// plan run on those predictions, without compensation and with the joint-angle terms frozen
+/// at zero.
 fn rigid_equivalent(
     loaded: &Loaded,
     identified: &Identified,
-    flexibility: &FlexibilityModel,
+    flexibility: Option<&FlexibilityModel>,
     measurements: &[Measurement],
 ) -> Result<McpcModel> {
     let model = &identified.run.report.model;
@@ -259,9 +268,12 @@ fn rigid_equivalent(
     let predicted = measurements
         .iter()
         .map(|m| {
-            let pose = flexibility
-                .for_payload(m.payload)?
-                .deflected_tool_poses(tree, model, &m.q)?[m.tool];
+            let pose = match flexibility {
+                Some(f) => f
+                    .for_payload(m.payload)?
+                    .deflected_tool_poses(tree, model, &m.q)?[m.tool],
+                None => model.tool_poses(&m.q)[m.tool],
+            };
             let observation = match m.observation {
                 Observation::Pose(_) => Observation::Pose(pose),
                 Observation::Position(_) => Observation::Position(pose.translation.vector),
@@ -273,13 +285,17 @@ fn rigid_equivalent(
             })
         })
         .collect::<Result<Vec<_>>>()?;
-    let options = crate::calibration::IdentificationOptions {
+    let (start, frozen) = without_joint_angle_terms(model)?;
+    let mut options = crate::calibration::IdentificationOptions {
         observation_weights: Vec::new(),
         ..identified.options.clone()
     };
+    options.frozen.extend(frozen);
+    options.frozen.sort_unstable();
+    options.frozen.dedup();
     Ok(run_plan(
         &loaded.branches,
-        model,
+        &start,
         &predicted,
         Compensation::None,
         &identified.plan,
@@ -382,7 +398,7 @@ pub(super) fn assess(
         unobservable_base: unobservable,
     };
     let (Some(export), false) = (export, data.validation.is_empty()) else {
-        report.how_to_use = how_to_use(fitted, None, false);
+        report.how_to_use = how_to_use(fitted, None, false, false);
         return Ok(Artifact {
             report,
             registration,
@@ -401,6 +417,7 @@ pub(super) fn assess(
         loaded,
         world_from_base: frame,
         scored_links: exported_links(loaded, export),
+        joint_errors: None,
     };
     // Rows of other sessions are placed in the training frame, as the run scored them.
     let validation =
@@ -410,48 +427,53 @@ pub(super) fn assess(
     let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;
     let mut replaced = None;
     let before = registered.as_ref().map(|r| r.errors.rms_position_mm);
-    if let (Some(flexibility), Some(file), Some(source)) = (
-        &identified.flexibility,
-        compensation_file,
-        compensation.as_ref(),
-    ) {
+    let joint_errors = joint_errors_yaml(loaded.robot.tree(), &run.report.model)
+        .map(|text| AppliedJointErrors::read(&text, loaded))
+        .transpose()?;
+    let stiffness = match (&identified.flexibility, compensation.as_ref()) {
+        (Some(flexibility), Some(source)) => Some((flexibility, source)),
+        _ => None,
+    };
+    let files: Vec<&str> = compensation_file
+        .filter(|_| stiffness.is_some())
+        .into_iter()
+        .chain(joint_errors.as_ref().map(|_| JOINT_ERRORS_FILE))
+        .collect();
+    let companion = (!files.is_empty()).then(|| files.join(" + "));
+    if let Some(file) = &companion {
         let worse = before.is_some_and(|b| alone.errors.rms_position_mm > b);
         let compensated_name = if worse {
             COMPENSATED_URDF
         } else {
             "calibrated.urdf"
         };
-        report.with_compensation = Some(scoring.score(
+        let with_terms = Scoring {
+            joint_errors: joint_errors.as_ref(),
+            ..scoring
+        };
+        report.with_compensation = Some(with_terms.score(
             &export.urdf,
             &format!("{} + {file}", with_registration(compensated_name)),
             validation,
-            Some(source),
+            stiffness.map(|(_, source)| source),
             gravity,
         )?);
         if worse {
+            let flexibility = stiffness.map(|(f, _)| f);
             let rigid = rigid_equivalent(loaded, identified, flexibility, &data.measurements)?;
-            let tree = loaded.robot.tree();
-            let std_devs = vec![None; rigid.parameter_count()];
-            let options =
-                ExportOptions::with_uncertainty(tree, &rigid, &std_devs, config.add_tool_links);
-            let rigid_export = export_urdf_with(
-                &loaded.robot.text,
-                &loaded.robot.origin,
-                tree,
-                &rigid,
-                &options,
-            )?;
+            let rigid_export = export_rigid(config, loaded, &rigid)?;
             let rigid_scoring = Scoring {
                 scored_links: exported_links(loaded, &rigid_export),
                 loaded,
                 world_from_base: frame,
+                joint_errors: None,
             };
             let rigid_alone =
                 rigid_scoring.score(&rigid_export.urdf, &alone_name, validation, None, gravity)?;
             findings.push(Finding::note(
                 "rigid-only-urdf",
                 format!(
-                    "the calibrated geometry used without its compensation file is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({:.3} mm alone); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({:.3} mm)",
+                    "the calibrated geometry used without {file} is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({:.3} mm alone); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({:.3} mm)",
                     alone.errors.rms_position_mm,
                     before.unwrap_or(f64::NAN),
                     rigid_alone.errors.rms_position_mm,
@@ -469,11 +491,16 @@ pub(super) fn assess(
                 "calibrated.urdf used alone ({}) is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({b:.3} mm): do not use it alone{}",
                 alone.files,
                 alone.errors.rms_position_mm,
-                compensation_file.map_or(String::new(), |f| format!("; it must accompany {f}"))
+                companion.as_deref().map_or(String::new(), |f| format!("; it must accompany {f}"))
             ),
         ));
     }
-    report.how_to_use = how_to_use(fitted, compensation_file, replaced.is_some());
+    report.how_to_use = how_to_use(
+        fitted,
+        compensation_file.filter(|_| stiffness.is_some()),
+        joint_errors.is_some(),
+        replaced.is_some(),
+    );
     report.urdf_alone = Some(alone);
     Ok(Artifact {
         report,
@@ -506,22 +533,62 @@ fn unobservable_finding(base: &UnobservableBase) -> Finding {
     )
 }
 
-/// How a user applies the outputs, in words.
-fn how_to_use(fitted: bool, compensation_file: Option<&str>, rigid_only: bool) -> String {
+/// The URDF of the rigid-only geometry `rigid` (its joint zero offsets in the joint origins).
+fn export_rigid(
+    config: &CalibrateConfig,
+    loaded: &Loaded,
+    rigid: &McpcModel,
+) -> Result<ExportReport> {
+    let tree = loaded.robot.tree();
+    let rigid = rigid.with_offsets_absorbed();
+    let std_devs = vec![None; rigid.parameter_count()];
+    let options = ExportOptions::with_uncertainty(tree, &rigid, &std_devs, config.add_tool_links);
+    export_urdf_with(
+        &loaded.robot.text,
+        &loaded.robot.origin,
+        tree,
+        &rigid,
+        &options,
+    )
+}
+
+/// How a user applies the outputs, in words: `stiffness_file` the compensation file of the
+/// deflections, `joint_errors` whether joint_errors.yaml goes with the URDF, `rigid_only`
+/// whether calibrated.urdf holds the rigid-only geometry.
+fn how_to_use(
+    fitted: bool,
+    stiffness_file: Option<&str>,
+    joint_errors: bool,
+    rigid_only: bool,
+) -> String {
     let mut text = String::from("calibrated.urdf replaces the robot's URDF");
     if fitted {
         text.push_str(&format!(
             "; its root link sits at {REGISTRATION_FILE} in the measurement frame (to compare with tracker data, place the root there)"
         ));
     }
-    match (compensation_file, rigid_only) {
-        (Some(file), true) => text.push_str(&format!(
-            ". It holds the rigid-only geometry (for controllers that do not model deflections); {COMPENSATED_URDF} with {file} predicts the deflections under gravity (treecal's flexibility model: the URDF, `stiffness` {file}) and is the better prediction"
-        )),
-        (Some(file), false) => text.push_str(&format!(
-            ". Its geometry assumes the deflections under gravity are predicted with {file} (treecal's flexibility model: the URDF, `stiffness` {file}); used alone it gives the \"alone\" figure"
-        )),
-        (None, _) => {}
+    let mut parts = Vec::new();
+    if let Some(file) = stiffness_file {
+        parts.push(format!(
+            "{file} predicts the deflections under gravity (treecal's flexibility model: the URDF, `stiffness` {file})"
+        ));
+    }
+    if joint_errors {
+        parts.push(format!(
+            "{JOINT_ERRORS_FILE} holds the joint-angle errors, added to the commanded joint angles before the URDF's kinematics"
+        ));
+    }
+    if !parts.is_empty() {
+        let companion = parts.join("; ");
+        if rigid_only {
+            text.push_str(&format!(
+                ". It holds the rigid-only geometry (for controllers that model neither); {COMPENSATED_URDF} with the files named here is the better prediction: {companion}"
+            ));
+        } else {
+            text.push_str(&format!(
+                ". Its geometry assumes the files named here are applied with it: {companion}; used alone it gives the \"alone\" figure"
+            ));
+        }
     }
     text.push('.');
     text

@@ -628,7 +628,10 @@ fn add_before_stiffness(report: &mut serde_json::Value, extra: &[(String, serde_
 }
 
 /// joint_errors.yaml: the harmonic and backlash terms of `model` (none: `None`).
-fn joint_errors_yaml(tree: &crate::tree::KinematicTree, model: &McpcModel) -> Option<String> {
+pub(super) fn joint_errors_yaml(
+    tree: &crate::tree::KinematicTree,
+    model: &McpcModel,
+) -> Option<String> {
     let terms = model.joint_error_terms();
     if !(terms.harmonics || terms.backlash) {
         return None;

@@ -3,6 +3,7 @@
 //! and writes nothing → an outcome with its notes, reports and files, and `write(out)`.
 //! See docs/workflows.md.
 
+mod artifact_joint_errors;
 pub(crate) mod calibrate;
 pub(crate) mod calibrate_artifact;
 pub(crate) mod calibrate_camera;
@@ -40,6 +41,7 @@ mod simulate_contacts;
 pub(crate) mod source;
 pub(crate) mod verify;
 
+pub use artifact_joint_errors::JOINT_ERRORS_FILE;
 pub use calibrate::{
     calibrate, CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, NoiseChoice,
     ParameterRow,

@@ -277,6 +277,7 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
         loaded: &loaded,
         world_from_base: frame.1.unwrap_or_else(Pose::identity),
         scored_links: scored_links(tree, &loaded),
+        joint_errors: None,
     };
     let predicted = scoring.predict(
         &loaded.robot.text,
