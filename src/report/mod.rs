@@ -27,8 +27,8 @@ pub use calibrate::{
 };
 pub use calibrate::{FrameValues, ParameterFile, StageOutcome};
 pub use camera::{
-    camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,
-    HeldOut, PixelResiduals, RobotParameter, TargetResiduals, TrackerRegistration,
+    camera_markdown, kinds_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic,
+    FittedPose, HeldOut, PixelResiduals, RobotParameter, TargetResiduals, TrackerRegistration,
 };
 pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use compare::{
