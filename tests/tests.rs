@@ -13,6 +13,7 @@ mod collision;
 mod compare;
 mod contacts;
 mod contacts_humanoid;
+mod contacts_tracker;
 mod corpus;
 mod deploy;
 mod export;

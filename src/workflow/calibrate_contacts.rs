@@ -138,6 +138,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
     let (model, tracker) = match &config.tracker {
         Some(input) => {
             let (model, tracker) = ContactTracker::read(input, tree, model)?;
+            notes.extend(tracker.check_setup(&setup, &config.setup, tree, &model)?);
             (model, Some(tracker))
         }
         None => (model, None),

@@ -14,16 +14,19 @@
 use super::calibrate::MeasurementFrameChoice;
 use super::camera_tracker::CameraTrackerInput;
 use super::contact_fit::{ContactFit, ContactProblem};
+use super::note::Note;
 use super::source::MeasurementSource;
 use crate::calibration::IdentificationOptions;
 use crate::calibration::{fit_rigid_transform, kind_of, weighted_jacobian, Rigid, RowKind};
 use crate::camera::KindScale;
 use crate::error::{Error, Result};
+use crate::io::ContactSetup;
 use crate::kinematics::{McpcModel, ParameterKind, ParameterOwner};
 use crate::math::{rpy_from_rotation, Vec3};
 use crate::measurement::{Measurement, Observation};
 use crate::report::TrackerRegistration;
 use crate::tree::KinematicTree;
+use std::path::Path;
 
 /// The tracker rows of a contact calibration, read and registered.
 #[derive(Debug, Clone)]
@@ -37,6 +40,8 @@ pub(super) struct ContactTracker {
     pub fitted_frame: bool,
     /// The measurement CSV.
     pub file: String,
+    /// Whether some rows are poses (their tools' rotation offsets are fitted too).
+    pub poses: bool,
 }
 
 /// The tool links the tracker rows name (the model gets them as tools).
@@ -62,6 +67,9 @@ impl ContactTracker {
             model
         };
         let free = tracker_free(&model, &rows);
+        let poses = rows
+            .iter()
+            .any(|m| matches!(m.observation, Observation::Pose(_)));
         Ok((
             model,
             Self {
@@ -69,8 +77,67 @@ impl ContactTracker {
                 free,
                 fitted_frame,
                 file: input.measurements.display().to_string(),
+                poses,
             },
         ))
+    }
+
+    /// Refuses a held plane with a fitted tracker frame and names what a tracked contact
+    /// tool's fitted target offset carries (`setup_file`: the setup's path, for messages).
+    ///
+    /// A held plane stays where the closed-form start put it from the nominal robot, in the
+    /// tracker's frame; the tracker rows pin the robot in that frame, so the plane cannot
+    /// follow the robot's errors (measured: σ̂ ≈ 100 on the built-in robot). A tool both
+    /// tracked and in contact has one frame: its fitted target offset moves its contact face
+    /// or point with it, which their own fitted values absorb (the face's in-plane position
+    /// carries nothing; a point's x, y, z are free), not when they are held.
+    pub(super) fn check_setup(
+        &self,
+        setup: &ContactSetup,
+        setup_file: &Path,
+        tree: &KinematicTree,
+        model: &McpcModel,
+    ) -> Result<Vec<Note>> {
+        if self.fitted_frame && !setup.free.plane && !setup.planes.is_empty() {
+            return Err(Error::InvalidData {
+                origin: setup_file.display().to_string(),
+                message: format!(
+                    "the planes are held (\"free: plane: false\") while the tracker's frame is \
+                     fitted from {}: a held plane is placed from the nominal robot in the \
+                     tracker's frame and cannot follow the robot's errors there; free the \
+                     planes, or give the tracker rows in the reference link's frame \
+                     (\"measurement_frame\" base)",
+                    self.file
+                ),
+            });
+        }
+        let tracked: Vec<&str> = self
+            .rows
+            .iter()
+            .filter_map(|m| model.tools().get(m.tool))
+            .map(|t| tree.link(t.link).name.as_str())
+            .collect();
+        let held: Vec<&str> = setup
+            .tools
+            .values()
+            .filter(|t| tracked.contains(&t.link.as_str()))
+            .filter(|t| {
+                (t.point.is_some() && !setup.free.point)
+                    || (t.face.is_some() && !setup.free.face_tilt && self.poses)
+            })
+            .map(|t| t.link.as_str())
+            .collect();
+        let mut notes = Vec::new();
+        if !held.is_empty() {
+            notes.push(Note::warning(format!(
+                "{} tracked and in contact with its contact point or face held: the fitted \
+                 target offset moves the held point or face with it (one frame per tool); \
+                 free them (\"free: point\", \"free: face_tilt\") unless they are given \
+                 relative to the tracked target",
+                held.join(", ")
+            )));
+        }
+        Ok(notes)
     }
 
     /// The fitted tracker frame of `fitted` (the calibrated model).
