@@ -149,7 +149,7 @@ fn tracker_file(
         .collect();
     tools.sort_unstable();
     tools.dedup();
-    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(config.seed ^ 0x7472_6163_6b65_72);
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(config.seed ^ 0x0074_7261_636b_6572);
     let rows = crate::sim::contact_tracker_rows(
         tree,
         &trial.truth,
