@@ -12,6 +12,7 @@ mod cli;
 mod collision;
 mod compare;
 mod contacts;
+mod contacts_check;
 mod contacts_humanoid;
 mod contacts_tracker;
 mod corpus;

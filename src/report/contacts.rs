@@ -376,7 +376,7 @@ pub fn contact_report(
         scores.training[1].overall.cells()
     );
     md.push_str(&planes_markdown(problem, fit));
-    md.push_str(&unobservable_markdown(tree, problem, fit));
+    md.push_str(&contact_unobservable_markdown(tree, problem, fit));
     let json = contact_json(tree, problem, fit, scores, reference, urdf_changes);
     (md, json)
 }
@@ -544,7 +544,9 @@ fn planes_markdown(problem: &ContactProblem, fit: &ContactFit) -> String {
     md
 }
 
-fn unobservable_markdown(
+/// What the contacts of `problem` cannot determine, in words, and the first combinations the
+/// rank decision of `fit` found (report.md's section; `check --contacts` prints it too).
+pub fn contact_unobservable_markdown(
     tree: &KinematicTree,
     problem: &ContactProblem,
     fit: &ContactFit,

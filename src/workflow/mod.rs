@@ -17,6 +17,7 @@ pub use camera_contacts::CameraContactsInput;
 mod camera_tracker;
 pub(crate) mod check;
 pub(crate) mod check_camera;
+mod check_contacts;
 pub(crate) mod checker;
 pub(crate) mod checks;
 pub(crate) mod compare;
@@ -58,6 +59,7 @@ pub use calibrate_contacts::{
 pub use calibrate_deploy::{DEPLOY_FILES, HTML_FILE, OFFSETS_FILE, OVERLAY_FILE};
 pub use check::{check, stage_analysis, Check, CheckConfig};
 pub use check_camera::{check_camera, CameraCheck, CameraCheckConfig};
+pub use check_contacts::{check_contacts, ContactCheck, ContactCheckConfig};
 pub use checker::{collision_checker, collision_statement};
 pub use checks::{check_outputs, count, sigmas, unused_stage_rows, Output};
 pub use compare::{compare, CompareConfig, Comparison, COMPARE_FILES};
