@@ -210,7 +210,7 @@ pub fn camera_markdown(report: &CameraCalibrationReport) -> String {
             &held.after,
         );
     }
-    text.push_str(&kinds_markdown(report));
+    text.push_str(&kinds_markdown(&report.kinds, report.tracker.as_ref()));
     text.push_str("\n## What the images cannot determine\n\n");
     if report.unobservable.findings.is_empty() {
         text.push_str("Every unknown is determined by these images.\n");
@@ -238,18 +238,19 @@ pub fn camera_markdown(report: &CameraCalibrationReport) -> String {
     text
 }
 
-/// The rows of each kind and their σ̂, and the tracker's frame (mixed data).
-fn kinds_markdown(report: &CameraCalibrationReport) -> String {
+/// The rows of each kind and their σ̂, and the tracker's frame (mixed data: a camera's or a
+/// contact calibration's).
+pub fn kinds_markdown(kinds: &[KindScale], tracker: Option<&TrackerRegistration>) -> String {
     let mut text = String::from(
         "\n## Rows by kind\n\n| kind | observations | rows | σ̂ |\n| --- | --- | --- | --- |\n",
     );
-    for kind in &report.kinds {
+    for kind in kinds {
         text.push_str(&format!(
             "| {} | {} | {} | {:.3} |\n",
             kind.kind, kind.observations, kind.rows, kind.residual_scale
         ));
     }
-    if let Some(tracker) = &report.tracker {
+    if let Some(tracker) = tracker {
         let [x, y, z] = tracker.xyz.map(|v| v * 1e3);
         let [r, p, w] = tracker.rpy.map(f64::to_degrees);
         text.push_str(&format!(

@@ -209,6 +209,13 @@ impl ContactScores {
     }
 }
 
+/// The contact rows among `rows` (a mixed fit's training rows also hold tracker rows).
+fn contact_count(rows: &[Measurement]) -> usize {
+    rows.iter()
+        .filter(|m| matches!(m.observation, Observation::Contact(_)))
+        .count()
+}
+
 fn has_plane(m: &Measurement) -> bool {
     matches!(
         m.observation,
@@ -327,7 +334,7 @@ pub fn contact_report(
             .map(|t| tree.link(t.link).name.as_str())
             .collect::<Vec<_>>()
             .join(", "),
-        problem.training.len(),
+        contact_count(&problem.training),
         problem.validation.len(),
         kinds.join(", "),
         problem
@@ -369,7 +376,7 @@ pub fn contact_report(
         scores.training[1].overall.cells()
     );
     md.push_str(&planes_markdown(problem, fit));
-    md.push_str(&unobservable_markdown(tree, problem, fit));
+    md.push_str(&contact_unobservable_markdown(tree, problem, fit));
     let json = contact_json(tree, problem, fit, scores, reference, urdf_changes);
     (md, json)
 }
@@ -481,7 +488,7 @@ fn contact_json(
         "reference_link": reference,
         "usable": urdf_changes.is_some(),
         "kinds": kinds,
-        "training_contacts": problem.training.len(),
+        "training_contacts": contact_count(&problem.training),
         "held_out_contacts": problem.validation.len(),
         "held_out": {
             "training_plane": {"before": scores.before.overall.json(), "after": scores.after.overall.json()},
@@ -509,11 +516,21 @@ fn planes_markdown(problem: &ContactProblem, fit: &ContactFit) -> String {
         "## Planes (reference link frame)\n\n| session | fitted point (m) | fitted normal | \
          from the setup's nominal: along its normal (mm), tilt (°) |\n|---|---|---|---|\n",
     );
+    let mut fitted = problem.model.clone();
+    if fitted.set_parameters(&fit.after.parameters).is_err() {
+        return String::new();
+    }
+    let reference_from_fitted = fitted.world_from_base().inverse();
+    let reference_from_start = problem.model.world_from_base().inverse();
     for (session, block) in &problem.planes {
         let Some((point, normal)) = fitted_plane(problem, &fit.after.nuisance, *block) else {
             continue;
         };
-        let setup: &Pose = &problem.setup_planes[session];
+        // The planes live in the measurement frame (the tracker's with tracker rows): carried
+        // into the reference link through the fitted frame, the setup's through the start's.
+        let point = reference_from_fitted.transform_point(&point.into()).coords;
+        let normal = reference_from_fitted.rotation * normal;
+        let setup: Pose = reference_from_start * problem.setup_planes[session];
         let n0 = setup.rotation * Vec3::z();
         let along = n0.dot(&(point - setup.translation.vector)) * 1e3;
         let tilt = n0.angle(&normal).to_degrees();
@@ -527,7 +544,9 @@ fn planes_markdown(problem: &ContactProblem, fit: &ContactFit) -> String {
     md
 }
 
-fn unobservable_markdown(
+/// What the contacts of `problem` cannot determine, in words, and the first combinations the
+/// rank decision of `fit` found (report.md's section; `check --contacts` prints it too).
+pub fn contact_unobservable_markdown(
     tree: &KinematicTree,
     problem: &ContactProblem,
     fit: &ContactFit,

@@ -27,14 +27,14 @@ pub use calibrate::{
 };
 pub use calibrate::{FrameValues, ParameterFile, StageOutcome};
 pub use camera::{
-    camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,
-    HeldOut, PixelResiduals, RobotParameter, TargetResiduals, TrackerRegistration,
+    camera_markdown, kinds_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic,
+    FittedPose, HeldOut, PixelResiduals, RobotParameter, TargetResiduals, TrackerRegistration,
 };
 pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use compare::{
     CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures, COMPARE_SCHEMA,
 };
-pub use contacts::{contact_report, ContactScores, Errors, Scored};
+pub use contacts::{contact_report, contact_unobservable_markdown, ContactScores, Errors, Scored};
 pub use html::escape;
 pub use html::{calibration_html, HtmlReport, Scene, SceneConfiguration};
 pub use html_chart::parameter_chart_svg;

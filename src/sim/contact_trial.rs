@@ -43,6 +43,8 @@ pub struct ContactTrial {
     pub consistency: f64,
     /// The true nuisance values.
     pub truth_nuisance: Nuisance,
+    /// The true robot.
+    pub truth: McpcModel,
     /// The simulated contacts (the true nuisance, training and held-out rows).
     pub scene: ContactScene,
 }
@@ -168,6 +170,7 @@ pub fn run_contact_trial(
         observable_error,
         consistency,
         truth_nuisance: scene.nuisance.clone(),
+        truth,
         scene,
     })
 }

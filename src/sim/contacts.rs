@@ -391,7 +391,7 @@ fn invalid(message: String) -> Error {
 }
 
 /// Each joint variable's range (unbounded: [−π, π]).
-fn limits_of(tree: &KinematicTree) -> Vec<(f64, f64)> {
+pub(super) fn limits_of(tree: &KinematicTree) -> Vec<(f64, f64)> {
     tree.dof_limits()
         .iter()
         .map(|l| {
@@ -402,7 +402,7 @@ fn limits_of(tree: &KinematicTree) -> Vec<(f64, f64)> {
         .collect()
 }
 
-fn random_configuration(limits: &[(f64, f64)], rng: &mut ChaCha8Rng) -> Vec<f64> {
+pub(super) fn random_configuration(limits: &[(f64, f64)], rng: &mut ChaCha8Rng) -> Vec<f64> {
     limits
         .iter()
         .map(|(lo, hi)| {

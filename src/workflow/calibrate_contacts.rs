@@ -12,7 +12,9 @@
 //! 4. Held-out contacts (`--validation`, else every fifth row) scored with the training
 //!    session's plane (primary) and with a plane refitted to them (diagnostic).
 
+use super::camera_tracker::CameraTrackerInput;
 use super::contact_fit::{fit_contacts, plane_start, ContactProblem};
+use super::contact_tracker::{contact_kind_scales, tracker_links, ContactTracker};
 use super::note::Note;
 use super::source::{branches, RobotSource};
 use crate::calibration::NuisanceBlock;
@@ -23,7 +25,7 @@ use crate::io::{read_contacts, ContactKind, ContactRow, ContactTable};
 use crate::kinematics::McpcModel;
 use crate::math::Pose;
 use crate::measurement::{Contact, ContactFace, ContactPlane, Measurement, Observation};
-use crate::report::{contact_report, ContactScores};
+use crate::report::{contact_report, kinds_markdown, ContactScores};
 use crate::tree::KinematicTree;
 use crate::urdf::{export_urdf_with, ExportOptions};
 use std::collections::BTreeMap;
@@ -42,6 +44,8 @@ pub struct ContactCalibrateConfig {
     pub validation: Option<PathBuf>,
     /// The reference link; overrides the setup's.
     pub reference_link: Option<String>,
+    /// Tracker rows fitted with the contacts, each with its σ (`measurements`).
+    pub tracker: Option<CameraTrackerInput>,
 }
 
 /// The outputs of `calibrate --contacts`.
@@ -121,16 +125,44 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         .reference_link
         .clone()
         .or_else(|| setup.reference_link.clone());
-    let links: Vec<String> = setup.tools.values().map(|t| t.link.clone()).collect();
+    let mut links: Vec<String> = setup.tools.values().map(|t| t.link.clone()).collect();
+    if let Some(input) = &config.tracker {
+        for link in tracker_links(input)? {
+            if !links.contains(&link) {
+                links.push(link);
+            }
+        }
+    }
     let branches = branches(&robot.import, Some(&links), reference.as_deref())?;
     let model = McpcModel::from_tree(tree, &branches)?;
+    let (model, tracker) = match &config.tracker {
+        Some(input) => {
+            let (model, tracker) = ContactTracker::read(input, tree, model)?;
+            notes.extend(tracker.check_setup(&setup, &config.setup, tree, &model)?);
+            (model, Some(tracker))
+        }
+        None => (model, None),
+    };
     let origin = config.contacts.display().to_string();
-    let problem = contact_problem(tree, model, &setup, &training, &validation, &origin)?;
-    let options = contact_options(&setup);
+    let mut problem = contact_problem(tree, model, &setup, &training, &validation, &origin)?;
+    let mut options = contact_options(&setup);
+    if let (Some(tracker), Some(input)) = (&tracker, &config.tracker) {
+        problem.training.extend(tracker.rows.iter().cloned());
+        problem.registration_free = tracker.free.clone();
+        options.position_sigma = input.position_sigma;
+        options.rotation_sigma = input.rotation_sigma;
+        notes.push(Note::info(format!(
+            "{} tracker rows fitted with the contacts (each row kind by its σ); they are not \
+             held out: the verdict scores the held-out contacts",
+            tracker.rows.len()
+        )));
+    }
     let fit = fit_contacts(&problem, &options)?;
     let scores = ContactScores::new(&problem, &fit, &options)?;
     let mut calibrated = problem.model.clone();
     calibrated.set_parameters(&fit.after.parameters)?;
+    let kinds = contact_kind_scales(&problem, &fit, &options)?;
+    let registration = tracker.as_ref().map(|t| t.registration(&calibrated));
     let better = scores.better_than_nominal();
     let export = if better {
         let export_options = ExportOptions {
@@ -147,7 +179,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
     } else {
         None
     };
-    let (report_markdown, report_json) = contact_report(
+    let (mut report_markdown, mut report_json) = contact_report(
         tree,
         &problem,
         &fit,
@@ -157,6 +189,11 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             .unwrap_or(tree.link(tree.root()).name.as_str()),
         export.as_ref().map(|e| e.changes.len()),
     );
+    report_markdown.push_str(&kinds_markdown(&kinds, registration.as_ref()));
+    if let Some(object) = report_json.as_object_mut() {
+        object.insert("kinds".into(), serde_json::json!(kinds));
+        object.insert("tracker".into(), serde_json::json!(registration));
+    }
     Ok(ContactCalibration {
         notes,
         report_markdown,
@@ -202,6 +239,7 @@ pub fn contact_problem(
     let mut builder = Builder {
         setup,
         origin,
+        world: model.world_from_base(),
         nuisance: Nuisance::default(),
         free: Vec::new(),
         planes: BTreeMap::new(),
@@ -266,6 +304,7 @@ pub fn contact_problem(
         planes,
         setup_planes,
         kinds,
+        registration_free: Vec::new(),
     })
 }
 
@@ -343,6 +382,9 @@ fn set_plane_nominal(m: &mut Measurement, block: usize, pose: Pose) {
 struct Builder<'a> {
     setup: &'a ContactSetup,
     origin: &'a str,
+    /// The reference link in the measurement frame (the setup's planes are in the reference
+    /// link; identity unless tracker rows register the model to their frame).
+    world: Pose,
     nuisance: Nuisance,
     free: Vec<usize>,
     /// Session → (block, the setup's nominal plane).
@@ -413,12 +455,9 @@ impl Builder<'_> {
             vec![0.0; 3],
             &[free; 3],
         );
-        self.planes
-            .insert(row.session.clone(), (block, entry.pose()));
-        Ok(ContactPlane {
-            block,
-            nominal: entry.pose(),
-        })
+        let nominal = self.world * entry.pose();
+        self.planes.insert(row.session.clone(), (block, nominal));
+        Ok(ContactPlane { block, nominal })
     }
 
     fn face(&mut self, row: &ContactRow) -> Result<ContactFace> {

@@ -34,6 +34,9 @@ pub struct ContactProblem {
     pub setup_planes: BTreeMap<String, Pose>,
     /// The contact kinds present.
     pub kinds: Vec<ContactKind>,
+    /// Model parameters other rows add to both fits (tracker rows: the measurement frame and
+    /// the measured tools' target offsets).
+    pub registration_free: Vec<usize>,
 }
 
 /// The two fits of a contact calibration.
@@ -47,14 +50,18 @@ pub struct ContactFit {
     pub free: Vec<usize>,
 }
 
-/// Fits the nuisance on the nominal robot ("before"), then the robot's joint frames with it.
+/// Fits the nuisance (and the tracker's registration, with tracker rows) on the nominal robot
+/// ("before"), then the robot's joint frames with it.
 pub fn fit_contacts(
     problem: &ContactProblem,
     options: &IdentificationOptions,
 ) -> Result<ContactFit> {
     let model = &problem.model;
     let count = model.parameter_count();
-    let nuisance_free: Vec<usize> = problem.free_nuisance.iter().map(|k| count + k).collect();
+    let mut nuisance_free: Vec<usize> = problem.free_nuisance.iter().map(|k| count + k).collect();
+    nuisance_free.extend(&problem.registration_free);
+    nuisance_free.sort_unstable();
+    nuisance_free.dedup();
     let before = identify_with_nuisance(
         model,
         &problem.nuisance,
@@ -66,6 +73,8 @@ pub fn fit_contacts(
     )?;
     let mut free = contact_free_parameters(model);
     free.extend(nuisance_free);
+    free.sort_unstable();
+    free.dedup();
     let after = identify_with_nuisance(
         model,
         &before.nuisance,

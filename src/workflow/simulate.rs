@@ -140,6 +140,10 @@ pub struct SimulateConfig {
     pub encoder_noise: f64,
     /// Flush contacts: tables (sessions, one plane each) and tools pressing on each (1 or 2).
     pub contact_tables: (usize, usize),
+    /// Contacts with the tracker (`--observation flush,tracker`): trial 1's tracker.csv of
+    /// the contact tools is written beside its contact files, the setup's σ's those of the
+    /// simulated encoder noise.
+    pub contact_tracker: bool,
 }
 
 impl Default for SimulateConfig {
@@ -182,6 +186,7 @@ impl Default for SimulateConfig {
             contacts: Vec::new(),
             encoder_noise: 0.0,
             contact_tables: (1, 1),
+            contact_tracker: false,
         }
     }
 }

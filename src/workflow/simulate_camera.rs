@@ -221,6 +221,7 @@ fn lab_files(
             setup.augmented,
             scene,
             None,
+            None,
         )?);
     }
     Ok(files)

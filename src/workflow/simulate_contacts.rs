@@ -105,14 +105,99 @@ pub(super) fn simulate_contacts(
     });
     let mut simulation = Simulation::without_tracker_trials(notes, results, markdown, Vec::new())?;
     if let Some(first) = trials.first() {
+        let sigma = config
+            .contact_tracker
+            .then(|| true_sigmas(first))
+            .transpose()?;
         simulation.files.extend(lab_files(
             tree,
             &nominal,
             &first.scene,
             config.reference_link.as_deref(),
+            sigma,
         )?);
+        if config.contact_tracker {
+            simulation
+                .files
+                .push(tracker_file(tree, &nominal, first, config)?);
+        }
     }
     Ok(simulation)
+}
+
+/// tracker.csv beside trial 1's contacts (`--observation flush,tracker`): the true robot's
+/// contact tools seen by a tracker ([`crate::sim::contact_tracker_rows`]), `per_kind`
+/// configurations, in the tracker's frame ([`crate::sim::contact_tracker_frame`]).
+fn tracker_file(
+    tree: &crate::tree::KinematicTree,
+    nominal: &McpcModel,
+    trial: &ContactTrial,
+    config: &SimulateConfig,
+) -> Result<(String, Vec<u8>)> {
+    use rand::SeedableRng;
+    let mut tools: Vec<usize> = trial
+        .scene
+        .measurements
+        .iter()
+        .flat_map(|m| {
+            let second = match &m.observation {
+                Observation::Contact(c) => c.second_tool(),
+                _ => None,
+            };
+            std::iter::once(m.tool).chain(second)
+        })
+        .collect();
+    tools.sort_unstable();
+    tools.dedup();
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(config.seed ^ 0x0074_7261_636b_6572);
+    let rows = crate::sim::contact_tracker_rows(
+        tree,
+        &trial.truth,
+        &tools,
+        config.poses + config.torso_poses,
+        (
+            &crate::sim::contact_tracker_frame(),
+            crate::sim::CONTACT_TRACKER_SIGMA,
+        ),
+        &mut rng,
+    );
+    let text = crate::io::measurements_to_csv(tree, nominal, &rows)?;
+    Ok(("tracker.csv".to_owned(), text.into_bytes()))
+}
+
+/// Each contact row kind's σ as trial 1's recorded configurations really make it: the RMS
+/// violation of the true robot's training contacts there (encoder noise; the setup's default
+/// where a kind is absent or noise-free), so that a mixed fit weighs the contacts against the
+/// tracker rows as they are.
+fn true_sigmas(trial: &ContactTrial) -> Result<SigmaSetup> {
+    let violations = super::contact_fit::contact_violations(
+        &trial.truth,
+        &trial.truth.parameters(),
+        &trial.truth_nuisance,
+        &trial.scene.measurements,
+    )?;
+    let mut sums: BTreeMap<&str, (f64, usize)> = BTreeMap::new();
+    for (contact, values) in &violations {
+        let kinds = crate::calibration::kind_of(&Observation::Contact(*contact)).row_kinds();
+        for (kind, v) in kinds.iter().zip(values) {
+            let entry = sums.entry(kind.name()).or_default();
+            entry.0 += v * v;
+            entry.1 += 1;
+        }
+    }
+    let rms = |name: &str, default: f64| {
+        sums.get(name)
+            .map(|(sum, n)| (sum / *n as f64).sqrt())
+            .filter(|s| *s > 1e-12)
+            .unwrap_or(default)
+    };
+    let d = SigmaSetup::default();
+    Ok(SigmaSetup {
+        height: rms("height", d.height),
+        tilt: rms("tilt", d.tilt),
+        gap: rms("gap", d.gap),
+        length: rms("length", d.length),
+    })
 }
 
 /// How far the setup file's nominal planes are from the true ones: along the normal (m), in
@@ -124,12 +209,14 @@ const SETUP_POINT_ERROR: f64 = 0.01;
 
 /// Trial 1's contacts as a lab would write them: contacts.csv (training, configurations as
 /// recorded), contacts-validation.csv (held out, exact) and contact-setup.yaml (the nominal
-/// faces, points and planes, the planes [`SETUP_PLANE_ERROR`] off), for `calibrate --contacts`.
+/// faces, points and planes, the planes [`SETUP_PLANE_ERROR`] off; σ's `sigma`, else the
+/// defaults), for `calibrate --contacts`.
 pub(super) fn lab_files(
     tree: &crate::tree::KinematicTree,
     model: &McpcModel,
     scene: &ContactScene,
     reference: Option<&str>,
+    sigma: Option<SigmaSetup>,
 ) -> Result<Vec<(String, Vec<u8>)>> {
     let tool_name = |tool: usize| tree.link(model.tools()[tool].link).name.clone();
     let session = |block: usize| {
@@ -144,7 +231,7 @@ pub(super) fn lab_files(
         planes: BTreeMap::new(),
         bar: None,
         free: FreeSetup::default(),
-        sigma: SigmaSetup::default(),
+        sigma: sigma.unwrap_or_default(),
     };
     let rows_of = |rows: &[Measurement], setup: &mut ContactSetup| -> Result<Vec<ContactRow>> {
         let mut out = Vec::new();

@@ -108,6 +108,7 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
         setup: setup.to_owned(),
         validation: args.validation.clone(),
         reference_link: args.reference_link.clone(),
+        tracker: tracker_input(args),
     })?;
     finish(
         args,
@@ -118,6 +119,18 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
         "the calibrated robot does not predict the held-out contacts better than the \
          registered nominal robot",
     )
+}
+
+/// The tracker rows of `--measurements` fitted with pixels or contacts, with their σ's.
+fn tracker_input(args: &CalibrateArgs) -> Option<CameraTrackerInput> {
+    args.measurements.as_ref().map(|path| CameraTrackerInput {
+        measurements: path.clone(),
+        position_sigma: args.position_sigma,
+        rotation_sigma: args.rotation_sigma,
+        frame: measurement_frame(&args.measurement_frame),
+        length_unit: args.length_unit,
+        ignore_columns: args.ignore_columns.clone(),
+    })
 }
 
 /// The library's choice of the measurement frame for the flag's.
@@ -140,14 +153,7 @@ fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<
         detections: DetectionsSource::File(detections.to_owned()),
         validation: args.validation.clone(),
         pixel_sigma: args.pixel_sigma,
-        tracker: args.measurements.as_ref().map(|path| CameraTrackerInput {
-            measurements: path.clone(),
-            position_sigma: args.position_sigma,
-            rotation_sigma: args.rotation_sigma,
-            frame: measurement_frame(&args.measurement_frame),
-            length_unit: args.length_unit,
-            ignore_columns: args.ignore_columns.clone(),
-        }),
+        tracker: tracker_input(args),
         contacts: match (&args.contacts, &args.contact_setup) {
             (Some(contacts), Some(setup)) => Some(CameraContactsInput {
                 contacts: contacts.clone(),

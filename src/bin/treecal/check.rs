@@ -3,6 +3,7 @@
 use crate::cli::{AngleUnit, CheckArgs, Format, PlanChoice};
 use treecal::workflow::{check, CheckConfig};
 use treecal::workflow::{check_camera, CameraCheckConfig};
+use treecal::workflow::{check_contacts, ContactCheckConfig};
 use treecal::workflow::{MeasurementSource, PlanSource, RobotSource, StiffnessSource};
 use treecal::Result;
 
@@ -47,6 +48,23 @@ pub fn run(args: CheckArgs) -> Result<()> {
             camera_file,
             detections,
             pixel_sigma: args.pixel_sigma,
+        })?;
+        for note in &outcome.notes {
+            crate::output::note(note);
+        }
+        let text = match format {
+            Format::Text => outcome.text,
+            Format::Yaml => treecal::io::to_yaml(&outcome.report)?,
+            Format::Json => treecal::io::to_json(&outcome.report)?,
+        };
+        return crate::output::print(&text);
+    }
+    if let (Some(contacts), Some(setup)) = (args.contacts.clone(), args.contact_setup.clone()) {
+        let outcome = check_contacts(&ContactCheckConfig {
+            robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
+            contacts,
+            setup,
+            reference_link: args.reference_link,
         })?;
         for note in &outcome.notes {
             crate::output::note(note);

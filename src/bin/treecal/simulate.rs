@@ -9,10 +9,11 @@ use treecal::workflow::{PlanSource, RobotSource, StiffnessSource};
 use treecal::Result;
 
 /// The contacts and the one instrument (tracker, camera) of `--observation`'s list; contacts
-/// mix with the camera simulation's instruments (`camera,touch`), not yet with the tracker.
+/// mix with the camera simulation's instruments (`camera,touch`) and with a tracker of the
+/// contact tools (`flush,tracker`: trial 1's tracker.csv written beside the contact files).
 fn observations(
     list: &[ObservationArg],
-) -> Result<(workflow::ObservationChoice, Vec<ContactChoice>)> {
+) -> Result<(workflow::ObservationChoice, Vec<ContactChoice>, bool)> {
     let mut contacts = Vec::new();
     let mut instruments = Vec::new();
     for item in list {
@@ -31,21 +32,25 @@ fn observations(
     }
     contacts.dedup();
     let with_tracker = instruments.contains(&workflow::ObservationChoice::Tracker);
-    if instruments.len() > 1 || (with_tracker && !contacts.is_empty()) {
+    if instruments.len() > 1 {
         return Err(treecal::Error::InvalidData {
             origin: "--observation".into(),
             message: "give one instrument (tracker, camera, mixed, rigid-tracker), a list of \
-                      contacts (flush, plane, touch, bar), or contacts with camera, mixed or \
-                      rigid-tracker (e.g. camera,touch); contacts with the staged tracker \
-                      experiment are not simulated yet"
+                      contacts (flush, plane, touch, bar), or contacts with one instrument \
+                      (e.g. camera,touch or flush,tracker)"
                 .into(),
         });
     }
-    Ok((instruments.first().copied().unwrap_or_default(), contacts))
+    let contact_tracker = with_tracker && !contacts.is_empty();
+    Ok((
+        instruments.first().copied().unwrap_or_default(),
+        contacts,
+        contact_tracker,
+    ))
 }
 
 fn config(args: SimulateArgs) -> Result<SimulateConfig> {
-    let (observation, contacts) = observations(&args.observation)?;
+    let (observation, contacts, contact_tracker) = observations(&args.observation)?;
     Ok(SimulateConfig {
         robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
         package_paths: args.package_path,
@@ -95,6 +100,7 @@ fn config(args: SimulateArgs) -> Result<SimulateConfig> {
         contacts,
         encoder_noise: args.encoder_noise,
         contact_tables: (args.tables, if args.both_hands { 2 } else { 1 }),
+        contact_tracker,
     })
 }
 

@@ -103,20 +103,15 @@ pub struct CalibrateArgs {
     /// such as "harmonics on arm_6" chosen by the same rule (docs/identification.md).
     #[arg(long)]
     pub cv_joint_steps: bool,
-    /// Measurement CSV (one row per tool observation); not with --contacts; with --camera,
-    /// tracker rows fitted together with the pixels (mixed data, each with its σ).
+    /// Measurement CSV (one row per tool observation); with --camera or --contacts, tracker
+    /// rows fitted together with the pixels or the contacts (mixed data, each with its σ).
     #[arg(long, value_name = "M.csv", required_unless_present_any = ["contacts", "camera"])]
     pub measurements: Option<PathBuf>,
     /// Contacts CSV (docs/contacts.md, docs/file-formats.md): calibrate from contacts — faces
     /// flush on a plane, points on a plane, touches, a bar — instead of --measurements; with
     /// --contact-setup. --validation then takes held-out contacts; with --camera, the contacts
     /// are fitted with the pixels (--validation: held-out detections).
-    #[arg(
-        long,
-        value_name = "C.csv",
-        requires = "contact_setup",
-        conflicts_with = "measurements"
-    )]
+    #[arg(long, value_name = "C.csv", requires = "contact_setup")]
     pub contacts: Option<PathBuf>,
     /// The contacts' setup (YAML): reference link, tools with their nominal contact faces and
     /// points, each session's nominal plane, the bar, what is fitted.

@@ -185,6 +185,18 @@ pub struct CheckArgs {
     /// Pixel noise σ of a detected point (px), with --camera.
     #[arg(long, default_value_t = 0.5, value_name = "PX")]
     pub pixel_sigma: f64,
+    /// Contacts CSV (docs/contacts.md): say what these contacts leave undetermined, in words
+    /// as the contact calibration's report does; with --contact-setup.
+    #[arg(
+        long,
+        value_name = "C.csv",
+        requires = "contact_setup",
+        conflicts_with = "camera"
+    )]
+    pub contacts: Option<PathBuf>,
+    /// The contacts' setup (YAML), with --contacts.
+    #[arg(long, value_name = "S.yaml", requires = "contacts")]
+    pub contact_setup: Option<PathBuf>,
 }
 
 /// `check --poses FILE` (the old spelling of --pose-file); a count is refused with directions,
