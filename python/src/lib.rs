@@ -9,6 +9,7 @@
 
 mod calibrate;
 mod camera;
+mod contacts;
 mod fk;
 mod measurements;
 mod trust;
@@ -38,6 +39,8 @@ const KEYWORDS: &[(&str, &str)] = &[
     ("angle_unit", "angle_unit"),
     ("calibration", "calibration"),
     ("camera", "camera"),
+    ("contact_setup", "contact_setup"),
+    ("contacts", "contacts"),
     ("detections", "detections"),
     ("frame", "frame"),
     ("gravity_frame", "gravity_frame"),
@@ -54,6 +57,7 @@ const KEYWORDS: &[(&str, &str)] = &[
     ("plan", "plan"),
     ("plan_file", "plan"),
     ("position_sigma", "position_sigma"),
+    ("reference_link", "reference_link"),
     ("registration", "registration"),
     ("robot", "robot"),
     ("robust", "robust"),
@@ -118,6 +122,8 @@ fn _treecal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<calibrate::PyCalibration>()?;
     m.add_function(wrap_pyfunction!(camera::calibrate_camera, m)?)?;
     m.add_class::<camera::PyCameraCalibration>()?;
+    m.add_function(wrap_pyfunction!(contacts::calibrate_contacts_files, m)?)?;
+    m.add_class::<contacts::PyContactCalibration>()?;
     m.add_function(wrap_pyfunction!(trust::verify, m)?)?;
     m.add_function(wrap_pyfunction!(trust::compare, m)?)?;
     Ok(())

@@ -380,6 +380,8 @@ def calibrate(
     camera: Optional[PathLike] = None,
     detections: Optional[DetectionsLike] = None,
     pixel_sigma: float = 0.5,
+    contacts: Optional[PathLike] = None,
+    contact_setup: Optional[PathLike] = None,
 ) -> Calibration:
     """Calibrates `robot` (URDF path; None: the built-in Robonaut) from `measurements`.
 
@@ -404,7 +406,23 @@ def calibrate(
     with the pixels, each with its σ (`pixel_sigma` px, `position_sigma` m, `rotation_sigma`
     rad). The :class:`Calibration`'s parameters are then the robot's (name, nominal,
     calibrated, std_dev, determined) and its report the camera report (docs/camera.md).
+
+    With `contacts` (a contacts CSV path) and `contact_setup` (its setup YAML) the robot is
+    calibrated from contacts (``treecal calibrate --contacts``, docs/contacts.md): faces flush
+    on a table, points on a plane, touches, a bar. `validation` is then a held-out contacts CSV
+    path (default: every fifth row held out), `reference_link` overrides the setup's, and
+    `measurements` optional tracker rows (a measurement CSV path) fitted with the contacts, each
+    with its σ. The verdict is "ok" when the calibrated robot predicts the held-out contacts
+    better than the registered nominal robot (calibrated.urdf written), else "failed"; the
+    parameters are (name, value) and the report the contacts report.
     """
+    if contacts is not None or contact_setup is not None:
+        if camera is not None:
+            raise TreecalError("calibrate: contacts with a camera file are not offered here yet; use the CLI")
+        return _calibrate_contacts(
+            robot, contacts, contact_setup, validation, reference_link, measurements,
+            position_sigma, rotation_sigma, measurement_frame, length_unit, ignore_columns,
+        )
     if camera is not None:
         return _calibrate_camera(
             robot, camera, detections, validation, measurements, pixel_sigma,
@@ -492,6 +510,34 @@ def _calibrate_camera(
         tools=None if tools is None else _strings(tools, "tools"),
         ignore_columns=_strings(ignore_columns, "ignore_columns"),
         add_tool_links=_flag(add_tool_links, "add_tool_links"),
+    )
+    return Calibration(inner)
+
+
+def _calibrate_contacts(
+    robot: Any, contacts: Any, contact_setup: Any, validation: Any, reference_link: Any,
+    measurements: Any, position_sigma: Any, rotation_sigma: Any, measurement_frame: Any,
+    length_unit: Any, ignore_columns: Any,
+) -> "Calibration":
+    """`calibrate` from contacts (see there)."""
+    if contacts is None or contact_setup is None:
+        raise TreecalError("calibrate: contacts= and contact_setup= go together (the contacts CSV and its setup YAML)")
+    for value, name in ((validation, "validation"), (measurements, "measurements")):
+        if value is not None and not isinstance(value, (str, os.PathLike)):
+            raise TreecalError(f"calibrate: with contacts=, {name}= is a CSV path")
+    inner = _native(
+        _treecal.calibrate_contacts_files,
+        robot=_robot_path(robot),
+        contacts=_path(contacts, "contacts"),
+        contact_setup=_path(contact_setup, "contact_setup"),
+        validation=None if validation is None else _path(validation, "validation"),
+        reference_link=_optional_text(reference_link, "reference_link"),
+        measurements=None if measurements is None else _path(measurements, "measurements"),
+        position_sigma=None if position_sigma is None else _float(position_sigma, "position_sigma"),
+        rotation_sigma=None if rotation_sigma is None else _float(rotation_sigma, "rotation_sigma"),
+        measurement_frame=_path(measurement_frame, "measurement_frame"),
+        length_unit=_optional_text(length_unit, "length_unit"),
+        ignore_columns=_strings(ignore_columns, "ignore_columns"),
     )
     return Calibration(inner)
 

@@ -78,6 +78,21 @@ def calibrate_camera(
     add_tool_links: bool,
 ) -> Calibration: ...
 
+def calibrate_contacts_files(
+    *,
+    robot: Optional[str],
+    contacts: str,
+    contact_setup: str,
+    validation: Optional[str],
+    reference_link: Optional[str],
+    measurements: Optional[str],
+    position_sigma: Optional[float],
+    rotation_sigma: Optional[float],
+    measurement_frame: str,
+    length_unit: Optional[str],
+    ignore_columns: List[str],
+) -> Calibration: ...
+
 def verify(
     *,
     measurements: Union[str, Dict[str, Any]],

@@ -1,0 +1,54 @@
+"""treecal.calibrate from contacts: the contacts CSV and its setup YAML from `treecal simulate
+--observation flush`, as `treecal calibrate --contacts … --contact-setup …` reads them."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+import treecal
+
+
+@pytest.fixture(scope="module")
+def simulated(cli: str, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("contacts") / "sim"
+    subprocess.run(
+        [cli, "simulate", "--observation", "flush", "--trials", "1", "--poses", "20", "-o", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    return out
+
+
+def test_calibrate_from_contacts_matches_the_cli(simulated: Path, cli: str, tmp_path: Path) -> None:
+    result = treecal.calibrate(
+        contacts=simulated / "contacts.csv",
+        contact_setup=simulated / "contact-setup.yaml",
+        validation=simulated / "contacts-validation.csv",
+    )
+    assert result.usable, result.reasons
+    assert result.urdf is not None and "<robot" in result.urdf
+    assert any(p["name"] for p in result.parameters)
+    assert set(result.files) >= {"report.md", "report.json", "calibrated.urdf"}
+    out = tmp_path / "cli"
+    subprocess.run(
+        [cli, "calibrate", "--contacts", str(simulated / "contacts.csv"),
+         "--contact-setup", str(simulated / "contact-setup.yaml"),
+         "--validation", str(simulated / "contacts-validation.csv"), "-o", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    assert json.loads((out / "report.json").read_text()) == result.report
+    written = tmp_path / "py"
+    result.write(written)
+    assert (written / "calibrated.urdf").read_text() == result.urdf
+
+
+def test_contact_input_errors_are_named(simulated: Path) -> None:
+    with pytest.raises(treecal.TreecalError, match="contact_setup"):
+        treecal.calibrate(contacts=simulated / "contacts.csv")
+    with pytest.raises(treecal.TreecalError, match="nope.csv"):
+        treecal.calibrate(contacts=simulated / "nope.csv", contact_setup=simulated / "contact-setup.yaml")
