@@ -1,7 +1,9 @@
 //! Human- and machine-readable reports.
 
+pub(crate) mod arm;
 pub(crate) mod artifact;
 pub(crate) mod calibrate;
+pub(crate) mod calibrate_markdown;
 pub(crate) mod camera;
 pub(crate) mod check;
 pub(crate) mod compare;
@@ -21,10 +23,11 @@ pub(crate) mod strata;
 pub(crate) mod verify;
 
 pub use artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
+pub use arm::{ArmReport, BeforeAfter, RowErrors};
 pub use calibrate::{
-    calibration_markdown, calibration_plots, calibration_summary, parameter_file, ArmReport,
-    BeforeAfter, CalibrationContext, CalibrationSummary, RowErrors, REPORT_SCHEMA,
+    calibration_summary, parameter_file, CalibrationContext, CalibrationSummary, REPORT_SCHEMA,
 };
+pub use calibrate_markdown::{calibration_markdown, calibration_plots};
 pub use calibrate::{FrameValues, ParameterFile, StageOutcome};
 pub use camera::{
     camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,

@@ -5,7 +5,7 @@
 //! at the identification configurations) is exported instead, and the compensated geometry
 //! is kept beside it (`docs/calibration.md`, "Outputs").
 
-use super::calibrate::{CalibrateConfig, GravityFrame};
+use super::calibrate_config::{CalibrateConfig, GravityFrame};
 use super::calibrate_steps::{Data, Identified, Loaded};
 use super::source::StiffnessSource;
 use crate::calibration::{calibrate as run_plan, ChosenFrame, Compensation, ErrorSummary, Finding};

@@ -6,6 +6,7 @@
 pub(crate) mod calibrate;
 pub(crate) mod calibrate_artifact;
 pub(crate) mod calibrate_camera;
+mod calibrate_config;
 mod calibrate_camera_judge;
 pub(crate) mod calibrate_contacts;
 pub(crate) mod calibrate_deploy;

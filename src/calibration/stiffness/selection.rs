@@ -2,7 +2,7 @@
 //! the geometry), and the compliance part of the identifiability analysis.
 
 use super::problem::{Linearisation, Problem};
-use super::{describe, name, DETERMINED, GROUPS, GROUP_NAMES};
+use super::names::{describe, name, DETERMINED, GROUPS, GROUP_NAMES};
 use crate::calibration::linear_algebra::{column_scales, scale_columns};
 use crate::calibration::options::IdentificationOptions;
 use crate::error::Result;
