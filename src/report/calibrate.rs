@@ -131,7 +131,6 @@ pub struct CalibrationSummary {
     pub sessions: Option<super::sessions::SessionsSummary>,
 }
 
-
 impl CalibrationSummary {
     /// The identification rows the fit kept with a robust weight below 1: `(id, weight,
     /// position error after calibration in mm)`, in file order.

@@ -49,7 +49,11 @@ pub fn calibration_markdown(
 }
 
 /// Where the data came from, the assumed noise and the measurement frame.
-fn context_markdown(out: &mut String, summary: &CalibrationSummary, options: &IdentificationOptions) {
+fn context_markdown(
+    out: &mut String,
+    summary: &CalibrationSummary,
+    options: &IdentificationOptions,
+) {
     let c = &summary.context;
     let _ = writeln!(
         out,
@@ -258,7 +262,6 @@ fn parameters_markdown(out: &mut String, summary: &CalibrationSummary) {
         );
     }
 }
-
 
 fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
     let Some((rms, observations, before_rms)) = held_out_headline(summary) else {

@@ -22,13 +22,13 @@ pub(crate) mod stiffness;
 pub(crate) mod strata;
 pub(crate) mod verify;
 
-pub use artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
 pub use arm::{ArmReport, BeforeAfter, RowErrors};
+pub use artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
 pub use calibrate::{
     calibration_summary, parameter_file, CalibrationContext, CalibrationSummary, REPORT_SCHEMA,
 };
-pub use calibrate_markdown::{calibration_markdown, calibration_plots};
 pub use calibrate::{FrameValues, ParameterFile, StageOutcome};
+pub use calibrate_markdown::{calibration_markdown, calibration_plots};
 pub use camera::{
     camera_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic, FittedPose,
     HeldOut, PixelResiduals, RobotParameter, TargetResiduals, TrackerRegistration,

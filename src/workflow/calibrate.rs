@@ -4,12 +4,12 @@
 //! [`calibrate`] computes everything and writes nothing; [`Calibration::write`] writes the
 //! files. A failed verdict is an outcome, not an error: the CLI exits 1 after writing.
 
-use super::calibrate_outputs::outputs;
-use super::calibrate_steps::{check_config, export_calibrated, identify, read_data, Loaded};
-use super::checks::{check_outputs, Output};
 pub use super::calibrate_config::{
     CalibrateConfig, GravityFrame, MeasurementFrameChoice, NoiseChoice,
 };
+use super::calibrate_outputs::outputs;
+use super::calibrate_steps::{check_config, export_calibrated, identify, read_data, Loaded};
+use super::checks::{check_outputs, Output};
 use super::note::Note;
 use crate::calibration::{ParameterEstimate, Verdict};
 use crate::error::{Error, Result};

@@ -6,8 +6,8 @@
 pub(crate) mod calibrate;
 pub(crate) mod calibrate_artifact;
 pub(crate) mod calibrate_camera;
-mod calibrate_config;
 mod calibrate_camera_judge;
+mod calibrate_config;
 pub(crate) mod calibrate_contacts;
 pub(crate) mod calibrate_deploy;
 mod calibrate_html;

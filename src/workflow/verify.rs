@@ -10,8 +10,8 @@
 //! nuisance a fresh session needs is refitted: its measurement frame (six parameters per
 //! session), or nothing with [`VerifyFrame::Registration`] (docs/workflows.md, "Verify").
 
-use super::calibrate_config::{CalibrateConfig, GravityFrame};
 use super::calibrate_artifact::{row_errors, CompensationFile, Scoring, REGISTRATION_FILE};
+use super::calibrate_config::{CalibrateConfig, GravityFrame};
 use super::calibrate_steps::Loaded;
 use super::note::Note;
 use super::postures::{chains_of, RecordedPostures, POSTURES_KEY};

@@ -19,8 +19,8 @@ mod problem;
 mod selection;
 mod sequence;
 
-pub use names::{name, DETERMINED};
 pub(super) use names::{describe, label, GROUPS};
+pub use names::{name, DETERMINED};
 pub use output::identified_stiffness;
 pub use selection::{analyse_compliance, ComplianceIdentifiability};
 pub use sequence::{calibrate_with_stiffness, without_outliers, Fitted, StiffnessSequence};
