@@ -37,9 +37,6 @@ const KNOWN_TANGLED: &[&str] = &[
     "camera/fit.rs",
     "camera/observation.rs",
     "camera/rig.rs",
-    "workflow/calibrate_steps.rs",
-    "workflow/simulate_camera.rs",
-    "workflow/simulate_contacts.rs",
 ];
 
 // ---------------------------------------------------------------------------------------------
