@@ -8,7 +8,7 @@ use super::outliers::{robust_summary, OutlierRow, RobustSummary};
 use super::stiffness::StiffnessSummary;
 use super::strata::ValidationStrata;
 use crate::calibration::DataSet;
-use crate::calibration::{CalibrationRun, ParameterEstimate, Verdict};
+use crate::calibration::{CalibrationRun, ParameterEstimate, Termination, Verdict};
 use crate::math::{rpy_from_rotation, Pose};
 use serde::Serialize;
 
@@ -41,7 +41,13 @@ fn sigma_json<S: serde::Serializer>(
 }
 
 /// The `schema_version` of `report.json` (its layout is documented in docs/file-formats.md).
-pub const REPORT_SCHEMA: &str = "treecal.report/2";
+/// Version 3 writes every enum value in snake_case (`stages[].termination` was `CostConverged`
+/// in version 2); readers accept versions 1 to 3 ([`REPORT_SCHEMA_VERSIONS`]).
+pub const REPORT_SCHEMA: &str = "treecal.report/3";
+
+/// The `report.json` layouts `verify` and `compare` read: every version up to
+/// [`REPORT_SCHEMA`] (version 1 has no `schema_version`).
+pub const REPORT_SCHEMA_VERSIONS: std::ops::RangeInclusive<u32> = 1..=3;
 
 /// One stage's solver outcome.
 #[derive(Debug, Clone, Serialize)]
@@ -54,8 +60,9 @@ pub struct StageOutcome {
     pub rows: usize,
     /// Accepted iterations (of the last plan cycle).
     pub iterations: usize,
-    /// Why it stopped.
-    pub termination: String,
+    /// Why it stopped (JSON: `step_converged`, `cost_converged`, `no_decrease`,
+    /// `max_iterations`).
+    pub termination: Termination,
     /// Final weighted cost ½‖r‖².
     pub cost: f64,
     /// Numerical rank / free parameters.
@@ -202,7 +209,7 @@ pub fn calibration_summary(
                 measurements: stage.measurements,
                 rows: id.rows,
                 iterations: id.iterations,
-                termination: format!("{:?}", id.termination),
+                termination: id.termination,
                 cost: id.costs.last().copied().unwrap_or(f64::NAN),
                 rank: id.rank,
                 parameters: id.free.len(),

@@ -188,7 +188,8 @@ fn solver_markdown(out: &mut String, stages: &[StageOutcome]) {
     for s in stages {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {:.4e} | {}/{} | {:.3e} | {:.4} mm, {:.5} deg | {:.3} |",
+            // report.md keeps the words it has always shown (`CostConverged`).
+            "| {} | {} | {} | {} | {:?} | {:.4e} | {}/{} | {:.3e} | {:.4} mm, {:.5} deg | {:.3} |",
             s.name,
             s.measurements,
             s.rows,

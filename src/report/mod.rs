@@ -26,6 +26,7 @@ pub use arm::{ArmReport, BeforeAfter, RowErrors};
 pub use artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
 pub use calibrate::{
     calibration_summary, parameter_file, CalibrationContext, CalibrationSummary, REPORT_SCHEMA,
+    REPORT_SCHEMA_VERSIONS,
 };
 pub use calibrate::{FrameValues, ParameterFile, StageOutcome};
 pub use calibrate_markdown::{calibration_markdown, calibration_plots};
