@@ -67,7 +67,7 @@ impl Combination {
 pub struct IdentificationReport {
     /// The identified parameters (whole vector; parameters not free are unchanged).
     pub parameters: Vec<f64>,
-    /// The nuisance parameters at the solution (empty unless [`identify_with_nuisance`]).
+    /// The nuisance parameters at the solution (empty unless [`identify_with_nuisance`](super::identify_with_nuisance)).
     pub nuisance: Nuisance,
     /// Indices of the parameters that were free (flat: the model's parameters, then the
     /// nuisance values).
