@@ -32,8 +32,11 @@ struct Robot {
 
 fn robot_at(path: &Path, tools: Option<&[&str]>) -> Robot {
     let tree = load_urdf(path).unwrap_or_else(|e| panic!("{e}")).tree;
-    let branches = branches_with_tools(&tree, tools);
-    let nominal = McpcModel::from_tree(&tree, &branches).unwrap();
+    let crate::common::TestRobot {
+        tree,
+        branches,
+        model: nominal,
+    } = crate::common::TestRobot::from_tree(tree, tools);
     Robot {
         tree,
         branches,

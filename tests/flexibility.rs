@@ -16,13 +16,6 @@ use treecal::Error;
 
 const G: f64 = treecal::kinematics::STANDARD_GRAVITY;
 
-fn load(relative: &str) -> (KinematicTree, McpcModel) {
-    let tree = treecal::load_urdf(&robot(relative)).unwrap().tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, model)
-}
-
 fn robonaut_stiffness(tree: &KinematicTree, model: &McpcModel) -> Stiffness {
     treecal::io::read_stiffness(&robot("robonaut/stiffness.yaml"), tree, model).unwrap()
 }
@@ -451,7 +444,7 @@ fn torsion_by_hand() {
 /// C positive definite), and a tip load always lowers the tool.
 #[test]
 fn joints_deflect_in_the_direction_of_their_moment() {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = robot_model("robonaut/robonaut.urdf");
     let stiffness = robonaut_stiffness(&tree, &model);
     let flexibility = FlexibilityModel::new(&tree, &model, &stiffness).unwrap();
     let mut rng = rng(7);
@@ -492,7 +485,7 @@ fn joints_deflect_in_the_direction_of_their_moment() {
 /// every mass that is not part of the base, head and fingers included.
 #[test]
 fn joints_carry_everything_distal() {
-    let (tree, model) = load("humanoid/humanoid.urdf");
+    let (tree, model) = robot_model("humanoid/humanoid.urdf");
     let flexibility = FlexibilityModel::new(&tree, &model, &Stiffness::default()).unwrap();
     let q = random_configuration(&tree, &mut rng(3));
     let deformations = flexibility.deformations(&tree, &model, &q).unwrap();
@@ -584,16 +577,16 @@ fn check_first_order(tree: &KinematicTree, model: &McpcModel, stiffness: &Stiffn
 
 #[test]
 fn linear_map_agrees_with_deflected_kinematics_to_first_order() {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = robot_model("robonaut/robonaut.urdf");
     check_first_order(
         &tree,
         &model,
         &robonaut_stiffness(&tree, &model),
         "robonaut",
     );
-    let (tree, model) = load("humanoid/humanoid.urdf");
+    let (tree, model) = robot_model("humanoid/humanoid.urdf");
     check_first_order(&tree, &model, &Stiffness::default(), "humanoid");
-    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let (tree, model) = robot_model("dual_arm_prismatic/dual_arm_prismatic.urdf");
     let stiffness = Stiffness {
         link_overrides: vec![(
             model_joint_name(&tree, &model, 0),
@@ -614,7 +607,7 @@ fn model_joint_name(tree: &KinematicTree, model: &McpcModel, frame: usize) -> St
 /// D_f is linear in the compliances, so scaling them scales D_f exactly.
 #[test]
 fn scaling_compliance_scales_the_linear_deflection() {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = robot_model("robonaut/robonaut.urdf");
     let flexibility =
         FlexibilityModel::new(&tree, &model, &robonaut_stiffness(&tree, &model)).unwrap();
     let q = random_configuration(&tree, &mut rng(2));
@@ -642,7 +635,7 @@ fn zero_gravity_means_no_deflection() {
         ("robonaut/robonaut.urdf", true),
         ("humanoid/humanoid.urdf", false),
     ] {
-        let (tree, model) = load(relative);
+        let (tree, model) = robot_model(relative);
         let mut stiffness = if stiffness {
             robonaut_stiffness(&tree, &model)
         } else {
@@ -669,7 +662,7 @@ fn zero_gravity_means_no_deflection() {
 /// Jacobian) and gravity still points down in the root frame: D_f turns with the frame.
 #[test]
 fn deflection_follows_the_measurement_frame() {
-    let (tree, mut model) = load("robonaut/robonaut.urdf");
+    let (tree, mut model) = robot_model("robonaut/robonaut.urdf");
     let flexibility =
         FlexibilityModel::new(&tree, &model, &robonaut_stiffness(&tree, &model)).unwrap();
     let q = random_configuration(&tree, &mut rng(9));
@@ -697,14 +690,14 @@ fn deflection_follows_the_measurement_frame() {
 
 #[test]
 fn wrong_configuration_or_model_is_an_error() {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = robot_model("robonaut/robonaut.urdf");
     let flexibility = FlexibilityModel::new(&tree, &model, &Stiffness::default()).unwrap();
     let short = vec![0.0; tree.dof_count() - 1];
     assert!(matches!(
         flexibility.tool_deflections(&tree, &model, &short),
         Err(Error::ConfigurationSize { .. })
     ));
-    let (other_tree, other_model) = load("humanoid/humanoid.urdf");
+    let (other_tree, other_model) = robot_model("humanoid/humanoid.urdf");
     let q = other_tree.zero_configuration();
     let error = flexibility
         .tool_deflections(&other_tree, &other_model, &q)
@@ -718,7 +711,7 @@ fn wrong_configuration_or_model_is_an_error() {
 
 #[test]
 fn robonaut_stiffness_file_is_the_papers_setup() {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = robot_model("robonaut/robonaut.urdf");
     let stiffness = robonaut_stiffness(&tree, &model);
     assert_eq!(stiffness.gravity, Vec3::new(0.0, 0.0, -9.81));
     assert!(stiffness.self_weight);
@@ -765,7 +758,7 @@ links:
 ";
 
 fn parse(text: &str) -> Result<Stiffness, Error> {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = robot_model("robonaut/robonaut.urdf");
     treecal::io::parse_stiffness(text, "stiffness.yaml", &tree, &model)
 }
 
@@ -949,7 +942,7 @@ fn stiffness_file_errors_name_file_line_and_fix() {
 
 #[test]
 fn stiffness_names_off_the_calibrated_branches_are_errors() {
-    let (tree, model) = load("humanoid/humanoid.urdf");
+    let (tree, model) = robot_model("humanoid/humanoid.urdf");
     let parse = |text: &str| {
         treecal::io::parse_stiffness(text, "humanoid.yaml", &tree, &model)
             .unwrap_err()
@@ -989,7 +982,7 @@ fn stiffness_names_off_the_calibrated_branches_are_errors() {
 /// all of it from the joints; the Ø70 mm tubes add about a millimetre.
 #[test]
 fn robonaut_deflection_magnitudes() {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = robot_model("robonaut/robonaut.urdf");
     let stiffness = robonaut_stiffness(&tree, &model);
     let flexibility = FlexibilityModel::new(&tree, &model, &stiffness).unwrap();
     let rigid = LinkStiffness {

@@ -7,14 +7,7 @@ use crate::common::*;
 use rand::RngExt;
 use treecal::kinematics::{FlexibilityModel, McpcModel, Stiffness};
 use treecal::math::pose_error;
-use treecal::tree::{detect_branches, KinematicTree};
-
-fn load(path: &std::path::Path) -> (KinematicTree, McpcModel) {
-    let tree = treecal::load_urdf(path).unwrap().tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, model)
-}
+use treecal::tree::KinematicTree;
 
 /// The model with every parameter moved by up to `size` (rad, m), so that the derivatives
 /// are not taken at the nominal geometry only.
@@ -71,7 +64,7 @@ fn check(tree: &KinematicTree, model: &McpcModel, flexibility: &FlexibilityModel
 
 #[test]
 fn pose_derivatives_on_the_built_in_robonaut_with_a_payload() {
-    let (tree, model) = load(&robot("robonaut/robonaut.urdf"));
+    let (tree, model) = TestRobot::load(&robot("robonaut/robonaut.urdf")).tree_and_model();
     let stiffness =
         treecal::io::read_stiffness(&robot("robonaut/stiffness.yaml"), &tree, &model).unwrap();
     let flexibility = FlexibilityModel::new(&tree, &model, &stiffness).unwrap();
@@ -87,7 +80,7 @@ fn pose_derivatives_on_the_built_in_robonaut_with_a_payload() {
 
 #[test]
 fn pose_derivatives_on_the_shared_robonaut_2() {
-    let (tree, model) = load(&robonaut2());
+    let (tree, model) = TestRobot::load(&robonaut2()).tree_and_model();
     let flexibility = FlexibilityModel::new(&tree, &model, &Stiffness::default()).unwrap();
     check(&tree, &model, &flexibility, 12);
 }

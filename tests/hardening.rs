@@ -19,13 +19,6 @@ fn robonaut_text() -> String {
     std::fs::read_to_string(robot("robonaut/robonaut.urdf")).unwrap()
 }
 
-fn robonaut() -> (treecal::KinematicTree, McpcModel) {
-    let tree = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, model)
-}
-
 fn example_measurements() -> String {
     std::fs::read_to_string(robot("robonaut/example/measurements.csv")).unwrap()
 }
@@ -63,7 +56,7 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 /// the SVD without; now the reader names the place and the limit.
 #[test]
 fn huge_target_coordinate_is_refused_where_it_is_read() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let text = example_with(3, "bx", "1e200");
     let error = parse_measurements(&text, "m.csv", &tree, &model, &tracker_units())
         .unwrap_err()
@@ -99,7 +92,7 @@ fn huge_target_coordinate_is_refused_where_it_is_read() {
 /// endless SVD.
 #[test]
 fn overflow_in_the_fit_is_an_error_not_a_hang() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let q = tree.zero_configuration();
     let measurements: Vec<Measurement> = (0..2)
         .map(|tool| Measurement {
@@ -197,7 +190,7 @@ fn simulate_angle_error_beyond_a_half_turn_is_refused() {
     ]);
     assert_error(&run, &["--angle-error", "1e308"], "simulate --angle-error");
     // The library refuses it too, instead of panicking in the random range.
-    let (_, model) = robonaut();
+    let (_, model) = robonaut_model();
     let ranges = treecal::sim::ErrorRanges {
         angle: 1e308,
         length: 0.05,
@@ -341,7 +334,7 @@ fn cr_only_files_with_comments_read() {
     assert_eq!(table.records.len(), 2);
     assert_eq!(table.records[1].0, 4);
     // The example measurements with CR line breaks read as with LF.
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let lf = example_measurements();
     let cr = lf.replace('\n', "\r");
     let a = parse_measurements(&lf, "m.csv", &tree, &model, &tracker_units()).unwrap();
@@ -354,7 +347,7 @@ fn cr_only_files_with_comments_read() {
 
 #[test]
 fn duplicated_rows_are_accepted_with_one_warning() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let text = example_measurements();
     let clean = parse_measurements(&text, "m.csv", &tree, &model, &tracker_units()).unwrap();
     assert!(clean.warnings.is_empty(), "{:?}", clean.warnings);
@@ -392,7 +385,7 @@ fn from_mcpc_escapes_names() {
 
 #[test]
 fn to_mcpc_output_reads_back_with_any_printable_name() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let branches = detect_branches(&tree, None).unwrap();
     let mut table = treecal::McpcTable::from_model(&tree, &branches, &model).unwrap();
     table.robot = "a\"b\\c\u{2028}d\u{feff}".into();
@@ -476,7 +469,7 @@ fn outputs_never_overwrite_inputs() {
 
 #[test]
 fn yaml_numbers_are_bounded_with_their_place() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let params = "parameters:\n  - name: left_joint1 alpha\n    calibrated: 1e300\n";
     let error = parse_parameters(params, "p.yaml", &tree, &model)
         .unwrap_err()
@@ -511,7 +504,7 @@ fn yaml_numbers_are_bounded_with_their_place() {
 
 #[test]
 fn joint_values_are_bounded() {
-    let (tree, _) = robonaut();
+    let (tree, _) = robonaut_model();
     let table = parse_csv("left_joint1\n1e300\n", "j.csv").unwrap();
     let error = treecal::io::configurations(&table, &tree, 1.0, "j.csv")
         .unwrap_err()

@@ -379,15 +379,6 @@ fn params_keys_are_checked() {
     );
 }
 
-fn robonaut_model() -> (treecal::KinematicTree, treecal::McpcModel) {
-    let tree = treecal::load_urdf(&robot("robonaut/robonaut.urdf"))
-        .unwrap()
-        .tree;
-    let branches = treecal::detect_branches(&tree, None).unwrap();
-    let model = treecal::McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, model)
-}
-
 /// A header of commas is refused by the column limit while it is scanned (it took 4 GB), and a
 /// long field by the field limit; good CSV passes.
 #[test]

@@ -27,7 +27,7 @@ use treecal::workflow::{
     calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, RobotSource,
     StiffnessSource,
 };
-use treecal::{load_urdf, Branches, KinematicTree, McpcModel};
+use treecal::{Branches, KinematicTree, McpcModel};
 
 const NOISE: f64 = 3e-5;
 const ROTATION_NOISE: f64 = 3e-4;
@@ -50,11 +50,11 @@ fn tracker() -> Pose {
 
 /// Robonaut with `errors`× the paper's errors (0: none), seen from `world_from_base`.
 fn scene(seed: u64, errors: f64, world_from_base: &Pose) -> Scene {
-    let tree = load_urdf(&robot("robonaut/robonaut.urdf"))
-        .unwrap_or_else(|e| panic!("{e}"))
-        .tree;
-    let branches = branches_with_tools(&tree, None);
-    let nominal = McpcModel::from_tree(&tree, &branches).unwrap();
+    let crate::common::TestRobot {
+        tree,
+        branches,
+        model: nominal,
+    } = crate::common::TestRobot::robonaut();
     let mut rng = rng(seed);
     let ranges = ErrorRanges {
         angle: errors * ErrorRanges::default().angle,

@@ -13,7 +13,7 @@ use treecal::calibration::{
     describe_terms, planned_weighted_jacobian as weighted_jacobian, scaled_singular_values,
 };
 use treecal::kinematics::McpcModel;
-use treecal::tree::{detect_branches, Branches, KinematicTree};
+use treecal::tree::KinematicTree;
 
 fn close(a: f64, b: f64, what: &str) {
     assert!(
@@ -183,15 +183,6 @@ fn combinations_read_as_sentences() {
 // ---------------------------------------------------------------------------------------------
 // Robonaut pose sets
 
-fn robonaut() -> (KinematicTree, Branches, McpcModel) {
-    let tree = treecal::load_urdf(&robot("robonaut/robonaut.urdf"))
-        .unwrap()
-        .tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, branches, model)
-}
-
 /// Every tool at every configuration.
 fn rows(model: &McpcModel, configurations: &[Vec<f64>]) -> Vec<PoseRow> {
     configurations
@@ -218,7 +209,7 @@ fn run(
     observation: ObservationKind,
     configurations: &[Vec<f64>],
 ) -> IdentifiabilityReport {
-    let (_, _, model) = robonaut();
+    let (_, _, model) = TestRobot::robonaut().parts();
     run_on(&model, parameters, observation, configurations)
 }
 
@@ -228,7 +219,7 @@ fn run_on(
     observation: ObservationKind,
     configurations: &[Vec<f64>],
 ) -> IdentifiabilityReport {
-    let (tree, branches, _) = robonaut();
+    let (tree, branches, _) = TestRobot::robonaut().parts();
     let options = IdentifiabilityOptions {
         parameters,
         ..IdentifiabilityOptions::default()
@@ -250,7 +241,7 @@ fn run_on(
 /// geometry (tool points on joint axes) makes further position directions vanish.
 #[test]
 fn random_poses_identify_everything_from_full_poses() {
-    let (tree, _, nominal) = robonaut();
+    let (tree, _, nominal) = TestRobot::robonaut().parts();
     let generic = crate::identification::perturbed(&nominal, 2);
     for seed in 0..3 {
         let configurations = random_configurations(&tree, 20, seed);
@@ -318,7 +309,7 @@ fn random_poses_identify_everything_from_full_poses() {
 /// At exactly zero, the rank itself drops.
 #[test]
 fn poses_near_zero_are_poorly_conditioned() {
-    let (tree, _, _) = robonaut();
+    let (tree, _, _) = TestRobot::robonaut().parts();
     let mut rng = rng(7);
     let configurations: Vec<Vec<f64>> = (0..20)
         .map(|_| {
@@ -372,7 +363,7 @@ fn poses_near_zero_are_poorly_conditioned() {
 /// The arms set leaves the torso frames out; the torso stage adds the locked tools.
 #[test]
 fn stages_analyse_their_own_parameters() {
-    let (tree, branches, model) = robonaut();
+    let (tree, branches, model) = TestRobot::robonaut().parts();
     let torso_dofs = branches.coupled.dofs(&tree);
     let arms = run(
         ParameterSet::Arms,
@@ -424,7 +415,7 @@ fn stages_analyse_their_own_parameters() {
 /// The weighted Jacobian divides position rows by σ_p and rotation rows by σ_r.
 #[test]
 fn rows_are_weighted_by_their_sigma() {
-    let (tree, _, model) = robonaut();
+    let (tree, _, model) = TestRobot::robonaut().parts();
     let configurations = random_configurations(&tree, 1, 9);
     let rows = rows(&model, &configurations);
     let free: Vec<usize> = (0..model.parameter_count()).collect();
@@ -548,7 +539,7 @@ fn check_default_set_is_well_conditioned() {
 #[test]
 fn check_reads_tool_and_stage_columns() {
     let dir = temporary("columns");
-    let (tree, _, _) = robonaut();
+    let (tree, _, _) = TestRobot::robonaut().parts();
     let mut text = String::from("tool,stage");
     for joint in tree.dofs() {
         text.push(',');

@@ -7,15 +7,6 @@ use treecal::kinematics::McpcModel;
 use treecal::measurement::{Measurement, Observation};
 use treecal::tree::{detect_branches, KinematicTree};
 
-pub fn robonaut() -> (KinematicTree, McpcModel) {
-    let tree = treecal::load_urdf(&robot("robonaut/robonaut.urdf"))
-        .unwrap()
-        .tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, model)
-}
-
 /// Paper section 5.2: ±0.05 rad on angles.
 pub const ANGLE_ERROR: f64 = 0.05;
 /// Paper section 5.2: ±5 cm on lengths.
@@ -81,7 +72,7 @@ fn all(model: &McpcModel) -> Vec<usize> {
 
 #[test]
 fn noise_free_round_trip_recovers_every_parameter() {
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     for seed in 0..5 {
         let truth = perturbed(&nominal, seed);
         let measurements = measure(&tree, &truth, 20, 100 + seed, false);
@@ -120,7 +111,7 @@ fn noise_free_round_trip_recovers_every_parameter() {
 /// combinations are listed, and the parameters off the identifiable subspace stay nominal.
 #[test]
 fn too_few_configurations_report_unidentifiable_combinations() {
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     let truth = perturbed(&nominal, 1);
     let measurements = measure(&tree, &truth, 4, 7, false); // 8 poses · 6 rows = 48 < 64
     let report = identify(
@@ -147,7 +138,7 @@ fn too_few_configurations_report_unidentifiable_combinations() {
 /// rank analysis says so (three combinations per tool) and the fit is still exact.
 #[test]
 fn position_only_data_lose_the_tool_orientation() {
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     let truth = perturbed(&nominal, 2);
     let measurements = measure(&tree, &truth, 40, 8, true);
     let report = identify(
@@ -199,7 +190,7 @@ fn position_only_data_lose_the_tool_orientation() {
 
 #[test]
 fn bad_inputs_are_errors_not_panics() {
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     let mut measurements = measure(&tree, &nominal, 2, 1, false);
     let options = IdentificationOptions::default();
     assert!(identify(&nominal, &[], None, &Rigid, &all(&nominal), &options).is_err());
@@ -232,7 +223,7 @@ fn bad_inputs_are_errors_not_panics() {
 /// Starting at the truth, nothing moves and the outcome says why it stopped.
 #[test]
 fn starting_at_the_solution_terminates_immediately() {
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     let measurements = measure(&tree, &nominal, 20, 3, false);
     let report = identify(
         &nominal,
@@ -300,7 +291,7 @@ fn torso_measurements(
 #[test]
 fn staged_and_simultaneous_plans_agree() {
     use treecal::calibration::{calibrate, Compensation, Plan};
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     let branches = detect_branches(&tree, None).unwrap();
     let truth = perturbed(&nominal, 4);
     let mut measurements = torso_measurements(&tree, &truth, 12, 2, 40);
@@ -365,7 +356,7 @@ fn staged_and_simultaneous_plans_agree() {
 #[test]
 fn a_stage_without_its_measurements_is_an_error() {
     use treecal::calibration::{calibrate, Compensation, Plan};
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     let branches = detect_branches(&tree, None).unwrap();
     let measurements = measure(&tree, &nominal, 5, 1, false);
     let message = calibrate(
@@ -392,7 +383,7 @@ fn initial_guess_recovers_a_distant_measurement_frame_and_tool_frames() {
     use treecal::calibration::initial_guess;
     use treecal::kinematics::McpcTool;
     use treecal::math::{pose, rotation_from_rpy, Vec3};
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     let perturbed_model = perturbed(&nominal, 6);
     // Tool frames like the paper's Table 2 tool rows (three-target frames).
     let offsets = [
@@ -554,7 +545,7 @@ fn measure_deflected(
 #[test]
 fn noise_free_round_trip_with_flexibility() {
     use treecal::calibration::{calibrate, Compensation, Deflected, Plan};
-    let (tree, nominal) = robonaut();
+    let (tree, nominal) = robonaut_model();
     let branches = detect_branches(&tree, None).unwrap();
     let flexibility = robonaut_flexibility(&tree, &nominal);
     let source = Deflected {

@@ -11,19 +11,8 @@ use treecal::io::{
 use treecal::kinematics::McpcModel;
 use treecal::math::{Pose, Vec3};
 use treecal::measurement::{targets_on, Measurement, Observation};
-use treecal::tree::{detect_branches, KinematicTree};
+use treecal::tree::KinematicTree;
 use treecal::Error;
-
-fn load(relative: &str) -> (KinematicTree, McpcModel) {
-    let tree = treecal::load_urdf(&robot(relative)).unwrap().tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, model)
-}
-
-fn robonaut() -> (KinematicTree, McpcModel) {
-    load("robonaut/robonaut.urdf")
-}
 
 /// Measurements at random configurations, alternating tools, observing the URDF tool frame.
 fn simulated(tree: &KinematicTree, model: &McpcModel, seed: u64, poses: bool) -> Vec<Measurement> {
@@ -88,7 +77,7 @@ fn assert_same(read: &MeasurementSet, written: &[Measurement]) {
 }
 
 fn parse(text: &str, options: &MeasurementReadOptions) -> treecal::Result<MeasurementSet> {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     parse_measurements(text, "bad.csv", &tree, &model, options)
 }
 
@@ -122,7 +111,7 @@ fn round_trips_positions_and_poses() {
         "robonaut/robonaut.urdf",
         "dual_arm_prismatic/dual_arm_prismatic.urdf",
     ] {
-        let (tree, model) = load(robot);
+        let (tree, model) = robot_model(robot);
         for poses in [false, true] {
             let written = simulated(&tree, &model, 5, poses);
             let text = measurements_to_csv(&tree, &model, &written).unwrap();
@@ -147,7 +136,7 @@ fn round_trips_positions_and_poses() {
 
 #[test]
 fn round_trips_in_millimetres_degrees_and_three_targets() {
-    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let (tree, model) = robot_model("dual_arm_prismatic/dual_arm_prismatic.urdf");
     let written = simulated(&tree, &model, 8, true);
     for three_targets in [false, true] {
         let write = MeasurementWriteOptions {
@@ -207,7 +196,7 @@ fn round_trips_in_millimetres_degrees_and_three_targets() {
 
 #[test]
 fn default_writer_output_is_unchanged() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let written = simulated(&tree, &model, 2, true);
     let text = measurements_to_csv(&tree, &model, &written).unwrap();
     let first = text.lines().next().unwrap();
@@ -219,7 +208,7 @@ fn default_writer_output_is_unchanged() {
 
 #[test]
 fn unit_flags_scale_lengths_and_angles() {
-    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let (tree, model) = robot_model("dual_arm_prismatic/dual_arm_prismatic.urdf");
     let text = "tool,torso_lift,torso_yaw,left_j1,left_j2,left_j3,left_j4,left_j5,left_j6,x,y,z\n\
                 left_tool,100,90,0,0,0,0,0,0,1000,-250,2.5\n";
     let dof = |name: &str| tree.dof_of(tree.joint_id(name).unwrap()).unwrap().0;
@@ -286,7 +275,7 @@ fn unit_flags_scale_lengths_and_angles() {
 
 #[test]
 fn three_targets_give_the_frame_they_were_placed_on() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let mut rng = rng(31);
     let header = "tool,torso_joint1,torso_joint2,left_joint1,left_joint2,left_joint3,left_joint4,left_joint5,left_joint6,ax,ay,az,bx,by,bz,cx,cy,cz";
     for _ in 0..50 {
@@ -448,7 +437,7 @@ fn limits_warn_unless_strict() {
 
 #[test]
 fn continuous_joints_have_no_limits() {
-    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let (tree, model) = robot_model("dual_arm_prismatic/dual_arm_prismatic.urdf");
     let text =
         "tool,torso_lift,torso_yaw,right_j1,right_j2,right_j3,right_j4,right_j5,right_j6,x,y,z\n\
                 right_tool,0.1,0,0,0,0,0,0,40,1,2,3\n";
@@ -473,7 +462,7 @@ fn continuous_joints_have_no_limits() {
 
 #[test]
 fn joints_off_the_tool_chain_may_be_missing_or_empty() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     // Right-arm columns present but empty for a left-tool row; absent entirely in another file.
     let header = format!("{HEADER},right_joint1");
     let text = format!("{header}\n{ROW},\n2,,right_tool,0,0,0,0,0,0,0,0,1,2,3,0.5\n");
@@ -504,7 +493,7 @@ fn joints_off_the_tool_chain_may_be_missing_or_empty() {
 
 #[test]
 fn mimic_joint_columns_name_their_master() {
-    let (tree, model) = load("humanoid/humanoid.urdf");
+    let (tree, model) = robot_model("humanoid/humanoid.urdf");
     let tools: Vec<&str> = model
         .tools()
         .iter()
@@ -629,7 +618,7 @@ fn ignored_columns_are_skipped_and_others_are_errors() {
 
 #[test]
 fn reading_a_file_names_it() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let dir = std::env::temp_dir().join(format!("treecal-measurements-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("m.csv");
@@ -654,7 +643,7 @@ fn reading_a_file_names_it() {
 
 #[test]
 fn corrupted_files_never_panic() {
-    let (tree, model) = robonaut();
+    let (tree, model) = robonaut_model();
     let base = measurements_to_csv(&tree, &model, &simulated(&tree, &model, 3, true)).unwrap();
     let junk = [
         "",
@@ -734,7 +723,7 @@ fn corrupted_files_never_panic() {
 /// `joint_length=m` in the units comment (or `--joint-length-unit m`) reads them right.
 #[test]
 fn prismatic_values_may_have_their_own_unit() {
-    let (tree, model) = load("dual_arm_prismatic/dual_arm_prismatic.urdf");
+    let (tree, model) = robot_model("dual_arm_prismatic/dual_arm_prismatic.urdf");
     let written = simulated(&tree, &model, 8, true);
     let write = MeasurementWriteOptions {
         length_unit: LengthUnit::Millimetre,
@@ -781,7 +770,7 @@ fn prismatic_values_may_have_their_own_unit() {
 /// per value; a few values outside their limits stay warnings, at most five listed.
 #[test]
 fn angle_unit_mistakes_are_one_diagnosis() {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = robot_model("robonaut/robonaut.urdf");
     let written = simulated(&tree, &model, 5, true);
     let degrees = MeasurementWriteOptions {
         angle_unit: AngleUnit::Degree,

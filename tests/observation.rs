@@ -12,15 +12,11 @@ use treecal::calibration::{
 use treecal::kinematics::ToolJacobian;
 use treecal::math::{pose, Pose, Vec3};
 use treecal::measurement::Observation;
-use treecal::{detect_branches, load_urdf, McpcModel};
+use treecal::McpcModel;
 
 /// The built-in Robonaut with every parameter moved off nominal, and a random configuration.
 fn robot(seed: u64) -> (McpcModel, Vec<f64>) {
-    let tree = load_urdf(&common::robot("robonaut/robonaut.urdf"))
-        .expect("robonaut loads")
-        .tree;
-    let branches = detect_branches(&tree, None).expect("branches");
-    let mut model = McpcModel::from_tree(&tree, &branches).expect("model");
+    let (tree, mut model) = common::robonaut_model();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let values: Vec<f64> = model
         .parameters()

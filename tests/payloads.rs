@@ -12,15 +12,11 @@ use treecal::kinematics::FlexibilityModel;
 use treecal::math::pose_error;
 use treecal::measurement::{Measurement, Observation};
 use treecal::sim::{run_trial, SimulationOptions};
-use treecal::tree::{detect_branches, KinematicTree};
+use treecal::tree::KinematicTree;
 use treecal::McpcModel;
 
 fn robonaut() -> (KinematicTree, McpcModel, FlexibilityModel) {
-    let tree = treecal::load_urdf(&robot("robonaut/robonaut.urdf"))
-        .unwrap()
-        .tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
+    let (tree, model) = crate::common::robonaut_model();
     let stiffness =
         treecal::io::read_stiffness(&robot("robonaut/stiffness.yaml"), &tree, &model).unwrap();
     let flexibility = FlexibilityModel::new(&tree, &model, &stiffness).unwrap();

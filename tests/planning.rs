@@ -6,7 +6,7 @@ use treecal::sim::CollisionChecker;
 use treecal::sim::{
     criterion_value, plan_poses, Criterion, PlanReport, PlanningOptions, PlanningStage,
 };
-use treecal::tree::{detect_branches, Branches, KinematicTree};
+use treecal::tree::{Branches, KinematicTree};
 use treecal::McpcModel;
 
 struct Robot {
@@ -17,11 +17,11 @@ struct Robot {
 }
 
 fn robonaut() -> Robot {
-    let tree = treecal::load_urdf(&robot("robonaut/robonaut.urdf"))
-        .unwrap()
-        .tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
+    let TestRobot {
+        tree,
+        branches,
+        model,
+    } = TestRobot::robonaut();
     let checker = CollisionChecker::new(&tree).unwrap();
     Robot {
         tree,

@@ -2,20 +2,13 @@
 //! calibrated, so the exported robot bends exactly as the calibrated model did.
 
 use crate::common::cli::{assert_success, path_str, treecal};
-use crate::common::{random_configuration, rng, robot};
+use crate::common::{random_configuration, rng, robot, TestRobot};
 use rand::RngExt;
 use serde_json::Value;
 use treecal::kinematics::{FlexibilityModel, Stiffness};
-use treecal::tree::{detect_branches, KinematicTree};
-use treecal::urdf::{export_urdf, parse_urdf};
+use treecal::tree::KinematicTree;
+use treecal::urdf::export_urdf;
 use treecal::McpcModel;
-
-fn loaded(text: &str) -> (KinematicTree, McpcModel) {
-    let tree = parse_urdf(text, "robot").unwrap().tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, model)
-}
 
 /// Every MCPC parameter perturbed by ±0.03 (rad, m), exported, re-imported: the re-imported
 /// nominal model with a flexibility model built from it predicts the same deflected tool poses
@@ -27,7 +20,7 @@ fn loaded(text: &str) -> (KinematicTree, McpcModel) {
 fn exported_robot_bends_as_the_calibrated_model() {
     for (file, stiffness_file) in [("robonaut/robonaut.urdf", Some("robonaut/stiffness.yaml"))] {
         let text = std::fs::read_to_string(robot(file)).unwrap();
-        let (tree, nominal) = loaded(&text);
+        let (tree, nominal) = TestRobot::parse(&text).tree_and_model();
         let stiffness = |tree: &KinematicTree, model: &McpcModel| match stiffness_file {
             Some(path) => treecal::io::read_stiffness(&robot(path), tree, model).unwrap(),
             None => Stiffness::default(),
@@ -42,7 +35,7 @@ fn exported_robot_bends_as_the_calibrated_model() {
         }
         model.set_parameters(&values).unwrap();
         let exported = export_urdf(&text, file, &tree, &model).unwrap().urdf;
-        let (tree2, nominal2) = loaded(&exported);
+        let (tree2, nominal2) = TestRobot::parse(&exported).tree_and_model();
         let flexibility2 =
             FlexibilityModel::new(&tree2, &nominal2, &stiffness(&tree2, &nominal2)).unwrap();
         let mut worst: f64 = 0.0;

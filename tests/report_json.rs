@@ -337,3 +337,108 @@ fn report_json_with_stiffness_keeps_its_key_order() {
     assert!(block["parameters"][0]["fitted_below_zero"].is_null());
     assert_eq!(report["verdict"]["status"], "ok", "{}", report["verdict"]);
 }
+
+/// `folder`'s report.json rewritten as `treecal.report/2` wrote it: that schema version and the
+/// stages' `termination` in the Rust spelling (`CostConverged`), the one value version 3 renamed.
+fn as_version_2(folder: &std::path::Path) {
+    let path = folder.join("report.json");
+    let mut report: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    report["schema_version"] = "treecal.report/2".into();
+    for stage in report["stages"].as_array_mut().unwrap() {
+        let old = match stage["termination"].as_str().unwrap() {
+            "step_converged" => "StepConverged",
+            "cost_converged" => "CostConverged",
+            "no_decrease" => "NoDecrease",
+            "max_iterations" => "MaxIterations",
+            other => panic!("termination {other} is not a documented value"),
+        };
+        stage["termination"] = old.into();
+    }
+    std::fs::write(&path, serde_json::to_string_pretty(&report).unwrap()).unwrap();
+}
+
+/// report.json version 3 writes every enum value in snake_case; `verify` and `compare` still
+/// read a version-2 report (the old spelling) to the same results, and refuse a newer version
+/// naming the ones they read.
+#[test]
+fn verify_and_compare_read_a_version_2_report_and_refuse_a_newer_one() {
+    use treecal::workflow::{compare, verify, CompareConfig, MeasurementSource, VerifyConfig};
+    let dir = tempfile::tempdir().unwrap();
+    let (new, old) = (dir.path().join("new"), dir.path().join("old"));
+    let csv = robot("robonaut/example/measurements.csv");
+    for out in [&new, &old] {
+        treecal::workflow::calibrate(&treecal::workflow::CalibrateConfig {
+            measurements: MeasurementSource::Csv(csv.clone()),
+            stiffness: Some(treecal::workflow::StiffnessSource::File(robot(
+                "robonaut/stiffness.yaml",
+            ))),
+            ..Default::default()
+        })
+        .unwrap()
+        .write(out)
+        .unwrap();
+    }
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(new.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["schema_version"], REPORT_SCHEMA);
+    for stage in report["stages"].as_array().unwrap() {
+        let termination = stage["termination"].as_str().unwrap();
+        assert!(
+            [
+                "step_converged",
+                "cost_converged",
+                "no_decrease",
+                "max_iterations"
+            ]
+            .contains(&termination),
+            "{termination}"
+        );
+    }
+    as_version_2(&old);
+
+    let comparison = compare(&CompareConfig {
+        a: new.clone(),
+        b: old.clone(),
+        k: 3.0,
+    })
+    .unwrap();
+    assert!(
+        comparison.report.moved.is_empty(),
+        "{:?}",
+        comparison.report.moved
+    );
+    let [a, b] = &comparison.report.validation;
+    assert_eq!(
+        (a.verdict.as_str(), a.inside_rms_mm),
+        (b.verdict.as_str(), b.inside_rms_mm)
+    );
+
+    let verify_with = |folder: &std::path::Path| {
+        let verification = verify(&VerifyConfig {
+            calibration: Some(folder.to_owned()),
+            measurements: MeasurementSource::Csv(csv.clone()),
+            ..VerifyConfig::default()
+        })
+        .unwrap();
+        assert!(verification.report.context.strata_judged, "{folder:?}");
+        serde_json::to_value(&verification.report.rows).unwrap()
+    };
+    assert_eq!(verify_with(&new), verify_with(&old));
+
+    let path = old.join("report.json");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("treecal.report/2", "treecal.report/9");
+    std::fs::write(&path, text).unwrap();
+    let error = compare(&CompareConfig {
+        a: new,
+        b: old,
+        k: 3.0,
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(
+        error.contains("report.json") && error.contains("treecal.report/1 to /3"),
+        "{error}"
+    );
+}

@@ -1,7 +1,7 @@
 //! Stiffness identification: the compliance Jacobian against finite differences, noise-free
 //! recovery of the identifiable compliances, and what one and two payloads determine.
 
-use crate::common::{random_configuration, rng, robot};
+use crate::common::{random_configuration, rng, robot, robot_model};
 use rand::RngExt;
 use rand_distr::{Distribution, Normal};
 use treecal::calibration::{
@@ -13,15 +13,8 @@ use treecal::measurement::{Measurement, Observation};
 use treecal::tree::{detect_branches, KinematicTree};
 use treecal::McpcModel;
 
-fn load(relative: &str) -> (KinematicTree, McpcModel) {
-    let tree = treecal::load_urdf(&robot(relative)).unwrap().tree;
-    let branches = detect_branches(&tree, None).unwrap();
-    let model = McpcModel::from_tree(&tree, &branches).unwrap();
-    (tree, model)
-}
-
 fn robonaut() -> (KinematicTree, McpcModel, FlexibilityModel) {
-    let (tree, model) = load("robonaut/robonaut.urdf");
+    let (tree, model) = crate::common::robonaut_model();
     let stiffness =
         treecal::io::read_stiffness(&robot("robonaut/stiffness.yaml"), &tree, &model).unwrap();
     let flexibility = FlexibilityModel::new(&tree, &model, &stiffness).unwrap();
@@ -34,7 +27,7 @@ fn robonaut() -> (KinematicTree, McpcModel, FlexibilityModel) {
 #[test]
 fn compliance_jacobian_matches_finite_differences() {
     let (tree, model, flexibility) = robonaut();
-    let (humanoid, humanoid_model) = load("humanoid/humanoid.urdf");
+    let (humanoid, humanoid_model) = robot_model("humanoid/humanoid.urdf");
     let humanoid_flexibility =
         FlexibilityModel::new(&humanoid, &humanoid_model, &Stiffness::default()).unwrap();
     let mut random = rng(11);

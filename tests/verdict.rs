@@ -25,11 +25,11 @@ struct Robot {
 }
 
 fn robonaut() -> Robot {
-    let tree = load_urdf(&robot("robonaut/robonaut.urdf"))
-        .unwrap_or_else(|e| panic!("{e}"))
-        .tree;
-    let branches = branches_with_tools(&tree, None);
-    let nominal = McpcModel::from_tree(&tree, &branches).unwrap();
+    let crate::common::TestRobot {
+        tree,
+        branches,
+        model: nominal,
+    } = crate::common::TestRobot::robonaut();
     Robot {
         tree,
         branches,

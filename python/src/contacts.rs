@@ -142,8 +142,6 @@ pub fn calibrate_contacts_files(
         reference_link,
         tracker,
     };
-    let inner = py
-        .detach(|| calibrate_contacts(&config))
-        .map_err(to_py)?;
+    let inner = py.detach(|| calibrate_contacts(&config)).map_err(to_py)?;
     Ok(PyContactCalibration { inner })
 }

@@ -52,6 +52,8 @@ pub(crate) mod run;
 mod session_findings;
 pub(crate) mod sessions;
 pub(crate) mod solver;
+mod solver_analysis;
+mod solver_report;
 pub(crate) mod stiffness;
 pub(crate) mod validation;
 pub(crate) mod verdict;

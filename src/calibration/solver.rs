@@ -10,16 +10,16 @@
 //! step does not reduce the cost, the step is damped (Levenberg–Marquardt) until it does. Not
 //! converging is an outcome in the report, not an error. See `docs/identification.md`.
 //!
-//! The predictors, the options, the linearisation and the linear algebra live in files of
-//! their own (`predictor`, `options`, `linearise`, `linear_algebra`); they are re-exported
-//! here under their former paths.
+//! The predictors, the options, the linearisation, the linear algebra, the analysis of one
+//! iteration and the report live in files of their own (`predictor`, `options`, `linearise`,
+//! `linear_algebra`, `solver_analysis`, `solver_report`); they are re-exported here under their
+//! former paths.
 
-use super::linear_algebra::{
-    eigen_decomposition, floored_scales, qr_svd, scale_columns, well_conditioned, WELL_CONDITIONED,
-};
 use super::linearise::{residual_rms, rows_of};
 use super::normal_equations::{accumulate_with, NormalEquations, Problem, Products};
 use super::observation::{kind_of, Nuisance};
+use super::solver_analysis::{analyse, unscaled_inverse, Analysis};
+pub(crate) use super::solver_report::combination;
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;
@@ -30,113 +30,9 @@ pub use super::options::IdentificationOptions;
 pub use super::predictor::{
     Deflected, DeflectedWithDerivative, Predictor, Rigid, CORRECTION_RADIUS,
 };
-
-/// Why the iteration stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Termination {
-    /// The step became negligible.
-    StepConverged,
-    /// The cost stopped decreasing measurably.
-    CostConverged,
-    /// No damped step lowered the cost: a (local) minimum at the noise floor.
-    NoDecrease,
-    /// The iteration limit was reached first.
-    MaxIterations,
-}
-
-/// A direction in parameter space the data cannot determine: `(parameter index, weight)`,
-/// largest weights first, normalised to unit length in parameter units (rad, m).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Combination {
-    /// Parameter indices (into the model's flat vector) and their weights.
-    pub terms: Vec<(usize, f64)>,
-}
-
-impl Combination {
-    /// The combination in words, e.g. `left_tool alpha (+0.71) with left_tool gamma (−0.71)`.
-    pub fn describe(&self, model: &McpcModel, tree: &crate::tree::KinematicTree) -> String {
-        self.terms
-            .iter()
-            .map(|(p, w)| format!("{} ({w:+.2})", model.parameter_name(tree, *p)))
-            .collect::<Vec<_>>()
-            .join(" with ")
-    }
-
-    /// [`Self::describe`] for a fit with nuisance parameters: indices past the model's
-    /// parameters are named by `nuisance` (e.g. `plane day1 height (+0.71)`).
-    pub fn describe_with(
-        &self,
-        model: &McpcModel,
-        tree: &crate::tree::KinematicTree,
-        nuisance: &Nuisance,
-    ) -> String {
-        let count = model.parameter_count();
-        self.terms
-            .iter()
-            .map(|(p, w)| {
-                let name = match p.checked_sub(count) {
-                    Some(k) => nuisance
-                        .value_name(k)
-                        .unwrap_or_else(|| format!("nuisance {k}")),
-                    None => model.parameter_name(tree, *p),
-                };
-                format!("{name} ({w:+.2})")
-            })
-            .collect::<Vec<_>>()
-            .join(" with ")
-    }
-}
-
-/// What the identification did and found.
-#[derive(Debug, Clone)]
-pub struct IdentificationReport {
-    /// The identified parameters (whole vector; parameters not free are unchanged).
-    pub parameters: Vec<f64>,
-    /// The nuisance parameters at the solution (empty unless [`identify_with_nuisance`]).
-    pub nuisance: Nuisance,
-    /// Indices of the parameters that were free (flat: the model's parameters, then the
-    /// nuisance values).
-    pub free: Vec<usize>,
-    /// Accepted iterations.
-    pub iterations: usize,
-    /// Cost ½‖r‖² (weighted) before the first and after each accepted iteration.
-    pub costs: Vec<f64>,
-    /// Why it stopped.
-    pub termination: Termination,
-    /// Rows (equations) of the stacked residual: 6 per pose, 3 per position observation.
-    pub rows: usize,
-    /// Numerical rank of the scaled Jacobian at the solution.
-    pub rank: usize,
-    /// Scaled singular values at the solution, largest first.
-    pub singular_values: Vec<f64>,
-    /// σ_max / σ_min over the retained singular values.
-    pub condition_number: f64,
-    /// Parameter combinations the data cannot determine (kept at their starting values).
-    pub unidentifiable: Vec<Combination>,
-    /// RMS of the position residuals at the solution (m).
-    pub residual_rms_position: f64,
-    /// RMS of the rotation residuals at the solution (rad), over pose observations.
-    pub residual_rms_rotation: f64,
-    /// `σ̂ = √(2·cost / (rows − rank))`: how large the weighted residuals are against the
-    /// assumed σ's (1 when the noise is as assumed and the model explains the data; NaN with
-    /// no redundancy).
-    pub residual_scale: f64,
-    /// Standard deviation of each free parameter (rad or m, same order as `free`):
-    /// `σ̂·√diag((JᵀWJ)⁺)` over the identifiable subspace. For a parameter that is part of an
-    /// unidentifiable combination this is the spread of its identifiable part only.
-    pub standard_deviations: Vec<f64>,
-    /// `σ̂²·(JᵀWJ)⁺` over the free parameters (rad, m; same order as `free`), on the
-    /// identifiable subspace; `None` without redundancy.
-    pub covariance: Option<DMatrix<f64>>,
-    /// Whether each free parameter is determined by the data on its own (it has no weight,
-    /// beyond [`IDENTIFIABLE_NULL_WEIGHT`] in scaled units, in any unidentifiable combination).
-    pub identifiable: Vec<bool>,
-}
-
-/// A parameter whose unit vector (column-scaled) has more than this weight in the null space
-/// is reported as not identifiable.
-pub const IDENTIFIABLE_NULL_WEIGHT: f64 = 1e-3;
+pub use super::solver_report::{
+    Combination, IdentificationReport, Termination, IDENTIFIABLE_NULL_WEIGHT,
+};
 
 /// Identifies the `free` parameters of `model` from `measurements`.
 ///
@@ -494,33 +390,6 @@ fn summarise(descent: Descent, problem: &Problem<'_>) -> Result<IdentificationRe
     })
 }
 
-/// `(JᵀWJ)⁺` in parameter units on the identifiable subspace (the retained directions
-/// `retained`, indices into the analysis's singular values): the covariance over σ̂².
-/// `C = σ̂²·S⁻¹·N⁺·S⁻¹` with `N⁺ = V_r·Σ_r⁻²·V_rᵀ`, or `N⁻¹` by Cholesky when well
-/// conditioned: Σ over retained directions of `(v_k / s_k)² / σᵢ²`.
-fn unscaled_inverse(analysis: &Analysis, retained: &[usize]) -> DMatrix<f64> {
-    let columns = analysis.scales.len();
-    match analysis.normal.as_ref().and_then(|n| n.clone().cholesky()) {
-        Some(cholesky) => {
-            let inverse = cholesky.inverse();
-            DMatrix::from_fn(columns, columns, |a, b| {
-                inverse[(a, b)] / (analysis.scales[a] * analysis.scales[b])
-            })
-        }
-        None => {
-            // W = S⁻¹·V_r·Σ_r⁻¹, N⁺ in parameter units = W·Wᵀ.
-            let mut w = DMatrix::zeros(columns, retained.len());
-            for (column, &i) in retained.iter().enumerate() {
-                for k in 0..columns {
-                    w[(k, column)] =
-                        analysis.v_t[(i, k)] / analysis.scales[k] / analysis.singular_values[i];
-                }
-            }
-            &w * w.transpose()
-        }
-    }
-}
-
 /// The prior's rows over `free`, if the options have a prior; with `follow_residual_scale`,
 /// weighted by the residual scale σ̂ (when above 1) of the same fit without the prior, so that
 /// the prior weighs against the data as if the declared noise were right.
@@ -555,86 +424,6 @@ fn prior_rows(
         1.0
     };
     Ok(Some(prior.rows(free, scale)))
-}
-
-/// The column-scaled Jacobian's singular values and right singular vectors, and the scaled
-/// gradient `g = J_sᵀ·r`.
-struct Analysis {
-    scales: DVector<f64>,
-    singular_values: DVector<f64>,
-    v_t: DMatrix<f64>,
-    gradient: DVector<f64>,
-    /// The scaled normal matrix `J_sᵀJ_s` when it is well conditioned (then `v_t` is empty and
-    /// steps and covariance come from its Cholesky factor).
-    normal: Option<DMatrix<f64>>,
-}
-
-/// Column scaling, then the SVD of the small triangle `R` of `J_s = Q·R` (same singular values
-/// and `V` as `J_s`, at a fraction of the cost). With fewer rows than columns, zero rows
-/// complete the matrix so that `V` spans the whole null space. All from the streamed normal
-/// equations; `with_factor` recomputes them with `R` when `lin` lacks it and it is needed.
-fn analyse(
-    lin: &mut NormalEquations,
-    rank_tolerance: f64,
-    with_factor: impl FnOnce() -> Result<NormalEquations>,
-) -> Result<Analysis> {
-    let scales = floored_scales(lin.normal.diagonal().iter().map(|d| d.max(0.0).sqrt()));
-    let gradient = lin.gradient.component_div(&scales);
-    // Fast path: the singular values from the eigenvalues of the normal matrix alone, and the
-    // steps and the covariance by Cholesky, when it is well conditioned (see
-    // `singular_decomposition`); no singular vectors are needed then (nothing is
-    // unidentifiable).
-    let normal = DMatrix::from_fn(scales.len(), scales.len(), |a, b| {
-        lin.normal[(a, b)] / (scales[a] * scales[b])
-    });
-    let eigenvalues = normal.symmetric_eigenvalues();
-    let largest = eigenvalues.max();
-    // Full rank with a margin, also for a caller's coarser rank tolerance.
-    let ratio = WELL_CONDITIONED.max(100.0 * rank_tolerance * rank_tolerance);
-    if largest > 0.0 && eigenvalues.min() > ratio * largest {
-        return Ok(Analysis {
-            scales,
-            singular_values: eigenvalues.map(f64::sqrt),
-            v_t: DMatrix::zeros(0, 0),
-            gradient,
-            normal: Some(normal),
-        });
-    }
-    // Singular vectors are needed: from the same normal matrix while squaring still resolves
-    // the spectrum (a caller's coarse rank tolerance), else from QR + SVD.
-    let (singular_values, v_t) = if well_conditioned(&eigenvalues) {
-        eigen_decomposition(normal)
-    } else {
-        if lin.factor.is_none() {
-            *lin = with_factor()?;
-        }
-        let factor = lin.factor.as_ref().ok_or_else(|| Error::InvalidData {
-            origin: "identification".into(),
-            message: "no triangular factor".into(),
-        })?;
-        // R·S⁻¹ is the triangle of the scaled Jacobian J·S⁻¹.
-        qr_svd(scale_columns(factor, &scales))
-    };
-    Ok(Analysis {
-        scales,
-        singular_values,
-        v_t,
-        gradient,
-        normal: None,
-    })
-}
-
-pub(crate) fn combination(direction: &DVector<f64>, free: &[usize]) -> Combination {
-    let norm = direction.norm().max(f64::MIN_POSITIVE);
-    let largest = direction.amax() / norm;
-    let mut terms: Vec<(usize, f64)> = direction
-        .iter()
-        .enumerate()
-        .map(|(k, w)| (free[k], w / norm))
-        .filter(|(_, w)| w.abs() >= 0.1 * largest)
-        .collect();
-    terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-    Combination { terms }
 }
 
 fn validate(

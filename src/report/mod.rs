@@ -1,7 +1,9 @@
 //! Human- and machine-readable reports.
 
+pub(crate) mod arm;
 pub(crate) mod artifact;
 pub(crate) mod calibrate;
+pub(crate) mod calibrate_markdown;
 pub(crate) mod camera;
 pub(crate) mod check;
 pub(crate) mod compare;
@@ -20,12 +22,14 @@ pub(crate) mod stiffness;
 pub(crate) mod strata;
 pub(crate) mod verify;
 
+pub use arm::{ArmReport, BeforeAfter, RowErrors};
 pub use artifact::{ArtifactReport, ArtifactScore, UnobservableBase};
 pub use calibrate::{
-    calibration_markdown, calibration_plots, calibration_summary, parameter_file, ArmReport,
-    BeforeAfter, CalibrationContext, CalibrationSummary, RowErrors, REPORT_SCHEMA,
+    calibration_summary, parameter_file, CalibrationContext, CalibrationSummary, REPORT_SCHEMA,
+    REPORT_SCHEMA_VERSIONS,
 };
 pub use calibrate::{FrameValues, ParameterFile, StageOutcome};
+pub use calibrate_markdown::{calibration_markdown, calibration_plots};
 pub use camera::{
     camera_markdown, kinds_markdown, CameraCalibrationReport, CameraFitSummary, FittedIntrinsic,
     FittedPose, HeldOut, PixelResiduals, RobotParameter, TargetResiduals, TrackerRegistration,

@@ -2,7 +2,7 @@
 //! posture, new postures inside the identification joint ranges, postures outside them, all
 //! rows together, and the worst row (`report.json` `"validation_strata"`, report.md).
 
-use super::calibrate::ArmReport;
+use super::arm::ArmReport;
 use crate::calibration::Stratum;
 use serde::Serialize;
 use std::fmt::Write;

@@ -8,7 +8,7 @@
 use super::artifact_joint_errors::{
     without_joint_angle_terms, AppliedJointErrors, JOINT_ERRORS_FILE,
 };
-use super::calibrate::{CalibrateConfig, GravityFrame};
+use super::calibrate_config::{CalibrateConfig, GravityFrame};
 use super::calibrate_steps::{joint_errors_yaml, Data, Identified, Loaded};
 use super::source::StiffnessSource;
 use crate::calibration::{calibrate as run_plan, ChosenFrame, Compensation, ErrorSummary, Finding};

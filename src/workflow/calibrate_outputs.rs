@@ -1,11 +1,12 @@
 //! The outputs of [`super::calibrate::calibrate`]: the summary with the outliers named by
 //! their row ids, report.md, report.json, params.yaml, the plots and the calibrated URDF.
 
-use super::calibrate::CalibrateConfig;
 use super::calibrate_artifact::{assess, CompensationFile, COMPENSATED_URDF, REGISTRATION_FILE};
+use super::calibrate_config::CalibrateConfig;
+pub(super) use super::calibrate_products::Outputs;
 use super::calibrate_steps::{Data, Identified, IdentifiedStiffness, Loaded};
 use crate::calibration::NamedCombination;
-use crate::calibration::{CalibrationRun, ChosenFrame, Finding, Verdict};
+use crate::calibration::{CalibrationRun, ChosenFrame, Finding};
 use crate::calibration::{DataSet, OUTLIER_WEIGHT};
 use crate::error::Result;
 use crate::io::{stiffness_to_yaml, to_yaml};
@@ -184,17 +185,6 @@ fn down_weighted_finding(run: &CalibrationRun, ids: &[String]) -> Option<Finding
             if rows.len() > FIRST_IDS { ", …" } else { "" }
         ),
     ))
-}
-
-/// Everything the outcome holds besides the parameters and notes.
-pub(super) struct Outputs {
-    pub verdict: Verdict,
-    /// report.json's small keys; its rows are in `report_parts` (`report_json`).
-    pub report: serde_json::Value,
-    pub report_parts: super::report_json::ReportParts,
-    pub markdown: String,
-    pub urdf: Option<String>,
-    pub files: Vec<(String, Vec<u8>)>,
 }
 
 /// Renders report.md, report.json, params.yaml, the plots, registration.yaml (a fitted

@@ -5,7 +5,7 @@
 
 use super::postures::RecordedPostures;
 use super::provenance::Started;
-use super::verify::{read_postures, scored_link};
+use super::verify::{postures_of, scored_link};
 use crate::calibration::fit_rigid_transform;
 use crate::error::{Error, Result};
 use crate::io::read_registration;
@@ -116,9 +116,7 @@ impl Folder {
                 ));
             }
         }
-        let text = crate::io::read_text(&report_path, crate::limits::MAX_CSV_BYTES)?;
-        let report: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| invalid(&report_path, e.to_string()))?;
+        let report = super::report_json::read_calibration_report(&report_path)?;
         let parameters: Vec<Parameter> = report
             .get("parameters")
             .map(|v| serde_json::from_value(v.clone()))
@@ -137,7 +135,7 @@ impl Folder {
         };
         Ok(Self {
             dir: dir.to_owned(),
-            postures: read_postures(&report_path)?,
+            postures: postures_of(&report, &report_path)?,
             report,
             parameters,
             tree,

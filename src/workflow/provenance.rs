@@ -90,7 +90,7 @@ pub(super) fn attach(
 /// The provenance of a calibration: its settings (measurement arrays by their origin), every
 /// input file, the hold-out seed.
 pub(super) fn calibrate_record(
-    config: &super::calibrate::CalibrateConfig,
+    config: &super::calibrate_config::CalibrateConfig,
     started: Started,
 ) -> Result<ProvenanceRecord> {
     use super::source::MeasurementSource;

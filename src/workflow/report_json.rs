@@ -241,3 +241,67 @@ impl Serialize for Postures<'_> {
         out.end()
     }
 }
+
+/// A calibration's report.json as `verify` and `compare` read it: any layout of
+/// [`crate::report::REPORT_SCHEMA_VERSIONS`] (version 1 has no `schema_version`; the
+/// versions differ in keys and in the spelling of values neither command reads). A newer or
+/// unknown version is refused, naming the file.
+pub(crate) fn read_calibration_report(path: &std::path::Path) -> Result<Value> {
+    let origin = path.display().to_string();
+    let text = crate::io::read_text(path, crate::limits::MAX_CSV_BYTES)?;
+    let report: Value = serde_json::from_str(&text).map_err(|e| Error::InvalidData {
+        origin: origin.clone(),
+        message: e.to_string(),
+    })?;
+    check_schema_version(&report).map_err(|message| Error::InvalidData { origin, message })?;
+    Ok(report)
+}
+
+/// `Ok` when `report`'s `schema_version` is one this treecal reads, else what is wrong.
+fn check_schema_version(report: &Value) -> std::result::Result<(), String> {
+    let versions = crate::report::REPORT_SCHEMA_VERSIONS;
+    let Some(found) = report.get("schema_version") else {
+        return Ok(());
+    };
+    let version = found
+        .as_str()
+        .and_then(|s| s.strip_prefix("treecal.report/"))
+        .and_then(|n| n.parse::<u32>().ok());
+    match version {
+        Some(v) if versions.contains(&v) => Ok(()),
+        _ => Err(format!(
+            "schema_version {found} is not a report.json layout this treecal reads \
+             (treecal.report/{} to /{}): a report of a newer treecal, or not a `treecal \
+             calibrate` report.json",
+            versions.start(),
+            versions.end()
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_report_version_up_to_this_one_is_read_and_newer_ones_are_refused() {
+        let with = |v: &str| serde_json::json!({ "schema_version": v, "parameters": [] });
+        assert!(check_schema_version(&serde_json::json!({ "parameters": [] })).is_ok());
+        for v in [
+            "treecal.report/1",
+            "treecal.report/2",
+            crate::report::REPORT_SCHEMA,
+        ] {
+            assert!(check_schema_version(&with(v)).is_ok(), "{v}");
+        }
+        for v in [
+            "treecal.report/4",
+            "treecal.results/2",
+            "report",
+            "treecal.report/x",
+        ] {
+            let message = check_schema_version(&with(v)).unwrap_err();
+            assert!(message.contains("treecal.report/1 to /3"), "{message}");
+        }
+    }
+}

@@ -10,11 +10,12 @@
 //! nuisance a fresh session needs is refitted: its measurement frame (six parameters per
 //! session), or nothing with [`VerifyFrame::Registration`] (docs/workflows.md, "Verify").
 
-use super::calibrate::{CalibrateConfig, GravityFrame};
 use super::calibrate_artifact::{row_errors, CompensationFile, Scoring, REGISTRATION_FILE};
+use super::calibrate_config::{CalibrateConfig, GravityFrame};
 use super::calibrate_steps::Loaded;
 use super::note::Note;
 use super::postures::{chains_of, RecordedPostures, POSTURES_KEY};
+use super::report_json::read_calibration_report;
 use super::source::{MeasurementSource, RobotSource, StiffnessSource};
 use crate::calibration::IdentificationOptions;
 use crate::calibration::{fit_session_frame, Sessions, FRAME_BLOCK_PARAMETERS};
@@ -224,10 +225,15 @@ fn no_robot(config: &VerifyConfig) -> Error {
 
 /// The recorded identification postures of a calibration's report.json.
 pub(crate) fn read_postures(path: &Path) -> Result<Option<RecordedPostures>> {
+    postures_of(&read_calibration_report(path)?, path)
+}
+
+/// The recorded identification postures of a report.json read from `path`.
+pub(crate) fn postures_of(
+    json: &serde_json::Value,
+    path: &Path,
+) -> Result<Option<RecordedPostures>> {
     let origin = path.display().to_string();
-    let text = crate::io::read_text(path, crate::limits::MAX_YAML_BYTES * 16)?;
-    let json: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| invalid(&origin, e.to_string()))?;
     json.get(POSTURES_KEY)
         .map(|v| serde_json::from_value(v.clone()).map_err(|e| invalid(&origin, e.to_string())))
         .transpose()

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod cli;
+pub mod fixture;
 pub mod fuzz;
 pub mod second_robot;
 
@@ -11,6 +12,8 @@ use rand::{RngExt, SeedableRng};
 use std::path::{Path, PathBuf};
 use treecal::math::Pose;
 use treecal::tree::KinematicTree;
+
+pub use fixture::{robonaut_model, robot_model, TestRobot};
 
 /// The repository root.
 pub fn repo() -> PathBuf {

@@ -13,11 +13,14 @@
 
 mod covariance;
 mod fit;
+mod names;
 mod output;
 mod problem;
 mod selection;
 mod sequence;
 
+pub(super) use names::{describe, label, GROUPS};
+pub use names::{name, DETERMINED};
 pub use output::identified_stiffness;
 pub use selection::{analyse_compliance, ComplianceIdentifiability};
 pub use sequence::{calibrate_with_stiffness, without_outliers, Fitted, StiffnessSequence};
@@ -25,7 +28,7 @@ pub use sequence::{calibrate_with_stiffness, without_outliers, Fitted, Stiffness
 use super::options::IdentificationOptions;
 use super::solver::Termination;
 use crate::error::{Error, Result};
-use crate::kinematics::{ComplianceKind, ComplianceParameter};
+use crate::kinematics::ComplianceKind;
 use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;
@@ -244,54 +247,4 @@ fn fit_physical(
         chosen.retain(|c| below.iter().all(|&(b, _)| b != *c));
         below_zero.extend(below);
     }
-}
-
-/// Common scale factors after the individual ones: all joint compliances, all link compliances.
-/// A compliance's scale is its own times its group's, so a stiffness file that is off by the
-/// same factor everywhere is corrected everywhere, also where the data cannot tell one joint or
-/// link from another.
-pub(super) const GROUPS: usize = 2;
-
-/// A compliance is identified when the data alone determine its scale to this fraction of the
-/// prior's uncertainty or better (a third: the data carry nine times the prior's information),
-/// so that what is identified is determined by the data rather than fitted to their noise.
-pub const DETERMINED: f64 = 1.0 / 3.0;
-
-/// The groups in words.
-pub(super) const GROUP_NAMES: [&str; GROUPS] = ["all joints", "all links"];
-
-/// "left_joint1 bending (+0.71) with torso_joint2 EI_z (−0.71)".
-pub(super) fn describe(
-    tree: &KinematicTree,
-    model: &McpcModel,
-    parameters: &[ComplianceParameter],
-    terms: &[(usize, f64)],
-) -> String {
-    terms
-        .iter()
-        .map(|&(k, w)| format!("{} ({w:+.2})", label(tree, model, parameters, k)))
-        .collect::<Vec<_>>()
-        .join(" with ")
-}
-
-/// Scale `k` in words: a compliance's name, or a group's (indices after the parameters).
-fn label(
-    tree: &KinematicTree,
-    model: &McpcModel,
-    parameters: &[ComplianceParameter],
-    k: usize,
-) -> String {
-    match parameters.get(k) {
-        Some(parameter) => name(tree, model, parameter),
-        None => GROUP_NAMES[k - parameters.len()].to_owned(),
-    }
-}
-
-/// `left_joint2 bending`, `left_joint2 EI_y`.
-pub fn name(tree: &KinematicTree, model: &McpcModel, parameter: &ComplianceParameter) -> String {
-    format!(
-        "{} {}",
-        tree.joint(model.frames()[parameter.frame].joint).name,
-        parameter.kind.name()
-    )
 }

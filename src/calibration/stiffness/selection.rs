@@ -1,8 +1,8 @@
 //! Which compliances the data determine (greedy elimination on the Schur complement after
 //! the geometry), and the compliance part of the identifiability analysis.
 
+use super::names::{describe, name, DETERMINED, GROUPS, GROUP_NAMES};
 use super::problem::{Linearisation, Problem};
-use super::{describe, name, DETERMINED, GROUPS, GROUP_NAMES};
 use crate::calibration::linear_algebra::{column_scales, scale_columns};
 use crate::calibration::options::IdentificationOptions;
 use crate::error::Result;
