@@ -507,6 +507,17 @@ fn a_compensated_geometry_is_never_shipped_alone_when_worse_than_nominal() {
             robot("robonaut/stiffness.yaml").display()
         )
     );
+    // The headline names both written artifacts and their figures.
+    let md = file(&outcome.files, "report.md").unwrap();
+    let headline = md
+        .lines()
+        .find(|l| l.starts_with("**Held-out accuracy:**"))
+        .unwrap();
+    assert!(
+        headline.contains("; calibrated.urdf as written: ")
+            && headline.contains("; calibrated_compensated.urdf + "),
+        "{headline}"
+    );
     // calibrated.urdf alone, scored again from its text.
     let links: Vec<String> = s
         .nominal

@@ -273,15 +273,16 @@ fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
         "**Held-out accuracy:** RMS position error {rms:.3} mm over all {} validation rows (before: {before_rms:.3} mm, the registered nominal robot)",
         observations
     );
-    if let Some(alone) = summary
-        .artifact
-        .as_ref()
-        .and_then(|a| a.urdf_alone.as_ref())
-    {
+    let written = summary.artifact.as_ref().into_iter().flat_map(|a| {
+        [a.urdf_alone.as_ref(), a.with_compensation.as_ref()]
+            .into_iter()
+            .flatten()
+    });
+    for score in written {
         let _ = write!(
             out,
             "; {} as written: {:.3} mm",
-            alone.files, alone.errors.rms_position_mm
+            score.files, score.errors.rms_position_mm
         );
     }
     out.push_str(".\n\n");
