@@ -165,7 +165,7 @@ fn plan_source(plan: Option<&str>) -> PlanSource {
     }
 }
 
-fn frame_choice(text: &str) -> MeasurementFrameChoice {
+pub(crate) fn frame_choice(text: &str) -> MeasurementFrameChoice {
     match text {
         "auto" => MeasurementFrameChoice::Auto,
         "fit" => MeasurementFrameChoice::Fit,

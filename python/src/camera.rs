@@ -2,16 +2,16 @@
 //! Python arguments (the camera file, the detections as a CSV path or CSV text, optional tracker
 //! rows).
 
-use crate::calibrate::parse_unit;
+use crate::calibrate::{frame_choice, parse_unit};
 use crate::{invalid, to_py};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use std::path::PathBuf;
+use treecal::workflow::RobotSource;
 use treecal::workflow::{
     calibrate_camera_files, CameraCalibrateConfig, CameraCalibration, CameraTrackerInput,
     DetectionsSource,
 };
-use treecal::workflow::{MeasurementFrameChoice, RobotSource};
 
 /// The outcome of a camera calibration; `treecal.Calibration` wraps it.
 #[pyclass(module = "treecal._treecal", name = "CameraCalibration", frozen)]
@@ -89,6 +89,26 @@ impl PyCameraCalibration {
     }
 }
 
+/// Tracker rows fitted with pixels or contacts: the measurement CSV `path` with its σ's (the
+/// CLI's defaults when `None`) and its frame (`auto`, `fit`, `base` or a registration path).
+pub(crate) fn tracker_input(
+    path: PathBuf,
+    position_sigma: Option<f64>,
+    rotation_sigma: Option<f64>,
+    measurement_frame: &str,
+    length_unit: Option<treecal::io::LengthUnit>,
+    ignore_columns: Vec<String>,
+) -> CameraTrackerInput {
+    CameraTrackerInput {
+        measurements: path,
+        position_sigma: position_sigma.unwrap_or(treecal::calibration::DEFAULT_POSITION_SIGMA),
+        rotation_sigma: rotation_sigma.unwrap_or(treecal::calibration::DEFAULT_ROTATION_SIGMA),
+        frame: frame_choice(measurement_frame),
+        length_unit,
+        ignore_columns,
+    }
+}
+
 /// Runs `treecal::workflow::calibrate_camera_files`; arguments as
 /// `treecal.calibrate` documents them (`detections`: a CSV path; `detections_csv`: CSV text).
 #[pyfunction]
@@ -129,18 +149,15 @@ pub fn calibrate_camera(
     };
     let length: Option<treecal::io::LengthUnit> = parse_unit(length_unit.as_deref())?;
     let joint_length: Option<treecal::io::LengthUnit> = parse_unit(joint_length_unit.as_deref())?;
-    let tracker = measurements.map(|path| CameraTrackerInput {
-        measurements: path,
-        position_sigma: position_sigma.unwrap_or(treecal::calibration::DEFAULT_POSITION_SIGMA),
-        rotation_sigma: rotation_sigma.unwrap_or(treecal::calibration::DEFAULT_ROTATION_SIGMA),
-        frame: match measurement_frame.as_str() {
-            "auto" => MeasurementFrameChoice::Auto,
-            "fit" => MeasurementFrameChoice::Fit,
-            "base" => MeasurementFrameChoice::Base,
-            path => MeasurementFrameChoice::File(PathBuf::from(path)),
-        },
-        length_unit: length,
-        ignore_columns,
+    let tracker = measurements.map(|path| {
+        tracker_input(
+            path,
+            position_sigma,
+            rotation_sigma,
+            &measurement_frame,
+            length,
+            ignore_columns,
+        )
     });
     let config = CameraCalibrateConfig {
         robot: RobotSource::from_path(robot),

@@ -7,8 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use std::path::PathBuf;
 use treecal::workflow::{
-    calibrate_contacts, CameraTrackerInput, ContactCalibrateConfig, ContactCalibration,
-    MeasurementFrameChoice, RobotSource,
+    calibrate_contacts, ContactCalibrateConfig, ContactCalibration, RobotSource,
 };
 
 /// Why `calibrate --contacts` writes no URDF (the CLI's words).
@@ -121,18 +120,15 @@ pub fn calibrate_contacts_files(
 ) -> PyResult<PyContactCalibration> {
     let length_unit: Option<treecal::io::LengthUnit> =
         crate::calibrate::parse_unit(length_unit.as_deref())?;
-    let tracker = measurements.map(|path| CameraTrackerInput {
-        measurements: path,
-        position_sigma: position_sigma.unwrap_or(treecal::calibration::DEFAULT_POSITION_SIGMA),
-        rotation_sigma: rotation_sigma.unwrap_or(treecal::calibration::DEFAULT_ROTATION_SIGMA),
-        frame: match measurement_frame.as_str() {
-            "auto" => MeasurementFrameChoice::Auto,
-            "fit" => MeasurementFrameChoice::Fit,
-            "base" => MeasurementFrameChoice::Base,
-            path => MeasurementFrameChoice::File(PathBuf::from(path)),
-        },
-        length_unit,
-        ignore_columns,
+    let tracker = measurements.map(|path| {
+        crate::camera::tracker_input(
+            path,
+            position_sigma,
+            rotation_sigma,
+            &measurement_frame,
+            length_unit,
+            ignore_columns,
+        )
     });
     let config = ContactCalibrateConfig {
         robot: RobotSource::from_path(robot),
