@@ -39,6 +39,25 @@ fn config(args: CheckArgs) -> CheckConfig {
     }
 }
 
+/// Prints a camera or contact check: its notes on stderr, then its text or its report as
+/// YAML or JSON.
+fn print_outcome<T: serde::Serialize>(
+    notes: &[treecal::workflow::Note],
+    text: String,
+    report: &T,
+    format: Format,
+) -> Result<()> {
+    for note in notes {
+        crate::output::note(note);
+    }
+    let text = match format {
+        Format::Text => text,
+        Format::Yaml => treecal::io::to_yaml(report)?,
+        Format::Json => treecal::io::to_json(report)?,
+    };
+    crate::output::print(&text)
+}
+
 pub fn run(args: CheckArgs) -> Result<()> {
     let format = args.format;
     if let (Some(camera_file), Some(detections)) = (args.camera.clone(), args.detections.clone()) {
@@ -49,15 +68,7 @@ pub fn run(args: CheckArgs) -> Result<()> {
             detections,
             pixel_sigma: args.pixel_sigma,
         })?;
-        for note in &outcome.notes {
-            crate::output::note(note);
-        }
-        let text = match format {
-            Format::Text => outcome.text,
-            Format::Yaml => treecal::io::to_yaml(&outcome.report)?,
-            Format::Json => treecal::io::to_json(&outcome.report)?,
-        };
-        return crate::output::print(&text);
+        return print_outcome(&outcome.notes, outcome.text, &outcome.report, format);
     }
     if let (Some(contacts), Some(setup)) = (args.contacts.clone(), args.contact_setup.clone()) {
         let outcome = check_contacts(&ContactCheckConfig {
@@ -66,15 +77,7 @@ pub fn run(args: CheckArgs) -> Result<()> {
             setup,
             reference_link: args.reference_link,
         })?;
-        for note in &outcome.notes {
-            crate::output::note(note);
-        }
-        let text = match format {
-            Format::Text => outcome.text,
-            Format::Yaml => treecal::io::to_yaml(&outcome.report)?,
-            Format::Json => treecal::io::to_json(&outcome.report)?,
-        };
-        return crate::output::print(&text);
+        return print_outcome(&outcome.notes, outcome.text, &outcome.report, format);
     }
     let outcome = check(&config(args))?;
     for note in &outcome.notes {
