@@ -191,6 +191,60 @@ fn sigma_ratio_warns_and_fails_only_far_from_one() {
     assert!(has(&wrong, Status::Failed, "sigma-ratio"));
 }
 
+/// Joint-angle errors larger than any joint has (a harmonic traded against the zero offset)
+/// warn and, far larger, fail; realistic ones (and none) say nothing.
+#[test]
+fn implausible_joint_errors_warn_and_fail() {
+    use treecal::calibration::{joint_errors_plausible, JOINT_ERROR_WARNING};
+    use treecal::kinematics::{JointErrorTerms, ParameterKind};
+    let Scene {
+        robot,
+        truth,
+        identification,
+        validation,
+        mut rng,
+    } = scene(62);
+    let mut run = calibrate(
+        &robot,
+        &measure(&truth, &identification, false, SIGMA, &mut rng),
+        &measure(&truth, &validation, false, SIGMA, &mut rng),
+    );
+    assert_eq!(joint_errors_plausible(&run, &robot.tree), None);
+    let terms = JointErrorTerms {
+        harmonics: true,
+        ..JointErrorTerms::default()
+    };
+    let with_terms = run.report.model.with_joint_errors(terms, None).unwrap();
+    // The cosine term of the last arm joint of the layout.
+    let layout = with_terms.parameter_layout();
+    let cosine = layout
+        .iter()
+        .rposition(|(_, kind)| *kind == ParameterKind::Cosine)
+        .unwrap();
+    let mut outcome = |value: f64| {
+        let mut parameters = with_terms.parameters();
+        parameters[cosine] = value;
+        run.report.model = with_terms.clone();
+        run.report.model.set_parameters(&parameters).unwrap();
+        joint_errors_plausible(&run, &robot.tree).map(|f| (f.status, f.code, f.message))
+    };
+    assert_eq!(outcome(0.0), None);
+    assert_eq!(
+        outcome(0.2 * JOINT_ERROR_WARNING),
+        None,
+        "a 0.6° harmonic is real"
+    );
+    let (status, code, message) = outcome(-2.0 * JOINT_ERROR_WARNING).unwrap();
+    assert_eq!(
+        (status, code.as_str()),
+        (Status::Warning, "joint-errors-implausible")
+    );
+    assert!(message.contains("harmonic amplitude 5.73°"), "{message}");
+    let (status, _, message) = outcome(-2.25).unwrap();
+    assert_eq!(status, Status::Failed, "{message}");
+    assert!(message.contains("cosine -128.92°"), "{message}");
+}
+
 /// 5 configurations of two tools (60 equations) for 64 parameters fail; 6 (72) warn; 25 (300)
 /// are clean (the first test).
 #[test]

@@ -34,6 +34,15 @@ pub const VALIDATION_WARNING: f64 = 3.0;
 /// The same ratio above this is a failure.
 pub const VALIDATION_FAILED: f64 = 30.0;
 
+/// A harmonic amplitude `√(a² + b²)` or a backlash (rad) above this is a warning: larger than
+/// the error of any encoder or gear train a robot is sold with (≈ 3°).
+pub const JOINT_ERROR_WARNING: f64 = 0.05;
+
+/// The same above this is a failure (≈ 17°): no joint is that far off; the fit traded the term
+/// against the geometry (over a narrow joint range `cos q` is nearly the zero offset) and the
+/// joint-angle errors file would move the robot wherever the data did not reach.
+pub const JOINT_ERROR_FAILED: f64 = 0.3;
+
 /// Every check of a finished calibration, in order: the position-only and reference-gauge
 /// notes; per stage
 /// redundancy, σ̂, rank, conditioning (these two not after a failed σ̂) and convergence; then
@@ -59,6 +68,7 @@ pub fn assess(run: &CalibrationRun, tree: &KinematicTree) -> Vec<Finding> {
         }
         findings.extend(convergence(stage));
     }
+    findings.extend(joint_errors_plausible(run, tree));
     findings.extend(validation_improves(run));
     findings.extend(validation_matches_prediction(run));
     findings
@@ -238,6 +248,68 @@ pub fn convergence(stage: &StageReport) -> Option<Finding> {
                 stage.name, stage.identification.iterations
             ),
         )
+    })
+}
+
+/// Identified joint-angle errors (harmonics, backlash) too large for any real joint: a warning
+/// above [`JOINT_ERROR_WARNING`], a failure above [`JOINT_ERROR_FAILED`], naming each joint with
+/// its size (and standard deviation when identified).
+pub fn joint_errors_plausible(run: &CalibrationRun, tree: &KinematicTree) -> Option<Finding> {
+    let model = &run.report.model;
+    let std_dev_of = |name: String| {
+        run.parameters
+            .iter()
+            .find(|p| p.name == name)
+            .and_then(|p| p.std_dev)
+    };
+    let mut large: Vec<(f64, String)> = Vec::new();
+    for (frame, f) in model.frames().iter().enumerate() {
+        let [_, sine, cosine, backlash] = model.joint_error_values(frame);
+        let joint = &tree.joint(f.joint).name;
+        if sine.is_some() || cosine.is_some() {
+            let (a, b) = (sine.unwrap_or(0.0), cosine.unwrap_or(0.0));
+            let amplitude = a.hypot(b);
+            if amplitude > JOINT_ERROR_WARNING {
+                let sd = |kind: &str| {
+                    std_dev_of(format!("{joint} {kind}"))
+                        .map_or(String::new(), |s| format!(" ± {:.2}", s.to_degrees()))
+                };
+                large.push((
+                    amplitude,
+                    format!(
+                        "{joint} harmonic amplitude {:.2}° (sine {:.2}°{}, cosine {:.2}°{})",
+                        amplitude.to_degrees(),
+                        a.to_degrees(),
+                        sd("sine"),
+                        b.to_degrees(),
+                        sd("cosine")
+                    ),
+                ));
+            }
+        }
+        if let Some(h) = backlash.filter(|h| h.abs() > JOINT_ERROR_WARNING) {
+            large.push((h.abs(), format!("{joint} backlash {:.2}°", h.to_degrees())));
+        }
+    }
+    let worst = large.iter().map(|(size, _)| *size).fold(0.0, f64::max);
+    if large.is_empty() {
+        return None;
+    }
+    let text = format!(
+        "identified joint-angle errors larger than any encoder or gear has ({} of {} joints over {:.1}°): {}. The fit traded them against the geometry (over a narrow joint range a harmonic looks like the zero offset, a backlash like it when the gravity torque keeps one sign), so joint_errors.yaml moves the joints wherever the data did not reach; use `prior`, leave `joint_errors` out, or freeze these terms (`freeze` '<joint> sine', '<joint> cosine', '<joint> backlash')",
+        large.len(),
+        model.frames().len(),
+        JOINT_ERROR_WARNING.to_degrees(),
+        large
+            .iter()
+            .map(|(_, text)| text.as_str())
+            .collect::<Vec<_>>()
+            .join("; ")
+    );
+    Some(if worst > JOINT_ERROR_FAILED {
+        Finding::failed("joint-errors-implausible", text)
+    } else {
+        Finding::warning("joint-errors-implausible", text)
     })
 }
 

@@ -25,7 +25,7 @@ pub const DIAGNOSIS_ROWS: usize = 80;
 pub const ROOT_CAUSES: [&str; 2] = ["swapped-joint-columns", "shifted-joint-columns"];
 
 /// The codes of findings that follow from a wrong data set rather than stand on their own.
-pub const CONSEQUENCES: [&str; 10] = [
+pub const CONSEQUENCES: [&str; 11] = [
     "urdf-alone-worse",
     "sigma-ratio",
     "down-weighted",
@@ -36,6 +36,7 @@ pub const CONSEQUENCES: [&str; 10] = [
     "not-converged",
     "outliers",
     "stiffness-below-zero",
+    "joint-errors-implausible",
 ];
 
 /// The RMS position residual (m) of the nominal robot registered on `data`.
