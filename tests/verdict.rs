@@ -245,6 +245,48 @@ fn implausible_joint_errors_warn_and_fail() {
     assert!(message.contains("cosine -128.92°"), "{message}");
 }
 
+/// Validation rows at the identification postures: measured again they repeat to the noise
+/// (no finding); shifted by a moved tracker, the shift is named without a model.
+#[test]
+fn repeated_postures_measure_the_floor_and_name_a_shift() {
+    let Scene {
+        robot,
+        truth,
+        identification,
+        mut rng,
+        ..
+    } = scene(63);
+    let data = measure(&truth, &identification, true, SIGMA, &mut rng);
+    let again = measure(&truth, &identification, true, SIGMA, &mut rng);
+    let run = calibrate(&robot, &data, &again);
+    let figures = run.repeatability.clone().expect("every row repeats");
+    assert_eq!(figures.pairs, again.len());
+    // Two noisy measurements of one point: √2 · √3 · σ RMS.
+    let expected = (6.0f64).sqrt() * SIGMA * 1e3;
+    assert!(
+        (figures.rms_mm / expected - 1.0).abs() < 0.2,
+        "{figures:?} against {expected}"
+    );
+    assert!(!figures.shifted, "{figures:?}");
+    assert!(!run.findings.iter().any(|f| f.code == "repeatability-shift"));
+    let shift = Vector3::new(0.0, 20.0 * SIGMA, -10.0 * SIGMA);
+    let moved: Vec<Measurement> = again
+        .iter()
+        .map(|m| {
+            let mut m = m.clone();
+            if let Observation::Position(p) = &mut m.observation {
+                *p += shift;
+            }
+            m
+        })
+        .collect();
+    let run = calibrate(&robot, &data, &moved);
+    let figures = run.repeatability.clone().unwrap();
+    assert!(figures.shifted, "{figures:?}");
+    assert!((figures.mean_shift_mm[1] - 20.0 * SIGMA * 1e3).abs() < 2.0 * SIGMA * 1e3);
+    assert!(has(&run, Status::Ok, "repeatability-shift"));
+}
+
 /// 5 configurations of two tools (60 equations) for 64 parameters fail; 6 (72) warn; 25 (300)
 /// are clean (the first test).
 #[test]

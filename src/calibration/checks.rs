@@ -296,7 +296,7 @@ pub fn joint_errors_plausible(run: &CalibrationRun, tree: &KinematicTree) -> Opt
         return None;
     }
     let text = format!(
-        "identified joint-angle errors larger than any encoder or gear has ({} of {} joints over {:.1}°): {}. The fit traded them against the geometry (over a narrow joint range a harmonic looks like the zero offset, a backlash like it when the gravity torque keeps one sign), so joint_errors.yaml moves the joints wherever the data did not reach; use `prior`, leave `joint_errors` out, or freeze these terms (`freeze` '<joint> sine', '<joint> cosine', '<joint> backlash')",
+        "identified joint-angle errors larger than any encoder or gear has ({} of {} joints over {:.1}°): {}. The fit traded them against the geometry (over a narrow joint range a harmonic looks like the zero offset, a backlash like it when the gravity torque keeps one sign), so joint_errors.yaml moves the joints wherever the data did not reach; use `prior`, leave `joint_errors` out, or freeze these terms (`freeze` '{first} sine', '{first} cosine', '{first} backlash')",
         large.len(),
         model.frames().len(),
         JOINT_ERROR_WARNING.to_degrees(),
@@ -304,7 +304,8 @@ pub fn joint_errors_plausible(run: &CalibrationRun, tree: &KinematicTree) -> Opt
             .iter()
             .map(|(_, text)| text.as_str())
             .collect::<Vec<_>>()
-            .join("; ")
+            .join("; "),
+        first = large[0].1.split(' ').next().unwrap_or_default()
     );
     Some(if worst > JOINT_ERROR_FAILED {
         Finding::failed("joint-errors-implausible", text)

@@ -47,6 +47,7 @@ mod outcome;
 pub(crate) mod plan;
 mod predictor;
 pub(crate) mod prior;
+mod repeatability;
 pub(crate) mod robust;
 pub(crate) mod run;
 mod session_findings;
@@ -107,6 +108,7 @@ pub use prior::Prior;
 pub use prior::{
     DEFAULT_ANGLE_SIGMA, DEFAULT_JOINT_ERROR_SIGMA, DEFAULT_LENGTH_SIGMA, DEFAULT_OFFSET_SIGMA,
 };
+pub use repeatability::{repeatability, Repeatability};
 pub use robust::{calibrate_robust, RobustLoss, RobustReport};
 pub use robust::{
     residuals, robust_scale, threshold, weights_of, DataSet, Outlier, Residual, MAX_ROUNDS,

@@ -145,6 +145,9 @@ pub struct CalibrationRun {
     /// Per validation measurement (in order): where it lies relative to the identification
     /// configurations.
     pub validation_strata: Vec<super::validation::Stratum>,
+    /// Validation rows that repeat an identification posture compared with it, without a
+    /// model ([`super::repeatability`]); `None` with too few repeats.
+    pub repeatability: Option<super::repeatability::Repeatability>,
     /// The measurement sessions, when the data name any (`session` column): each training
     /// session's frame, and each validation session's figures in the training frame and
     /// re-registered.

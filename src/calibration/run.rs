@@ -97,6 +97,8 @@ pub fn run_calibration(
         input.options,
     )?;
     let validation_strata = super::validation::strata(&report.model, measurements, validation);
+    let repeatability =
+        super::repeatability::repeatability(&report.model, measurements, validation);
     // Every validation row counts (its outliers are only marked).
     let (measurement_rows, measurements) = kept_rows(measurements, &outliers);
     let measurements = &measurements[..];
@@ -141,8 +143,13 @@ pub fn run_calibration(
         outliers,
         baseline,
         validation_strata,
+        repeatability,
         sessions,
     };
+    if let Some(shifted) = run.repeatability.as_ref().filter(|r| r.shifted) {
+        run.findings
+            .push(Finding::note("repeatability-shift", shifted.describe()));
+    }
     assess(input, &mut run, measurements, fitted_frame)?;
     Ok(run)
 }

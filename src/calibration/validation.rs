@@ -56,7 +56,7 @@ impl Stratum {
 }
 
 /// The independent joint values a tool's chain depends on, with whether each is an angle.
-fn chain_dofs(model: &McpcModel, tool: usize) -> Vec<(usize, bool)> {
+pub(super) fn chain_dofs(model: &McpcModel, tool: usize) -> Vec<(usize, bool)> {
     let Some(chain) = (tool < model.tools().len()).then(|| model.tool_chain(tool)) else {
         return Vec::new();
     };

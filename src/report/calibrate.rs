@@ -112,6 +112,9 @@ pub struct CalibrationSummary {
     /// The validation position error by stratum (repeat, inside, outside the identification
     /// ranges) and the worst row (renamed by [`CalibrationSummary::name_rows`]).
     pub validation_strata: Option<ValidationStrata>,
+    /// Validation rows at repeated identification postures against the identification rows
+    /// there, without a model: the floor under their held-out error.
+    pub repeatability: Option<crate::calibration::Repeatability>,
     /// RMS validation position error the parameter covariance predicts (mm).
     pub predicted_validation_rms_mm: Option<f64>,
     /// The predicted position error standard deviation per validation observation (mm), in
@@ -234,6 +237,7 @@ pub fn calibration_summary(
         parameters: run.parameters.clone(),
         identification: ArmReport::of_set(run, DataSet::Identification),
         validation_strata: ValidationStrata::of(&validation),
+        repeatability: run.repeatability.clone(),
         validation,
         predicted_validation_rms_mm: run.predicted_validation_rms_mm,
         predicted_validation_sd_mm: run.predicted_validation_sd_mm.clone(),

@@ -162,6 +162,9 @@ fn errors_markdown(out: &mut String, summary: &CalibrationSummary) {
     if let Some(strata) = &summary.validation_strata {
         out.push_str(&strata.markdown());
     }
+    if let Some(repeatability) = &summary.repeatability {
+        let _ = writeln!(out, "**Repeatability.** {}.\n", repeatability.describe());
+    }
     if let Some(rms) = summary.predicted_validation_rms_mm {
         let mut spread = summary.predicted_validation_sd_mm.clone();
         spread.sort_by(f64::total_cmp);

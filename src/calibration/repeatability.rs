@@ -1,0 +1,151 @@
+//! Repeatability without a model: validation rows that repeat an identification posture,
+//! compared with the identification rows measured at that posture.
+//!
+//! At a repeated posture every model predicts the same point twice, so the difference of the
+//! two measurements is what no calibration can remove: the instrument's noise, the robot's
+//! repeatability, and any shift between the two data sets (a tracker bumped, the robot
+//! warmer, a marker re-seated). Its RMS is a floor under the held-out error of those rows;
+//! a mean shift well above its scatter says the validation data were taken in another frame
+//! or robot state (`docs/calibration.md`, "Repeatability").
+
+use super::validation::{chain_dofs, REPEAT_ANGLE, REPEAT_LENGTH};
+use crate::kinematics::McpcModel;
+use crate::math::Vec3;
+use crate::measurement::{Measurement, Observation};
+use serde::Serialize;
+
+/// Fewer repeated pairs than this give no figure.
+pub const MIN_PAIRS: usize = 5;
+
+/// Above this many posture comparisons (validation rows × identification rows) the check is
+/// skipped: repeated postures belong to laboratory-sized data sets.
+pub const MAX_COMPARISONS: usize = 50_000_000;
+
+/// The model-free comparison of repeated postures (positions in mm, in the frame the
+/// validation figures use).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Repeatability {
+    /// Validation rows paired with an identification row at the same posture.
+    pub pairs: usize,
+    /// RMS of the position differences (validation minus identification).
+    pub rms_mm: f64,
+    /// Their mean (x, y, z).
+    pub mean_shift_mm: [f64; 3],
+    /// RMS about that mean.
+    pub scatter_mm: f64,
+    /// Whether the mean shift stands out of the scatter (over 3 standard errors and over half
+    /// the scatter): the two data sets were taken in different frames or robot states.
+    pub shifted: bool,
+}
+
+/// The measured position of a tracker row (a pose's origin), `None` for contacts.
+fn position(m: &Measurement) -> Option<Vec3> {
+    match &m.observation {
+        Observation::Pose(pose) => Some(pose.translation.vector),
+        Observation::Position(p) => Some(*p),
+        Observation::Contact(_) => None,
+    }
+}
+
+/// Whether `a` and `b` hold the same values on `dofs` within the repeat tolerances.
+fn same_posture(dofs: &[(usize, bool)], a: &[f64], b: &[f64]) -> bool {
+    dofs.iter().all(|&(d, angle)| {
+        let tolerance = if angle { REPEAT_ANGLE } else { REPEAT_LENGTH };
+        let (x, y) = (a.get(d).copied(), b.get(d).copied());
+        matches!((x, y), (Some(x), Some(y)) if (x - y).abs() <= tolerance)
+    })
+}
+
+/// Pairs every validation row with the first identification row of the same tool at the same
+/// posture (on its chain's joints) and summarises the position differences; both sets in the
+/// frame the validation figures use. `None` with fewer than [`MIN_PAIRS`] pairs.
+pub fn repeatability(
+    model: &McpcModel,
+    identification: &[Measurement],
+    validation: &[Measurement],
+) -> Option<Repeatability> {
+    if identification.len().saturating_mul(validation.len()) > MAX_COMPARISONS {
+        return None;
+    }
+    let dofs: Vec<Vec<(usize, bool)>> = (0..model.tools().len())
+        .map(|tool| chain_dofs(model, tool))
+        .collect();
+    let differences: Vec<Vec3> = validation
+        .iter()
+        .filter_map(|v| {
+            let chain = dofs.get(v.tool).filter(|d| !d.is_empty())?;
+            let measured = position(v)?;
+            let repeat = identification
+                .iter()
+                .find(|m| m.tool == v.tool && same_posture(chain, &m.q, &v.q))?;
+            Some((measured - position(repeat)?) * 1e3)
+        })
+        .collect();
+    summarise(&differences)
+}
+
+/// The figures of the position differences `d` (mm).
+fn summarise(d: &[Vec3]) -> Option<Repeatability> {
+    if d.len() < MIN_PAIRS {
+        return None;
+    }
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<Vec3>() / n;
+    let rms = (d.iter().map(|v| v.norm_squared()).sum::<f64>() / n).sqrt();
+    let scatter = (d.iter().map(|v| (v - mean).norm_squared()).sum::<f64>() / n).sqrt();
+    // The mean's standard error: the scatter (three components) over √n, per component √3.
+    let standard_error = scatter / n.sqrt();
+    let shifted = mean.norm() > 3.0 * standard_error && mean.norm() > 0.5 * scatter;
+    Some(Repeatability {
+        pairs: d.len(),
+        rms_mm: rms,
+        mean_shift_mm: [mean.x, mean.y, mean.z],
+        scatter_mm: scatter,
+        shifted,
+    })
+}
+
+impl Repeatability {
+    /// One sentence for reports: the pairs, the RMS, the shift and the scatter.
+    pub fn describe(&self) -> String {
+        let [x, y, z] = self.mean_shift_mm;
+        let shift = (x * x + y * y + z * z).sqrt();
+        let mut text = format!(
+            "{} validation rows repeat an identification posture; measured there twice, without any model, the positions differ by {:.3} mm RMS: a mean shift of {:.3} mm ({:.2}, {:.2}, {:.2}) and {:.3} mm about it. No calibration removes this: it is the floor under the held-out error of those rows",
+            self.pairs, self.rms_mm, shift, x, y, z, self.scatter_mm
+        );
+        if self.shifted {
+            text.push_str(
+                "; the shift stands out of the scatter, so the validation data were taken in another frame or robot state than the identification data (a moved or re-calibrated tracker, a re-seated marker, a warmer robot): give each day its `session` so its frame is fitted, and read the re-registered validation figures",
+            );
+        }
+        text
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_common_shift_stands_out_of_the_scatter() {
+        let scatter: Vec<Vec3> = (0..40)
+            .map(|i| {
+                let t = i as f64;
+                Vec3::new((t * 1.3).sin(), (t * 2.1).cos(), (t * 0.7).sin()) * 0.5
+            })
+            .collect();
+        let plain = summarise(&scatter).unwrap();
+        assert!(!plain.shifted, "{plain:?}");
+        assert!(plain.rms_mm < 0.6);
+        let shifted: Vec<Vec3> = scatter
+            .iter()
+            .map(|v| v + Vec3::new(0.4, -0.8, -0.4))
+            .collect();
+        let moved = summarise(&shifted).unwrap();
+        assert!(moved.shifted, "{moved:?}");
+        assert!((moved.mean_shift_mm[1] - (plain.mean_shift_mm[1] - 0.8)).abs() < 1e-12);
+        assert!((moved.scatter_mm - plain.scatter_mm).abs() < 1e-12);
+        assert!(summarise(&scatter[..4]).is_none());
+    }
+}
