@@ -196,5 +196,34 @@ pub fn sessions_markdown(summary: &SessionsSummary) -> String {
             v.reregistered_offset_deg
         );
     }
+    pooled_validation_row(&mut out, summary);
     out
+}
+
+/// With several validation sessions, the figures over every validation row: the training
+/// frame (the headline) and each session re-registered (its parameters counted).
+fn pooled_validation_row(out: &mut String, summary: &SessionsSummary) {
+    if summary.validation.len() < 2 {
+        return;
+    }
+    let rows: usize = summary.validation.iter().map(|v| v.rows).sum();
+    let pooled = |rms: fn(&ValidationSessionRow) -> f64| {
+        let sum: f64 = summary
+            .validation
+            .iter()
+            .map(|v| v.rows as f64 * rms(v).powi(2))
+            .sum();
+        (sum / rows.max(1) as f64).sqrt()
+    };
+    let refitted: usize = summary
+        .validation
+        .iter()
+        .map(|v| v.refitted_parameters)
+        .sum();
+    let _ = writeln!(
+        out,
+        "| every validation row | {rows} | as above | {:.3} | {:.3} ({refitted} parameters refitted on validation rows) | |",
+        pooled(|v| v.training_frame_rms_mm),
+        pooled(|v| v.reregistered_rms_mm),
+    );
 }
