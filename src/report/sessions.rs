@@ -227,3 +227,48 @@ fn pooled_validation_row(out: &mut String, summary: &SessionsSummary) {
         pooled(|v| v.reregistered_rms_mm),
     );
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn session(name: &str, rows: usize, training: f64, reregistered: f64) -> ValidationSessionRow {
+        ValidationSessionRow {
+            name: Some(name.into()),
+            rows,
+            training_frame: "new",
+            training_frame_rms_mm: training,
+            reregistered_rms_mm: reregistered,
+            refitted_parameters: 6,
+            reregistered_frame: FrameXyzRpy {
+                xyz: [0.0; 3],
+                rpy: [0.0; 3],
+            },
+            reregistered_offset_mm: 0.0,
+            reregistered_offset_deg: 0.0,
+        }
+    }
+
+    #[test]
+    fn the_pooled_row_weighs_each_session_by_its_rows() {
+        let mut summary = SessionsSummary {
+            parameters_per_session: 6,
+            rounds: 1,
+            converged: true,
+            training: Vec::new(),
+            validation: vec![session("a", 10, 3.0, 2.0)],
+        };
+        let mut out = String::new();
+        pooled_validation_row(&mut out, &summary);
+        assert!(out.is_empty(), "one session needs no pooled row: {out}");
+        summary.validation.push(session("b", 30, 1.0, 1.0));
+        pooled_validation_row(&mut out, &summary);
+        // √((10·9 + 30·1)/40) = √3, √((10·4 + 30·1)/40) = √1.75.
+        let expected = format!(
+            "| every validation row | 40 | as above | {:.3} | {:.3} (12 parameters refitted on validation rows) | |",
+            3f64.sqrt(),
+            1.75f64.sqrt()
+        );
+        assert_eq!(out.trim_end(), expected);
+    }
+}
