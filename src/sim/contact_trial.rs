@@ -86,8 +86,28 @@ pub fn run_contact_trial(
         tilt_sigma: sigma,
         ..IdentificationOptions::default()
     };
+    // As `calibrate --contacts` does (`workflow::contact_fit`): the nuisance alone on the
+    // nominal robot first, then everything from there.
+    let nuisance_only: Vec<usize> = free.iter().copied().filter(|&k| k >= count).collect();
     let fit = |measurements: &[Measurement]| {
-        identify_with_nuisance(nominal, &start, measurements, None, &Rigid, &free, &options)
+        let registered = identify_with_nuisance(
+            nominal,
+            &start,
+            measurements,
+            None,
+            &Rigid,
+            &nuisance_only,
+            &options,
+        )?;
+        identify_with_nuisance(
+            nominal,
+            &registered.nuisance,
+            measurements,
+            None,
+            &Rigid,
+            &free,
+            &options,
+        )
     };
     let exact = fit(&scene.exact)?;
     let report = fit(&scene.measurements)?;
