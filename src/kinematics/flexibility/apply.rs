@@ -169,10 +169,7 @@ impl FlexibilityModel {
             ..
         } = evaluation;
         // A segment's deformation as a transform in its proximal moved frame (nominal axes).
-        let segment_transform = |index: Option<usize>| -> Transform {
-            let Some(index) = index else {
-                return Transform::identity();
-            };
+        let segment_transform = |index: usize| -> Transform {
             let segment = &deformations.segments[index];
             let frame = &moved[self.segments[index].frame];
             let to_local = frame.rotation.transpose();
@@ -190,9 +187,12 @@ impl FlexibilityModel {
         let mut previous: Vec<Transform> = Vec::with_capacity(kept);
         let mut frames: Vec<Transform> = Vec::with_capacity(kept);
         for (i, frame) in model.frames().iter().enumerate() {
-            let before = match frame.parent {
-                Some(p) => deflected[p].then(&segment_transform(self.segment_to_frame[i])),
-                None => world_from_root,
+            // Without a segment, the parent's frame as it is (`then` with the identity gives
+            // the same values).
+            let before = match (frame.parent, self.segment_to_frame[i]) {
+                (Some(p), Some(index)) => deflected[p].then(&segment_transform(index)),
+                (Some(p), None) => deflected[p],
+                (None, _) => world_from_root,
             };
             let sigma = before.then(model.frame_constant(i));
             let value = model.joint_value(i, q);
@@ -214,9 +214,10 @@ impl FlexibilityModel {
             .tools()
             .iter()
             .enumerate()
-            .map(|(t, tool)| match tool.parent {
-                Some(p) => deflected[p].then(&segment_transform(self.segment_to_tool[t])),
-                None => world_from_root,
+            .map(|(t, tool)| match (tool.parent, self.segment_to_tool[t]) {
+                (Some(p), Some(index)) => deflected[p].then(&segment_transform(index)),
+                (Some(p), None) => deflected[p],
+                (None, _) => world_from_root,
             })
             .collect();
         let tools: Vec<Transform> = tool_previous

@@ -388,12 +388,14 @@ fn nearest_segment(
         };
         (point - placed.start - along * t).norm()
     };
+    // Each distance once (the first of equal ones still wins).
     model
         .iter()
         .zip(placed)
         .enumerate()
         .filter(|(_, (s, _))| s.frame == frame)
-        .min_by(|(_, (_, a)), (_, (_, b))| distance(a).total_cmp(&distance(b)))
+        .map(|(index, (_, placed))| (index, distance(placed)))
+        .min_by(|(_, a), (_, b)| a.total_cmp(b))
         .map(|(index, _)| index)
 }
 
