@@ -7,7 +7,7 @@
 use super::beam::point_load_deflection;
 use super::model::{FlexibilityModel, Place, SegmentEnd};
 use crate::error::{Error, Result};
-use crate::kinematics::{FrameKind, McpcModel};
+use crate::kinematics::McpcModel;
 use crate::math::{Mat3, Transform, Vec3};
 use crate::tree::KinematicTree;
 use nalgebra::Vector6;
@@ -118,18 +118,7 @@ impl FlexibilityModel {
         q: &[f64],
         tree_poses: &[crate::math::Pose],
     ) -> Evaluation {
-        let frames = model.frame_transforms(q);
-        let moved: Vec<Transform> = frames
-            .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let value = model.joint_value(i, q);
-                match model.frames()[i].kind {
-                    FrameKind::Revolute => t.rotated_z(value),
-                    FrameKind::Prismatic => t.translated_z(value),
-                }
-            })
-            .collect();
+        let (frames, moved) = model.frame_and_moved_transforms(q);
         let tools: Vec<Transform> = model
             .tools()
             .iter()
