@@ -51,16 +51,17 @@ pub(crate) fn certainly_conditioned(
     // tr(N⁻¹) = Σ_j ‖L⁻¹ e_j‖²; column j of L⁻¹ is zero above the diagonal.
     let mut inverse_trace = 0.0;
     let mut x = vec![0.0; n];
+    let columns = l.as_slice();
     for j in 0..n {
         x[j..].fill(0.0);
         x[j] = 1.0;
         for k in j..n {
-            let value = x[k] / l[(k, k)];
+            let column = &columns[k * n..(k + 1) * n];
+            let value = x[k] / column[k];
             x[k] = value;
             inverse_trace += value * value;
-            let column = l.column(k);
-            for i in k + 1..n {
-                x[i] -= column[i] * value;
+            for (x, l) in x[k + 1..].iter_mut().zip(&column[k + 1..]) {
+                *x -= l * value;
             }
         }
     }
