@@ -282,6 +282,35 @@ fn parameter_vector_round_trip() {
     assert!(model.set_parameters(&parameters).is_err());
 }
 
+/// Setting parameter `i` changes entry `i` of the parameter vector and nothing else, on a
+/// model with every kind of parameter (frames, tools, joint errors, the measurement frame):
+/// `set_parameter` finds its entry without the layout.
+#[test]
+fn set_parameter_changes_its_own_entry_only() {
+    let tree = load_urdf(&robot("robonaut/robonaut.urdf")).unwrap().tree;
+    let branches = detect_branches(&tree, None).unwrap();
+    let terms = treecal::kinematics::JointErrorTerms {
+        offsets: true,
+        harmonics: true,
+        backlash: false,
+    };
+    let model = McpcModel::from_tree(&tree, &branches)
+        .unwrap()
+        .with_joint_errors(terms, None)
+        .unwrap()
+        .with_frame_parameters();
+    let before = model.parameters();
+    assert_eq!(before.len(), model.parameter_layout().len());
+    for index in 0..before.len() {
+        let mut changed = model.clone();
+        changed.set_parameter(index, before[index] + 0.125).unwrap();
+        let mut expected = before.clone();
+        expected[index] += 0.125;
+        assert_eq!(changed.parameters(), expected, "parameter {index}");
+    }
+    assert!(model.clone().set_parameter(before.len(), 0.0).is_err());
+}
+
 /// URDF → MCPC → table (YAML text) → URDF → MCPC: the regenerated robot has the same tool
 /// poses at random configurations (1e-9) and converts back to the same MCPC parameters.
 fn check_round_trip(text: &str, origin: &str, tools: Option<&[&str]>) {

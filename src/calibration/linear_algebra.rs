@@ -2,7 +2,7 @@
 //! of a column-scaled Jacobian (from the normal matrix when it is well conditioned, else by
 //! QR + SVD). Shared by the solver, the identifiability analysis and the stiffness fit.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
 
 /// Smallest eigenvalue ratio of the scaled normal matrix for which squaring the Jacobian
 /// loses nothing near the rank tolerance (σ ratio 1e-5): eigenvalues then come out to ~1e-6
@@ -18,7 +18,9 @@ pub(crate) fn singular_decomposition(scaled: DMatrix<f64>) -> (DVector<f64>, DMa
     // ratios above 1e-10 are resolved to ~1e-6 relative, far from the rank tolerance). Near
     // rank deficiency, where squaring would lose the small singular values, QR + SVD decide.
     let normal = normal_matrix(&scaled);
-    if well_conditioned(&normal.symmetric_eigenvalues()) {
+    if certainly_conditioned(&normal, WELL_CONDITIONED).is_some()
+        || well_conditioned(&normal.symmetric_eigenvalues())
+    {
         eigen_decomposition(normal)
     } else {
         qr_svd(scaled)
@@ -30,6 +32,45 @@ pub(crate) fn singular_decomposition(scaled: DMatrix<f64>) -> (DVector<f64>, DMa
 pub(super) fn well_conditioned(eigenvalues: &DVector<f64>) -> bool {
     let largest = eigenvalues.max();
     largest > 0.0 && eigenvalues.min() > WELL_CONDITIONED * largest
+}
+
+/// The Cholesky factor of the symmetric matrix `normal` when it proves, without the
+/// eigenvalues, that every eigenvalue is above twice `ratio` times the largest: the smallest is
+/// at least `1 / tr(N⁻¹) = 1 / ‖L⁻¹‖²_F`, the largest at most the largest absolute row sum
+/// (Gershgorin). The bounds lose at most a factor `n·√n`, so a matrix near the threshold gets
+/// `None` and the exact eigenvalues decide as before: the decision is the one they would take.
+/// Two passes of n³/6 multiply-adds, against 2n³/3 for the eigenvalues' tridiagonalisation
+/// alone (see `docs/performance.md`, issue 24).
+pub(crate) fn certainly_conditioned(
+    normal: &DMatrix<f64>,
+    ratio: f64,
+) -> Option<Cholesky<f64, Dyn>> {
+    let cholesky = normal.clone().cholesky()?;
+    let l = cholesky.l_dirty();
+    let n = l.nrows();
+    // tr(N⁻¹) = Σ_j ‖L⁻¹ e_j‖²; column j of L⁻¹ is zero above the diagonal.
+    let mut inverse_trace = 0.0;
+    let mut x = vec![0.0; n];
+    let columns = l.as_slice();
+    for j in 0..n {
+        x[j..].fill(0.0);
+        x[j] = 1.0;
+        for k in j..n {
+            let column = &columns[k * n..(k + 1) * n];
+            let value = x[k] / column[k];
+            x[k] = value;
+            inverse_trace += value * value;
+            for (x, l) in x[k + 1..].iter_mut().zip(&column[k + 1..]) {
+                *x -= l * value;
+            }
+        }
+    }
+    let largest_bound = normal
+        .row_iter()
+        .map(|row| row.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max);
+    let smallest_bound = 1.0 / inverse_trace;
+    (smallest_bound.is_finite() && smallest_bound > 2.0 * ratio * largest_bound).then_some(cholesky)
 }
 
 /// `σ = √λ` and `Vᵀ` from the eigen-decomposition of the normal matrix `JᵀJ`.

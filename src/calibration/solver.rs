@@ -221,16 +221,21 @@ fn descend(model: &McpcModel, nuisance: &Nuisance, problem: &Problem<'_>) -> Res
 /// scaled normal matrix is well conditioned (the same step).
 fn damped_step(analysis: &Analysis, rank_tolerance: f64, damping: f64) -> DVector<f64> {
     let columns = analysis.scales.len();
+    if let (0.0, Some(cholesky)) = (damping, &analysis.cholesky) {
+        // The factor that proved the matrix well conditioned: `N + 0·I` is `N`.
+        return cholesky.solve(&analysis.gradient);
+    }
     if let Some(normal) = &analysis.normal {
         let damped = normal + DMatrix::identity(columns, columns) * damping;
         if let Some(cholesky) = damped.cholesky() {
             return cholesky.solve(&analysis.gradient);
         }
     }
-    let sigma_max = analysis.singular_values.iter().copied().fold(0.0, f64::max);
+    let singular_values = analysis.singular_values();
+    let sigma_max = singular_values.iter().copied().fold(0.0, f64::max);
     let threshold = rank_tolerance * sigma_max;
     let mut step = DVector::zeros(columns);
-    for (i, &sigma) in analysis.singular_values.iter().enumerate() {
+    for (i, &sigma) in singular_values.iter().enumerate() {
         if sigma > threshold {
             let v = analysis.v_t.row(i).transpose();
             let along = v.dot(&analysis.gradient) / (sigma * sigma + damping);
@@ -254,7 +259,14 @@ fn first_decrease(
     damping: &mut f64,
 ) -> Result<Option<((McpcModel, Nuisance), Vec<f64>, f64)>> {
     let count = current.parameter_count();
-    let sigma_max = analysis.singular_values.iter().copied().fold(0.0, f64::max);
+    // Only a rejected step needs σ_max (the first damping): the eigenvalues wait until then.
+    let sigma_max = || {
+        analysis
+            .singular_values()
+            .iter()
+            .copied()
+            .fold(0.0, f64::max)
+    };
     for _attempt in 0..40 {
         let step_scaled = if *damping == 0.0 {
             full_step.clone()
@@ -276,7 +288,7 @@ fn first_decrease(
             return Ok(Some(((candidate, candidate_nuisance), trial, trial_cost)));
         }
         *damping = if *damping == 0.0 {
-            1e-6 * sigma_max * sigma_max
+            1e-6 * sigma_max() * sigma_max()
         } else {
             *damping * 10.0
         };
@@ -306,9 +318,10 @@ fn summarise(descent: Descent, problem: &Problem<'_>) -> Result<IdentificationRe
             accumulate_with(&current, &nuisance, problem, Products::NormalAndFactor)
         })?,
     };
-    let mut order: Vec<usize> = (0..analysis.singular_values.len()).collect();
-    order.sort_by(|&a, &b| analysis.singular_values[b].total_cmp(&analysis.singular_values[a]));
-    let singular_values: Vec<f64> = order.iter().map(|&i| analysis.singular_values[i]).collect();
+    let all = analysis.singular_values();
+    let mut order: Vec<usize> = (0..all.len()).collect();
+    order.sort_by(|&a, &b| all[b].total_cmp(&all[a]));
+    let singular_values: Vec<f64> = order.iter().map(|&i| all[i]).collect();
     let sigma_max = singular_values.first().copied().unwrap_or(0.0);
     let threshold = options.rank_tolerance * sigma_max;
     let rank = singular_values.iter().filter(|&&s| s > threshold).count();

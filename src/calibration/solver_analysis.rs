@@ -3,22 +3,40 @@
 //! identifiable subspace (used by the loop in `solver`).
 
 use super::linear_algebra::{
-    eigen_decomposition, floored_scales, qr_svd, scale_columns, well_conditioned, WELL_CONDITIONED,
+    certainly_conditioned, eigen_decomposition, floored_scales, qr_svd, scale_columns,
+    well_conditioned, WELL_CONDITIONED,
 };
 use super::normal_equations::NormalEquations;
 use crate::error::{Error, Result};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+use std::cell::OnceCell;
 
 /// The column-scaled Jacobian's singular values and right singular vectors, and the scaled
 /// gradient `g = J_sᵀ·r`.
 pub(super) struct Analysis {
     pub(super) scales: DVector<f64>,
-    pub(super) singular_values: DVector<f64>,
+    /// Filled at once when the singular vectors are needed, else on the first call of
+    /// [`Analysis::singular_values`] (the eigenvalues of `normal`).
+    singular_values: OnceCell<DVector<f64>>,
     pub(super) v_t: DMatrix<f64>,
     pub(super) gradient: DVector<f64>,
     /// The scaled normal matrix `J_sᵀJ_s` when it is well conditioned (then `v_t` is empty and
     /// steps and covariance come from its Cholesky factor).
     pub(super) normal: Option<DMatrix<f64>>,
+    /// The Cholesky factor of `normal`, when the cheap bounds proved it well conditioned.
+    pub(super) cholesky: Option<Cholesky<f64, Dyn>>,
+}
+
+impl Analysis {
+    /// The singular values (unsorted). On the well-conditioned path they are the square
+    /// roots of the eigenvalues of `normal`, computed only when asked for: most iterations
+    /// need only the Cholesky step, the damping and the final report need these.
+    pub(super) fn singular_values(&self) -> &DVector<f64> {
+        self.singular_values.get_or_init(|| match &self.normal {
+            Some(normal) => normal.symmetric_eigenvalues().map(f64::sqrt),
+            None => DVector::zeros(0),
+        })
+    }
 }
 
 /// Column scaling, then the SVD of the small triangle `R` of `J_s = Q·R` (same singular values
@@ -39,17 +57,30 @@ pub(super) fn analyse(
     let normal = DMatrix::from_fn(scales.len(), scales.len(), |a, b| {
         lin.normal[(a, b)] / (scales[a] * scales[b])
     });
-    let eigenvalues = normal.symmetric_eigenvalues();
-    let largest = eigenvalues.max();
     // Full rank with a margin, also for a caller's coarser rank tolerance.
     let ratio = WELL_CONDITIONED.max(100.0 * rank_tolerance * rank_tolerance);
-    if largest > 0.0 && eigenvalues.min() > ratio * largest {
+    // Most iterations are proved well conditioned by a Cholesky factor and two bounds,
+    // without the eigenvalues (the same decision, see `certainly_conditioned`).
+    if let Some(cholesky) = certainly_conditioned(&normal, ratio) {
         return Ok(Analysis {
             scales,
-            singular_values: eigenvalues.map(f64::sqrt),
+            singular_values: OnceCell::new(),
             v_t: DMatrix::zeros(0, 0),
             gradient,
             normal: Some(normal),
+            cholesky: Some(cholesky),
+        });
+    }
+    let eigenvalues = normal.symmetric_eigenvalues();
+    let largest = eigenvalues.max();
+    if largest > 0.0 && eigenvalues.min() > ratio * largest {
+        return Ok(Analysis {
+            scales,
+            singular_values: OnceCell::from(eigenvalues.map(f64::sqrt)),
+            v_t: DMatrix::zeros(0, 0),
+            gradient,
+            normal: Some(normal),
+            cholesky: None,
         });
     }
     // Singular vectors are needed: from the same normal matrix while squaring still resolves
@@ -69,10 +100,11 @@ pub(super) fn analyse(
     };
     Ok(Analysis {
         scales,
-        singular_values,
+        singular_values: OnceCell::from(singular_values),
         v_t,
         gradient,
         normal: None,
+        cholesky: None,
     })
 }
 
@@ -82,7 +114,11 @@ pub(super) fn analyse(
 /// conditioned: Σ over retained directions of `(v_k / s_k)² / σᵢ²`.
 pub(super) fn unscaled_inverse(analysis: &Analysis, retained: &[usize]) -> DMatrix<f64> {
     let columns = analysis.scales.len();
-    match analysis.normal.as_ref().and_then(|n| n.clone().cholesky()) {
+    let cholesky = analysis
+        .cholesky
+        .clone()
+        .or_else(|| analysis.normal.as_ref().and_then(|n| n.clone().cholesky()));
+    match cholesky {
         Some(cholesky) => {
             let inverse = cholesky.inverse();
             DMatrix::from_fn(columns, columns, |a, b| {
@@ -95,7 +131,7 @@ pub(super) fn unscaled_inverse(analysis: &Analysis, retained: &[usize]) -> DMatr
             for (column, &i) in retained.iter().enumerate() {
                 for k in 0..columns {
                     w[(k, column)] =
-                        analysis.v_t[(i, k)] / analysis.scales[k] / analysis.singular_values[i];
+                        analysis.v_t[(i, k)] / analysis.scales[k] / analysis.singular_values()[i];
                 }
             }
             &w * w.transpose()

@@ -85,6 +85,25 @@ impl McpcModel {
         base_from_frame
     }
 
+    /// [`Self::frame_transforms`] and every frame after its own joint's motion, Σᵢ·Q(θᵢ):
+    /// the same values, each joint's motion applied once (a parent's moved frame is shared by
+    /// its children).
+    pub(crate) fn frame_and_moved_transforms(&self, q: &[f64]) -> (Vec<Transform>, Vec<Transform>) {
+        let world_from_root = self.world_from_root_transform(q);
+        let count = self.frames().len();
+        let mut frames: Vec<Transform> = Vec::with_capacity(count);
+        let mut moved: Vec<Transform> = Vec::with_capacity(count);
+        for (index, frame) in self.frames().iter().enumerate() {
+            let transform = match frame.parent {
+                Some(p) => moved[p].then(self.frame_constant(index)),
+                None => world_from_root.then(self.frame_constant(index)),
+            };
+            moved.push(self.moved(index, q, &transform));
+            frames.push(transform);
+        }
+        (frames, moved)
+    }
+
     /// Pose of every MCPC frame Σᵢ in the base (root link) frame at configuration `q`,
     /// before its own joint's motion. `q` has one value per independent tree joint.
     pub fn frame_poses(&self, q: &[f64]) -> Vec<Pose> {

@@ -520,8 +520,10 @@ fn noise_floor(
             } else {
                 options.rotation_sigma
             };
-            let r = jacobian.row(row) / sigma;
-            information += r.transpose() * r;
+            // In place (`information += rᵀ·r` allocated an n × n matrix per row): the same
+            // products summed in the same order, so the same bits.
+            let r = jacobian.row(row).transpose() / sigma;
+            information.ger(1.0, &r, &r, 1.0);
         }
     }
     let tolerance = 1e-12 * information.norm();

@@ -23,7 +23,23 @@ pub(super) struct Problem<'a> {
     pub(super) basis_of: Vec<usize>,
     pub(super) free: &'a [usize],
     pub(super) options: &'a IdentificationOptions,
+    /// The latest motions (deflected poses, compliance and geometry columns) by the bits of
+    /// the parameters and effective scales they were computed at: the fits return to the
+    /// same point (the common fit restarts from the start, the covariance relinearises at the
+    /// solution), and the motions do not depend on which scales are chosen.
+    memo: std::sync::Mutex<Vec<(Vec<u64>, std::sync::Arc<Motions>)>>,
 }
+
+/// What a linearisation with its Jacobian needs per (configuration, payload) group: the
+/// deflected tool poses, the compliance columns per tool and the geometry's per parameter.
+struct Motions {
+    poses: Vec<Vec<Pose>>,
+    compliance: Vec<Vec<DMatrix<f64>>>,
+    geometry: Vec<Vec<Vec<Vector6<f64>>>>,
+}
+
+/// How many points [`Problem::motions`] remembers.
+const REMEMBERED: usize = 4;
 
 /// A fit of the geometry and the compliance scales (`fit`), with the covariance factor of the
 /// chosen scales (`covariance`).
@@ -93,6 +109,7 @@ impl<'a> Problem<'a> {
             basis_of,
             free,
             options,
+            memo: std::sync::Mutex::new(Vec::new()),
         })
     }
 
@@ -139,24 +156,24 @@ impl<'a> Problem<'a> {
             .map(|(_, b)| b.scaled(&effective))
             .collect::<Result<Vec<_>>>()?;
         let (groups, group_of) = self.groups();
-        let mut poses: Vec<Vec<Pose>> = Vec::with_capacity(groups.len());
-        let mut compliance: Vec<Vec<DMatrix<f64>>> = Vec::new();
-        for &(q, basis) in &groups {
-            if with_jacobian {
-                let found = self.bases[basis]
-                    .1
-                    .jacobian(&effective, self.tree, model, q)?;
-                poses.push(found.poses);
-                compliance.push(found.jacobians);
-            } else {
-                poses.push(flexibilities[basis].deflected_tool_poses(self.tree, model, q)?);
-            }
-        }
-        let geometry = if with_jacobian {
-            self.geometry_motions(model, &flexibilities, &groups, &poses)?
+        let motions = if with_jacobian {
+            self.motions(model, &effective, &flexibilities, &groups)?
         } else {
-            Vec::new()
+            let poses = groups
+                .iter()
+                .map(|&(q, basis)| flexibilities[basis].deflected_tool_poses(self.tree, model, q))
+                .collect::<Result<Vec<_>>>()?;
+            std::sync::Arc::new(Motions {
+                poses,
+                compliance: Vec::new(),
+                geometry: Vec::new(),
+            })
         };
+        let Motions {
+            poses,
+            compliance,
+            geometry,
+        } = &*motions;
         let count_of = self.parameters().len();
         let is_fitted: Vec<bool> = (0..count_of).map(|j| fitted.contains(&j)).collect();
         let noise = self.options.noise();
@@ -212,6 +229,53 @@ impl<'a> Problem<'a> {
             row += kind.rows();
         }
         Ok(Linearisation { residual, jacobian })
+    }
+
+    /// The deflected poses and the compliance and geometry columns of every group at `model`
+    /// and `effective` scales, remembered for the next requests at the same point (the same
+    /// bits: results do not change).
+    fn motions(
+        &self,
+        model: &McpcModel,
+        effective: &[f64],
+        flexibilities: &[FlexibilityModel],
+        groups: &[(&[f64], usize)],
+    ) -> Result<std::sync::Arc<Motions>> {
+        let key: Vec<u64> = model
+            .parameters()
+            .iter()
+            .chain(effective)
+            .map(|v| v.to_bits())
+            .collect();
+        let lock = || {
+            self.memo
+                .lock()
+                .unwrap_or_else(|poisoned| poisoned.into_inner())
+        };
+        if let Some((_, found)) = lock().iter().find(|(at, _)| *at == key) {
+            return Ok(found.clone());
+        }
+        let mut poses = Vec::with_capacity(groups.len());
+        let mut compliance = Vec::with_capacity(groups.len());
+        for &(q, basis) in groups {
+            let found = self.bases[basis]
+                .1
+                .jacobian(effective, self.tree, model, q)?;
+            poses.push(found.poses);
+            compliance.push(found.jacobians);
+        }
+        let geometry = self.geometry_motions(model, flexibilities, groups, &poses)?;
+        let motions = std::sync::Arc::new(Motions {
+            poses,
+            compliance,
+            geometry,
+        });
+        let mut memo = lock();
+        if memo.len() == REMEMBERED {
+            memo.remove(0);
+        }
+        memo.push((key, motions.clone()));
+        Ok(motions)
     }
 
     /// The distinct (configuration, payload basis) pairs, which several tools measured there

@@ -3,7 +3,7 @@
 
 use super::names::{describe, name, DETERMINED, GROUPS, GROUP_NAMES};
 use super::problem::{Linearisation, Problem};
-use crate::calibration::linear_algebra::{column_scales, scale_columns};
+use crate::calibration::linear_algebra::{certainly_conditioned, column_scales, scale_columns};
 use crate::calibration::options::IdentificationOptions;
 use crate::error::Result;
 use crate::kinematics::ComplianceParameter;
@@ -70,67 +70,56 @@ pub(super) fn select(
         .filter(|&k| compliance.column(k).norm() > 1e-12 * largest_column && largest_column > 0.0)
         .collect();
     let mut combinations = Vec::new();
+    // Every entry of a product `Aᵀ·A` is one column's dot product with another, so the
+    // information of any subset is the subset of this (the same bits, computed once).
+    let gram = left.tr_mul(&left);
     while !chosen.is_empty() {
-        let columns = DMatrix::from_fn(left.nrows(), chosen.len(), |r, c| left[(r, chosen[c])]);
-        let information = columns.tr_mul(&columns);
-        let eigen = information.clone().symmetric_eigen();
-        let (smallest, largest) = (eigen.eigenvalues.min(), eigen.eigenvalues.max());
-        if largest <= 0.0 || smallest <= 1e-12 * largest {
-            let index = eigen.eigenvalues.imin();
-            let direction = eigen.eigenvectors.column(index);
-            let peak = direction.amax();
-            let mut terms: Vec<(usize, f64)> = direction
-                .iter()
-                .enumerate()
-                .filter(|(_, w)| w.abs() >= 0.1 * peak)
-                .map(|(c, &w)| (chosen[c], w))
-                .collect();
-            terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-            // A group only goes when its members cannot.
-            let worst = terms
-                .iter()
-                .map(|t| t.0)
-                .find(|&k| k < individual)
-                .unwrap_or(terms[0].0);
-            if terms.len() > 1 {
-                combinations.push(terms);
+        let information = DMatrix::from_fn(chosen.len(), chosen.len(), |a, b| {
+            gram[(chosen[a], chosen[b])]
+        });
+        // Most steps are proved full rank by a Cholesky factor (the one inverted below) and
+        // two bounds, without the eigen-decomposition: the same decision.
+        let factor = certainly_conditioned(&information, 1e-12);
+        if factor.is_none() {
+            let eigen = information.clone().symmetric_eigen();
+            let (smallest, largest) = (eigen.eigenvalues.min(), eigen.eigenvalues.max());
+            if largest <= 0.0 || smallest <= 1e-12 * largest {
+                let index = eigen.eigenvalues.imin();
+                let direction = eigen.eigenvectors.column(index);
+                let peak = direction.amax();
+                let mut terms: Vec<(usize, f64)> = direction
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, w)| w.abs() >= 0.1 * peak)
+                    .map(|(c, &w)| (chosen[c], w))
+                    .collect();
+                terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+                // A group only goes when its members cannot.
+                let worst = terms
+                    .iter()
+                    .map(|t| t.0)
+                    .find(|&k| k < individual)
+                    .unwrap_or(terms[0].0);
+                if terms.len() > 1 {
+                    combinations.push(terms);
+                }
+                chosen.retain(|&c| c != worst);
+                continue;
             }
-            chosen.retain(|&c| c != worst);
-            continue;
         }
-        let Some(inverse) = information.cholesky().map(|c| c.inverse()) else {
+        let Some(factor) = factor.or_else(|| information.cholesky()) else {
             break;
         };
-        let deviations: Vec<f64> = (0..chosen.len())
-            .map(|c| inverse[(c, c)].max(0.0).sqrt())
-            .collect();
-        for (c, &k) in chosen.iter().enumerate() {
-            data_std_dev[k] = deviations[c];
-        }
-        // The least determined individual compliance goes first. Then, while a group is not
-        // determined, its least determined member goes (the common scale matters more than
-        // one member's deviation from it), and the group itself only when it has none left.
-        let group_of = |c: usize| usize::from(!parameters[chosen[c]].kind.is_joint());
-        let worst = |keep: &dyn Fn(usize) -> bool, limit: f64| {
-            deviations
-                .iter()
-                .enumerate()
-                .filter(|(c, _)| keep(*c))
-                .max_by(|a, b| a.1.total_cmp(b.1))
-                .filter(|(_, &d)| d > limit)
-                .map(|(c, _)| c)
-        };
-        let limit = prior_sigma * DETERMINED;
-        let undetermined_group = worst(&|c| chosen[c] >= individual, limit);
-        let drop = worst(&|c| chosen[c] < individual, limit).or_else(|| {
-            let group = chosen[undetermined_group?] - individual;
-            worst(&|c| chosen[c] < individual && group_of(c) == group, 0.0).or(undetermined_group)
-        });
-        match drop {
-            Some(c) => {
-                chosen.remove(c);
-            }
-            None => break,
+        let dropped = drop_worst(
+            &factor.inverse(),
+            parameters,
+            individual,
+            prior_sigma,
+            &mut chosen,
+            &mut data_std_dev,
+        );
+        if !dropped {
+            break;
         }
     }
     chosen.sort_unstable();
@@ -138,6 +127,50 @@ pub(super) fn select(
         chosen,
         data_std_dev,
         combinations,
+    }
+}
+
+/// Records the deviations of the `chosen` scales from the inverse of their information and
+/// drops the least determined one (see [`select`]); `false` when all are determined.
+fn drop_worst(
+    inverse: &DMatrix<f64>,
+    parameters: &[ComplianceParameter],
+    individual: usize,
+    prior_sigma: f64,
+    chosen: &mut Vec<usize>,
+    data_std_dev: &mut [f64],
+) -> bool {
+    let deviations: Vec<f64> = (0..chosen.len())
+        .map(|c| inverse[(c, c)].max(0.0).sqrt())
+        .collect();
+    for (c, &k) in chosen.iter().enumerate() {
+        data_std_dev[k] = deviations[c];
+    }
+    // The least determined individual compliance goes first. Then, while a group is not
+    // determined, its least determined member goes (the common scale matters more than
+    // one member's deviation from it), and the group itself only when it has none left.
+    let group_of = |c: usize| usize::from(!parameters[chosen[c]].kind.is_joint());
+    let worst = |keep: &dyn Fn(usize) -> bool, limit: f64| {
+        deviations
+            .iter()
+            .enumerate()
+            .filter(|(c, _)| keep(*c))
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .filter(|(_, &d)| d > limit)
+            .map(|(c, _)| c)
+    };
+    let limit = prior_sigma * DETERMINED;
+    let undetermined_group = worst(&|c| chosen[c] >= individual, limit);
+    let drop = worst(&|c| chosen[c] < individual, limit).or_else(|| {
+        let group = chosen[undetermined_group?] - individual;
+        worst(&|c| chosen[c] < individual && group_of(c) == group, 0.0).or(undetermined_group)
+    });
+    match drop {
+        Some(c) => {
+            chosen.remove(c);
+            true
+        }
+        None => false,
     }
 }
 

@@ -80,9 +80,9 @@ impl FlexibilityModel {
         model: &McpcModel,
         q: &[f64],
     ) -> Result<Vec<Pose>> {
+        let evaluation = self.evaluate(tree, model, q)?;
         Ok(self
-            .deflected_chain(tree, model, q)?
-            .tools
+            .deflected_tools_evaluated(model, q, &evaluation)
             .iter()
             .map(Transform::to_pose)
             .collect())
@@ -117,16 +117,59 @@ impl FlexibilityModel {
         q: &[f64],
         evaluation: Evaluation,
     ) -> Deflection {
+        let DeflectedFrames {
+            deflected,
+            previous,
+            frames,
+            tool_previous,
+            tools,
+        } = self.deflected_frames(model, q, &evaluation, true);
+        Deflection {
+            chain: ChainFrames {
+                previous,
+                frames,
+                tool_previous,
+                tools,
+                joint_error_factors: {
+                    let mut factors = Vec::new();
+                    model.joint_error_factors(q, &mut factors);
+                    factors
+                },
+                ..ChainFrames::default()
+            },
+            deflected,
+            evaluation,
+        }
+    }
+
+    /// The deflected tool frames alone from the deformations at `q` (`evaluation`): the
+    /// tools of [`Self::deflect_evaluated`], bit for bit, without the rest of the chain (what
+    /// predictions and the finite differences of the geometry need).
+    pub(super) fn deflected_tools_evaluated(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        evaluation: &Evaluation,
+    ) -> Vec<Transform> {
+        self.deflected_frames(model, q, evaluation, false).tools
+    }
+
+    /// The deflected frames; `previous` and `frames` (Σᵢ' before the motion) only if `whole`,
+    /// else empty.
+    fn deflected_frames(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        evaluation: &Evaluation,
+        whole: bool,
+    ) -> DeflectedFrames {
         let Evaluation {
             deformations,
             moved,
             ..
-        } = &evaluation;
+        } = evaluation;
         // A segment's deformation as a transform in its proximal moved frame (nominal axes).
-        let segment_transform = |index: Option<usize>| -> Transform {
-            let Some(index) = index else {
-                return Transform::identity();
-            };
+        let segment_transform = |index: usize| -> Transform {
             let segment = &deformations.segments[index];
             let frame = &moved[self.segments[index].frame];
             let to_local = frame.rotation.transpose();
@@ -138,14 +181,18 @@ impl FlexibilityModel {
             }
         };
         let count = model.frames().len();
+        let kept = if whole { count } else { 0 };
         let world_from_root = model.world_from_root_transform(q);
         let mut deflected: Vec<Transform> = Vec::with_capacity(count);
-        let mut previous: Vec<Transform> = Vec::with_capacity(count);
-        let mut frames: Vec<Transform> = Vec::with_capacity(count);
+        let mut previous: Vec<Transform> = Vec::with_capacity(kept);
+        let mut frames: Vec<Transform> = Vec::with_capacity(kept);
         for (i, frame) in model.frames().iter().enumerate() {
-            let before = match frame.parent {
-                Some(p) => deflected[p].then(&segment_transform(self.segment_to_frame[i])),
-                None => world_from_root,
+            // Without a segment, the parent's frame as it is (`then` with the identity gives
+            // the same values).
+            let before = match (frame.parent, self.segment_to_frame[i]) {
+                (Some(p), Some(index)) => deflected[p].then(&segment_transform(index)),
+                (Some(p), None) => deflected[p],
+                (None, _) => world_from_root,
             };
             let sigma = before.then(model.frame_constant(i));
             let value = model.joint_value(i, q);
@@ -158,16 +205,19 @@ impl FlexibilityModel {
                 rotation: exp(&local),
                 translation: Vec3::zeros(),
             }));
-            previous.push(before);
-            frames.push(sigma);
+            if whole {
+                previous.push(before);
+                frames.push(sigma);
+            }
         }
         let tool_previous: Vec<Transform> = model
             .tools()
             .iter()
             .enumerate()
-            .map(|(t, tool)| match tool.parent {
-                Some(p) => deflected[p].then(&segment_transform(self.segment_to_tool[t])),
-                None => world_from_root,
+            .map(|(t, tool)| match (tool.parent, self.segment_to_tool[t]) {
+                (Some(p), Some(index)) => deflected[p].then(&segment_transform(index)),
+                (Some(p), None) => deflected[p],
+                (None, _) => world_from_root,
             })
             .collect();
         let tools: Vec<Transform> = tool_previous
@@ -195,23 +245,23 @@ impl FlexibilityModel {
             }
         }
         let [deflected, previous, frames, tool_previous, tools] = all;
-        Deflection {
-            chain: ChainFrames {
-                previous,
-                frames,
-                tool_previous,
-                tools,
-                joint_error_factors: {
-                    let mut factors = Vec::new();
-                    model.joint_error_factors(q, &mut factors);
-                    factors
-                },
-                ..ChainFrames::default()
-            },
+        DeflectedFrames {
             deflected,
-            evaluation,
+            previous,
+            frames,
+            tool_previous,
+            tools,
         }
     }
+}
+
+/// The frames of a deflected chain (see [`ChainFrames`] for their meaning).
+struct DeflectedFrames {
+    deflected: Vec<Transform>,
+    previous: Vec<Transform>,
+    frames: Vec<Transform>,
+    tool_previous: Vec<Transform>,
+    tools: Vec<Transform>,
 }
 
 /// The deflected chain and what it was built from.

@@ -40,11 +40,9 @@ impl FlexibilityModel {
         for &p in parameters {
             shifted.set_parameter(p, values[p] + step)?;
             let evaluation = self.evaluate_with(&shifted, q, &tree_poses);
-            let moved = self.deflect_evaluated(&shifted, q, evaluation);
+            let tools = self.deflected_tools_evaluated(&shifted, q, &evaluation);
             columns.push(
-                moved
-                    .chain
-                    .tools
+                tools
                     .iter()
                     .map(Transform::to_pose)
                     .zip(base)

@@ -7,7 +7,7 @@
 use super::beam::point_load_deflection;
 use super::model::{FlexibilityModel, Place, SegmentEnd};
 use crate::error::{Error, Result};
-use crate::kinematics::{FrameKind, McpcModel};
+use crate::kinematics::McpcModel;
 use crate::math::{Mat3, Transform, Vec3};
 use crate::tree::KinematicTree;
 use nalgebra::Vector6;
@@ -118,18 +118,7 @@ impl FlexibilityModel {
         q: &[f64],
         tree_poses: &[crate::math::Pose],
     ) -> Evaluation {
-        let frames = model.frame_transforms(q);
-        let moved: Vec<Transform> = frames
-            .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let value = model.joint_value(i, q);
-                match model.frames()[i].kind {
-                    FrameKind::Revolute => t.rotated_z(value),
-                    FrameKind::Prismatic => t.translated_z(value),
-                }
-            })
-            .collect();
+        let (frames, moved) = model.frame_and_moved_transforms(q);
         let tools: Vec<Transform> = model
             .tools()
             .iter()
@@ -388,12 +377,14 @@ fn nearest_segment(
         };
         (point - placed.start - along * t).norm()
     };
+    // Each distance once (the first of equal ones still wins).
     model
         .iter()
         .zip(placed)
         .enumerate()
         .filter(|(_, (s, _))| s.frame == frame)
-        .min_by(|(_, (_, a)), (_, (_, b))| distance(a).total_cmp(&distance(b)))
+        .map(|(index, (_, placed))| (index, distance(placed)))
+        .min_by(|(_, a), (_, b)| a.total_cmp(b))
         .map(|(index, _)| index)
 }
 

@@ -62,6 +62,45 @@ impl McpcModel {
         layout
     }
 
+    /// Entry `index` of [`Self::parameter_layout`], without building the layout (the finite
+    /// differences of the deflections set a parameter twice per column).
+    fn parameter_entry(&self, index: usize) -> Option<(ParameterOwner, ParameterKind)> {
+        let mut index = index;
+        for (frame_index, frame) in self.frames.iter().enumerate() {
+            let kinds: &[ParameterKind] = match frame.kind {
+                FrameKind::Revolute => &REVOLUTE_PARAMETERS,
+                FrameKind::Prismatic => &PRISMATIC_PARAMETERS,
+            };
+            match kinds.get(index) {
+                Some(kind) => return Some((ParameterOwner::Frame(frame_index), *kind)),
+                None => index -= kinds.len(),
+            }
+        }
+        let tool_parameters = TOOL_PARAMETERS.len() * self.tools.len();
+        if index < tool_parameters {
+            let (tool, kind) = (index / TOOL_PARAMETERS.len(), index % TOOL_PARAMETERS.len());
+            return Some((ParameterOwner::Tool(tool), TOOL_PARAMETERS[kind]));
+        }
+        index -= tool_parameters;
+        for (frame_index, slot) in self.joint_errors.slots.iter().enumerate() {
+            for (value, kind) in slot
+                .iter()
+                .zip(super::super::joint_errors::JOINT_ERROR_KINDS)
+            {
+                if value.is_some() {
+                    if index == 0 {
+                        return Some((ParameterOwner::Frame(frame_index), kind));
+                    }
+                    index -= 1;
+                }
+            }
+        }
+        self.frame_parameters
+            .as_ref()
+            .and_then(|_| TOOL_PARAMETERS.get(index))
+            .map(|kind| (ParameterOwner::Measurement, *kind))
+    }
+
     /// A readable name of parameter `index`, e.g. `left_joint1 alpha` or `left_tool z`.
     pub fn parameter_name(&self, tree: &KinematicTree, index: usize) -> String {
         match self.parameter_layout().get(index) {
@@ -154,7 +193,7 @@ impl McpcModel {
     /// Replaces parameter `index` alone, refreshing only its frame or tool: the cheap way to
     /// perturb one parameter (finite differences).
     pub fn set_parameter(&mut self, index: usize, value: f64) -> Result<()> {
-        let Some(&(owner, kind)) = self.parameter_layout().get(index) else {
+        let Some((owner, kind)) = self.parameter_entry(index) else {
             return Err(Error::InvalidTable {
                 origin: "MCPC parameters".into(),
                 message: format!(
