@@ -139,3 +139,44 @@ fn table_contacts_of_both_hands_calibrate_per_side_and_together() {
         assert!(after < 0.25 * before, "{side}: {before} -> {after} mm");
     }
 }
+
+/// Encoder noise on a standing humanoid (Atlas on `l_foot`, left hand flush, 5 default trials):
+/// each contact is weighted by the noise its own chain gives it, so σ̂ is near 1 and the
+/// error in the observable directions matches the covariance within 1.5× (one lever for every
+/// contact gave σ̂ 1.9–2.7 and a trial at 1.52).
+#[test]
+fn encoder_noise_on_a_standing_humanoid_matches_its_covariance() {
+    let Some(atlas) = shared_robot("atlas_v5/atlas_v5.urdf") else {
+        eprintln!("skipped: the shared Atlas URDF is not there");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sim");
+    let run = treecal(&[
+        "simulate",
+        "--robot",
+        path_str(&atlas),
+        "--tools",
+        "l_hand",
+        "--reference-link",
+        "l_foot",
+        "--observation",
+        "flush",
+        "--trials",
+        "5",
+        "--encoder-noise",
+        "1e-4",
+        "-o",
+        path_str(&out),
+    ]);
+    assert_success(&run, "simulate flush on Atlas");
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    for trial in results["trials"].as_array().unwrap() {
+        let scale = trial["residual_scale"].as_f64().unwrap();
+        let consistency = trial["consistency"].as_f64().unwrap();
+        eprintln!("σ̂ {scale:.3}, error / covariance {consistency:.3}");
+        assert!((0.5..1.6).contains(&scale), "{trial}");
+        assert!(consistency <= 1.5, "{trial}");
+    }
+}

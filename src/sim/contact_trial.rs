@@ -78,7 +78,7 @@ pub fn run_contact_trial(
     let start = nuisance_start(&scene, settings.nuisance_start_error, &mut rng)?;
     let lever = 0.5;
     let sigma = settings.encoder_sigma.max(1e-6);
-    let options = IdentificationOptions {
+    let mut options = IdentificationOptions {
         max_iterations: 100,
         height_sigma: sigma * lever,
         gap_sigma: sigma * lever,
@@ -86,6 +86,10 @@ pub fn run_contact_trial(
         tilt_sigma: sigma,
         ..IdentificationOptions::default()
     };
+    if settings.encoder_sigma > 0.0 {
+        options.observation_weights =
+            encoder_weights(nominal, &start, &scene.measurements, sigma, &options)?;
+    }
     // As `calibrate --contacts` does (`workflow::contact_fit`): the nuisance alone on the
     // nominal robot first, then everything from there.
     let nuisance_only: Vec<usize> = free.iter().copied().filter(|&k| k >= count).collect();
@@ -193,6 +197,57 @@ pub fn run_contact_trial(
         truth,
         scene,
     })
+}
+
+/// Finite-difference step of the joint values for [`encoder_weights`] (rad, m).
+const ENCODER_STEP: f64 = 1e-6;
+
+/// Per contact, the weight that gives its rows the variance encoder noise `sigma_q` on every
+/// joint gives them, on average over its rows, against the σ's of `options`: `w = k / Σ_r
+/// (σ_q² ‖∂r_r/∂q‖² / σ_r²)` for its `k` rows (`∂r/∂q` by central differences on `model` with
+/// `nuisance`). One lever for every contact misweighs a long chain (a humanoid's hand seen
+/// from its sole) against a short one; the covariance then no longer describes the error.
+fn encoder_weights(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    measurements: &[Measurement],
+    sigma_q: f64,
+    options: &IdentificationOptions,
+) -> Result<Vec<f64>> {
+    let noise = options.noise();
+    measurements
+        .iter()
+        .map(|m| {
+            let Observation::Contact(contact) = &m.observation else {
+                return Ok(1.0);
+            };
+            let kinds = crate::calibration::kind_of(&m.observation).row_kinds();
+            let mut variance = vec![0.0; kinds.len()];
+            let mut q = m.q.clone();
+            for d in 0..q.len() {
+                let value = q[d];
+                q[d] = value + ENCODER_STEP;
+                let up = violation(model, nuisance, contact, m.tool, &q)?;
+                q[d] = value - ENCODER_STEP;
+                let down = violation(model, nuisance, contact, m.tool, &q)?;
+                q[d] = value;
+                for (v, (u, w)) in variance.iter_mut().zip(up.iter().zip(&down)) {
+                    let slope = (u - w) / (2.0 * ENCODER_STEP);
+                    *v += slope * slope * sigma_q * sigma_q;
+                }
+            }
+            let scaled: f64 = variance
+                .iter()
+                .zip(kinds)
+                .map(|(v, &kind)| v / noise.sigma(kind).powi(2))
+                .sum();
+            Ok(if scaled > 0.0 {
+                kinds.len() as f64 / scaled
+            } else {
+                1.0
+            })
+        })
+        .collect()
 }
 
 /// The true nuisance values, the freed ones moved up to `error` (m, rad) off: the fit's start.
