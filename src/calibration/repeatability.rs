@@ -58,7 +58,7 @@ fn same_posture(dofs: &[(usize, bool)], a: &[f64], b: &[f64]) -> bool {
 
 /// Pairs every validation row with the first identification row of the same tool at the same
 /// posture (on its chain's joints) and summarises the position differences; both sets in the
-/// frame the validation figures use. `None` with fewer than [`MIN_PAIRS`] pairs.
+/// frame the validation figures use. `None` with fewer than `MIN_PAIRS` (5) pairs.
 pub fn repeatability(
     model: &McpcModel,
     identification: &[Measurement],
