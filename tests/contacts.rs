@@ -209,6 +209,49 @@ fn touch_and_bar_reach_the_truth_in_every_default_trial() {
     }
 }
 
+/// `simulate --observation flush,tracker` and `touch,bar,tracker`: the tracker's rows are
+/// fitted with the contacts in each trial (its frame and the tools' targets with them), so the
+/// robot is determined but for the frame's six and recovered noise-free; with encoder and tracker
+/// noise the observable error matches the covariance within 1.5×.
+#[test]
+fn tracker_rows_fitted_with_contacts_determine_the_whole_robot() {
+    let (tree, nominal) = robonaut();
+    for kinds in [
+        vec![ContactChoice::Flush],
+        vec![ContactChoice::Touch, ContactChoice::Bar],
+    ] {
+        for (noise, seed) in [(0.0, 11), (1e-4, 12)] {
+            let settings = ContactSimulation {
+                kinds: kinds.clone(),
+                per_kind: 30,
+                encoder_sigma: noise,
+                tracker_rows: true,
+                ..ContactSimulation::default()
+            };
+            let t = run_contact_trial(&tree, &nominal, &settings, seed).expect("trial");
+            eprintln!(
+                "{kinds:?} noise {noise}: rank {} of {}, held-out {:e}, consistency {:.3}",
+                t.rank,
+                t.free.len(),
+                t.held_out,
+                t.consistency
+            );
+            // Only the fitted tracker frame against the first joint frame stays unseen (six
+            // directions, as in any tracker calibration with a fitted frame); contacts alone
+            // leave 27 (flush) or 11 (touch, bar) of their unknowns.
+            assert_eq!(
+                t.free.len() - t.rank,
+                6,
+                "the tracker sees what contacts cannot"
+            );
+            assert!(t.noise_free_held_out < 1e-9, "{:e}", t.noise_free_held_out);
+            if noise > 0.0 {
+                assert!((0.5..1.5).contains(&t.consistency), "{}", t.consistency);
+            }
+        }
+    }
+}
+
 /// Noise-free touch + bar, flush, and point contacts on the built-in robot: the fit predicts
 /// held-out contacts of the true robot to 1e-6 (it recovered what contacts determine).
 #[test]

@@ -3,6 +3,7 @@
 //! the observable subspace against the fit's covariance (`docs/contacts.md`, "Encoder noise
 //! and the covariance").
 
+use super::contact_tracker::{contact_tracker_rows, CONTACT_TRACKER_SIGMA};
 use super::contacts::{contact_scene, violation, ContactScene, ContactSimulation};
 use super::truth::true_model;
 use crate::calibration::{
@@ -11,11 +12,13 @@ use crate::calibration::{
 };
 use crate::error::Result;
 use crate::kinematics::{McpcModel, ParameterOwner};
+use crate::math::{Pose, Vec3};
 use crate::measurement::{Measurement, Observation};
 use crate::tree::KinematicTree;
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
+use rand_distr::StandardNormal;
 
 /// One simulated contact calibration: what the fit recovered in the observable subspace.
 #[derive(Debug, Clone)]
@@ -70,10 +73,29 @@ pub fn run_contact_trial(
     seed: u64,
 ) -> Result<ContactTrial> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    // With a tracker, its frame is six parameters more (as `calibrate` fits it): what the
+    // contacts leave of the root's placement, the tracker sees.
+    let with_frame;
+    let nominal = if settings.tracker_rows {
+        with_frame = nominal.with_frame_parameters();
+        &with_frame
+    } else {
+        nominal
+    };
     let truth = true_model(nominal, &settings.errors, &mut rng)?;
-    let scene = contact_scene(tree, &truth, settings, &mut rng)?;
+    let mut scene = contact_scene(tree, &truth, settings, &mut rng)?;
+    if settings.tracker_rows {
+        add_tracker_rows(tree, &truth, settings, &mut scene, &mut rng);
+    }
     let count = nominal.parameter_count();
     let mut free = contact_free_parameters(nominal);
+    if settings.tracker_rows {
+        // The tracker sees each tool's target: its offset (x, y, z) is fitted, and its frame,
+        // as `calibrate --contacts --measurements` does.
+        free.extend(tool_offsets(nominal));
+        free.extend(frame_parameters(nominal));
+        free.sort_unstable();
+    }
     free.extend(scene.free_nuisance.iter().map(|k| count + k));
     let start = nuisance_start(&scene, settings.nuisance_start_error, &mut rng)?;
     let lever = 0.5;
@@ -84,6 +106,7 @@ pub fn run_contact_trial(
         gap_sigma: sigma * lever,
         length_sigma: sigma * lever,
         tilt_sigma: sigma,
+        position_sigma: CONTACT_TRACKER_SIGMA,
         ..IdentificationOptions::default()
     };
     if settings.encoder_sigma > 0.0 {
@@ -92,7 +115,20 @@ pub fn run_contact_trial(
     }
     // As `calibrate --contacts` does (`workflow::contact_fit`): the nuisance alone on the
     // nominal robot first, then everything from there.
-    let nuisance_only: Vec<usize> = free.iter().copied().filter(|&k| k >= count).collect();
+    // With a tracker, its registration (frame, targets) is fitted with the nuisance.
+    let registration: Vec<usize> = if settings.tracker_rows {
+        tool_offsets(nominal)
+            .into_iter()
+            .chain(frame_parameters(nominal))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let nuisance_only: Vec<usize> = free
+        .iter()
+        .copied()
+        .filter(|&k| k >= count || registration.contains(&k))
+        .collect();
     let fit = |measurements: &[Measurement]| {
         let registered = identify_with_nuisance(
             nominal,
@@ -197,6 +233,66 @@ pub fn run_contact_trial(
         truth,
         scene,
     })
+}
+
+/// The measurement frame's parameters of `model` (flat indices; none without them).
+fn frame_parameters(model: &McpcModel) -> Vec<usize> {
+    model
+        .parameter_layout()
+        .iter()
+        .enumerate()
+        .filter(|(_, (owner, _))| matches!(owner, ParameterOwner::Measurement))
+        .map(|(k, _)| k)
+        .collect()
+}
+
+/// The x, y, z parameters of every tool of `model` (flat indices).
+fn tool_offsets(model: &McpcModel) -> Vec<usize> {
+    use crate::kinematics::ParameterKind;
+    model
+        .parameter_layout()
+        .iter()
+        .enumerate()
+        .filter(|(_, (owner, kind))| {
+            matches!(owner, ParameterOwner::Tool(_))
+                && matches!(kind, ParameterKind::X | ParameterKind::Y | ParameterKind::Z)
+        })
+        .map(|(k, _)| k)
+        .collect()
+}
+
+/// A tracker's positions of every tool of `truth` at `settings.per_kind` configurations, in the
+/// reference link's frame: exact in `scene.exact`, with [`CONTACT_TRACKER_SIGMA`] noise (when
+/// the contacts have encoder noise) in `scene.measurements`.
+fn add_tracker_rows(
+    tree: &KinematicTree,
+    truth: &McpcModel,
+    settings: &ContactSimulation,
+    scene: &mut ContactScene,
+    rng: &mut ChaCha8Rng,
+) {
+    let tools: Vec<usize> = (0..truth.tools().len()).collect();
+    let exact = contact_tracker_rows(
+        tree,
+        truth,
+        &tools,
+        settings.per_kind,
+        (&Pose::identity(), 0.0),
+        rng,
+    );
+    let sigma = if settings.encoder_sigma > 0.0 {
+        CONTACT_TRACKER_SIGMA
+    } else {
+        0.0
+    };
+    for row in &exact {
+        let mut noisy = row.clone();
+        if let Observation::Position(p) = &mut noisy.observation {
+            *p += Vec3::from_fn(|_, _| sigma * rng.sample::<f64, _>(StandardNormal));
+        }
+        scene.measurements.push(noisy);
+    }
+    scene.exact.extend(exact);
 }
 
 /// Finite-difference step of the joint values for [`encoder_weights`] (rad, m).

@@ -79,6 +79,10 @@ pub struct ContactSimulation {
     pub tables: usize,
     /// Tools pressing flush on each table: 1 (the first) or 2 (both hands, one face each).
     pub flush_tools: usize,
+    /// Also a tracker's positions of every tool at `per_kind` further configurations, fitted
+    /// with the contacts (in the reference link's frame, σ
+    /// [`super::contact_tracker::CONTACT_TRACKER_SIGMA`] when there is encoder noise).
+    pub tracker_rows: bool,
 }
 
 impl Default for ContactSimulation {
@@ -95,6 +99,7 @@ impl Default for ContactSimulation {
             nuisance_start_error: 0.01,
             tables: 1,
             flush_tools: 1,
+            tracker_rows: false,
         }
     }
 }

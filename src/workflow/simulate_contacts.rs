@@ -410,6 +410,7 @@ pub(super) fn contact_settings(config: &SimulateConfig) -> ContactSimulation {
         per_kind: config.poses + config.torso_poses,
         encoder_sigma: config.encoder_noise,
         tables: config.contact_tables.0,
+        tracker_rows: config.contact_tracker,
         flush_tools: config.contact_tables.1,
         errors: ErrorRanges {
             angle: config.angle_error,
