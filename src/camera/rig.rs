@@ -8,7 +8,7 @@
 //! tool's frame: the tool's own six parameters already move it, so a separate pose would be
 //! the same unknown twice. The rig's [`Rig::robot_model`] drops the extra tools again.
 
-use super::fit::Unknown;
+use super::unknown::Unknown;
 use super::model::{Intrinsics, INTRINSIC_COUNT};
 use super::target::TargetShape;
 use crate::error::{Error, Result};
