@@ -303,7 +303,7 @@ fn last_frame_and_offset(
     let Some(frame) = model.frame_of_joint(joint) else {
         return Err(invalid(format!(
             "link '{}' is moved by joint '{}', which is not on a calibrated branch; name a link \
-             beyond it as a tool (--tools) so that the joint is calibrated",
+             beyond it as a tool (`tools`) so that the joint is calibrated",
             tree.link(link).name,
             tree.joint(joint).name
         )));
