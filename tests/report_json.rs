@@ -255,8 +255,13 @@ fn results_json_is_labelled() {
             );
             let termination = stage["termination"].as_str().unwrap();
             assert!(
-                ["step_converged", "cost_converged", "no_decrease", "max_iterations"]
-                    .contains(&termination),
+                [
+                    "step_converged",
+                    "cost_converged",
+                    "no_decrease",
+                    "max_iterations"
+                ]
+                .contains(&termination),
                 "termination {termination} is not a documented value"
             );
         }

@@ -8,9 +8,9 @@
 //! tool's frame: the tool's own six parameters already move it, so a separate pose would be
 //! the same unknown twice. The rig's [`Rig::robot_model`] drops the extra tools again.
 
-use super::unknown::Unknown;
 use super::model::{Intrinsics, INTRINSIC_COUNT};
 use super::target::TargetShape;
+use super::unknown::Unknown;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool};
 use crate::math::Pose;

@@ -200,9 +200,7 @@ fn state_size(problem: &CameraProblem<'_>, state: &State, scales: &DVector<f64>)
         .map(|(u, s)| {
             let value = match *u {
                 Unknown::Parameter(p) => parameters[p],
-                Unknown::Intrinsic { camera, index } => {
-                    state.intrinsics[camera].to_vector()[index]
-                }
+                Unknown::Intrinsic { camera, index } => state.intrinsics[camera].to_vector()[index],
                 Unknown::Nuisance(k) => nuisance.get(k).copied().unwrap_or(0.0),
             };
             (value * s).powi(2)

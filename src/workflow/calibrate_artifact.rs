@@ -371,8 +371,6 @@ pub(super) fn assess(
     export: Option<&ExportReport>,
     compensation: Option<CompensationFile<'_>>,
 ) -> Result<Artifact> {
-    let compensation_name = compensation.as_ref().map(CompensationFile::name);
-    let compensation_file = compensation_name.as_deref();
     let run = &identified.run;
     let fitted = run.frame.chosen == ChosenFrame::Fitted;
     let world_from_base = run.report.model.world_from_base();
@@ -406,108 +404,209 @@ pub(super) fn assess(
             findings,
         });
     };
-    let with_registration = |urdf: &str| {
-        if fitted {
+    let written = Written {
+        config,
+        loaded,
+        data,
+        identified,
+        fitted,
+        frame,
+        before: registered.as_ref().map(|r| r.errors.rms_position_mm),
+    };
+    let scores = written.score(export, compensation.as_ref())?;
+    findings.extend(scores.findings);
+    report.urdf_alone = Some(scores.urdf_alone);
+    report.with_compensation = scores.with_compensation;
+    report.how_to_use = scores.how_to_use;
+    Ok(Artifact {
+        report,
+        registration,
+        replaced: scores.replaced,
+        findings,
+    })
+}
+
+/// What [`assess`] scores the written outputs against: the run, its data, and the frame the
+/// URDF is placed in (the written registration when the frame was fitted).
+struct Written<'a> {
+    config: &'a CalibrateConfig,
+    loaded: &'a Loaded,
+    data: &'a Data,
+    identified: &'a Identified,
+    /// Whether the measurement frame was fitted (registration.yaml is written).
+    fitted: bool,
+    frame: Pose,
+    /// The registered nominal robot's RMS validation position error (mm), if there are rows.
+    before: Option<f64>,
+}
+
+/// The scores of the written outputs and what they decided.
+struct Scores {
+    urdf_alone: ArtifactScore,
+    with_compensation: Option<ArtifactScore>,
+    /// See [`Artifact::replaced`].
+    replaced: Option<(ExportReport, String)>,
+    findings: Vec<Finding>,
+    how_to_use: String,
+}
+
+impl Written<'_> {
+    /// `urdf` with `registration.yaml` named beside it when the frame was fitted.
+    fn with_registration(&self, urdf: &str) -> String {
+        if self.fitted {
             format!("{urdf} + {REGISTRATION_FILE}")
         } else {
             urdf.to_owned()
         }
-    };
-    let scoring = Scoring {
-        loaded,
-        world_from_base: frame,
-        scored_links: exported_links(loaded, export),
-        joint_errors: None,
-    };
-    // Rows of other sessions are placed in the training frame, as the run scored them.
-    let validation =
-        &crate::calibration::validation_in_training_frames(&data.validation, run.sessions.as_ref());
-    let gravity = config.gravity_frame;
-    let alone_name = with_registration("calibrated.urdf");
-    let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;
-    let mut replaced = None;
-    let before = registered.as_ref().map(|r| r.errors.rms_position_mm);
-    let joint_errors = joint_errors_yaml(loaded.robot.tree(), &run.report.model)
-        .map(|text| AppliedJointErrors::read(&text, loaded))
-        .transpose()?;
-    let stiffness = match (&identified.flexibility, compensation.as_ref()) {
-        (Some(flexibility), Some(source)) => Some((flexibility, source)),
-        _ => None,
-    };
-    let files: Vec<&str> = compensation_file
-        .filter(|_| stiffness.is_some())
-        .into_iter()
-        .chain(joint_errors.as_ref().map(|_| JOINT_ERRORS_FILE))
-        .collect();
-    let companion = (!files.is_empty()).then(|| files.join(" + "));
-    if let Some(file) = &companion {
-        let worse = before.is_some_and(|b| alone.errors.rms_position_mm > b);
-        let compensated_name = if worse {
-            COMPENSATED_URDF
-        } else {
-            "calibrated.urdf"
+    }
+
+    /// Scores `export` alone and with its companion files (the compensation file, when a
+    /// stiffness was in play, and joint_errors.yaml); with a companion and the URDF alone
+    /// worse than the registered nominal robot, replaces it by the rigid-only geometry.
+    fn score(
+        &self,
+        export: &ExportReport,
+        compensation: Option<&CompensationFile<'_>>,
+    ) -> Result<Scores> {
+        let (loaded, run) = (self.loaded, &self.identified.run);
+        let scoring = Scoring {
+            loaded,
+            world_from_base: self.frame,
+            scored_links: exported_links(loaded, export),
+            joint_errors: None,
         };
-        let with_terms = Scoring {
-            joint_errors: joint_errors.as_ref(),
-            ..scoring
+        // Rows of other sessions are placed in the training frame, as the run scored them.
+        let validation = &crate::calibration::validation_in_training_frames(
+            &self.data.validation,
+            run.sessions.as_ref(),
+        );
+        let gravity = self.config.gravity_frame;
+        let alone_name = self.with_registration("calibrated.urdf");
+        let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;
+        let mut replaced = None;
+        let mut findings = Vec::new();
+        let mut with_compensation = None;
+        let joint_errors = joint_errors_yaml(loaded.robot.tree(), &run.report.model)
+            .map(|text| AppliedJointErrors::read(&text, loaded))
+            .transpose()?;
+        let stiffness = match (&self.identified.flexibility, compensation) {
+            (Some(flexibility), Some(source)) => Some((flexibility, source)),
+            _ => None,
         };
-        report.with_compensation = Some(with_terms.score(
-            &export.urdf,
-            &format!("{} + {file}", with_registration(compensated_name)),
-            validation,
-            stiffness.map(|(_, source)| source),
-            gravity,
-        )?);
-        if worse {
-            let flexibility = stiffness.map(|(f, _)| f);
-            let rigid = rigid_equivalent(loaded, identified, flexibility, &data.measurements)?;
-            let rigid_export = export_rigid(config, loaded, &rigid)?;
-            let rigid_scoring = Scoring {
-                scored_links: exported_links(loaded, &rigid_export),
-                loaded,
-                world_from_base: frame,
-                joint_errors: None,
+        let compensation_name = compensation.map(CompensationFile::name);
+        let compensation_file = compensation_name.as_deref().filter(|_| stiffness.is_some());
+        let files: Vec<&str> = compensation_file
+            .into_iter()
+            .chain(joint_errors.as_ref().map(|_| JOINT_ERRORS_FILE))
+            .collect();
+        let companion = (!files.is_empty()).then(|| files.join(" + "));
+        if let Some(file) = &companion {
+            let worse = self
+                .before
+                .is_some_and(|b| alone.errors.rms_position_mm > b);
+            let compensated_name = if worse {
+                COMPENSATED_URDF
+            } else {
+                "calibrated.urdf"
             };
-            let rigid_alone =
-                rigid_scoring.score(&rigid_export.urdf, &alone_name, validation, None, gravity)?;
-            findings.push(Finding::note(
-                "rigid-only-urdf",
-                format!(
-                    "the calibrated geometry used without {file} is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({:.3} mm alone); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({:.3} mm)",
-                    alone.errors.rms_position_mm,
-                    before.unwrap_or(f64::NAN),
-                    rigid_alone.errors.rms_position_mm,
-                    report.with_compensation.as_ref().map_or(f64::NAN, |s| s.errors.rms_position_mm),
-                ),
-            ));
-            replaced = Some((rigid_export, export.urdf.clone()));
-            alone = rigid_alone;
+            let with_terms = Scoring {
+                joint_errors: joint_errors.as_ref(),
+                ..scoring
+            };
+            let compensated = with_terms.score(
+                &export.urdf,
+                &format!("{} + {file}", self.with_registration(compensated_name)),
+                validation,
+                stiffness.map(|(_, source)| source),
+                gravity,
+            )?;
+            if worse {
+                let flexibility = stiffness.map(|(f, _)| f);
+                let (rigid_export, rigid_alone) =
+                    self.rigid_only(flexibility, &alone_name, validation)?;
+                findings.push(rigid_only_finding(
+                    file,
+                    [&alone, &rigid_alone, &compensated],
+                    self.before,
+                ));
+                replaced = Some((rigid_export, export.urdf.clone()));
+                alone = rigid_alone;
+            }
+            with_compensation = Some(compensated);
         }
-    }
-    if let Some(b) = before.filter(|&b| clearly_worse(alone.errors.rms_position_mm, b)) {
-        findings.push(Finding::warning(
-            "urdf-alone-worse",
-            format!(
-                "calibrated.urdf used alone ({}) is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({b:.3} mm): do not use it alone{}",
-                alone.files,
-                alone.errors.rms_position_mm,
-                companion.as_deref().map_or(String::new(), |f| format!("; it must accompany {f}"))
-            ),
+        findings.extend(alone_worse_finding(
+            &alone,
+            self.before,
+            companion.as_deref(),
         ));
+        let how_to_use = how_to_use(
+            self.fitted,
+            compensation_file,
+            joint_errors.is_some(),
+            replaced.is_some(),
+        );
+        Ok(Scores {
+            urdf_alone: alone,
+            with_compensation,
+            replaced,
+            findings,
+            how_to_use,
+        })
     }
-    report.how_to_use = how_to_use(
-        fitted,
-        compensation_file.filter(|_| stiffness.is_some()),
-        joint_errors.is_some(),
-        replaced.is_some(),
-    );
-    report.urdf_alone = Some(alone);
-    Ok(Artifact {
-        report,
-        registration,
-        replaced,
-        findings,
-    })
+
+    /// The rigid-only geometry's URDF and its score alone (named `alone_name`).
+    fn rigid_only(
+        &self,
+        flexibility: Option<&FlexibilityModel>,
+        alone_name: &str,
+        validation: &[Measurement],
+    ) -> Result<(ExportReport, ArtifactScore)> {
+        let (loaded, identified) = (self.loaded, self.identified);
+        let rigid = rigid_equivalent(loaded, identified, flexibility, &self.data.measurements)?;
+        let rigid_export = export_rigid(self.config, loaded, &rigid)?;
+        let rigid_scoring = Scoring {
+            scored_links: exported_links(loaded, &rigid_export),
+            loaded,
+            world_from_base: self.frame,
+            joint_errors: None,
+        };
+        let gravity = self.config.gravity_frame;
+        let score =
+            rigid_scoring.score(&rigid_export.urdf, alone_name, validation, None, gravity)?;
+        Ok((rigid_export, score))
+    }
+}
+
+/// The `rigid-only-urdf` note: the calibrated geometry alone, the rigid-only geometry alone
+/// and the calibrated geometry with `file` (`scores` in that order), against `before`.
+fn rigid_only_finding(file: &str, scores: [&ArtifactScore; 3], before: Option<f64>) -> Finding {
+    let [alone, rigid_alone, compensated] = scores.map(|s| s.errors.rms_position_mm);
+    Finding::note(
+        "rigid-only-urdf",
+        format!(
+            "the calibrated geometry used without {file} is {alone:.3} mm RMS on the validation rows, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({rigid_alone:.3} mm alone); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({compensated:.3} mm)",
+            before.unwrap_or(f64::NAN),
+        ),
+    )
+}
+
+/// The `urdf-alone-worse` warning, when the URDF alone is clearly worse than `before` (the
+/// registered nominal robot's RMS, mm); `companion` the files it must go with.
+fn alone_worse_finding(
+    alone: &ArtifactScore,
+    before: Option<f64>,
+    companion: Option<&str>,
+) -> Option<Finding> {
+    let b = before.filter(|&b| clearly_worse(alone.errors.rms_position_mm, b))?;
+    Some(Finding::warning(
+        "urdf-alone-worse",
+        format!(
+            "calibrated.urdf used alone ({}) is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({b:.3} mm): do not use it alone{}",
+            alone.files,
+            alone.errors.rms_position_mm,
+            companion.map_or(String::new(), |f| format!("; it must accompany {f}"))
+        ),
+    ))
 }
 
 /// Whether an RMS error (mm) is worse than the registered nominal robot's beyond what the

@@ -12,6 +12,7 @@ mod calibrate_config;
 pub(crate) mod calibrate_contacts;
 pub(crate) mod calibrate_deploy;
 mod calibrate_html;
+mod calibrate_identify;
 mod calibrate_outputs;
 mod calibrate_products;
 mod calibrate_steps;
