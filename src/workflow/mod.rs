@@ -4,6 +4,7 @@
 //! See docs/workflows.md.
 
 mod artifact_joint_errors;
+mod artifact_scoring;
 pub(crate) mod calibrate;
 pub(crate) mod calibrate_artifact;
 pub(crate) mod calibrate_camera;
