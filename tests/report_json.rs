@@ -245,10 +245,24 @@ fn results_json_is_labelled() {
             assert_eq!(arm["position_mm"][key].as_array().unwrap().len(), count);
         }
     }
+    // Version 3: the termination in snake_case, as report.json writes it (version 2 wrote
+    // `CostConverged`).
+    assert_eq!(RESULTS_SCHEMA, "treecal.results/3");
     for run in ["rigid_run", "compensated_run"] {
         for stage in trial[run]["stages"].as_array().unwrap() {
             assert!(
                 stage["name"].is_string() && stage["rank"].as_u64() <= stage["parameters"].as_u64()
+            );
+            let termination = stage["termination"].as_str().unwrap();
+            assert!(
+                [
+                    "step_converged",
+                    "cost_converged",
+                    "no_decrease",
+                    "max_iterations"
+                ]
+                .contains(&termination),
+                "termination {termination} is not a documented value"
             );
         }
     }

@@ -8,6 +8,7 @@ use super::contact_rows::{add_contact_rows, contact_sums, ContactRows};
 use super::model::{Intrinsics, Rejection, INTRINSIC_COUNT, INTRINSIC_NAMES};
 use super::observation::{linearise_view, predict_pixels, View};
 use super::rig::Rig;
+use super::unknown::Unknown;
 use crate::calibration::Termination;
 use crate::calibration::{Noise, Nuisance};
 use crate::error::{Error, Result};
@@ -53,24 +54,6 @@ impl Default for CameraFitOptions {
             contact_noise: Noise::default(),
         }
     }
-}
-
-/// One unknown of the fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Unknown {
-    /// A parameter of the augmented model (flat index): the robot's, or a camera's or
-    /// target's pose ([`Rig::extra`]).
-    Parameter(usize),
-    /// Intrinsic `index` ([`INTRINSIC_NAMES`]) of camera `camera`.
-    Intrinsic {
-        /// The camera.
-        camera: usize,
-        /// Which intrinsic.
-        index: usize,
-    },
-    /// Nuisance value `k` of the contacts ([`ContactRows::nuisance`], 0-based among its
-    /// values): a plane's height or tilt, a contact point's coordinate, a bar's length.
-    Nuisance(usize),
 }
 
 /// The data and unknowns of a camera calibration.

@@ -8,6 +8,8 @@
 //! - `rig`: cameras and targets mounted on the MCPC model as extra tool frames, so that their
 //!   poses and pose Jacobians come from the robot's own kinematics.
 //! - `observation`: one image of one target, its predicted pixels and their Jacobians.
+//! - `unknown`: what a camera fit solves for (robot and rig parameters, intrinsics, contact
+//!   nuisance values), below both the rig that lists them and the fit.
 //! - `check`: what a camera data set determines, before fitting, said in words.
 //! - `fit` and [`calibrate_camera`]: the joint fit of the robot, the rig's poses and the
 //!   intrinsics from pixels, mixed with tracker rows and contacts (`ContactRows`) if there
@@ -21,6 +23,7 @@ pub(crate) mod observation;
 pub(crate) mod rig;
 mod solve;
 pub(crate) mod target;
+mod unknown;
 
 pub use check::explain;
 pub use check::{
@@ -28,12 +31,11 @@ pub use check::{
 };
 pub use contact_rows::ContactRows;
 pub use fit::kind_scales;
-pub use fit::{
-    CameraFitOptions, CameraFitReport, CameraProblem, KindScale, RejectedPoint, Unknown,
-};
+pub use fit::{CameraFitOptions, CameraFitReport, CameraProblem, KindScale, RejectedPoint};
 pub use model::MIN_DEPTH;
 pub use model::{Intrinsics, Projection, Rejection, INTRINSIC_COUNT, INTRINSIC_NAMES};
 pub use observation::{linearise_view, predict_pixels, View, ViewPrediction};
 pub use rig::{CameraSpec, Mount, Rig, RigCamera, RigTarget, TargetSpec};
 pub use solve::calibrate_camera;
 pub use target::TargetShape;
+pub use unknown::Unknown;

@@ -8,9 +8,9 @@
 //! tool's frame: the tool's own six parameters already move it, so a separate pose would be
 //! the same unknown twice. The rig's [`Rig::robot_model`] drops the extra tools again.
 
-use super::fit::Unknown;
 use super::model::{Intrinsics, INTRINSIC_COUNT};
 use super::target::TargetShape;
+use super::unknown::Unknown;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool};
 use crate::math::Pose;
@@ -303,7 +303,7 @@ fn last_frame_and_offset(
     let Some(frame) = model.frame_of_joint(joint) else {
         return Err(invalid(format!(
             "link '{}' is moved by joint '{}', which is not on a calibrated branch; name a link \
-             beyond it as a tool (--tools) so that the joint is calibrated",
+             beyond it as a tool (`tools`) so that the joint is calibrated",
             tree.link(link).name,
             tree.joint(joint).name
         )));

@@ -4,6 +4,7 @@
 //! directions at the solution.
 
 use super::fit::{CameraFitOptions, CameraFitReport, CameraProblem, Linearisation, State};
+use super::unknown::Unknown;
 use crate::calibration::Termination;
 use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
@@ -198,11 +199,9 @@ fn state_size(problem: &CameraProblem<'_>, state: &State, scales: &DVector<f64>)
         .zip(scales.iter())
         .map(|(u, s)| {
             let value = match *u {
-                super::fit::Unknown::Parameter(p) => parameters[p],
-                super::fit::Unknown::Intrinsic { camera, index } => {
-                    state.intrinsics[camera].to_vector()[index]
-                }
-                super::fit::Unknown::Nuisance(k) => nuisance.get(k).copied().unwrap_or(0.0),
+                Unknown::Parameter(p) => parameters[p],
+                Unknown::Intrinsic { camera, index } => state.intrinsics[camera].to_vector()[index],
+                Unknown::Nuisance(k) => nuisance.get(k).copied().unwrap_or(0.0),
             };
             (value * s).powi(2)
         })

@@ -7,7 +7,9 @@ use serde::Serialize;
 use std::fmt::Write;
 
 /// The `schema_version` of `results.json` (its layout is documented in docs/file-formats.md).
-pub const RESULTS_SCHEMA: &str = "treecal.results/2";
+/// Version 3 writes every enum value in snake_case, as report.json does
+/// (`trials[].rigid_run.stages[].termination` was `CostConverged` in version 2).
+pub const RESULTS_SCHEMA: &str = "treecal.results/3";
 
 /// `results.json`: every number of a simulation.
 #[derive(Debug, Clone, Serialize)]

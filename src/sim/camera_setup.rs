@@ -105,115 +105,22 @@ pub fn camera_specs(
     seed: u64,
 ) -> Result<(Vec<CameraSpec>, Vec<TargetSpec>)> {
     let link = options.camera_link.unwrap_or(branches.divergence);
-    let q0 = tree.zero_configuration();
-    let world_from_link = nominal.world_from_base() * tree.link_pose(link, &q0)?;
-    let eye = world_from_link.translation.vector + Vec3::z() * options.camera_height;
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let survey = sample_configurations(
-        tree,
-        checker,
-        SURVEY_CONFIGURATIONS,
-        &mut rng,
-        &SamplingOptions::default(),
-        &[],
-    )?;
-    // Tool positions in the camera link's frame (the camera moves with it).
-    let tools: Vec<Vec<(usize, Pose)>> = survey
-        .iter()
-        .map(|q| {
-            let link_from_world = (nominal.world_from_base() * tree.link_pose(link, q)?).inverse();
-            Ok(nominal
-                .tool_poses(q)
-                .into_iter()
-                .enumerate()
-                .map(|(t, p)| (t, link_from_world * p))
-                .collect())
-        })
-        .collect::<Result<_>>()?;
-    let eye_in_link = world_from_link.inverse() * nalgebra::Point3::from(eye);
-    let half_fov = (0.5 * options.intrinsics.width / options.intrinsics.fx)
-        .atan()
-        .min((0.5 * options.intrinsics.height / options.intrinsics.fy).atan());
-    let seen = |direction: &Vec3, tool: &Pose| {
-        let d = tool.translation.vector - eye_in_link.coords;
-        d.norm() > 0.25 && d.normalize().dot(direction) > (0.8 * half_fov).cos()
-    };
-    // The direction that sees the least-seen tool most often (then the most tools).
-    let look = best_direction(|direction| {
-        let mut counts = vec![0; nominal.tools().len()];
-        for (tool, pose) in tools.iter().flatten() {
-            if seen(direction, pose) {
-                counts[*tool] += 1;
-            }
-        }
-        // A tool that carries the camera (a head named as a tool so that its neck is
-        // calibrated) is never in view of it.
-        for (tool, spec) in nominal.tools().iter().enumerate() {
-            if spec.link == link {
-                counts[tool] = usize::MAX / 4;
-            }
-        }
-        let least = counts.iter().copied().min().unwrap_or(0);
-        least * (SURVEY_CONFIGURATIONS * counts.len() + 1) + counts.iter().sum::<usize>()
-    });
+    let survey = Survey::new(tree, nominal, checker, options, link, seed)?;
+    let look = survey.best_look(nominal);
     let link_from_camera = looking(
-        eye_in_link.coords,
+        survey.eye_in_link.coords,
         look,
-        world_from_link.rotation.inverse() * -Vec3::z(),
+        survey.world_from_link.rotation.inverse() * -Vec3::z(),
     );
-    let world_from_camera = world_from_link * link_from_camera;
+    let world_from_camera = survey.world_from_link * link_from_camera;
     let mut targets = Vec::new();
     for (tool, spec) in nominal.tools().iter().enumerate() {
-        if spec.link == link {
-            continue;
+        if spec.link != link {
+            targets.push(tool_board(tree, nominal, &survey, options, look, tool)?);
         }
-        // The face normal (−z of the board, tool frame) facing the camera most often.
-        let cos_max = options.max_view_angle.cos();
-        let facing = best_direction(|normal| {
-            tools
-                .iter()
-                .flatten()
-                .filter(|(t, p)| *t == tool && seen(&look, p))
-                .filter(|(_, p)| {
-                    let to_camera = (eye_in_link.coords - p.translation.vector).normalize();
-                    (p.rotation * normal).dot(&to_camera) > cos_max
-                })
-                .count()
-        });
-        let centre = options.tool_board.centre();
-        let rotation = looking(Vec3::zeros(), -facing, Vec3::z()).rotation;
-        let tool_from_board = Pose::from_parts(Translation3::from(-(rotation * centre)), rotation);
-        let link_from_tool = tree.link_pose(spec.link, &q0)?.inverse()
-            * nominal.world_from_base().inverse()
-            * nominal.tool_pose(tool, &q0);
-        targets.push(TargetSpec {
-            name: format!("{}_board", tree.link(spec.link).name),
-            mount: Mount::Link(spec.link),
-            mount_from_target: link_from_tool * tool_from_board,
-            shape: options.tool_board.clone(),
-            estimate_pose: true,
-        });
     }
     if let Some(board) = &options.world_board {
-        // On the optical axis, facing the camera, its centre on the axis.
-        let camera_axis = world_from_camera.rotation * Vec3::z();
-        let centre = eye + camera_axis * options.world_board_distance;
-        let facing = looking(
-            Vec3::zeros(),
-            camera_axis,
-            world_from_camera.rotation * -Vec3::y(),
-        );
-        let world_from_board = Pose::from_parts(
-            Translation3::from(centre - facing.rotation * board.centre()),
-            facing.rotation,
-        );
-        targets.push(TargetSpec {
-            name: "world_board".into(),
-            mount: Mount::World,
-            mount_from_target: world_from_board,
-            shape: board.clone(),
-            estimate_pose: options.estimate_world_board,
-        });
+        targets.push(world_board(board, survey.eye, &world_from_camera, options));
     }
     let camera = CameraSpec {
         name: "head".into(),
@@ -224,6 +131,170 @@ pub fn camera_specs(
         estimate_intrinsics: options.estimate_intrinsics,
     };
     Ok((vec![camera], targets))
+}
+
+/// Where the camera sits on its link and where the tools go over random configurations, in
+/// the camera link's frame (the camera moves with it).
+struct Survey {
+    /// The camera's link.
+    link: LinkId,
+    /// The link's pose at the zero configuration.
+    world_from_link: Pose,
+    /// The camera's position at the zero configuration (world frame).
+    eye: Vec3,
+    /// The camera's position in the link's frame.
+    eye_in_link: nalgebra::Point3<f64>,
+    /// Half the camera's narrower field of view (rad).
+    half_fov: f64,
+    /// Per survey configuration, each tool's pose in the link's frame.
+    tools: Vec<Vec<(usize, Pose)>>,
+}
+
+impl Survey {
+    /// The camera [`CameraRigOptions::camera_height`] above `link` and the tools over
+    /// [`SURVEY_CONFIGURATIONS`] configurations drawn with `seed`.
+    fn new(
+        tree: &KinematicTree,
+        nominal: &McpcModel,
+        checker: Option<&CollisionChecker>,
+        options: &CameraRigOptions,
+        link: LinkId,
+        seed: u64,
+    ) -> Result<Self> {
+        let q0 = tree.zero_configuration();
+        let world_from_link = nominal.world_from_base() * tree.link_pose(link, &q0)?;
+        let eye = world_from_link.translation.vector + Vec3::z() * options.camera_height;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let survey = sample_configurations(
+            tree,
+            checker,
+            SURVEY_CONFIGURATIONS,
+            &mut rng,
+            &SamplingOptions::default(),
+            &[],
+        )?;
+        let tools: Vec<Vec<(usize, Pose)>> = survey
+            .iter()
+            .map(|q| {
+                let link_from_world =
+                    (nominal.world_from_base() * tree.link_pose(link, q)?).inverse();
+                Ok(nominal
+                    .tool_poses(q)
+                    .into_iter()
+                    .enumerate()
+                    .map(|(t, p)| (t, link_from_world * p))
+                    .collect())
+            })
+            .collect::<Result<_>>()?;
+        let eye_in_link = world_from_link.inverse() * nalgebra::Point3::from(eye);
+        let half_fov = (0.5 * options.intrinsics.width / options.intrinsics.fx)
+            .atan()
+            .min((0.5 * options.intrinsics.height / options.intrinsics.fy).atan());
+        Ok(Self {
+            link,
+            world_from_link,
+            eye,
+            eye_in_link,
+            half_fov,
+            tools,
+        })
+    }
+
+    /// Whether a tool at `tool` (link frame) is in view of the camera looking along
+    /// `direction`: far enough, and well inside the field of view.
+    fn seen(&self, direction: &Vec3, tool: &Pose) -> bool {
+        let d = tool.translation.vector - self.eye_in_link.coords;
+        d.norm() > 0.25 && d.normalize().dot(direction) > (0.8 * self.half_fov).cos()
+    }
+
+    /// The direction that sees the least-seen tool most often (then the most tools).
+    fn best_look(&self, nominal: &McpcModel) -> Vec3 {
+        best_direction(|direction| {
+            let mut counts = vec![0; nominal.tools().len()];
+            for (tool, pose) in self.tools.iter().flatten() {
+                if self.seen(direction, pose) {
+                    counts[*tool] += 1;
+                }
+            }
+            // A tool that carries the camera (a head named as a tool so that its neck is
+            // calibrated) is never in view of it.
+            for (tool, spec) in nominal.tools().iter().enumerate() {
+                if spec.link == self.link {
+                    counts[tool] = usize::MAX / 4;
+                }
+            }
+            let least = counts.iter().copied().min().unwrap_or(0);
+            least * (SURVEY_CONFIGURATIONS * counts.len() + 1) + counts.iter().sum::<usize>()
+        })
+    }
+}
+
+/// The board on `tool`, its face normal (−z of the board) along the tool-frame direction that
+/// faces the camera (looking along `look`) most often over the survey, centred on the tool.
+fn tool_board(
+    tree: &KinematicTree,
+    nominal: &McpcModel,
+    survey: &Survey,
+    options: &CameraRigOptions,
+    look: Vec3,
+    tool: usize,
+) -> Result<TargetSpec> {
+    let spec = &nominal.tools()[tool];
+    let cos_max = options.max_view_angle.cos();
+    let facing = best_direction(|normal| {
+        survey
+            .tools
+            .iter()
+            .flatten()
+            .filter(|(t, p)| *t == tool && survey.seen(&look, p))
+            .filter(|(_, p)| {
+                let to_camera = (survey.eye_in_link.coords - p.translation.vector).normalize();
+                (p.rotation * normal).dot(&to_camera) > cos_max
+            })
+            .count()
+    });
+    let centre = options.tool_board.centre();
+    let rotation = looking(Vec3::zeros(), -facing, Vec3::z()).rotation;
+    let tool_from_board = Pose::from_parts(Translation3::from(-(rotation * centre)), rotation);
+    let q0 = tree.zero_configuration();
+    let link_from_tool = tree.link_pose(spec.link, &q0)?.inverse()
+        * nominal.world_from_base().inverse()
+        * nominal.tool_pose(tool, &q0);
+    Ok(TargetSpec {
+        name: format!("{}_board", tree.link(spec.link).name),
+        mount: Mount::Link(spec.link),
+        mount_from_target: link_from_tool * tool_from_board,
+        shape: options.tool_board.clone(),
+        estimate_pose: true,
+    })
+}
+
+/// The world board: on the camera's optical axis from `eye`, facing the camera, its centre on
+/// the axis [`CameraRigOptions::world_board_distance`] away.
+fn world_board(
+    board: &TargetShape,
+    eye: Vec3,
+    world_from_camera: &Pose,
+    options: &CameraRigOptions,
+) -> TargetSpec {
+    let camera_axis = world_from_camera.rotation * Vec3::z();
+    let centre = eye + camera_axis * options.world_board_distance;
+    let facing = looking(
+        Vec3::zeros(),
+        camera_axis,
+        world_from_camera.rotation * -Vec3::y(),
+    );
+    let world_from_board = Pose::from_parts(
+        Translation3::from(centre - facing.rotation * board.centre()),
+        facing.rotation,
+    );
+    TargetSpec {
+        name: "world_board".into(),
+        mount: Mount::World,
+        mount_from_target: world_from_board,
+        shape: board.clone(),
+        estimate_pose: options.estimate_world_board,
+    }
 }
 
 /// The unit direction (of [`DIRECTIONS`] spread evenly over the sphere) with the highest

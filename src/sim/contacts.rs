@@ -140,23 +140,18 @@ pub fn contact_scene(
     }
     let name = |tool: usize| tree.link(truth.tools()[tool].link).name.clone();
     let mut blocks = Blocks::default();
-    let point = |rng: &mut ChaCha8Rng| {
-        vec![
-            rng.random_range(-0.02..0.02),
-            rng.random_range(-0.02..0.02),
-            0.05 + rng.random_range(-0.02..0.02),
-        ]
-    };
     let needs_points = settings.kinds.iter().any(|k| *k != ContactChoice::Flush);
     let points: Vec<usize> = (0..if needs_points { tools.min(2) } else { 0 })
         .map(|t| {
-            let values = point(rng);
+            let values = vec![
+                rng.random_range(-0.02..0.02),
+                rng.random_range(-0.02..0.02),
+                0.05 + rng.random_range(-0.02..0.02),
+            ];
             blocks.add(format!("point {}", name(t)), &["x", "y", "z"], values, &[])
         })
         .collect();
     let limits = limits_of(tree);
-    let (mut measurements, mut exact, mut validation) = (Vec::new(), Vec::new(), Vec::new());
-    let held_out = (settings.per_kind / 4).max(5);
     let mut groups = Vec::new();
     for &kind in &settings.kinds {
         if kind == ContactChoice::Flush {
@@ -168,72 +163,120 @@ pub fn contact_scene(
                 &name,
                 rng,
             )?);
-            continue;
+        } else {
+            let made = (truth, settings, limits.as_slice());
+            groups.push(point_group(made, kind, &mut blocks, &points, rng)?);
         }
-        let seed = random_configuration(&limits, rng);
-        let contact = match kind {
-            ContactChoice::Flush => continue,
-            ContactChoice::Plane => {
-                let at = truth.tool_poses(&seed)[0];
-                let c = blocks.nuisance.block_values(points[0])?;
-                let origin = at
-                    .transform_point(&Vector3::new(c[0], c[1], c[2]).into())
-                    .coords;
-                let tilt = UnitQuaternion::from_euler_angles(
-                    rng.random_range(-0.5..0.5),
-                    rng.random_range(-0.5..0.5),
-                    0.0,
-                );
-                let plane = ContactPlane {
-                    block: blocks.add(
-                        "plane table".into(),
-                        &["height", "tilt a", "tilt b"],
-                        vec![0.0; 3],
-                        &[],
-                    ),
-                    nominal: Pose::from_parts(Translation3::from(origin), tilt),
-                };
-                Contact::Point {
-                    plane,
-                    point: points[0],
-                }
-            }
-            ContactChoice::Touch => Contact::Touch {
-                point: points[0],
-                tool2: 1,
-                point2: points[1],
-            },
-            ContactChoice::Bar => Contact::Distance {
-                point: points[0],
-                tool2: 1,
-                point2: points[1],
-                length: blocks.add("bar".into(), &["length"], vec![settings.bar_length], &[0]),
-            },
-        };
-        let seed = match kind {
-            ContactChoice::Touch | ContactChoice::Bar => contact_seed(
-                truth,
-                &blocks.nuisance,
-                &contact,
-                0,
-                &limits,
-                rng,
-                kind.name(),
-            )?,
-            _ => seed,
-        };
-        groups.push((kind, contact, 0, seed));
     }
-    for (kind, contact, tool, seed) in groups {
+    let mut rows = SceneRows::default();
+    for group in groups {
+        rows.sample(truth, &blocks.nuisance, group, settings, &limits, rng)?;
+    }
+    Ok(ContactScene {
+        nuisance: blocks.nuisance,
+        free_nuisance: blocks.free,
+        measurements: rows.measurements,
+        exact: rows.exact,
+        validation: rows.validation,
+    })
+}
+
+/// The contacts of one kind other than flush, made by the first tool (with the second, for
+/// touch and bar) at contact points `points`, and a seed configuration where it holds: for
+/// `plane`, a plane (added to `blocks`) through the first tool's contact point at a random
+/// configuration; for `touch` and `bar`, a configuration projected from random starts.
+fn point_group(
+    (truth, settings, limits): (&McpcModel, &ContactSimulation, &[(f64, f64)]),
+    kind: ContactChoice,
+    blocks: &mut Blocks,
+    points: &[usize],
+    rng: &mut ChaCha8Rng,
+) -> Result<Group> {
+    let seed = random_configuration(limits, rng);
+    let contact = match kind {
+        ContactChoice::Flush => {
+            return Err(Error::Internal(
+                "flush contacts are made by flush_groups, not point_group".into(),
+            ))
+        }
+        ContactChoice::Plane => {
+            let at = truth.tool_poses(&seed)[0];
+            let c = blocks.nuisance.block_values(points[0])?;
+            let origin = at
+                .transform_point(&Vector3::new(c[0], c[1], c[2]).into())
+                .coords;
+            let tilt = UnitQuaternion::from_euler_angles(
+                rng.random_range(-0.5..0.5),
+                rng.random_range(-0.5..0.5),
+                0.0,
+            );
+            let plane = ContactPlane {
+                block: blocks.add(
+                    "plane table".into(),
+                    &["height", "tilt a", "tilt b"],
+                    vec![0.0; 3],
+                    &[],
+                ),
+                nominal: Pose::from_parts(Translation3::from(origin), tilt),
+            };
+            Contact::Point {
+                plane,
+                point: points[0],
+            }
+        }
+        ContactChoice::Touch => Contact::Touch {
+            point: points[0],
+            tool2: 1,
+            point2: points[1],
+        },
+        ContactChoice::Bar => Contact::Distance {
+            point: points[0],
+            tool2: 1,
+            point2: points[1],
+            length: blocks.add("bar".into(), &["length"], vec![settings.bar_length], &[0]),
+        },
+    };
+    let seed = match kind {
+        ContactChoice::Touch | ContactChoice::Bar => {
+            let nuisance = &blocks.nuisance;
+            contact_seed(truth, nuisance, &contact, 0, limits, rng, kind.name())?
+        }
+        ContactChoice::Flush | ContactChoice::Plane => seed,
+    };
+    Ok((kind, contact, 0, seed))
+}
+
+/// The measurements of a scene: identification rows as recorded (encoder noise included) and
+/// at their exact configurations, and held-out validation rows (exact).
+#[derive(Default)]
+struct SceneRows {
+    measurements: Vec<Measurement>,
+    exact: Vec<Measurement>,
+    validation: Vec<Measurement>,
+}
+
+impl SceneRows {
+    /// `per_kind` identification rows and a quarter as many held out (at least 5) of `group`'s
+    /// contact, each from its seed moved by a random step and projected back onto the contact.
+    fn sample(
+        &mut self,
+        truth: &McpcModel,
+        nuisance: &Nuisance,
+        (kind, contact, tool, seed): Group,
+        settings: &ContactSimulation,
+        limits: &[(f64, f64)],
+        rng: &mut ChaCha8Rng,
+    ) -> Result<()> {
+        let held_out = (settings.per_kind / 4).max(5);
         for index in 0..settings.per_kind + held_out {
             let q = (0..100)
                 .find_map(|_| {
                     let start: Vec<f64> = seed
                         .iter()
-                        .zip(&limits)
+                        .zip(limits)
                         .map(|(v, (lo, hi))| (v + rng.random_range(-0.5..0.5)).clamp(*lo, *hi))
                         .collect();
-                    project(truth, &blocks.nuisance, &contact, tool, &start, &limits)
+                    project(truth, nuisance, &contact, tool, &start, limits)
                 })
                 .ok_or_else(|| {
                     invalid(format!(
@@ -257,20 +300,14 @@ pub fn contact_scene(
                 session: None,
             };
             if index < settings.per_kind {
-                measurements.push(row(recorded));
-                exact.push(row(q));
+                self.measurements.push(row(recorded));
+                self.exact.push(row(q));
             } else {
-                validation.push(row(q));
+                self.validation.push(row(q));
             }
         }
+        Ok(())
     }
-    Ok(ContactScene {
-        nuisance: blocks.nuisance,
-        free_nuisance: blocks.free,
-        measurements,
-        exact,
-        validation,
-    })
 }
 
 /// Contacts of one kind made by one tool from one seed configuration: the kind, the contact,

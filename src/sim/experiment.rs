@@ -25,7 +25,7 @@ use rand::{RngExt, SeedableRng};
 
 use super::trial_report::truth_joint_errors;
 pub use super::trial_report::{
-    ArmErrors, BlunderReport, ErrorStats, RunSummary, TrialReport, TruthJointError,
+    ArmErrors, BlunderReport, ErrorStats, RunSummary, StageSummary, TrialReport, TruthJointError,
 };
 
 /// Settings of one simulated calibration.
@@ -425,14 +425,12 @@ fn summary(report: &CalibrationReport) -> RunSummary {
         stages: report
             .stages
             .iter()
-            .map(|s| {
-                (
-                    s.name.clone(),
-                    s.identification.iterations,
-                    format!("{:?}", s.identification.termination),
-                    s.identification.rank,
-                    s.identification.free.len(),
-                )
+            .map(|s| StageSummary {
+                name: s.name.clone(),
+                iterations: s.identification.iterations,
+                termination: s.identification.termination,
+                rank: s.identification.rank,
+                parameters: s.identification.free.len(),
             })
             .collect(),
     }

@@ -38,7 +38,7 @@ pub use contacts::{
 };
 pub use experiment::{
     run_trial, trial_seed, ArmErrors, BlunderReport, ErrorStats, RunSummary, Setup,
-    SimulationOptions, TrialReport, TruthJointError,
+    SimulationOptions, StageSummary, TrialReport, TruthJointError,
 };
 pub use mesh::MeshLookup;
 pub use monte_carlo::{run_trials, summarise, ArmSummary, SimulationSummary, Spread};

@@ -1,7 +1,7 @@
 //! What one simulated calibration trial reports: errors per arm, blunders found, the stages'
 //! summary, the true joint errors.
 
-use crate::calibration::ComplianceEstimate;
+use crate::calibration::{ComplianceEstimate, Termination};
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;
 use crate::tree::KinematicTree;
@@ -89,33 +89,23 @@ impl BlunderReport {
 pub struct RunSummary {
     /// Plan repetitions.
     pub cycles: usize,
-    /// Per stage: name, iterations, termination, rank, parameter count (JSON: an object per
-    /// stage with those keys, `parameters` for the count).
-    #[serde(serialize_with = "stages_json")]
-    pub stages: Vec<(String, usize, String, usize, usize)>,
+    /// Per stage, in plan order.
+    pub stages: Vec<StageSummary>,
 }
 
-fn stages_json<S: serde::Serializer>(
-    stages: &[(String, usize, String, usize, usize)],
-    serializer: S,
-) -> std::result::Result<S::Ok, S::Error> {
-    #[derive(Serialize)]
-    struct Stage<'a> {
-        name: &'a str,
-        iterations: usize,
-        termination: &'a str,
-        rank: usize,
-        parameters: usize,
-    }
-    serializer.collect_seq(stages.iter().map(
-        |(name, iterations, termination, rank, parameters)| Stage {
-            name,
-            iterations: *iterations,
-            termination,
-            rank: *rank,
-            parameters: *parameters,
-        },
-    ))
+/// How one stage of a calibration run went.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StageSummary {
+    /// The stage's name.
+    pub name: String,
+    /// Accepted solver iterations.
+    pub iterations: usize,
+    /// Why the solver stopped (JSON: snake_case, as in report.json).
+    pub termination: Termination,
+    /// Numerical rank of the scaled Jacobian at the solution.
+    pub rank: usize,
+    /// How many parameters were free.
+    pub parameters: usize,
 }
 
 /// One joint's true joint-angle errors (`kinematics::joint_errors`; rad).

@@ -7,8 +7,9 @@
 pub use super::calibrate_config::{
     CalibrateConfig, GravityFrame, MeasurementFrameChoice, NoiseChoice,
 };
+use super::calibrate_identify::identify;
 use super::calibrate_outputs::outputs;
-use super::calibrate_steps::{check_config, export_calibrated, identify, read_data, Loaded};
+use super::calibrate_steps::{check_config, export_calibrated, read_data, Loaded};
 use super::checks::{check_outputs, Output};
 use super::note::Note;
 use crate::calibration::{ParameterEstimate, Verdict};

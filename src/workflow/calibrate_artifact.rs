@@ -3,23 +3,23 @@
 //! fitted) and with its compensation file; when the URDF alone is worse than the registered
 //! nominal robot, the best rigid-only geometry (fitted to what the compensated model predicts
 //! at the identification configurations) is exported instead, and the compensated geometry
-//! is kept beside it (`docs/calibration.md`, "Outputs").
+//! is kept beside it (`docs/calibration.md`, "Outputs"). How a URDF is scored is
+//! `artifact_scoring`.
 
 use super::artifact_joint_errors::{
     without_joint_angle_terms, AppliedJointErrors, JOINT_ERRORS_FILE,
 };
-use super::calibrate_config::{CalibrateConfig, GravityFrame};
+use super::artifact_scoring::{exported_links, CompensationFile, Scoring};
+use super::calibrate_config::CalibrateConfig;
 use super::calibrate_steps::{joint_errors_yaml, Data, Identified, Loaded};
-use super::source::StiffnessSource;
 use crate::calibration::{calibrate as run_plan, ChosenFrame, Compensation, ErrorSummary, Finding};
-use crate::error::{Error, Result};
-use crate::io::{parse_registration, parse_stiffness};
-use crate::kinematics::{FlexibilityModel, McpcModel, Stiffness};
+use crate::error::Result;
+use crate::io::parse_registration;
+use crate::kinematics::{FlexibilityModel, McpcModel};
 use crate::math::{rpy_from_rotation, Pose};
 use crate::measurement::{Measurement, Observation};
 use crate::report::{ArtifactReport, ArtifactScore, UnobservableBase};
-use crate::tree::{detect_branches, KinematicTree};
-use crate::urdf::{export_urdf_with, parse_urdf, ExportOptions, ExportReport};
+use crate::urdf::{export_urdf_with, ExportOptions, ExportReport};
 
 /// The registration `calibrate` writes when it fits the measurement frame.
 pub const REGISTRATION_FILE: &str = "registration.yaml";
@@ -50,207 +50,6 @@ pub fn registration_text(world_from_base: &Pose, robot: &str) -> String {
         "# Robot '{robot}': where calibrated.urdf's root link frame is in the measurement (tracker) frame,\n# fitted by `treecal calibrate`. calibrated.urdf + this file reproduce the validation figures of\n# report.md; `treecal calibrate --measurement-frame registration.yaml` reads it.\nunits: {{length: m, angle: rad}}\nxyz: [{:?}, {:?}, {:?}]\nrpy: [{:?}, {:?}, {:?}]\n",
         t.x, t.y, t.z, rpy[0], rpy[1], rpy[2]
     )
-}
-
-/// The compensation file the outputs go with: the user's `--stiffness` file, or the
-/// `stiffness.yaml` text `--identify-stiffness` writes.
-pub(super) enum CompensationFile<'a> {
-    /// The user's file (read again against the exported URDF).
-    Source(&'a StiffnessSource),
-    /// `stiffness.yaml` as written.
-    Written(&'a str),
-}
-
-impl CompensationFile<'_> {
-    /// How the report names it.
-    pub fn name(&self) -> String {
-        match self {
-            CompensationFile::Source(source) => source.origin(),
-            CompensationFile::Written(_) => "stiffness.yaml".into(),
-        }
-    }
-
-    /// The stiffness for the exported `tree` and its `model`.
-    fn read(&self, tree: &KinematicTree, model: &McpcModel) -> Result<Stiffness> {
-        match self {
-            CompensationFile::Source(source) => source.read(tree, model),
-            CompensationFile::Written(text) => parse_stiffness(text, "stiffness.yaml", tree, model),
-        }
-    }
-}
-
-/// How the outputs are scored: the URDF text, the frame it sits in, the exported link of each
-/// model tool, and the flexibility (stiffness and gravity frame) to predict deflections with.
-/// `calibrate` scores its validation rows with it, `treecal verify` fresh rows (one code path).
-pub(super) struct Scoring<'a> {
-    pub loaded: &'a Loaded,
-    pub world_from_base: Pose,
-    /// Per model tool, the written link scored: the added `<tool>_calibrated` or
-    /// `<tool>_marker` link when there is one, else the tool link.
-    pub scored_links: Vec<String>,
-    /// joint_errors.yaml's terms, added to the commanded joint angles (none: the URDF alone).
-    pub joint_errors: Option<&'a AppliedJointErrors>,
-}
-
-/// Per model tool of `loaded`, the link `export` scores (see [`Scoring::scored_links`]).
-fn exported_links(loaded: &Loaded, export: &ExportReport) -> Vec<String> {
-    let tree = loaded.robot.tree();
-    loaded
-        .nominal
-        .tools()
-        .iter()
-        .map(|t| {
-            let name = &tree.link(t.link).name;
-            export
-                .added_links
-                .iter()
-                .find(|a| &a.tool == name)
-                .map_or_else(|| name.clone(), |a| a.link.clone())
-        })
-        .collect()
-}
-
-/// A row's position error (mm) and, for a measured pose, orientation error (deg) against the
-/// predicted pose `pose` (both in the measurement frame).
-pub(super) fn row_errors(measurement: &Measurement, pose: &Pose) -> (f64, Option<f64>) {
-    match &measurement.observation {
-        Observation::Pose(measured) => (
-            (measured.translation.vector - pose.translation.vector).norm() * 1e3,
-            Some(measured.rotation.angle_to(&pose.rotation).to_degrees()),
-        ),
-        Observation::Position(p) => ((p - pose.translation.vector).norm() * 1e3, None),
-        // Contacts are scored by height and tilt (issue 29), not as tool positions.
-        Observation::Contact(_) => (0.0, None),
-    }
-}
-
-impl Scoring<'_> {
-    /// The pose of every row's scored link predicted by the URDF text `urdf` (the files named
-    /// `files`) in the measurement frame, rigid or with `compensation`'s stiffness and
-    /// `gravity` predicting the deflections.
-    pub fn predict(
-        &self,
-        urdf: &str,
-        files: &str,
-        measurements: &[Measurement],
-        compensation: Option<&CompensationFile<'_>>,
-        gravity: GravityFrame,
-    ) -> Result<Vec<Pose>> {
-        let import = parse_urdf(urdf, files)?;
-        let tree = &import.tree;
-        let original = self.loaded.robot.tree();
-        let dof_of = dof_map(original, tree, files)?;
-        let tools = self.loaded.nominal.tools();
-        let tool_links = tools
-            .iter()
-            .map(|t| tree.link_id(&original.link(t.link).name))
-            .collect::<Result<Vec<_>>>()?;
-        let scored = self
-            .scored_links
-            .iter()
-            .map(|name| tree.link_id(name))
-            .collect::<Result<Vec<_>>>()?;
-        let deflected = match compensation {
-            Some(file) => {
-                let branches = detect_branches(tree, Some(&tool_links))?;
-                let mut model = McpcModel::from_tree(tree, &branches)?;
-                model.set_world_from_base(&self.world_from_base);
-                let stiffness = file.read(tree, &model)?;
-                let flexibility = FlexibilityModel::new(tree, &model, &stiffness)?;
-                let flexibility = match gravity {
-                    GravityFrame::Measurement => flexibility.with_gravity_in_measurement_frame(),
-                    GravityFrame::Base => flexibility,
-                };
-                Some((model, flexibility))
-            }
-            None => None,
-        };
-        // The link fixed in the world (the root unless a reference link was chosen).
-        let reference = tree.link_id(&original.link(self.loaded.branches.reference).name)?;
-        if reference != tree.root() && deflected.is_some() {
-            // The compensated prediction below is rooted at the URDF root; scoring it against
-            // rows measured from another link would mix frames and report wrong figures.
-            return Err(invalid(
-                files,
-                "a compensation (stiffness) file with a reference link other than the URDF root cannot be scored yet: leave out the stiffness file or the reference link",
-            ));
-        }
-        measurements
-            .iter()
-            .map(|m| {
-                let turned = self.joint_errors.map(|j| j.apply(&m.q));
-                let commanded = turned.as_deref().unwrap_or(&m.q);
-                let q: Vec<f64> = dof_of.iter().map(|&d| commanded[d]).collect();
-                let mut link_pose = tree.link_pose(scored[m.tool], &q)?;
-                if reference != tree.root() {
-                    link_pose = tree.link_pose(reference, &q)?.inverse() * link_pose;
-                }
-                Ok(match &deflected {
-                    None => self.world_from_base * link_pose,
-                    Some((model, flexibility)) => {
-                        let tool = model
-                            .tool_of_link(tool_links[m.tool])
-                            .ok_or_else(|| invalid(files, "a measured tool is not a tool"))?;
-                        let deflected = flexibility
-                            .for_payload(m.payload)?
-                            .deflected_tool_poses(tree, model, &q)?[tool];
-                        // The scored link rides rigidly on the tool link.
-                        let tool_from_scored =
-                            tree.link_pose(tool_links[m.tool], &q)?.inverse() * link_pose;
-                        deflected * tool_from_scored
-                    }
-                })
-            })
-            .collect()
-    }
-
-    /// The validation error of the URDF text `urdf` (the files named `files`), rigid or with
-    /// `compensation` predicting the deflections.
-    fn score(
-        &self,
-        urdf: &str,
-        files: &str,
-        measurements: &[Measurement],
-        compensation: Option<&CompensationFile<'_>>,
-        gravity: GravityFrame,
-    ) -> Result<ArtifactScore> {
-        let predicted = self.predict(urdf, files, measurements, compensation, gravity)?;
-        let (mut position, mut orientation) = (Vec::new(), Vec::new());
-        for (m, pose) in measurements.iter().zip(&predicted) {
-            let (p, o) = row_errors(m, pose);
-            position.push(p);
-            orientation.extend(o);
-        }
-        Ok(ArtifactScore {
-            files: files.to_owned(),
-            observations: position.len(),
-            errors: ErrorSummary::of(&position, &orientation),
-        })
-    }
-}
-
-fn invalid(origin: &str, message: &str) -> Error {
-    Error::InvalidData {
-        origin: origin.to_owned(),
-        message: message.to_owned(),
-    }
-}
-
-/// For each independent joint of `exported`, the index of the same joint in `original`'s
-/// configuration vector.
-fn dof_map(original: &KinematicTree, exported: &KinematicTree, origin: &str) -> Result<Vec<usize>> {
-    exported
-        .dofs()
-        .iter()
-        .map(|&joint| {
-            let name = &exported.joint(joint).name;
-            original
-                .dofs()
-                .iter()
-                .position(|&j| &original.joint(j).name == name)
-                .ok_or_else(|| invalid(origin, &format!("joint '{name}' is not in the robot")))
-        })
-        .collect()
 }
 
 /// The rigid model closest to what the compensated model predicts at the identification
@@ -371,8 +170,6 @@ pub(super) fn assess(
     export: Option<&ExportReport>,
     compensation: Option<CompensationFile<'_>>,
 ) -> Result<Artifact> {
-    let compensation_name = compensation.as_ref().map(CompensationFile::name);
-    let compensation_file = compensation_name.as_deref();
     let run = &identified.run;
     let fitted = run.frame.chosen == ChosenFrame::Fitted;
     let world_from_base = run.report.model.world_from_base();
@@ -406,108 +203,209 @@ pub(super) fn assess(
             findings,
         });
     };
-    let with_registration = |urdf: &str| {
-        if fitted {
+    let written = Written {
+        config,
+        loaded,
+        data,
+        identified,
+        fitted,
+        frame,
+        before: registered.as_ref().map(|r| r.errors.rms_position_mm),
+    };
+    let scores = written.score(export, compensation.as_ref())?;
+    findings.extend(scores.findings);
+    report.urdf_alone = Some(scores.urdf_alone);
+    report.with_compensation = scores.with_compensation;
+    report.how_to_use = scores.how_to_use;
+    Ok(Artifact {
+        report,
+        registration,
+        replaced: scores.replaced,
+        findings,
+    })
+}
+
+/// What [`assess`] scores the written outputs against: the run, its data, and the frame the
+/// URDF is placed in (the written registration when the frame was fitted).
+struct Written<'a> {
+    config: &'a CalibrateConfig,
+    loaded: &'a Loaded,
+    data: &'a Data,
+    identified: &'a Identified,
+    /// Whether the measurement frame was fitted (registration.yaml is written).
+    fitted: bool,
+    frame: Pose,
+    /// The registered nominal robot's RMS validation position error (mm), if there are rows.
+    before: Option<f64>,
+}
+
+/// The scores of the written outputs and what they decided.
+struct Scores {
+    urdf_alone: ArtifactScore,
+    with_compensation: Option<ArtifactScore>,
+    /// See [`Artifact::replaced`].
+    replaced: Option<(ExportReport, String)>,
+    findings: Vec<Finding>,
+    how_to_use: String,
+}
+
+impl Written<'_> {
+    /// `urdf` with `registration.yaml` named beside it when the frame was fitted.
+    fn with_registration(&self, urdf: &str) -> String {
+        if self.fitted {
             format!("{urdf} + {REGISTRATION_FILE}")
         } else {
             urdf.to_owned()
         }
-    };
-    let scoring = Scoring {
-        loaded,
-        world_from_base: frame,
-        scored_links: exported_links(loaded, export),
-        joint_errors: None,
-    };
-    // Rows of other sessions are placed in the training frame, as the run scored them.
-    let validation =
-        &crate::calibration::validation_in_training_frames(&data.validation, run.sessions.as_ref());
-    let gravity = config.gravity_frame;
-    let alone_name = with_registration("calibrated.urdf");
-    let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;
-    let mut replaced = None;
-    let before = registered.as_ref().map(|r| r.errors.rms_position_mm);
-    let joint_errors = joint_errors_yaml(loaded.robot.tree(), &run.report.model)
-        .map(|text| AppliedJointErrors::read(&text, loaded))
-        .transpose()?;
-    let stiffness = match (&identified.flexibility, compensation.as_ref()) {
-        (Some(flexibility), Some(source)) => Some((flexibility, source)),
-        _ => None,
-    };
-    let files: Vec<&str> = compensation_file
-        .filter(|_| stiffness.is_some())
-        .into_iter()
-        .chain(joint_errors.as_ref().map(|_| JOINT_ERRORS_FILE))
-        .collect();
-    let companion = (!files.is_empty()).then(|| files.join(" + "));
-    if let Some(file) = &companion {
-        let worse = before.is_some_and(|b| alone.errors.rms_position_mm > b);
-        let compensated_name = if worse {
-            COMPENSATED_URDF
-        } else {
-            "calibrated.urdf"
+    }
+
+    /// Scores `export` alone and with its companion files (the compensation file, when a
+    /// stiffness was in play, and joint_errors.yaml); with a companion and the URDF alone
+    /// worse than the registered nominal robot, replaces it by the rigid-only geometry.
+    fn score(
+        &self,
+        export: &ExportReport,
+        compensation: Option<&CompensationFile<'_>>,
+    ) -> Result<Scores> {
+        let (loaded, run) = (self.loaded, &self.identified.run);
+        let scoring = Scoring {
+            loaded,
+            world_from_base: self.frame,
+            scored_links: exported_links(loaded, export),
+            joint_errors: None,
         };
-        let with_terms = Scoring {
-            joint_errors: joint_errors.as_ref(),
-            ..scoring
+        // Rows of other sessions are placed in the training frame, as the run scored them.
+        let validation = &crate::calibration::validation_in_training_frames(
+            &self.data.validation,
+            run.sessions.as_ref(),
+        );
+        let gravity = self.config.gravity_frame;
+        let alone_name = self.with_registration("calibrated.urdf");
+        let mut alone = scoring.score(&export.urdf, &alone_name, validation, None, gravity)?;
+        let mut replaced = None;
+        let mut findings = Vec::new();
+        let mut with_compensation = None;
+        let joint_errors = joint_errors_yaml(loaded.robot.tree(), &run.report.model)
+            .map(|text| AppliedJointErrors::read(&text, loaded))
+            .transpose()?;
+        let stiffness = match (&self.identified.flexibility, compensation) {
+            (Some(flexibility), Some(source)) => Some((flexibility, source)),
+            _ => None,
         };
-        report.with_compensation = Some(with_terms.score(
-            &export.urdf,
-            &format!("{} + {file}", with_registration(compensated_name)),
-            validation,
-            stiffness.map(|(_, source)| source),
-            gravity,
-        )?);
-        if worse {
-            let flexibility = stiffness.map(|(f, _)| f);
-            let rigid = rigid_equivalent(loaded, identified, flexibility, &data.measurements)?;
-            let rigid_export = export_rigid(config, loaded, &rigid)?;
-            let rigid_scoring = Scoring {
-                scored_links: exported_links(loaded, &rigid_export),
-                loaded,
-                world_from_base: frame,
-                joint_errors: None,
+        let compensation_name = compensation.map(CompensationFile::name);
+        let compensation_file = compensation_name.as_deref().filter(|_| stiffness.is_some());
+        let files: Vec<&str> = compensation_file
+            .into_iter()
+            .chain(joint_errors.as_ref().map(|_| JOINT_ERRORS_FILE))
+            .collect();
+        let companion = (!files.is_empty()).then(|| files.join(" + "));
+        if let Some(file) = &companion {
+            let worse = self
+                .before
+                .is_some_and(|b| alone.errors.rms_position_mm > b);
+            let compensated_name = if worse {
+                COMPENSATED_URDF
+            } else {
+                "calibrated.urdf"
             };
-            let rigid_alone =
-                rigid_scoring.score(&rigid_export.urdf, &alone_name, validation, None, gravity)?;
-            findings.push(Finding::note(
-                "rigid-only-urdf",
-                format!(
-                    "the calibrated geometry used without {file} is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({:.3} mm alone); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({:.3} mm)",
-                    alone.errors.rms_position_mm,
-                    before.unwrap_or(f64::NAN),
-                    rigid_alone.errors.rms_position_mm,
-                    report.with_compensation.as_ref().map_or(f64::NAN, |s| s.errors.rms_position_mm),
-                ),
-            ));
-            replaced = Some((rigid_export, export.urdf.clone()));
-            alone = rigid_alone;
+            let with_terms = Scoring {
+                joint_errors: joint_errors.as_ref(),
+                ..scoring
+            };
+            let compensated = with_terms.score(
+                &export.urdf,
+                &format!("{} + {file}", self.with_registration(compensated_name)),
+                validation,
+                stiffness.map(|(_, source)| source),
+                gravity,
+            )?;
+            if worse {
+                let flexibility = stiffness.map(|(f, _)| f);
+                let (rigid_export, rigid_alone) =
+                    self.rigid_only(flexibility, &alone_name, validation)?;
+                findings.push(rigid_only_finding(
+                    file,
+                    [&alone, &rigid_alone, &compensated],
+                    self.before,
+                ));
+                replaced = Some((rigid_export, export.urdf.clone()));
+                alone = rigid_alone;
+            }
+            with_compensation = Some(compensated);
         }
-    }
-    if let Some(b) = before.filter(|&b| clearly_worse(alone.errors.rms_position_mm, b)) {
-        findings.push(Finding::warning(
-            "urdf-alone-worse",
-            format!(
-                "calibrated.urdf used alone ({}) is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({b:.3} mm): do not use it alone{}",
-                alone.files,
-                alone.errors.rms_position_mm,
-                companion.as_deref().map_or(String::new(), |f| format!("; it must accompany {f}"))
-            ),
+        findings.extend(alone_worse_finding(
+            &alone,
+            self.before,
+            companion.as_deref(),
         ));
+        let how_to_use = how_to_use(
+            self.fitted,
+            compensation_file,
+            joint_errors.is_some(),
+            replaced.is_some(),
+        );
+        Ok(Scores {
+            urdf_alone: alone,
+            with_compensation,
+            replaced,
+            findings,
+            how_to_use,
+        })
     }
-    report.how_to_use = how_to_use(
-        fitted,
-        compensation_file.filter(|_| stiffness.is_some()),
-        joint_errors.is_some(),
-        replaced.is_some(),
-    );
-    report.urdf_alone = Some(alone);
-    Ok(Artifact {
-        report,
-        registration,
-        replaced,
-        findings,
-    })
+
+    /// The rigid-only geometry's URDF and its score alone (named `alone_name`).
+    fn rigid_only(
+        &self,
+        flexibility: Option<&FlexibilityModel>,
+        alone_name: &str,
+        validation: &[Measurement],
+    ) -> Result<(ExportReport, ArtifactScore)> {
+        let (loaded, identified) = (self.loaded, self.identified);
+        let rigid = rigid_equivalent(loaded, identified, flexibility, &self.data.measurements)?;
+        let rigid_export = export_rigid(self.config, loaded, &rigid)?;
+        let rigid_scoring = Scoring {
+            scored_links: exported_links(loaded, &rigid_export),
+            loaded,
+            world_from_base: self.frame,
+            joint_errors: None,
+        };
+        let gravity = self.config.gravity_frame;
+        let score =
+            rigid_scoring.score(&rigid_export.urdf, alone_name, validation, None, gravity)?;
+        Ok((rigid_export, score))
+    }
+}
+
+/// The `rigid-only-urdf` note: the calibrated geometry alone, the rigid-only geometry alone
+/// and the calibrated geometry with `file` (`scores` in that order), against `before`.
+fn rigid_only_finding(file: &str, scores: [&ArtifactScore; 3], before: Option<f64>) -> Finding {
+    let [alone, rigid_alone, compensated] = scores.map(|s| s.errors.rms_position_mm);
+    Finding::note(
+        "rigid-only-urdf",
+        format!(
+            "the calibrated geometry used without {file} is {alone:.3} mm RMS on the validation rows, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({rigid_alone:.3} mm alone); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({compensated:.3} mm)",
+            before.unwrap_or(f64::NAN),
+        ),
+    )
+}
+
+/// The `urdf-alone-worse` warning, when the URDF alone is clearly worse than `before` (the
+/// registered nominal robot's RMS, mm); `companion` the files it must go with.
+fn alone_worse_finding(
+    alone: &ArtifactScore,
+    before: Option<f64>,
+    companion: Option<&str>,
+) -> Option<Finding> {
+    let b = before.filter(|&b| clearly_worse(alone.errors.rms_position_mm, b))?;
+    Some(Finding::warning(
+        "urdf-alone-worse",
+        format!(
+            "calibrated.urdf used alone ({}) is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({b:.3} mm): do not use it alone{}",
+            alone.files,
+            alone.errors.rms_position_mm,
+            companion.map_or(String::new(), |f| format!("; it must accompany {f}"))
+        ),
+    ))
 }
 
 /// Whether an RMS error (mm) is worse than the registered nominal robot's beyond what the

@@ -1,7 +1,8 @@
 //! The outputs of [`super::calibrate::calibrate`]: the summary with the outliers named by
 //! their row ids, report.md, report.json, params.yaml, the plots and the calibrated URDF.
 
-use super::calibrate_artifact::{assess, CompensationFile, COMPENSATED_URDF, REGISTRATION_FILE};
+use super::artifact_scoring::CompensationFile;
+use super::calibrate_artifact::{assess, COMPENSATED_URDF, REGISTRATION_FILE};
 use super::calibrate_config::CalibrateConfig;
 pub(super) use super::calibrate_products::Outputs;
 use super::calibrate_steps::{Data, Identified, IdentifiedStiffness, Loaded};

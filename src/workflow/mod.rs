@@ -4,6 +4,7 @@
 //! See docs/workflows.md.
 
 mod artifact_joint_errors;
+mod artifact_scoring;
 pub(crate) mod calibrate;
 pub(crate) mod calibrate_artifact;
 pub(crate) mod calibrate_camera;
@@ -12,6 +13,7 @@ mod calibrate_config;
 pub(crate) mod calibrate_contacts;
 pub(crate) mod calibrate_deploy;
 mod calibrate_html;
+mod calibrate_identify;
 mod calibrate_outputs;
 mod calibrate_products;
 mod calibrate_steps;

@@ -296,7 +296,7 @@ mod tests {
         }
         for v in [
             "treecal.report/4",
-            "treecal.results/2",
+            crate::report::RESULTS_SCHEMA,
             "report",
             "treecal.report/x",
         ] {

@@ -35,18 +35,8 @@ pub(super) fn simulate_camera(
     let mut notes = Vec::new();
     let robot = config.robot.load()?;
     notes.extend(robot.notes());
-    let import = robot.import;
-    let tree = &import.tree;
-    let camera_link = match &config.camera_link {
-        Some(name) => Some(tree.link_id(name)?),
-        None => None,
-    };
-    let mut branches = branches(&import, config.tools.as_deref(), None)?;
-    if let (None, Some(link)) = (&config.tools, camera_link) {
-        if let Some(extended) = with_camera_link(tree, &branches, link, &mut notes)? {
-            branches = extended;
-        }
-    }
+    let tree = &robot.import.tree;
+    let (camera_link, branches) = camera_branches(config, &robot.import, &mut notes)?;
     let nominal = McpcModel::from_tree(tree, &branches)?;
     let checker = collision_checker(
         &config.robot,
@@ -74,20 +64,7 @@ pub(super) fn simulate_camera(
         config.seed,
     )?;
     let (rig, augmented) = Rig::build(tree, &nominal, &cameras, &targets)?;
-    let options = CameraSimulationOptions {
-        rig: rig_options,
-        configurations: config.poses + config.torso_poses,
-        validation_poses: config.validation_poses,
-        errors: ErrorRanges {
-            angle: config.angle_error,
-            length: config.length_error,
-        },
-        pixel_sigma: config.pixel_sigma,
-        tracker_noise: NoiseModel::parse(&config.noise)?,
-        seed: config.seed,
-        contacts: contact_settings(config),
-        ..CameraSimulationOptions::default()
-    };
+    let options = simulation_options(config, rig_options)?;
     let mode = match config.observation {
         ObservationChoice::Camera => ObservationMode::Camera,
         ObservationChoice::Mixed => ObservationMode::Mixed,
@@ -100,30 +77,9 @@ pub(super) fn simulate_camera(
         rig: &rig,
         augmented: &augmented,
     };
-    let done = AtomicUsize::new(0);
-    let reports: Vec<CameraTrialReport> = (0..config.trials)
-        .into_par_iter()
-        .map(|trial| {
-            let report = run_camera_trial(&setup, &options, mode, trial);
-            progress(Progress {
-                stage: None,
-                done: done.fetch_add(1, Ordering::SeqCst) + 1,
-                total: config.trials,
-                unit: "trials",
-            });
-            report
-        })
-        .collect::<Result<_>>()?;
-    let header = header(
-        config,
-        tree.name(),
-        &rig.targets[..]
-            .iter()
-            .map(|t| t.shape.clone())
-            .collect::<Vec<_>>(),
-        &options,
-        mode,
-    );
+    let reports = run_trials(&setup, &options, mode, config.trials, progress)?;
+    let shapes: Vec<TargetShape> = rig.targets.iter().map(|t| t.shape.clone()).collect();
+    let header = header(config, tree.name(), &shapes, &options, mode);
     let markdown = markdown(&header, &reports);
     if let Some(first) = reports.first() {
         if !first.unidentifiable.is_empty() {
@@ -158,6 +114,72 @@ pub(super) fn simulate_camera(
             .extend(lab_files(&setup, &options, mode, &lab)?);
     }
     Ok(simulation)
+}
+
+/// The camera's link (`camera_link`, if given) and the branches: the tools' (`tools`, or the
+/// default ones extended by the camera's link when joints on no branch move it).
+fn camera_branches(
+    config: &SimulateConfig,
+    import: &crate::urdf::UrdfImport,
+    notes: &mut Vec<Note>,
+) -> Result<(Option<crate::tree::LinkId>, crate::Branches)> {
+    let tree = &import.tree;
+    let camera_link = match &config.camera_link {
+        Some(name) => Some(tree.link_id(name)?),
+        None => None,
+    };
+    let mut branches = branches(import, config.tools.as_deref(), None)?;
+    if let (None, Some(link)) = (&config.tools, camera_link) {
+        if let Some(extended) = with_camera_link(tree, &branches, link, notes)? {
+            branches = extended;
+        }
+    }
+    Ok((camera_link, branches))
+}
+
+/// The camera simulation's settings from `config` and the rig's.
+fn simulation_options(
+    config: &SimulateConfig,
+    rig: CameraRigOptions,
+) -> Result<CameraSimulationOptions> {
+    Ok(CameraSimulationOptions {
+        rig,
+        configurations: config.poses + config.torso_poses,
+        validation_poses: config.validation_poses,
+        errors: ErrorRanges {
+            angle: config.angle_error,
+            length: config.length_error,
+        },
+        pixel_sigma: config.pixel_sigma,
+        tracker_noise: NoiseModel::parse(&config.noise)?,
+        seed: config.seed,
+        contacts: contact_settings(config),
+        ..CameraSimulationOptions::default()
+    })
+}
+
+/// `trials` seeded trials in parallel (in trial order), each reported to `progress`.
+fn run_trials(
+    setup: &CameraSetup<'_>,
+    options: &CameraSimulationOptions,
+    mode: ObservationMode,
+    trials: usize,
+    progress: ProgressFn<'_>,
+) -> Result<Vec<CameraTrialReport>> {
+    let done = AtomicUsize::new(0);
+    (0..trials)
+        .into_par_iter()
+        .map(|trial| {
+            let report = run_camera_trial(setup, options, mode, trial);
+            progress(Progress {
+                stage: None,
+                done: done.fetch_add(1, Ordering::SeqCst) + 1,
+                total: trials,
+                unit: "trials",
+            });
+            report
+        })
+        .collect()
 }
 
 /// The robot's text and the rig as a user describes it, for [`lab_files`].

@@ -3,14 +3,15 @@
 //! of the rows against the calibrated ranges, the worst row, and a verdict against a tolerance.
 //!
 //! One code path with `calibrate`'s validation: the predictions are
-//! `calibrate_artifact::Scoring::predict`'s, the row errors
-//! `calibrate_artifact::row_errors`, the strata
+//! `artifact_scoring::Scoring::predict`'s, the row errors
+//! `artifact_scoring::row_errors`, the strata
 //! [`crate::calibration::ChainPostures::stratum`] on the postures report.json
 //! records, the figures [`crate::report::ValidationStrata::of_rows`]. Only the
 //! nuisance a fresh session needs is refitted: its measurement frame (six parameters per
 //! session), or nothing with [`VerifyFrame::Registration`] (docs/workflows.md, "Verify").
 
-use super::calibrate_artifact::{row_errors, CompensationFile, Scoring, REGISTRATION_FILE};
+use super::artifact_scoring::{row_errors, CompensationFile, Scoring};
+use super::calibrate_artifact::REGISTRATION_FILE;
 use super::calibrate_config::{CalibrateConfig, GravityFrame};
 use super::calibrate_steps::Loaded;
 use super::note::Note;
