@@ -146,10 +146,6 @@ pub fn run_calibration(
         repeatability,
         sessions,
     };
-    if let Some(shifted) = run.repeatability.as_ref().filter(|r| r.shifted) {
-        run.findings
-            .push(Finding::note("repeatability-shift", shifted.describe()));
-    }
     assess(input, &mut run, measurements, fitted_frame)?;
     Ok(run)
 }
@@ -275,6 +271,10 @@ fn assess(
     measurements: &[Measurement],
     fitted_frame: bool,
 ) -> Result<()> {
+    if let Some(shifted) = run.repeatability.as_ref().filter(|r| r.shifted) {
+        run.findings
+            .push(Finding::note("repeatability-shift", shifted.describe()));
+    }
     let found = super::checks::assess(run, input.tree);
     run.findings.extend(found);
     // Residuals far above the noise: look for a root cause in the joint columns.

@@ -75,60 +75,21 @@ pub fn run_contact_trial(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     // With a tracker, its frame is six parameters more (as `calibrate` fits it): what the
     // contacts leave of the root's placement, the tracker sees.
-    let with_frame;
-    let nominal = if settings.tracker_rows {
-        with_frame = nominal.with_frame_parameters();
-        &with_frame
+    let nominal = &if settings.tracker_rows {
+        nominal.with_frame_parameters()
     } else {
-        nominal
+        nominal.clone()
     };
     let truth = true_model(nominal, &settings.errors, &mut rng)?;
     let mut scene = contact_scene(tree, &truth, settings, &mut rng)?;
     if settings.tracker_rows {
         add_tracker_rows(tree, &truth, settings, &mut scene, &mut rng);
     }
-    let count = nominal.parameter_count();
-    let mut free = contact_free_parameters(nominal);
-    if settings.tracker_rows {
-        // The tracker sees each tool's target: its offset (x, y, z) is fitted, and its frame,
-        // as `calibrate --contacts --measurements` does.
-        free.extend(tool_offsets(nominal));
-        free.extend(frame_parameters(nominal));
-        free.sort_unstable();
-    }
-    free.extend(scene.free_nuisance.iter().map(|k| count + k));
+    let (free, nuisance_only) = trial_columns(nominal, &scene, settings.tracker_rows);
     let start = nuisance_start(&scene, settings.nuisance_start_error, &mut rng)?;
-    let lever = 0.5;
-    let sigma = settings.encoder_sigma.max(1e-6);
-    let mut options = IdentificationOptions {
-        max_iterations: 100,
-        height_sigma: sigma * lever,
-        gap_sigma: sigma * lever,
-        length_sigma: sigma * lever,
-        tilt_sigma: sigma,
-        position_sigma: CONTACT_TRACKER_SIGMA,
-        ..IdentificationOptions::default()
-    };
-    if settings.encoder_sigma > 0.0 {
-        options.observation_weights =
-            encoder_weights(nominal, &start, &scene.measurements, sigma, &options)?;
-    }
-    // As `calibrate --contacts` does (`workflow::contact_fit`): the nuisance alone on the
-    // nominal robot first, then everything from there.
-    // With a tracker, its registration (frame, targets) is fitted with the nuisance.
-    let registration: Vec<usize> = if settings.tracker_rows {
-        tool_offsets(nominal)
-            .into_iter()
-            .chain(frame_parameters(nominal))
-            .collect()
-    } else {
-        Vec::new()
-    };
-    let nuisance_only: Vec<usize> = free
-        .iter()
-        .copied()
-        .filter(|&k| k >= count || registration.contains(&k))
-        .collect();
+    let options = trial_options(settings, nominal, &start, &scene.measurements)?;
+    // As `calibrate --contacts` does (`workflow::contact_fit`): the nuisance (and a tracker's
+    // registration) alone on the nominal robot first, then everything from there.
     let fit = |measurements: &[Measurement]| {
         let registered = identify_with_nuisance(
             nominal,
@@ -200,14 +161,7 @@ pub fn run_contact_trial(
         &independent,
         &options,
     )?;
-    let values = |r: &IdentificationReport| -> Vec<f64> {
-        r.parameters
-            .iter()
-            .copied()
-            .chain(r.nuisance.values())
-            .collect()
-    };
-    let (reference, estimated) = (values(&exact), values(&noisy));
+    let (reference, estimated) = (all_values(&exact), all_values(&noisy));
     let error = DVector::from_iterator(
         independent.len(),
         independent.iter().map(|&p| estimated[p] - reference[p]),
@@ -218,11 +172,9 @@ pub fn run_contact_trial(
         options.rank_tolerance,
         noisy.residual_scale,
     );
-    let noise_free_held_out = held_out_residual(nominal, &exact, &scene.validation)?;
-    let held_out = held_out_residual(nominal, &report, &scene.validation)?;
     Ok(ContactTrial {
-        noise_free_held_out,
-        held_out,
+        noise_free_held_out: held_out_residual(nominal, &exact, &scene.validation)?,
+        held_out: held_out_residual(nominal, &report, &scene.validation)?,
         report,
         free,
         rank: exact.rank,
@@ -233,6 +185,72 @@ pub fn run_contact_trial(
         truth,
         scene,
     })
+}
+
+/// The model parameters then the nuisance values of `report`.
+fn all_values(report: &IdentificationReport) -> Vec<f64> {
+    report
+        .parameters
+        .iter()
+        .copied()
+        .chain(report.nuisance.values())
+        .collect()
+}
+
+/// The options of a trial's fits: contact σ's from the encoder noise through a 0.5 m lever
+/// (1e-6 rad when noise-free), the tracker's σ, and with encoder noise each contact weighted
+/// by its own chain ([`encoder_weights`]).
+fn trial_options(
+    settings: &ContactSimulation,
+    nominal: &McpcModel,
+    start: &Nuisance,
+    measurements: &[Measurement],
+) -> Result<IdentificationOptions> {
+    let lever = 0.5;
+    let sigma = settings.encoder_sigma.max(1e-6);
+    let mut options = IdentificationOptions {
+        max_iterations: 100,
+        height_sigma: sigma * lever,
+        gap_sigma: sigma * lever,
+        length_sigma: sigma * lever,
+        tilt_sigma: sigma,
+        position_sigma: CONTACT_TRACKER_SIGMA,
+        ..IdentificationOptions::default()
+    };
+    if settings.encoder_sigma > 0.0 {
+        options.observation_weights =
+            encoder_weights(nominal, start, measurements, sigma, &options)?;
+    }
+    Ok(options)
+}
+
+/// The free columns of a trial (joint frames, with a tracker its frame and the tools' targets,
+/// then the free nuisance values), and those of its first fit: the nuisance and the tracker's
+/// registration.
+fn trial_columns(
+    model: &McpcModel,
+    scene: &ContactScene,
+    tracker: bool,
+) -> (Vec<usize>, Vec<usize>) {
+    let count = model.parameter_count();
+    let registration: Vec<usize> = if tracker {
+        tool_offsets(model)
+            .into_iter()
+            .chain(frame_parameters(model))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut free = contact_free_parameters(model);
+    free.extend(&registration);
+    free.sort_unstable();
+    free.extend(scene.free_nuisance.iter().map(|k| count + k));
+    let first = free
+        .iter()
+        .copied()
+        .filter(|&k| k >= count || registration.contains(&k))
+        .collect();
+    (free, first)
 }
 
 /// The measurement frame's parameters of `model` (flat indices; none without them).
