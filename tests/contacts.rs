@@ -252,6 +252,26 @@ fn tracker_rows_fitted_with_contacts_determine_the_whole_robot() {
     }
 }
 
+/// Few contacts (1 to 10 configurations of touch, bar and plane) are a weak trial, not a crash:
+/// nalgebra used to panic on the empty matrix of a fit with nothing free.
+#[test]
+fn a_weak_contact_trial_runs_to_the_end() {
+    let (tree, nominal) = robonaut();
+    for per_kind in [1, 5, 10] {
+        let settings = ContactSimulation {
+            kinds: vec![
+                ContactChoice::Touch,
+                ContactChoice::Bar,
+                ContactChoice::Plane,
+            ],
+            per_kind,
+            ..ContactSimulation::default()
+        };
+        let trial = run_contact_trial(&tree, &nominal, &settings, 3).expect("a weak trial");
+        assert!(trial.rank <= trial.free.len());
+    }
+}
+
 /// Noise-free touch + bar, flush, and point contacts on the built-in robot: the fit predicts
 /// held-out contacts of the true robot to 1e-6 (it recovered what contacts determine).
 #[test]

@@ -454,6 +454,11 @@ fn validate(
     if measurements.is_empty() {
         return Err(bad("no measurements".into()));
     }
+    if free.is_empty() {
+        return Err(bad(
+            "nothing to fit: every parameter and nuisance value is held (free some, e.g. a plane or the bar length of the contact setup)".into(),
+        ));
+    }
     if !options.noise().is_valid() {
         return Err(bad(
             "position_sigma and rotation_sigma must be positive".into()

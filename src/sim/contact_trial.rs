@@ -88,25 +88,12 @@ pub fn run_contact_trial(
     let (free, nuisance_only) = trial_columns(nominal, &scene, settings.tracker_rows);
     let start = nuisance_start(&scene, settings.nuisance_start_error, &mut rng)?;
     let options = trial_options(settings, nominal, &start, &scene.measurements)?;
-    // As `calibrate --contacts` does (`workflow::contact_fit`): the nuisance (and a tracker's
-    // registration) alone on the nominal robot first, then everything from there.
     let fit = |measurements: &[Measurement]| {
-        let registered = identify_with_nuisance(
+        fit_in_two_steps(
             nominal,
             &start,
             measurements,
-            None,
-            &Rigid,
-            &nuisance_only,
-            &options,
-        )?;
-        identify_with_nuisance(
-            nominal,
-            &registered.nuisance,
-            measurements,
-            None,
-            &Rigid,
-            &free,
+            (&nuisance_only, &free),
             &options,
         )
     };
@@ -185,6 +172,31 @@ pub fn run_contact_trial(
         truth,
         scene,
     })
+}
+
+/// As `calibrate --contacts` does (`workflow::contact_fit`): the `first` columns (the
+/// nuisance, and a tracker's registration) alone on the nominal robot, then `all` from there.
+fn fit_in_two_steps(
+    nominal: &McpcModel,
+    start: &Nuisance,
+    measurements: &[Measurement],
+    (first, all): (&[usize], &[usize]),
+    options: &IdentificationOptions,
+) -> Result<IdentificationReport> {
+    let registered = if first.is_empty() {
+        start.clone()
+    } else {
+        identify_with_nuisance(nominal, start, measurements, None, &Rigid, first, options)?.nuisance
+    };
+    identify_with_nuisance(
+        nominal,
+        &registered,
+        measurements,
+        None,
+        &Rigid,
+        all,
+        options,
+    )
 }
 
 /// The model parameters then the nuisance values of `report`.
@@ -441,7 +453,8 @@ pub fn linear_columns(
     scale: f64,
     max_std: f64,
 ) -> Vec<usize> {
-    while !columns.is_empty() {
+    // At least one column stays: the noisy fit needs something to move.
+    while columns.len() > 1 {
         let sub = DMatrix::from_columns(
             &columns
                 .iter()
