@@ -137,7 +137,7 @@ mod tests {
             .collect();
         let plain = summarise(&scatter).unwrap();
         assert!(!plain.shifted, "{plain:?}");
-        assert!(plain.rms_mm < 0.6);
+        assert!(plain.rms_mm < 0.7, "{plain:?}");
         let shifted: Vec<Vec3> = scatter
             .iter()
             .map(|v| v + Vec3::new(0.4, -0.8, -0.4))
