@@ -8,6 +8,14 @@ use serde_json::Value;
 use std::collections::BTreeSet;
 use treecal::report::{CHECK_SCHEMA, REPORT_SCHEMA, RESULTS_SCHEMA};
 
+/// The documented values of a stage's `termination` (report.json and results.json).
+const TERMINATIONS: [&str; 4] = [
+    "step_converged",
+    "cost_converged",
+    "no_decrease",
+    "max_iterations",
+];
+
 /// Keys under which a list of numbers is a list of like values, not a tuple: URDF's own
 /// `xyz`/`rpy` vectors, a spectrum, per-configuration errors (in objects keyed `before`,
 /// `after`, `rigid`, `compensated`), measurement indices.
@@ -255,13 +263,7 @@ fn results_json_is_labelled() {
             );
             let termination = stage["termination"].as_str().unwrap();
             assert!(
-                [
-                    "step_converged",
-                    "cost_converged",
-                    "no_decrease",
-                    "max_iterations"
-                ]
-                .contains(&termination),
+                TERMINATIONS.contains(&termination),
                 "termination {termination} is not a documented value"
             );
         }
@@ -397,16 +399,7 @@ fn verify_and_compare_read_a_version_2_report_and_refuse_a_newer_one() {
     assert_eq!(report["schema_version"], REPORT_SCHEMA);
     for stage in report["stages"].as_array().unwrap() {
         let termination = stage["termination"].as_str().unwrap();
-        assert!(
-            [
-                "step_converged",
-                "cost_converged",
-                "no_decrease",
-                "max_iterations"
-            ]
-            .contains(&termination),
-            "{termination}"
-        );
+        assert!(TERMINATIONS.contains(&termination), "{termination}");
     }
     as_version_2(&old);
 

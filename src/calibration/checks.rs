@@ -262,10 +262,11 @@ pub fn joint_errors_plausible(run: &CalibrationRun, tree: &KinematicTree) -> Opt
             .find(|p| p.name == name)
             .and_then(|p| p.std_dev)
     };
-    let mut large: Vec<(f64, String)> = Vec::new();
+    // (size, joint, description) of every term over the warning threshold.
+    let mut large: Vec<(f64, &str, String)> = Vec::new();
     for (frame, f) in model.frames().iter().enumerate() {
         let [_, sine, cosine, backlash] = model.joint_error_values(frame);
-        let joint = &tree.joint(f.joint).name;
+        let joint = tree.joint(f.joint).name.as_str();
         if sine.is_some() || cosine.is_some() {
             let (a, b) = (sine.unwrap_or(0.0), cosine.unwrap_or(0.0));
             let amplitude = a.hypot(b);
@@ -276,6 +277,7 @@ pub fn joint_errors_plausible(run: &CalibrationRun, tree: &KinematicTree) -> Opt
                 };
                 large.push((
                     amplitude,
+                    joint,
                     format!(
                         "{joint} harmonic amplitude {:.2}° (sine {:.2}°{}, cosine {:.2}°{})",
                         amplitude.to_degrees(),
@@ -288,10 +290,14 @@ pub fn joint_errors_plausible(run: &CalibrationRun, tree: &KinematicTree) -> Opt
             }
         }
         if let Some(h) = backlash.filter(|h| h.abs() > JOINT_ERROR_WARNING) {
-            large.push((h.abs(), format!("{joint} backlash {:.2}°", h.to_degrees())));
+            large.push((
+                h.abs(),
+                joint,
+                format!("{joint} backlash {:.2}°", h.to_degrees()),
+            ));
         }
     }
-    let worst = large.iter().map(|(size, _)| *size).fold(0.0, f64::max);
+    let worst = large.iter().map(|(size, ..)| *size).fold(0.0, f64::max);
     if large.is_empty() {
         return None;
     }
@@ -302,10 +308,10 @@ pub fn joint_errors_plausible(run: &CalibrationRun, tree: &KinematicTree) -> Opt
         JOINT_ERROR_WARNING.to_degrees(),
         large
             .iter()
-            .map(|(_, text)| text.as_str())
+            .map(|(.., text)| text.as_str())
             .collect::<Vec<_>>()
             .join("; "),
-        first = large[0].1.split(' ').next().unwrap_or_default()
+        first = large[0].1
     );
     Some(if worst > JOINT_ERROR_FAILED {
         Finding::failed("joint-errors-implausible", text)

@@ -8,7 +8,7 @@
 //! a mean shift well above its scatter says the validation data were taken in another frame
 //! or robot state (`docs/calibration.md`, "Repeatability").
 
-use super::validation::{chain_dofs, REPEAT_ANGLE, REPEAT_LENGTH};
+use super::validation::{chain_postures, ChainPostures, PostureIndex};
 use crate::kinematics::McpcModel;
 use crate::math::Vec3;
 use crate::measurement::{Measurement, Observation};
@@ -16,10 +16,6 @@ use serde::Serialize;
 
 /// Fewer repeated pairs than this give no figure.
 pub const MIN_PAIRS: usize = 5;
-
-/// Above this many posture comparisons (validation rows × identification rows) the check is
-/// skipped: repeated postures belong to laboratory-sized data sets.
-pub const MAX_COMPARISONS: usize = 50_000_000;
 
 /// The model-free comparison of repeated postures (positions in mm, in the frame the
 /// validation figures use).
@@ -47,37 +43,29 @@ fn position(m: &Measurement) -> Option<Vec3> {
     }
 }
 
-/// Whether `a` and `b` hold the same values on `dofs` within the repeat tolerances.
-fn same_posture(dofs: &[(usize, bool)], a: &[f64], b: &[f64]) -> bool {
-    dofs.iter().all(|&(d, angle)| {
-        let tolerance = if angle { REPEAT_ANGLE } else { REPEAT_LENGTH };
-        let (x, y) = (a.get(d).copied(), b.get(d).copied());
-        matches!((x, y), (Some(x), Some(y)) if (x - y).abs() <= tolerance)
-    })
-}
-
 /// Pairs every validation row with the first identification row of the same tool at the same
-/// posture (on its chain's joints) and summarises the position differences; both sets in the
-/// frame the validation figures use. `None` with fewer than `MIN_PAIRS` (5) pairs.
+/// posture (on its chain's joints, [`PostureIndex::repeat_of`], as the strata judge it) and
+/// summarises the position differences; both sets in the frame the validation figures use.
+/// `None` with fewer than `MIN_PAIRS` (5) pairs.
 pub fn repeatability(
     model: &McpcModel,
     identification: &[Measurement],
     validation: &[Measurement],
 ) -> Option<Repeatability> {
-    if identification.len().saturating_mul(validation.len()) > MAX_COMPARISONS {
-        return None;
-    }
-    let dofs: Vec<Vec<(usize, bool)>> = (0..model.tools().len())
-        .map(|tool| chain_dofs(model, tool))
+    let chains = chain_postures(model, identification);
+    let indices: Vec<PostureIndex<'_>> = chains.iter().map(ChainPostures::index).collect();
+    // Per tool, its identification rows in the order of its chain's postures.
+    let rows_of: Vec<Vec<&Measurement>> = (0..chains.len())
+        .map(|tool| identification.iter().filter(|m| m.tool == tool).collect())
         .collect();
     let differences: Vec<Vec3> = validation
         .iter()
         .filter_map(|v| {
-            let chain = dofs.get(v.tool).filter(|d| !d.is_empty())?;
+            let index = indices
+                .get(v.tool)
+                .filter(|_| !chains[v.tool].dofs.is_empty())?;
             let measured = position(v)?;
-            let repeat = identification
-                .iter()
-                .find(|m| m.tool == v.tool && same_posture(chain, &m.q, &v.q))?;
+            let repeat = rows_of[v.tool][index.repeat_of(&v.q)?];
             Some((measured - position(repeat)?) * 1e3)
         })
         .collect();

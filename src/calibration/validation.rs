@@ -56,7 +56,7 @@ impl Stratum {
 }
 
 /// The independent joint values a tool's chain depends on, with whether each is an angle.
-pub(super) fn chain_dofs(model: &McpcModel, tool: usize) -> Vec<(usize, bool)> {
+fn chain_dofs(model: &McpcModel, tool: usize) -> Vec<(usize, bool)> {
     let Some(chain) = (tool < model.tools().len()).then(|| model.tool_chain(tool)) else {
         return Vec::new();
     };
@@ -161,8 +161,9 @@ pub struct PostureIndex<'a> {
 }
 
 impl PostureIndex<'_> {
-    /// Where a configuration `q` of this tool lies ([`ChainPostures::stratum`]).
-    pub fn stratum(&self, q: &[f64]) -> Stratum {
+    /// The identification posture (its index in [`ChainPostures::postures`], the first of
+    /// several) that a configuration `q` of this tool repeats, if any.
+    pub fn repeat_of(&self, q: &[f64]) -> Option<usize> {
         let chain = self.chain;
         let value = |dof: usize| q.get(dof).copied().unwrap_or(0.0);
         let repeats_posture = |posture: &Vec<f64>| {
@@ -172,21 +173,29 @@ impl PostureIndex<'_> {
                 .zip(posture)
                 .all(|(&(d, angle), &p)| (p - value(d)).abs() <= repeat_tolerance(angle))
         };
-        let repeats = if chain.dofs.is_empty() {
-            !chain.postures.is_empty()
-        } else {
-            // A window twice the tolerance wide on the key joint holds every candidate; the
-            // full test decides, exactly as a scan of every posture would.
-            let (dof, angle) = chain.dofs[self.key];
-            let v = value(dof);
-            let reach = 2.0 * repeat_tolerance(angle);
-            let start = self.keys.partition_point(|&k| k < v - reach);
-            self.keys[start..]
-                .iter()
-                .zip(&self.order[start..])
-                .take_while(|(&k, _)| k <= v + reach)
-                .any(|(_, &i)| repeats_posture(&chain.postures[i]))
-        };
+        if chain.dofs.is_empty() {
+            return (!chain.postures.is_empty()).then_some(0);
+        }
+        // A window twice the tolerance wide on the key joint holds every candidate; the full
+        // test decides, exactly as a scan of every posture would.
+        let (dof, angle) = chain.dofs[self.key];
+        let v = value(dof);
+        let reach = 2.0 * repeat_tolerance(angle);
+        let start = self.keys.partition_point(|&k| k < v - reach);
+        self.keys[start..]
+            .iter()
+            .zip(&self.order[start..])
+            .take_while(|(&k, _)| k <= v + reach)
+            .map(|(_, &i)| i)
+            .filter(|&i| repeats_posture(&chain.postures[i]))
+            .min()
+    }
+
+    /// Where a configuration `q` of this tool lies ([`ChainPostures::stratum`]).
+    pub fn stratum(&self, q: &[f64]) -> Stratum {
+        let chain = self.chain;
+        let value = |dof: usize| q.get(dof).copied().unwrap_or(0.0);
+        let repeats = self.repeat_of(q).is_some();
         if repeats {
             return Stratum::Repeat;
         }
