@@ -323,8 +323,9 @@ fn collect_masses(
                 * zero[index]
                 * nalgebra::Point3::from(inertial.center_of_mass());
             let place = if let Some((tool, tool_rigid)) = under_tool[index] {
-                // At or below a tool link: it follows the tool frame (the exported URDF moves
-                // the tool link to the calibrated tool pose, and what hangs from it along).
+                // At or below a tool link without children: it follows the tool frame (the
+                // exported URDF moves such a tool link to the calibrated tool pose, and what
+                // hangs from it along).
                 let tool_link = model.tools()[tool].link;
                 if tool_rigid {
                     let in_tool = zero[tool_link.0].inverse()
@@ -378,14 +379,17 @@ fn collect_masses(
 }
 
 /// Per link: the tool whose tool link is the link itself or an ancestor reached without a
-/// calibrated joint, and whether only fixed joints lie in between.
+/// calibrated joint, and whether only fixed joints lie in between. A tool link with child
+/// links carries none: the export keeps such a link at its nominal place on the calibrated
+/// chain (the measured frame goes into an added marker link), so its weight and its
+/// children's stay with the body instead of following the measured frame.
 fn links_under_tools(tree: &KinematicTree, model: &McpcModel) -> Vec<Option<(usize, bool)>> {
     let mut under: Vec<Option<(usize, bool)>> = vec![None; tree.links().len()];
     // Links are in topological order, so a link's parent is assigned before the link.
     for (index, link) in tree.links().iter().enumerate() {
         let id = LinkId(index);
         if let Some(tool) = model.tool_of_link(id) {
-            if model.tools()[tool].parent.is_some() {
+            if model.tools()[tool].parent.is_some() && link.child_joints.is_empty() {
                 under[index] = Some((tool, true));
             }
             continue;
