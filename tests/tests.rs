@@ -14,6 +14,7 @@ mod compare;
 mod contacts;
 mod contacts_check;
 mod contacts_humanoid;
+mod contacts_model;
 mod contacts_tracker;
 mod corpus;
 mod deploy;

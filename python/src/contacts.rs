@@ -137,6 +137,7 @@ pub fn calibrate_contacts_files(
         validation,
         reference_link,
         tracker,
+        ..ContactCalibrateConfig::default()
     };
     let inner = py.detach(|| calibrate_contacts(&config)).map_err(to_py)?;
     Ok(PyContactCalibration { inner })

@@ -15,6 +15,7 @@
 use super::camera_tracker::CameraTrackerInput;
 use super::contact_fit::{fit_contacts, plane_start, ContactProblem};
 use super::contact_tracker::{contact_kind_scales, tracker_links, ContactTracker};
+use super::model_choice::ParameterPatterns;
 use super::note::Note;
 use super::source::{branches, RobotSource};
 use crate::calibration::NuisanceBlock;
@@ -22,10 +23,11 @@ use crate::calibration::{IdentificationOptions, Nuisance};
 use crate::error::{Error, Result};
 use crate::io::{read_contact_setup, ContactSetup};
 use crate::io::{read_contacts, ContactKind, ContactRow, ContactTable};
-use crate::kinematics::McpcModel;
+use crate::kinematics::{JointErrorTerms, McpcModel, ParameterKind};
 use crate::math::Pose;
 use crate::measurement::{Contact, ContactFace, ContactPlane, Measurement, Observation};
 use crate::report::{contact_report, kinds_markdown, ContactScores};
+use crate::sim::contact_free_parameters;
 use crate::tree::KinematicTree;
 use crate::urdf::{export_urdf_with, ExportOptions};
 use std::collections::BTreeMap;
@@ -46,6 +48,11 @@ pub struct ContactCalibrateConfig {
     pub reference_link: Option<String>,
     /// Tracker rows fitted with the contacts, each with its σ (`measurements`).
     pub tracker: Option<CameraTrackerInput>,
+    /// Fit only a zero offset per joint (`model` offsets) instead of every joint frame's
+    /// four parameters.
+    pub offsets_only: bool,
+    /// Parameters frozen or freed by name (`freeze`, `free`; see params.yaml's names).
+    pub patterns: ParameterPatterns,
 }
 
 /// The outputs of `calibrate --contacts`.
@@ -143,8 +150,19 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         }
         None => (model, None),
     };
+    let model = if config.offsets_only {
+        let offsets = JointErrorTerms {
+            offsets: true,
+            harmonics: false,
+            backlash: false,
+        };
+        model.with_joint_errors(offsets, None)?
+    } else {
+        model
+    };
     let origin = config.contacts.display().to_string();
     let mut problem = contact_problem(tree, model, &setup, &training, &validation, &origin)?;
+    problem.robot_free = robot_free(tree, &problem.model, config)?;
     let mut options = contact_options(&setup);
     if let (Some(tracker), Some(input)) = (&tracker, &config.tracker) {
         problem.training.extend(tracker.rows.iter().cloned());
@@ -169,11 +187,12 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             add_tool_links: true,
             ..ExportOptions::default()
         };
+        // Joint zero offsets (`model` offsets) go into the URDF as turned child frames.
         Some(export_urdf_with(
             &robot.text,
             &robot.origin,
             tree,
-            &calibrated,
+            &calibrated.with_offsets_absorbed(),
             &export_options,
         )?)
     } else {
@@ -224,6 +243,34 @@ pub fn contact_options(setup: &ContactSetup) -> IdentificationOptions {
         length_sigma: setup.sigma.length,
         ..IdentificationOptions::default()
     }
+}
+
+/// The robot parameters a contact calibration frees: every joint frame's
+/// ([`contact_free_parameters`]: tools and the measurement frame alias the contact points and
+/// the reference link), only the joint zero offsets with `offsets_only`, less what `patterns`
+/// freeze, plus what they free.
+fn robot_free(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    config: &ContactCalibrateConfig,
+) -> Result<Vec<usize>> {
+    let names = config.patterns.checked_names(tree, model)?;
+    let layout = model.parameter_layout();
+    let free: Vec<usize> = contact_free_parameters(model)
+        .into_iter()
+        .filter(|&k| {
+            let by_level = !config.offsets_only || layout[k].1 == ParameterKind::Offset;
+            let name = &names[k];
+            (by_level && !config.patterns.freezes(name)) || config.patterns.frees(name)
+        })
+        .collect();
+    if free.is_empty() {
+        return Err(Error::InvalidSetting {
+            setting: "freeze".into(),
+            message: "no joint-frame parameter is left to fit; freeze fewer".into(),
+        });
+    }
+    Ok(free)
 }
 
 /// Builds the contact problem of `training` and `validation` rows on `model` (`origin` names
@@ -296,6 +343,7 @@ pub fn contact_problem(
         .map(|(s, (b, _))| (s.clone(), *b))
         .collect();
     Ok(ContactProblem {
+        robot_free: contact_free_parameters(&model),
         model,
         nuisance: builder.nuisance,
         free_nuisance: builder.free,

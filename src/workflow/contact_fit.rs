@@ -11,6 +11,7 @@ use crate::io::ContactKind;
 use crate::kinematics::McpcModel;
 use crate::math::{Pose, Vec3};
 use crate::measurement::{Contact, Measurement, Observation};
+#[cfg(doc)]
 use crate::sim::contact_free_parameters;
 use nalgebra::{Matrix3, UnitQuaternion};
 use std::collections::BTreeMap;
@@ -37,6 +38,9 @@ pub struct ContactProblem {
     /// Model parameters other rows add to both fits (tracker rows: the measurement frame and
     /// the measured tools' target offsets).
     pub registration_free: Vec<usize>,
+    /// The robot's parameters the second fit frees (default every joint frame's:
+    /// [`contact_free_parameters`]; fewer with `model` offsets or `freeze`).
+    pub robot_free: Vec<usize>,
 }
 
 /// The two fits of a contact calibration.
@@ -71,7 +75,7 @@ pub fn fit_contacts(
         &nuisance_free,
         options,
     )?;
-    let mut free = contact_free_parameters(model);
+    let mut free = problem.robot_free.clone();
     free.extend(nuisance_free);
     free.sort_unstable();
     free.dedup();

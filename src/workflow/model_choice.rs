@@ -180,6 +180,38 @@ pub struct ParameterPatterns {
     pub free: Vec<String>,
 }
 
+impl ParameterPatterns {
+    /// Every parameter name of `model` ([`McpcModel::parameter_name`]); an error naming a
+    /// pattern that matches none.
+    pub fn checked_names(&self, tree: &KinematicTree, model: &McpcModel) -> Result<Vec<String>> {
+        let names: Vec<String> = (0..model.parameter_count())
+            .map(|i| model.parameter_name(tree, i))
+            .collect();
+        for pattern in self.freeze.iter().chain(&self.free) {
+            if !names.iter().any(|n| glob_match(pattern, n)) {
+                return Err(Error::InvalidSetting {
+                    setting: "freeze".into(),
+                    message: format!(
+                        "'{pattern}' (in `freeze` or `free`) matches no parameter; names are like '{}' (see params.yaml)",
+                        names.first().cloned().unwrap_or_default()
+                    ),
+                });
+            }
+        }
+        Ok(names)
+    }
+
+    /// Whether a `freeze` pattern matches `name`.
+    pub fn freezes(&self, name: &str) -> bool {
+        self.freeze.iter().any(|p| glob_match(p, name))
+    }
+
+    /// Whether a `free` pattern matches `name` (it wins over `freeze` and the level).
+    pub fn frees(&self, name: &str) -> bool {
+        self.free.iter().any(|p| glob_match(p, name))
+    }
+}
+
 /// A model ready to calibrate: the nominal model with its extra parameters, and the options
 /// with the frozen parameters and the prior.
 #[derive(Debug, Clone)]
@@ -209,20 +241,7 @@ pub fn prepare(
         model = model.with_frame_parameters();
     }
     let layout = model.parameter_layout();
-    let names: Vec<String> = (0..layout.len())
-        .map(|i| model.parameter_name(tree, i))
-        .collect();
-    for pattern in patterns.freeze.iter().chain(&patterns.free) {
-        if !names.iter().any(|n| glob_match(pattern, n)) {
-            return Err(Error::InvalidSetting {
-                setting: "freeze".into(),
-                message: format!(
-                    "'{pattern}' (in `freeze` or `free`) matches no parameter; names are like '{}' (see params.yaml)",
-                    names.first().cloned().unwrap_or_default()
-                ),
-            });
-        }
-    }
+    let names = patterns.checked_names(tree, &model)?;
     let frozen: Vec<usize> = layout
         .iter()
         .enumerate()
@@ -247,9 +266,7 @@ pub fn prepare(
                 }
                 _ => false,
             };
-            let by_user = patterns.freeze.iter().any(|p| glob_match(p, &names[*i]));
-            let freed = patterns.free.iter().any(|p| glob_match(p, &names[*i]));
-            (by_level || by_frames || by_user) && !freed
+            (by_level || by_frames || patterns.freezes(&names[*i])) && !patterns.frees(&names[*i])
         })
         .map(|(i, _)| i)
         .collect();

@@ -101,6 +101,13 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
 /// `calibrate --contacts C.csv --contact-setup S.yaml` (issue 29).
 fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<()> {
     use treecal::workflow::{calibrate_contacts, ContactCalibrateConfig, CONTACT_OUTPUTS};
+    if matches!(args.model, ModelArg::Auto) {
+        return Err(Error::setting(
+            "model",
+            "auto chooses by cross-validation, which a contact calibration does not run yet; \
+             give offsets or geometry (the default)",
+        ));
+    }
     treecal::io::check_output_folder(&args.out, &|name| CONTACT_OUTPUTS.contains(&name))?;
     let calibration = calibrate_contacts(&ContactCalibrateConfig {
         robot: RobotSource::from_path(args.robot.clone()),
@@ -109,6 +116,11 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
         validation: args.validation.clone(),
         reference_link: args.reference_link.clone(),
         tracker: tracker_input(args),
+        offsets_only: matches!(args.model, ModelArg::Offsets),
+        patterns: ParameterPatterns {
+            freeze: args.freeze.clone(),
+            free: args.free.clone(),
+        },
     })?;
     finish(
         args,

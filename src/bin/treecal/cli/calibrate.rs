@@ -110,8 +110,18 @@ pub struct CalibrateArgs {
     /// Contacts CSV (docs/contacts.md, docs/file-formats.md): calibrate from contacts — faces
     /// flush on a plane, points on a plane, touches, a bar — instead of --measurements; with
     /// --contact-setup. --validation then takes held-out contacts; with --camera, the contacts
-    /// are fitted with the pixels (--validation: held-out detections).
-    #[arg(long, value_name = "C.csv", requires = "contact_setup")]
+    /// are fitted with the pixels (--validation: held-out detections). The joint frames are
+    /// fitted rigid, without cross-validation: of the model flags it takes --model
+    /// offsets|geometry, --freeze and --free.
+    #[arg(
+        long,
+        value_name = "C.csv",
+        requires = "contact_setup",
+        conflicts_with_all = [
+            "stiffness", "identify_stiffness", "plan", "plan_file", "joint_errors", "prior",
+            "significant", "cv", "cv_joint_steps"
+        ]
+    )]
     pub contacts: Option<PathBuf>,
     /// The contacts' setup (YAML): reference link, tools with their nominal contact faces and
     /// points, each session's nominal plane, the bar, what is fitted.
