@@ -95,6 +95,15 @@ fn offsets_geometry_and_frozen_parameters_are_fitted_and_exported_as_fitted() {
         let count = unknowns(&run);
         let (before, after) = (height(&report, "before"), height(&report, "after"));
         assert!(after < before, "{name}: {before} -> {after} mm");
+        // The run itself reads its calibrated.urdf back and scores it.
+        let as_written = report["written"]["height_mm"]["rms"]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{report}"));
+        assert!(
+            (as_written - after).abs() < 1e-6 + 1e-6 * after,
+            "{name}: {as_written} {after}"
+        );
+        assert!(!run.stderr.contains("as written predicts"), "{run}");
         // The written URDF, registered alone (only the planes fitted), predicts the held-out
         // contacts as the calibration did.
         let again = dir.path().join(format!("{name}-again"));

@@ -131,6 +131,36 @@ impl Scored {
     }
 }
 
+/// The held-out rows scored with the training planes (every row whose session has training
+/// rows, and rows without a plane), and the rest (scored only with a refitted plane).
+fn scorable(problem: &ContactProblem) -> (Vec<Measurement>, Vec<Measurement>) {
+    let trained: BTreeSet<&str> = problem
+        .training
+        .iter()
+        .filter_map(|m| m.session.as_deref())
+        .collect();
+    problem
+        .validation
+        .iter()
+        .cloned()
+        .partition(|m| !has_plane(m) || m.session.as_deref().is_some_and(|s| trained.contains(s)))
+}
+
+/// report.md's lines and report.json's entry on calibrated.urdf as written: `written` its
+/// held-out scores read back, `after` the calibration's.
+pub fn written_contacts(written: &Scored, after: &Scored) -> (String, serde_json::Value) {
+    let figure = |e: &Errors| e.primary().map_or("—".to_owned(), |v| format!("{v:.3}"));
+    let markdown = format!(
+        "**calibrated.urdf as written**, read back and registered with the fitted planes: \
+         held-out RMS {} mm (heights, else gaps, else bar lengths) over {} contact(s), the \
+         calibration's {} mm.\n\n",
+        figure(&written.overall),
+        written.overall.count(),
+        figure(&after.overall),
+    );
+    (markdown, written.overall.json())
+}
+
 /// The held-out scores of a contact calibration.
 #[derive(Debug, Clone)]
 pub struct ContactScores {
@@ -155,15 +185,7 @@ impl ContactScores {
         fit: &ContactFit,
         options: &IdentificationOptions,
     ) -> Result<Self> {
-        let trained: BTreeSet<&str> = problem
-            .training
-            .iter()
-            .filter_map(|m| m.session.as_deref())
-            .collect();
-        let (scorable, rest): (Vec<Measurement>, Vec<Measurement>) =
-            problem.validation.iter().cloned().partition(|m| {
-                !has_plane(m) || m.session.as_deref().is_some_and(|s| trained.contains(s))
-            });
+        let (scorable, rest) = scorable(problem);
         let model = &problem.model;
         let score = |r: &crate::calibration::IdentificationReport, rows: &[Measurement]| {
             Scored::of(model, &r.parameters, &r.nuisance, rows)
@@ -182,6 +204,16 @@ impl ContactScores {
             ],
             unscored: rest.len(),
         })
+    }
+
+    /// The held-out contacts `after` scores, predicted by `model` at its own parameters (the
+    /// written calibrated.urdf read back) with the fitted `nuisance`.
+    pub fn rescore(
+        problem: &ContactProblem,
+        model: &McpcModel,
+        nuisance: &Nuisance,
+    ) -> Result<Scored> {
+        Scored::of(model, &model.parameters(), nuisance, &scorable(problem).0)
     }
 
     /// Whether the calibrated robot beats the registered nominal robot on the held-out

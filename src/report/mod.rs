@@ -38,7 +38,9 @@ pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use compare::{
     CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures, COMPARE_SCHEMA,
 };
-pub use contacts::{contact_report, contact_unobservable_markdown, ContactScores, Errors, Scored};
+pub use contacts::{
+    contact_report, contact_unobservable_markdown, written_contacts, ContactScores, Errors, Scored,
+};
 pub use html::escape;
 pub use html::{calibration_html, HtmlReport, Scene, SceneConfiguration};
 pub use html_chart::parameter_chart_svg;
