@@ -52,3 +52,11 @@ def test_contact_input_errors_are_named(simulated: Path) -> None:
         treecal.calibrate(contacts=simulated / "contacts.csv")
     with pytest.raises(treecal.TreecalError, match="nope.csv"):
         treecal.calibrate(contacts=simulated / "nope.csv", contact_setup=simulated / "contact-setup.yaml")
+
+
+def test_settings_a_contact_calibration_does_not_use_are_refused(simulated: Path) -> None:
+    files = {"contacts": simulated / "contacts.csv", "contact_setup": simulated / "contact-setup.yaml"}
+    with pytest.raises(treecal.TreecalError, match="identify_stiffness not used with contacts="):
+        treecal.calibrate(identify_stiffness=True, **files)
+    with pytest.raises(treecal.TreecalError, match="stiffness, plan not used"):
+        treecal.calibrate(stiffness="s.yaml", plan="staged", **files)

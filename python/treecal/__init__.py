@@ -419,6 +419,22 @@ def calibrate(
     if contacts is not None or contact_setup is not None:
         if camera is not None:
             raise TreecalError("calibrate: contacts with a camera file are not offered here yet; use the CLI")
+        unused = [
+            name
+            for name, given in (
+                ("stiffness", stiffness is not None),
+                ("identify_stiffness", identify_stiffness),
+                ("stiffness_prior", stiffness_prior is not None),
+                ("plan", plan is not None),
+                ("tools", tools is not None),
+            )
+            if given
+        ]
+        if unused:
+            raise TreecalError(
+                f"calibrate: {', '.join(unused)} not used with contacts= (the contact calibration "
+                "fits the setup's tools' joint frames, rigid, in one step); leave them out"
+            )
         return _calibrate_contacts(
             robot, contacts, contact_setup, validation, reference_link, measurements,
             position_sigma, rotation_sigma, measurement_frame, length_unit, ignore_columns,
