@@ -98,6 +98,14 @@ fn flush_contacts_with_tracker_rows_recover_the_robot_and_each_kind_scores_one()
     let (before, after) = (value("before", "height_mm"), value("after", "height_mm"));
     // Encoder noise of 1e-4 rad at ~0.5 m: ~0.05 mm of height per contact.
     assert!(before > 2.0 && after < 0.1, "height {before} -> {after} mm");
+    // calibrated.urdf read back, placed in the fitted tracker frame (the planes' frame),
+    // predicts the held-out contacts as the calibration did.
+    let written = json["written"]["height_mm"]["rms"].as_f64().unwrap();
+    assert!(
+        (written - after).abs() < 1e-6,
+        "written {written} mm, {after} mm"
+    );
+    assert!(!run.stderr.contains("as written predicts"), "{run}");
     let (before, after) = (value("before", "tilt_deg"), value("after", "tilt_deg"));
     assert!(before > 0.5 && after < 0.02, "tilt {before} -> {after} °");
     // Contact rows only are the training contacts; the tracker's frame is fitted.

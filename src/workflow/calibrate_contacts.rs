@@ -214,7 +214,8 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         object.insert("tracker".into(), serde_json::json!(registration));
     }
     if let Some(export) = &export {
-        let written = written_scores(&export.urdf, &links, reference.as_deref(), &problem, &fit)?;
+        let placed = (&problem, &calibrated, &fit);
+        let written = written_scores(&export.urdf, &links, reference.as_deref(), placed)?;
         let (markdown, json) = written_contacts(&written, &scores.after);
         report_markdown.push_str(&markdown);
         if let Some(object) = report_json.as_object_mut() {
@@ -255,19 +256,20 @@ pub fn contact_options(setup: &ContactSetup) -> IdentificationOptions {
 }
 
 /// The held-out contacts predicted by `urdf` (the written calibrated.urdf, read back as the
-/// user gets it: its own geometry, the same tools from the same reference link) with the
-/// fitted planes and faces.
+/// user gets it: its own geometry, the same tools from the same reference link, placed where
+/// `calibrated` is) with the fitted planes and faces.
 fn written_scores(
     urdf: &str,
     links: &[String],
     reference: Option<&str>,
-    problem: &ContactProblem,
-    fit: &ContactFit,
+    (problem, calibrated, fit): (&ContactProblem, &McpcModel, &ContactFit),
 ) -> Result<Scored> {
     let import = parse_urdf(urdf, "calibrated.urdf")?;
     let branches = branches(&import, Some(links), reference)?;
     let mut model = McpcModel::from_tree(&import.tree, &branches)?;
-    model.set_world_from_base(&problem.model.world_from_base());
+    // Where the calibration put the robot (with tracker rows: their fitted frame, which the
+    // planes are expressed in).
+    model.set_world_from_base(&calibrated.world_from_base());
     ContactScores::rescore(problem, &model, &fit.after.nuisance)
 }
 
