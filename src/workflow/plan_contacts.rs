@@ -95,6 +95,22 @@ pub fn plan_contacts(
     config: &ContactPlanConfig,
     progress: ProgressFn<'_>,
 ) -> Result<ContactPosePlan> {
+    if config.poses == 0
+        || config.candidates < config.poses
+        || config.candidates > crate::limits::MAX_CANDIDATES
+        || config.kinds.is_empty()
+    {
+        return Err(Error::InvalidSetting {
+            setting: "poses".into(),
+            message: format!(
+                "{} contacts of {} candidates ({} kinds): ask for at least one contact kind and                  one contact, and between as many candidates and {}",
+                config.poses,
+                config.candidates,
+                config.kinds.len(),
+                crate::limits::MAX_CANDIDATES
+            ),
+        });
+    }
     let robot = config.robot.load()?;
     let notes = robot.notes();
     let setup = read_contact_setup(&config.setup)?;
