@@ -433,3 +433,64 @@ fn a_bad_setup_is_an_error_naming_the_tool_or_link() {
     .to_string();
     assert!(message.contains("plane"), "{message}");
 }
+
+#[test]
+fn the_cli_plans_contacts_that_calibrate_contacts_reads() {
+    use common::cli::{assert_success, path_str, treecal};
+    let dir = tempfile::tempdir().unwrap();
+    let setup = setup_file(
+        dir.path(),
+        &RobotSource::BuiltIn,
+        &["left_tool", "right_tool"],
+        None,
+        2,
+    );
+    let planned = dir.path().join("planned.csv");
+    let run = treecal(&[
+        "plan",
+        "--contact-setup",
+        path_str(&setup),
+        "--observation",
+        "flush,touch,bar",
+        "--poses",
+        "30",
+        "--candidates",
+        "150",
+        "-o",
+        path_str(&planned),
+    ]);
+    assert_success(&run, "plan --contact-setup");
+    let stdout = &run.stdout;
+    assert!(stdout.contains("random set of the same size"), "{stdout}");
+    let run = treecal(&[
+        "calibrate",
+        "--contacts",
+        path_str(&planned),
+        "--contact-setup",
+        path_str(&setup),
+        "-o",
+        path_str(&dir.path().join("cal")),
+    ]);
+    // Exact contacts of the nominal robot: calibrate reads them all; nothing beats the nominal
+    // robot there, so the verdict is "not usable" (exit 1), with the report printed.
+    assert!(
+        run.stdout
+            .contains("Contacts: 24 training, 6 held out (flush, touch, distance)"),
+        "{}{}",
+        run.stdout,
+        run.stderr
+    );
+    let run = treecal(&[
+        "plan",
+        "--contact-setup",
+        path_str(&setup),
+        "--observation",
+        "flush,tuch",
+        "--poses",
+        "30",
+        "-o",
+        path_str(&dir.path().join("x.csv")),
+    ]);
+    assert!(!run.success);
+    assert!(run.stderr.contains("'tuch'"), "{}", run.stderr);
+}
