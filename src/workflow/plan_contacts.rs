@@ -272,8 +272,7 @@ fn templates(
 }
 
 /// Feasible candidate rows: each template's contact made by the nominal robot with the
-/// setup's nominal planes and contact geometry, about `candidates / templates` configurations
-/// each.
+/// setup's nominal planes and contact geometry, `candidates` shared out among the templates.
 fn candidate_rows(
     tree: &KinematicTree,
     model: &McpcModel,
@@ -304,9 +303,11 @@ fn candidate_rows(
             }
         }
     }
-    let per_template = config.candidates.div_ceil(templates.len().max(1));
+    let groups = templates.len().max(1);
     let mut rows = Vec::new();
     for (k, (template, m)) in templates.iter().zip(&problem.training).enumerate() {
+        // The candidates shared out: the first `candidates % groups` groups get one more.
+        let per_template = config.candidates / groups + usize::from(k < config.candidates % groups);
         let Observation::Contact(contact) = &m.observation else {
             continue;
         };
