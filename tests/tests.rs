@@ -41,6 +41,7 @@ mod pair;
 mod pair_files;
 mod pair_logs;
 mod payloads;
+mod plan_contacts;
 mod planning;
 mod plot;
 mod provenance;

@@ -513,3 +513,56 @@ fn project(
     }
     None
 }
+
+/// `count` configurations of `model` where `contact` (of `tool`) holds within the joint
+/// limits, as simulated contacts are placed: a seed configuration projected from random
+/// starts, then each configuration the seed moved by a random step and projected back onto
+/// the contact (projections in parallel, kept in draw order: deterministic for a seed).
+/// Fewer than `count` when the contact is hard to reach; an error naming `what` when none is
+/// found.
+pub fn contact_configurations(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    (contact, tool): (&Contact, usize),
+    count: usize,
+    rng: &mut ChaCha8Rng,
+    what: &str,
+) -> Result<Vec<Vec<f64>>> {
+    use rayon::prelude::*;
+    let limits = limits_of(tree);
+    let seed = contact_seed(model, nuisance, contact, tool, &limits, rng, what)?;
+    let mut found = Vec::with_capacity(count);
+    let mut tries = 0;
+    while found.len() < count && tries < 20 * count.max(1) {
+        let batch = (count - found.len()).clamp(16, 256);
+        tries += batch;
+        let starts: Vec<Vec<f64>> = (0..batch)
+            .map(|_| {
+                seed.iter()
+                    .zip(&limits)
+                    .map(|(v, (lo, hi))| (v + rng.random_range(-0.5..0.5)).clamp(*lo, *hi))
+                    .collect()
+            })
+            .collect();
+        let projected: Vec<Option<Vec<f64>>> = starts
+            .par_iter()
+            .map(|start| project(model, nuisance, contact, tool, start, &limits))
+            .collect();
+        found.extend(projected.into_iter().flatten().take(count - found.len()));
+    }
+    Ok(found)
+}
+
+/// `start` moved onto `contact` (of `tool`) on `model` within the joint limits by the
+/// simulation's projection (violation below 1e-12), if it converges: how a lab's robot,
+/// sent to a planned configuration, ends up touching.
+pub fn onto_contact(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    (contact, tool): (&Contact, usize),
+    start: &[f64],
+) -> Option<Vec<f64>> {
+    project(model, nuisance, contact, tool, start, &limits_of(tree))
+}

@@ -7,6 +7,7 @@ pub(crate) mod camera_planning;
 pub(crate) mod camera_setup;
 pub(crate) mod camera_visibility;
 mod collision;
+mod contact_planning;
 mod contact_tracker;
 mod contact_trial;
 pub(crate) mod contacts;
@@ -31,10 +32,12 @@ pub use camera_planning::{plan_camera_poses, CameraPlanReport, CameraPlanningOpt
 pub use camera_setup::{camera_rig, camera_specs, CameraRigOptions};
 pub use camera_visibility::{rigid_group, Hidden, Sight, VisibilityRules};
 pub use collision::{CollisionCheck, CollisionChecker, CollisionOptions, MeshLoader};
+pub use contact_planning::{choose_contacts, ContactChoiceReport};
 pub use contact_tracker::{contact_tracker_frame, contact_tracker_rows, CONTACT_TRACKER_SIGMA};
 pub use contacts::{
-    contact_free_parameters, contact_scene, held_out_residual, independent_columns, linear_columns,
-    run_contact_trial, ContactChoice, ContactScene, ContactSimulation, ContactTrial, LINEAR_STD,
+    contact_configurations, contact_free_parameters, contact_scene, held_out_residual,
+    independent_columns, linear_columns, onto_contact, run_contact_trial, ContactChoice,
+    ContactScene, ContactSimulation, ContactTrial, LINEAR_STD,
 };
 pub use experiment::{
     run_trial, trial_seed, ArmErrors, BlunderReport, ErrorStats, RunSummary, Setup,

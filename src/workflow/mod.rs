@@ -37,6 +37,7 @@ pub(crate) mod note;
 pub(crate) mod pair;
 pub(crate) mod plan;
 pub(crate) mod plan_camera;
+mod plan_contacts;
 pub(crate) mod postures;
 pub(crate) mod progress;
 pub(crate) mod provenance;
@@ -92,6 +93,9 @@ pub use plan::{
     check_output, plan, plan_with_progress, PlanConfig, PlanStage, PlannedSet, PosePlan,
 };
 pub use plan_camera::{check_camera_plan_output, plan_camera, CameraPlanConfig, CameraPosePlan};
+pub use plan_contacts::{
+    check_contact_plan_output, plan_contacts, ContactPlanConfig, ContactPosePlan,
+};
 pub use postures::{
     chains_of, record, RecordedJoint, RecordedPosture, RecordedPostures, RecordedTool, POSTURES_KEY,
 };

@@ -3,10 +3,12 @@
 use crate::cli::{CriterionChoice, PlanArgs, StageChoice};
 use crate::progress::Display;
 use treecal::calibration::Criterion;
+use treecal::sim::ContactChoice;
 use treecal::workflow::RobotSource;
 use treecal::workflow::{self, plan_with_progress, PlanConfig, PlanStage};
 use treecal::workflow::{check_camera_plan_output, plan_camera, CameraPlanConfig};
-use treecal::Result;
+use treecal::workflow::{check_contact_plan_output, plan_contacts, ContactPlanConfig};
+use treecal::{Error, Result};
 
 fn config(args: PlanArgs) -> PlanConfig {
     PlanConfig {
@@ -64,6 +66,45 @@ fn run_camera(args: PlanArgs, camera: std::path::PathBuf) -> Result<()> {
     Ok(())
 }
 
+/// `plan --contact-setup`: the contact plan.
+fn run_contacts(args: PlanArgs, setup: std::path::PathBuf) -> Result<()> {
+    let out = args.out.clone();
+    let kinds = args
+        .observation
+        .unwrap_or_default()
+        .iter()
+        .map(|name| {
+            ContactChoice::parse(name.trim()).ok_or_else(|| Error::InvalidSetting {
+                setting: "observation".into(),
+                message: format!("'{name}' is not a contact kind; use flush, plane, touch or bar"),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let config = ContactPlanConfig {
+        robot: args.robot.map_or(RobotSource::BuiltIn, RobotSource::File),
+        setup,
+        kinds,
+        tools: args.tools,
+        reference_link: args.reference_link,
+        poses: args.poses as usize,
+        candidates: args.candidates as usize,
+        criterion: criterion(args.criterion),
+        seed: args.seed,
+    };
+    check_contact_plan_output(&config, &out)?;
+    let display = Display::new("plan", true);
+    let outcome = plan_contacts(&config, &|p| display.update(p));
+    display.finish();
+    let outcome = outcome?;
+    outcome.write(&out)?;
+    crate::output::print(&outcome.text)?;
+    for note in &outcome.notes {
+        crate::output::note(note);
+    }
+    crate::output::note(format_args!("wrote {}", out.display()));
+    Ok(())
+}
+
 fn criterion(choice: CriterionChoice) -> Criterion {
     match choice {
         CriterionChoice::O1 => Criterion::O1,
@@ -75,6 +116,9 @@ fn criterion(choice: CriterionChoice) -> Criterion {
 pub fn run(args: PlanArgs) -> Result<()> {
     if let Some(camera) = args.camera.clone() {
         return run_camera(args, camera);
+    }
+    if let Some(setup) = args.contact_setup.clone() {
+        return run_contacts(args, setup);
     }
     let out = args.out.clone();
     let config = config(args);

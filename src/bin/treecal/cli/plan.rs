@@ -89,6 +89,25 @@ pub struct PlanArgs {
     /// with --camera.
     #[arg(long, default_value_t = 60.0, value_name = "DEG", requires = "camera")]
     pub max_view_angle: f64,
+    /// Contact setup (YAML, docs/contacts.md): choose feasible contact configurations of
+    /// the nominal robot (--observation kinds) whose contact rows are most informative and
+    /// write them as a contacts CSV for `calibrate --contacts`; --tools then names the setup's
+    /// tools, --candidates counts feasible contacts (a few hundred suffice).
+    #[arg(
+        long,
+        value_name = "S.yaml",
+        requires = "observation",
+        conflicts_with_all = ["camera", "stage", "workspace", "noise", "targets"]
+    )]
+    pub contact_setup: Option<PathBuf>,
+    /// Contact kinds to plan, with --contact-setup: flush, plane, touch, bar (comma-separated).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "KIND,KIND",
+        requires = "contact_setup"
+    )]
+    pub observation: Option<Vec<String>>,
     /// The CSV to write (atomically).
     #[arg(short = 'o', long = "out", alias = "output", value_name = "OUT.csv")]
     pub out: PathBuf,
