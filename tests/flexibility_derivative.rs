@@ -116,3 +116,19 @@ fn pose_derivatives_at_another_geometry_and_payload() {
     let (tree, model, loaded) = robonaut_loaded(20.0);
     check(&tree, &model, &loaded, 14, 1e-6);
 }
+
+#[test]
+fn pose_derivatives_with_a_reference_link() {
+    // The measurement frame on a torso link: the path that differences the whole chain.
+    let (tree, mut model, loaded) = robonaut_loaded(7.5);
+    let frame = 1;
+    let link = tree.joint(model.frames()[frame].joint).child;
+    model
+        .set_reference(Some(treecal::kinematics::ReferenceLink {
+            link,
+            parent: Some(frame),
+            last_from_link: nalgebra::Isometry3::identity(),
+        }))
+        .unwrap();
+    check(&tree, &model, &loaded, 15, 1e-6);
+}
