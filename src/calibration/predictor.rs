@@ -248,8 +248,8 @@ impl<'a> DeflectedWithDerivative<'a> {
     }
 
     /// Columns `columns` of `J_exact − J_chain` at `model` into `correction`: the exact
-    /// derivative of the deflected poses by forward differences
-    /// (`FlexibilityModel::deflected_pose_derivatives`) minus the chain's.
+    /// derivative of the deflected poses (semi-analytic,
+    /// `FlexibilityModel::deflected_pose_derivatives`) minus the chain's.
     fn fill(
         &self,
         model: &McpcModel,
@@ -261,15 +261,8 @@ impl<'a> DeflectedWithDerivative<'a> {
     ) -> Result<()> {
         let step = 1e-7;
         let flexibility = self.source.flexibility.for_payload(payload)?;
-        let base = flexibility.deflected_tool_poses(self.source.tree, model, q)?;
-        let changes = flexibility.deflected_pose_derivatives(
-            self.source.tree,
-            model,
-            q,
-            &base,
-            columns,
-            step,
-        )?;
+        let changes =
+            flexibility.deflected_pose_derivatives(self.source.tree, model, q, columns, step)?;
         for (&index, tools) in columns.iter().zip(&changes) {
             for (tool, change) in tools.iter().enumerate() {
                 let mut target = correction[tool].column_mut(index);

@@ -264,7 +264,7 @@ impl<'a> Problem<'a> {
             poses.push(found.poses);
             compliance.push(found.jacobians);
         }
-        let geometry = self.geometry_motions(model, flexibilities, groups, &poses)?;
+        let geometry = self.geometry_motions(model, flexibilities, groups)?;
         let motions = std::sync::Arc::new(Motions {
             poses,
             compliance,
@@ -301,21 +301,18 @@ impl<'a> Problem<'a> {
     }
 
     /// Per group and free parameter, the change of every deflected tool pose per unit
-    /// parameter (forward differences from `poses`, see
-    /// `FlexibilityModel::deflected_pose_derivatives`).
+    /// parameter (semi-analytic, see `FlexibilityModel::deflected_pose_derivatives`).
     fn geometry_motions(
         &self,
         model: &McpcModel,
         flexibilities: &[FlexibilityModel],
         groups: &[(&[f64], usize)],
-        poses: &[Vec<Pose>],
     ) -> Result<Vec<Vec<Vec<Vector6<f64>>>>> {
         groups
             .iter()
-            .zip(poses)
-            .map(|(&(q, basis), base)| {
+            .map(|&(q, basis)| {
                 flexibilities[basis]
-                    .deflected_pose_derivatives(self.tree, model, q, base, self.free, 1e-7)
+                    .deflected_pose_derivatives(self.tree, model, q, self.free, 1e-7)
             })
             .collect()
     }

@@ -400,14 +400,14 @@ fn exp_jacobian_coefficients(v: &Vec3) -> (f64, f64) {
 }
 
 /// `J_r(v) = I − a·[v]× + b·[v]×²`: `d/ds Exp(v + s·w) = Exp(v)·(J_r(v)·w)^` at s = 0.
-fn right_jacobian(v: &Vec3) -> Mat3 {
+pub(super) fn right_jacobian(v: &Vec3) -> Mat3 {
     let (a, b) = exp_jacobian_coefficients(v);
     let k = skew(v);
     Mat3::identity() - k * a + k * k * b
 }
 
 /// `J_l(v) = J_r(−v)`: `d/ds Exp(v + s·w) = (J_l(v)·w)^·Exp(v)` at s = 0.
-fn left_jacobian(v: &Vec3) -> Mat3 {
+pub(super) fn left_jacobian(v: &Vec3) -> Mat3 {
     right_jacobian(&-v)
 }
 
