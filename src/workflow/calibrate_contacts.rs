@@ -13,23 +13,26 @@
 //!    session's plane (primary) and with a plane refitted to them (diagnostic).
 
 use super::camera_tracker::CameraTrackerInput;
-use super::contact_fit::{fit_contacts, plane_start, ContactFit, ContactProblem};
+use super::contact_fit::{fit_contacts, plane_start, ContactProblem};
+use super::contact_model::{
+    offsets_model, robot_free, setup_model, written_differs, written_scores, SetupModel,
+};
 use super::contact_tracker::{contact_kind_scales, tracker_links, ContactTracker};
 use super::model_choice::ParameterPatterns;
 use super::note::Note;
-use super::source::{branches, RobotSource};
+use super::source::RobotSource;
 use crate::calibration::NuisanceBlock;
 use crate::calibration::{IdentificationOptions, Nuisance};
 use crate::error::{Error, Result};
 use crate::io::{read_contact_setup, ContactSetup};
 use crate::io::{read_contacts, ContactKind, ContactRow, ContactTable};
-use crate::kinematics::{JointErrorTerms, McpcModel, ParameterKind};
+use crate::kinematics::McpcModel;
 use crate::math::Pose;
 use crate::measurement::{Contact, ContactFace, ContactPlane, Measurement, Observation};
-use crate::report::{contact_report, kinds_markdown, written_contacts, ContactScores, Scored};
+use crate::report::{contact_report, kinds_markdown, written_contacts, ContactScores};
 use crate::sim::contact_free_parameters;
 use crate::tree::KinematicTree;
-use crate::urdf::{export_urdf_with, parse_urdf, ExportOptions};
+use crate::urdf::{export_urdf_with, ExportOptions};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -106,42 +109,21 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
     let mut notes = robot.notes();
     let setup = read_contact_setup(&config.setup)?;
     let tree = &robot.import.tree;
-    let training = read_contacts(&config.contacts, tree)?;
-    notes.extend(table_notes(&training, &config.contacts));
-    let (training, validation, held_out_note) = match &config.validation {
-        Some(path) => {
-            let table = read_contacts(path, tree)?;
-            notes.extend(table_notes(&table, path));
-            (training.rows, table.rows, None)
-        }
-        None => {
-            let (train, held): (Vec<_>, Vec<_>) = training
-                .rows
-                .into_iter()
-                .enumerate()
-                .partition(|(k, _)| k % 5 != 4);
-            (
-                train.into_iter().map(|(_, r)| r).collect(),
-                held.into_iter().map(|(_, r)| r).collect::<Vec<_>>(),
-                Some("no `validation` file: every fifth row is held out"),
-            )
-        }
+    let (training, validation) = read_rows(config, tree, &mut notes)?;
+    let tracked = match &config.tracker {
+        Some(input) => tracker_links(input)?,
+        None => Vec::new(),
     };
-    notes.extend(held_out_note.map(Note::info));
-    let reference = config
-        .reference_link
-        .clone()
-        .or_else(|| setup.reference_link.clone());
-    let mut links: Vec<String> = setup.tools.values().map(|t| t.link.clone()).collect();
-    if let Some(input) = &config.tracker {
-        for link in tracker_links(input)? {
-            if !links.contains(&link) {
-                links.push(link);
-            }
-        }
-    }
-    let branches = branches(&robot.import, Some(&links), reference.as_deref())?;
-    let model = McpcModel::from_tree(tree, &branches)?;
+    let SetupModel {
+        links,
+        reference,
+        model,
+    } = setup_model(
+        &robot.import,
+        &setup,
+        config.reference_link.as_ref(),
+        &tracked,
+    )?;
     let (model, tracker) = match &config.tracker {
         Some(input) => {
             let (model, tracker) = ContactTracker::read(input, tree, model)?;
@@ -150,19 +132,10 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         }
         None => (model, None),
     };
-    let model = if config.offsets_only {
-        let offsets = JointErrorTerms {
-            offsets: true,
-            harmonics: false,
-            backlash: false,
-        };
-        model.with_joint_errors(offsets, None)?
-    } else {
-        model
-    };
+    let model = offsets_model(model, config.offsets_only)?;
     let origin = config.contacts.display().to_string();
     let mut problem = contact_problem(tree, model, &setup, &training, &validation, &origin)?;
-    problem.robot_free = robot_free(tree, &problem.model, config)?;
+    problem.robot_free = robot_free(tree, &problem.model, config.offsets_only, &config.patterns)?;
     let mut options = contact_options(&setup);
     if let (Some(tracker), Some(input)) = (&tracker, &config.tracker) {
         problem.training.extend(tracker.rows.iter().cloned());
@@ -231,6 +204,34 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
     })
 }
 
+/// The training and held-out contacts: the contacts file and the validation file, or every
+/// fifth row of the contacts file held out (said in a note).
+fn read_rows(
+    config: &ContactCalibrateConfig,
+    tree: &KinematicTree,
+    notes: &mut Vec<Note>,
+) -> Result<(Vec<ContactRow>, Vec<ContactRow>)> {
+    let training = read_contacts(&config.contacts, tree)?;
+    notes.extend(table_notes(&training, &config.contacts));
+    if let Some(path) = &config.validation {
+        let table = read_contacts(path, tree)?;
+        notes.extend(table_notes(&table, path));
+        return Ok((training.rows, table.rows));
+    }
+    notes.push(Note::info(
+        "no `validation` file: every fifth row is held out",
+    ));
+    let (train, held): (Vec<_>, Vec<_>) = training
+        .rows
+        .into_iter()
+        .enumerate()
+        .partition(|(k, _)| k % 5 != 4);
+    Ok((
+        train.into_iter().map(|(_, r)| r).collect(),
+        held.into_iter().map(|(_, r)| r).collect(),
+    ))
+}
+
 fn table_notes(table: &ContactTable, path: &Path) -> Vec<Note> {
     let mut notes = Vec::new();
     if !table.ignored_columns.is_empty() {
@@ -253,67 +254,6 @@ pub fn contact_options(setup: &ContactSetup) -> IdentificationOptions {
         length_sigma: setup.sigma.length,
         ..IdentificationOptions::default()
     }
-}
-
-/// The held-out contacts predicted by `urdf` (the written calibrated.urdf, read back as the
-/// user gets it: its own geometry, the same tools from the same reference link, placed where
-/// `calibrated` is) with the fitted planes and faces.
-fn written_scores(
-    urdf: &str,
-    links: &[String],
-    reference: Option<&str>,
-    (problem, calibrated, fit): (&ContactProblem, &McpcModel, &ContactFit),
-) -> Result<Scored> {
-    let import = parse_urdf(urdf, "calibrated.urdf")?;
-    let branches = branches(&import, Some(links), reference)?;
-    let mut model = McpcModel::from_tree(&import.tree, &branches)?;
-    // Where the calibration put the robot (with tracker rows: their fitted frame, which the
-    // planes are expressed in).
-    model.set_world_from_base(&calibrated.world_from_base());
-    ContactScores::rescore(problem, &model, &fit.after.nuisance)
-}
-
-/// A warning when the written URDF does not predict the held-out contacts as the calibration
-/// did (beyond round-off of the written numbers).
-fn written_differs(written: &Scored, scores: &ContactScores) -> Option<Note> {
-    let (Some(w), Some(a)) = (written.overall.primary(), scores.after.overall.primary()) else {
-        return None;
-    };
-    ((w - a).abs() > 1e-3 * a.max(1e-3)).then(|| {
-        Note::warning(format!(
-            "calibrated.urdf as written predicts the held-out contacts at {w:.3} mm RMS, the \
-             calibration at {a:.3} mm: the export does not carry everything that was fitted \
-             (a bug in treecal; please report it)"
-        ))
-    })
-}
-
-/// The robot parameters a contact calibration frees: every joint frame's
-/// ([`contact_free_parameters`]: tools and the measurement frame alias the contact points and
-/// the reference link), only the joint zero offsets with `offsets_only`, less what `patterns`
-/// freeze, plus what they free.
-fn robot_free(
-    tree: &KinematicTree,
-    model: &McpcModel,
-    config: &ContactCalibrateConfig,
-) -> Result<Vec<usize>> {
-    let names = config.patterns.checked_names(tree, model)?;
-    let layout = model.parameter_layout();
-    let free: Vec<usize> = contact_free_parameters(model)
-        .into_iter()
-        .filter(|&k| {
-            let by_level = !config.offsets_only || layout[k].1 == ParameterKind::Offset;
-            let name = &names[k];
-            (by_level && !config.patterns.freezes(name)) || config.patterns.frees(name)
-        })
-        .collect();
-    if free.is_empty() {
-        return Err(Error::InvalidSetting {
-            setting: "freeze".into(),
-            message: "no joint-frame parameter is left to fit; freeze fewer".into(),
-        });
-    }
-    Ok(free)
 }
 
 /// Builds the contact problem of `training` and `validation` rows on `model` (`origin` names

@@ -7,11 +7,11 @@
 
 use super::calibrate_contacts::contact_problem;
 use super::contact_fit::fit_contacts;
+use super::contact_model::setup_model;
 use super::note::Note;
-use super::source::{branches, RobotSource};
+use super::source::RobotSource;
 use crate::error::Result;
 use crate::io::{read_contact_setup, read_contacts};
-use crate::kinematics::McpcModel;
 use crate::report::contact_unobservable_markdown;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -47,13 +47,7 @@ pub fn check_contacts(config: &ContactCheckConfig) -> Result<ContactCheck> {
     let setup = read_contact_setup(&config.setup)?;
     let tree = &robot.import.tree;
     let table = read_contacts(&config.contacts, tree)?;
-    let reference = config
-        .reference_link
-        .clone()
-        .or_else(|| setup.reference_link.clone());
-    let links: Vec<String> = setup.tools.values().map(|t| t.link.clone()).collect();
-    let branches = branches(&robot.import, Some(&links), reference.as_deref())?;
-    let model = McpcModel::from_tree(tree, &branches)?;
+    let model = setup_model(&robot.import, &setup, config.reference_link.as_ref(), &[])?.model;
     let origin = config.contacts.display().to_string();
     let problem = contact_problem(tree, model, &setup, &table.rows, &[], &origin)?;
     let options = super::contact_options(&setup);

@@ -27,6 +27,7 @@ pub(crate) mod checker;
 pub(crate) mod checks;
 pub(crate) mod compare;
 pub(crate) mod contact_fit;
+mod contact_model;
 mod contact_tracker;
 pub(crate) mod cross_validation;
 pub(crate) mod export;

@@ -10,7 +10,8 @@
 use super::calibrate_contacts::{contact_options, contact_problem};
 use super::checks::{check_outputs, Output};
 use super::contact_fit::{fit_contacts, ContactFit, ContactProblem};
-use super::source::{branches, RobotSource};
+use super::contact_model::setup_model;
+use super::source::RobotSource;
 use super::{Note, Progress, ProgressFn};
 use crate::calibration::{weighted_jacobian, Criterion, Rigid};
 use crate::error::{Error, Result};
@@ -103,7 +104,8 @@ pub fn plan_contacts(
         return Err(Error::InvalidSetting {
             setting: "poses".into(),
             message: format!(
-                "{} contacts of {} candidates ({} kinds): ask for at least one contact kind and                  one contact, and between as many candidates and {}",
+                "{} contacts of {} candidates ({} kinds): ask for at least one contact kind and \
+                 one contact, and between as many candidates and {}",
                 config.poses,
                 config.candidates,
                 config.kinds.len(),
@@ -116,13 +118,7 @@ pub fn plan_contacts(
     let setup = read_contact_setup(&config.setup)?;
     let tree = &robot.import.tree;
     let origin = config.setup.display().to_string();
-    let reference = config
-        .reference_link
-        .clone()
-        .or_else(|| setup.reference_link.clone());
-    let links: Vec<String> = setup.tools.values().map(|t| t.link.clone()).collect();
-    let branches = branches(&robot.import, Some(&links), reference.as_deref())?;
-    let model = McpcModel::from_tree(tree, &branches)?;
+    let model = setup_model(&robot.import, &setup, config.reference_link.as_ref(), &[])?.model;
     let tools = chosen_tools(&setup, config.tools.as_deref(), &origin)?;
     let templates = templates(&setup, &tools, &config.kinds, &origin)?;
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);

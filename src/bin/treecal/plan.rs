@@ -58,8 +58,13 @@ fn run_camera(args: PlanArgs, camera: std::path::PathBuf) -> Result<()> {
     display.finish();
     let outcome = outcome?;
     outcome.write(&out)?;
-    crate::output::print(&outcome.text)?;
-    for note in &outcome.notes {
+    report(&outcome.text, &outcome.notes, &out)
+}
+
+/// Prints a plan's summary and notes and names the written file.
+fn report(text: &str, notes: &[treecal::workflow::Note], out: &std::path::Path) -> Result<()> {
+    crate::output::print(text)?;
+    for note in notes {
         crate::output::note(note);
     }
     crate::output::note(format_args!("wrote {}", out.display()));
@@ -97,12 +102,7 @@ fn run_contacts(args: PlanArgs, setup: std::path::PathBuf) -> Result<()> {
     display.finish();
     let outcome = outcome?;
     outcome.write(&out)?;
-    crate::output::print(&outcome.text)?;
-    for note in &outcome.notes {
-        crate::output::note(note);
-    }
-    crate::output::note(format_args!("wrote {}", out.display()));
-    Ok(())
+    report(&outcome.text, &outcome.notes, &out)
 }
 
 fn criterion(choice: CriterionChoice) -> Criterion {
