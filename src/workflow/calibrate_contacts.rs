@@ -13,12 +13,14 @@
 //!    session's plane (primary) and with a plane refitted to them (diagnostic).
 
 use super::camera_tracker::CameraTrackerInput;
-use super::contact_fit::{fit_contacts, plane_start, ContactProblem};
-use super::contact_model::{
-    offsets_model, robot_free, setup_model, written_differs, written_scores, SetupModel,
+use super::contact_cv::{
+    candidate_problem, choose_contact_model, fit_candidate, model_markdown, ContactCv,
+    ContactCvInput, ContactFolds, ContactModelSpec,
 };
+use super::contact_fit::{plane_start, ContactFit, ContactProblem};
+use super::contact_model::{robot_free, setup_model, written_differs, written_scores, SetupModel};
 use super::contact_tracker::{contact_kind_scales, tracker_links, ContactTracker};
-use super::model_choice::ParameterPatterns;
+use super::model_choice::{ModelChoice, ParameterPatterns};
 use super::note::Note;
 use super::source::RobotSource;
 use crate::calibration::NuisanceBlock;
@@ -51,9 +53,20 @@ pub struct ContactCalibrateConfig {
     pub reference_link: Option<String>,
     /// Tracker rows fitted with the contacts, each with its σ (`measurements`).
     pub tracker: Option<CameraTrackerInput>,
-    /// Fit only a zero offset per joint (`model` offsets) instead of every joint frame's
-    /// four parameters.
-    pub offsets_only: bool,
+    /// Which model describes the robot: joint zero offsets, every joint frame's four
+    /// parameters, chosen by cross-validation (`auto`), or (`Adaptive`, the default) the full
+    /// geometry unless its fit leaves residuals over [`CONTACT_ADAPTIVE_SIGMA`] times the
+    /// declared σ's, then as `auto` (`docs/contacts.md`, "The model the data support").
+    pub model: ModelChoice,
+    /// The default prior on the nominal values with its σ's times this factor (`prior`,
+    /// `prior_scale`); `None`: no prior (`auto` still offers the full geometry with it).
+    pub prior: Option<f64>,
+    /// Cross-validate over this many folds (`cv`; a table in the report) [`auto`: 5].
+    pub cv: Option<usize>,
+    /// Fold assignments of the cross-validation (seeds `seed`, `seed + 1`, …) [0: 3].
+    pub cv_repeats: usize,
+    /// The seed of the fold assignments.
+    pub seed: u64,
     /// Parameters frozen or freed by name (`freeze`, `free`; see params.yaml's names).
     pub patterns: ParameterPatterns,
 }
@@ -132,10 +145,9 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         }
         None => (model, None),
     };
-    let model = offsets_model(model, config.offsets_only)?;
     let origin = config.contacts.display().to_string();
     let mut problem = contact_problem(tree, model, &setup, &training, &validation, &origin)?;
-    problem.robot_free = robot_free(tree, &problem.model, config.offsets_only, &config.patterns)?;
+    problem.robot_free = robot_free(tree, &problem.model, false, &config.patterns)?;
     let mut options = contact_options(&setup);
     if let (Some(tracker), Some(input)) = (&tracker, &config.tracker) {
         problem.training.extend(tracker.rows.iter().cloned());
@@ -148,7 +160,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             tracker.rows.len()
         )));
     }
-    let fit = fit_contacts(&problem, &options)?;
+    let (problem, fit, spec, cv) = fit_model(config, tree, &problem, &options, &mut notes)?;
     let scores = ContactScores::new(&problem, &fit, &options)?;
     let mut calibrated = problem.model.clone();
     calibrated.set_parameters(&fit.after.parameters)?;
@@ -182,9 +194,15 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         export.as_ref().map(|e| e.changes.len()),
     );
     report_markdown.push_str(&kinds_markdown(&kinds, registration.as_ref()));
+    report_markdown.push_str(&model_markdown(spec, cv.as_ref()));
     if let Some(object) = report_json.as_object_mut() {
         object.insert("kinds".into(), serde_json::json!(kinds));
         object.insert("tracker".into(), serde_json::json!(registration));
+        object.insert(
+            "model".into(),
+            serde_json::json!({ "name": spec.name(), "offsets": spec.offsets, "prior": spec.prior }),
+        );
+        object.insert("model_choice".into(), serde_json::json!(cv));
     }
     if let Some(export) = &export {
         let placed = (&problem, &calibrated, &fit);
@@ -202,6 +220,39 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         report_json,
         urdf: export.map(|e| e.urdf),
     })
+}
+
+/// The model the config asks for or the data choose ([`choose_contact_model`]), as a problem,
+/// and its fit.
+fn fit_model(
+    config: &ContactCalibrateConfig,
+    tree: &KinematicTree,
+    problem: &ContactProblem,
+    options: &IdentificationOptions,
+    notes: &mut Vec<Note>,
+) -> Result<(
+    ContactProblem,
+    ContactFit,
+    ContactModelSpec,
+    Option<ContactCv>,
+)> {
+    let input = ContactCvInput {
+        tree,
+        base: problem,
+        patterns: &config.patterns,
+        options,
+        prior_scale: config.prior.unwrap_or(1.0),
+    };
+    let folds = ContactFolds {
+        k: config.cv,
+        repeats: config.cv_repeats,
+        seed: config.seed,
+    };
+    let prior = config.prior.is_some();
+    let (spec, cv) = choose_contact_model(&input, config.model, prior, folds, notes)?;
+    let problem = candidate_problem(tree, problem, spec, &config.patterns)?;
+    let fit = fit_candidate(&problem, options, spec, input.prior_scale)?;
+    Ok((problem, fit, spec, cv))
 }
 
 /// The training and held-out contacts: the contacts file and the validation file, or every

@@ -26,6 +26,7 @@ mod check_contacts;
 pub(crate) mod checker;
 pub(crate) mod checks;
 pub(crate) mod compare;
+pub(crate) mod contact_cv;
 pub(crate) mod contact_fit;
 mod contact_model;
 mod contact_tracker;
@@ -72,6 +73,11 @@ pub use check_contacts::{check_contacts, ContactCheck, ContactCheckConfig};
 pub use checker::{collision_checker, collision_statement};
 pub use checks::{check_outputs, count, sigmas, unused_stage_rows, Output};
 pub use compare::{compare, CompareConfig, Comparison, COMPARE_FILES};
+pub use contact_cv::{
+    candidate_problem, choose_contact_model, cross_validate_contacts, fit_candidate, ContactCv,
+    ContactCvInput, ContactCvRow, ContactFolds, ContactModelSpec, CONTACT_ADAPTIVE_SIGMA,
+    CONTACT_CANDIDATES, CONTACT_RULE,
+};
 pub use contact_fit::{contact_violations, fit_contacts, plane_start, ContactFit, ContactProblem};
 pub use cross_validation::{
     candidates, cross_validate, joint_steps, lines as cross_validation_lines, markdown, paired,

@@ -72,12 +72,7 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
             GravityFrame::Base => treecal::workflow::GravityFrame::Base,
         },
         add_tool_links: args.add_tool_links,
-        model: match args.model {
-            ModelArg::Offsets => ModelChoice::Level(ModelLevel::Offsets),
-            ModelArg::Geometry => ModelChoice::Level(ModelLevel::Geometry),
-            ModelArg::Auto => ModelChoice::Auto,
-            ModelArg::Adaptive => ModelChoice::Adaptive,
-        },
+        model: model_choice(args.model),
         harmonics: args.joint_errors.contains(&JointErrorArg::Harmonics),
         backlash: args.joint_errors.contains(&JointErrorArg::Backlash),
         prior: args.prior,
@@ -101,13 +96,6 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
 /// `calibrate --contacts C.csv --contact-setup S.yaml` (issue 29).
 fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<()> {
     use treecal::workflow::{calibrate_contacts, ContactCalibrateConfig, CONTACT_OUTPUTS};
-    if matches!(args.model, ModelArg::Auto) {
-        return Err(Error::setting(
-            "model",
-            "auto chooses by cross-validation, which a contact calibration does not run yet; \
-             give offsets or geometry (the default)",
-        ));
-    }
     treecal::io::check_output_folder(&args.out, &|name| CONTACT_OUTPUTS.contains(&name))?;
     let calibration = calibrate_contacts(&ContactCalibrateConfig {
         robot: RobotSource::from_path(args.robot.clone()),
@@ -116,7 +104,11 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
         validation: args.validation.clone(),
         reference_link: args.reference_link.clone(),
         tracker: tracker_input(args),
-        offsets_only: matches!(args.model, ModelArg::Offsets),
+        model: model_choice(args.model),
+        prior: args.prior.then_some(args.prior_scale),
+        cv: args.cv,
+        cv_repeats: args.cv_repeats,
+        seed: args.seed,
         patterns: ParameterPatterns {
             freeze: args.freeze.clone(),
             free: args.free.clone(),
@@ -215,4 +207,14 @@ fn finish(
         });
     }
     Ok(())
+}
+
+/// `--model` as the library's choice.
+fn model_choice(model: ModelArg) -> ModelChoice {
+    match model {
+        ModelArg::Offsets => ModelChoice::Level(ModelLevel::Offsets),
+        ModelArg::Geometry => ModelChoice::Level(ModelLevel::Geometry),
+        ModelArg::Auto => ModelChoice::Auto,
+        ModelArg::Adaptive => ModelChoice::Adaptive,
+    }
 }

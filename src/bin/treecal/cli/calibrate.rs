@@ -111,15 +111,17 @@ pub struct CalibrateArgs {
     /// flush on a plane, points on a plane, touches, a bar — instead of --measurements; with
     /// --contact-setup. --validation then takes held-out contacts; with --camera, the contacts
     /// are fitted with the pixels (--validation: held-out detections). The joint frames are
-    /// fitted rigid, without cross-validation: of the model flags it takes --model
-    /// offsets|geometry, --freeze and --free.
+    /// fitted rigid; of the model flags it takes --model (adaptive: the full geometry, or
+    /// chosen by cross-validation among offsets, geometry and geometry with the prior when its
+    /// residuals exceed twice the setup's σ's), --prior, --prior-scale, --cv, --cv-repeats,
+    /// --freeze and --free.
     #[arg(
         long,
         value_name = "C.csv",
         requires = "contact_setup",
         conflicts_with_all = [
-            "stiffness", "identify_stiffness", "plan", "plan_file", "joint_errors", "prior",
-            "significant", "cv", "cv_joint_steps"
+            "stiffness", "identify_stiffness", "plan", "plan_file", "joint_errors",
+            "significant", "cv_joint_steps"
         ]
     )]
     pub contacts: Option<PathBuf>,
