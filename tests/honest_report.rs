@@ -133,6 +133,7 @@ fn run(
         plan: &plan,
         options: &options,
         measurement_frame: frame,
+        diagnose_columns: true,
     };
     run_calibration(&input, data, validation).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -388,6 +388,7 @@ fn cross_validation_chooses_the_level_the_data_were_simulated_with() {
             plan: &plan,
             options: &options,
             measurement_frame: MeasurementFrame::Base,
+            diagnose_columns: true,
         },
         patterns: &patterns,
         joint_steps: 0,
@@ -457,6 +458,7 @@ fn the_paper_model_stays_unless_significantly_beaten_for_several_seeds() {
             plan: &plan,
             options: &options,
             measurement_frame: MeasurementFrame::Base,
+            diagnose_columns: true,
         },
         patterns: &patterns,
         joint_steps: 0,
@@ -538,6 +540,7 @@ fn forward_steps_choose_backlash_on_the_joint_that_has_it() {
             plan: &plan,
             options: &options,
             measurement_frame: MeasurementFrame::Base,
+            diagnose_columns: true,
         },
         patterns: &patterns,
         joint_steps: 2,
@@ -703,6 +706,7 @@ fn variance_components_recover_the_noise_ratio() {
         plan: &plan,
         options: &declared,
         measurement_frame: MeasurementFrame::Base,
+        diagnose_columns: true,
     };
     for (true_rotation, seed) in [(1e-4, 22), (1e-3, 23)] {
         let data = measure_with_noise(&tree, &truth, 40, [1e-4, true_rotation], seed);

@@ -46,6 +46,7 @@ fn calibrate(
         plan: &plan,
         options: &options,
         measurement_frame: MeasurementFrame::Auto,
+        diagnose_columns: true,
     };
     run_calibration(&input, training, validation).unwrap()
 }

@@ -282,7 +282,7 @@ fn assess(
         let scale = s.identification.residual_scale;
         !scale.is_finite() || scale > super::checks::SIGMA_WARNING
     });
-    if suspicious {
+    if suspicious && input.diagnose_columns {
         let frame = run.report.model.world_from_base();
         if let Some(cause) = super::columns::diagnose_columns(
             input.tree,

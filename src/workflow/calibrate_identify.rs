@@ -135,6 +135,7 @@ impl Models<'_> {
             plan: self.plan,
             options,
             measurement_frame: self.loaded.frame,
+            diagnose_columns: true,
         }
     }
 
@@ -424,6 +425,7 @@ fn choose_model(
             plan,
             options,
             measurement_frame: loaded.frame,
+            diagnose_columns: false,
         },
         patterns: &config.patterns,
         joint_steps: if config.cv_joint_steps { MAX_STEPS } else { 0 },

@@ -276,6 +276,7 @@ pub fn rigid_simultaneous_run(
         plan: &plan,
         options: &options,
         measurement_frame: treecal::calibration::MeasurementFrame::Base,
+        diagnose_columns: true,
     };
     treecal::calibration::run_calibration(&input, data, validation)
 }
