@@ -4,6 +4,7 @@
 //! covariance under encoder noise, the plane-height/face-offset alias held and named.
 
 use crate::common;
+use crate::common::cli::report_json;
 use nalgebra::DMatrix;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
@@ -387,11 +388,6 @@ fn shared_nao() -> Option<std::path::PathBuf> {
     candidates.push(common::repo().join("../shared/robots/nao/nao.urdf"));
     candidates.push("/work/shared/robots/nao/nao.urdf".into());
     candidates.into_iter().find(|c| c.is_file())
-}
-
-fn report_json(dir: &std::path::Path) -> serde_json::Value {
-    let text = std::fs::read_to_string(dir.join("report.json")).expect("report.json");
-    serde_json::from_str(&text).expect("report.json parses")
 }
 
 /// A standing humanoid (NAO on its left sole) presses its left gripper flush on a table: the

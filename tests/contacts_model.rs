@@ -62,9 +62,7 @@ fn calibrate(
     }
     args.extend_from_slice(extra);
     let run = treecal(&args);
-    let report = std::fs::read_to_string(out.join("report.json"))
-        .map(|t| serde_json::from_str(&t).unwrap())
-        .unwrap_or(serde_json::Value::Null);
+    let report = crate::common::cli::report_json_or_null(out);
     (run, report)
 }
 

@@ -3,13 +3,8 @@
 //! the simulated encoder noise) and tracker.csv; `calibrate --contacts … --measurements
 //! tracker.csv` fits both, the tracker's frame with the rest, each row kind by its σ.
 
-use crate::common::cli::{assert_error, assert_success, path_str, treecal};
+use crate::common::cli::{assert_error, assert_success, path_str, report_json, treecal};
 use std::path::Path;
-
-fn report_json(dir: &Path) -> serde_json::Value {
-    let text = std::fs::read_to_string(dir.join("report.json")).expect("report.json");
-    serde_json::from_str(&text).expect("report.json parses")
-}
 
 /// Simulates `observation` on the built-in robot (seeded, encoder noise 1e-4 rad, tracker
 /// σ 0.1 mm) into `dir/sim` and returns it.

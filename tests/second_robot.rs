@@ -123,9 +123,7 @@ fn calibrate(
     ];
     args.extend_from_slice(extra);
     let run = treecal(&args);
-    let report = std::fs::read_to_string(out.join("report.json"))
-        .map(|t| serde_json::from_str(&t).unwrap())
-        .unwrap_or(serde_json::Value::Null);
+    let report = crate::common::cli::report_json_or_null(out);
     (run, report)
 }
 
@@ -421,7 +419,7 @@ fn calibrate_simulated(csv: &Path, out: &Path, extra: &[&str]) -> serde_json::Va
     args.extend_from_slice(extra);
     let run = treecal(&args);
     assert_success(&run, &format!("calibrate {extra:?}"));
-    serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
+    crate::common::cli::report_json(out)
 }
 
 /// The calibrated value of every parameter whose name ends with `kind` (` sine`, …), by joint.

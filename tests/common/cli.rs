@@ -95,3 +95,19 @@ pub fn assert_failed_verdict(run: &Run, needles: &[&str], what: &str) {
 pub fn path_str(path: &Path) -> &str {
     path.to_str().expect("temporary path is not UTF-8")
 }
+
+/// `dir/report.json` parsed; panics naming the file when it is missing or does not parse.
+pub fn report_json(dir: &Path) -> serde_json::Value {
+    let path = dir.join("report.json");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// `dir/report.json` parsed, or `Null` when the run wrote none (a refused run).
+pub fn report_json_or_null(dir: &Path) -> serde_json::Value {
+    if dir.join("report.json").is_file() {
+        report_json(dir)
+    } else {
+        serde_json::Value::Null
+    }
+}
