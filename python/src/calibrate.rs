@@ -7,8 +7,8 @@ use pyo3::types::PyBytes;
 use std::path::{Path, PathBuf};
 use treecal::calibration::RobustLoss;
 use treecal::workflow::{
-    CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, PlanSource, RobotSource,
-    StiffnessSource,
+    CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, ModelChoice, ModelLevel,
+    ParameterPatterns, PlanSource, RobotSource, StiffnessSource,
 };
 
 /// The outcome of a calibration; `treecal.Calibration` wraps it.
@@ -91,7 +91,7 @@ impl PyCalibration {
 #[pyo3(signature = (*, robot, measurements, validation, length_unit, angle_unit,
     joint_length_unit, stiffness, tools, reference_link, plan, seed, robust, identify_stiffness, stiffness_prior,
     measurement_frame, gravity_frame, position_sigma, rotation_sigma, ignore_columns, strict,
-    add_tool_links))]
+    add_tool_links, model, prior, prior_scale, cv, freeze, free))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -116,6 +116,12 @@ pub fn calibrate(
     ignore_columns: Vec<String>,
     strict: bool,
     add_tool_links: bool,
+    model: &str,
+    prior: bool,
+    prior_scale: f64,
+    cv: Option<usize>,
+    freeze: Vec<String>,
+    free: Vec<String>,
 ) -> PyResult<PyCalibration> {
     let defaults = CalibrateConfig::default();
     let config = CalibrateConfig {
@@ -140,12 +146,30 @@ pub fn calibrate(
         stiffness_prior: stiffness_prior.unwrap_or(defaults.stiffness_prior),
         gravity_frame: gravity(gravity_frame)?,
         add_tool_links,
+        model: model_choice(model)?,
+        prior,
+        prior_scale,
+        cv,
+        patterns: ParameterPatterns { freeze, free },
         ..defaults
     };
     let inner = py
         .detach(|| treecal::workflow::calibrate(&config))
         .map_err(to_py)?;
     Ok(PyCalibration { inner })
+}
+
+/// `model` as the CLI's `--model` takes it: "adaptive", "offsets", "geometry" or "auto".
+pub(crate) fn model_choice(text: &str) -> PyResult<ModelChoice> {
+    match text {
+        "adaptive" => Ok(ModelChoice::Adaptive),
+        "offsets" => Ok(ModelChoice::Level(ModelLevel::Offsets)),
+        "geometry" => Ok(ModelChoice::Level(ModelLevel::Geometry)),
+        "auto" => Ok(ModelChoice::Auto),
+        other => Err(invalid(format!(
+            "model '{other}' is not a model; give adaptive, offsets, geometry or auto"
+        ))),
+    }
 }
 
 /// A unit given as text ("m", "mm", "rad", "deg"), parsed by the library's own parser.

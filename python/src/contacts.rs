@@ -102,7 +102,8 @@ impl PyContactCalibration {
 /// them.
 #[pyfunction]
 #[pyo3(signature = (*, robot, contacts, contact_setup, validation, reference_link, measurements,
-    position_sigma, rotation_sigma, measurement_frame, length_unit, ignore_columns))]
+    position_sigma, rotation_sigma, measurement_frame, length_unit, ignore_columns, model, prior,
+    prior_scale, cv, seed, freeze, free))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate_contacts_files(
     py: Python<'_>,
@@ -117,6 +118,13 @@ pub fn calibrate_contacts_files(
     measurement_frame: String,
     length_unit: Option<String>,
     ignore_columns: Vec<String>,
+    model: &str,
+    prior: bool,
+    prior_scale: f64,
+    cv: Option<usize>,
+    seed: u64,
+    freeze: Vec<String>,
+    free: Vec<String>,
 ) -> PyResult<PyContactCalibration> {
     let length_unit: Option<treecal::io::LengthUnit> =
         crate::calibrate::parse_unit(length_unit.as_deref())?;
@@ -137,6 +145,11 @@ pub fn calibrate_contacts_files(
         validation,
         reference_link,
         tracker,
+        model: crate::calibrate::model_choice(model)?,
+        prior: prior.then_some(prior_scale),
+        cv,
+        seed,
+        patterns: treecal::workflow::ParameterPatterns { freeze, free },
         ..ContactCalibrateConfig::default()
     };
     let inner = py.detach(|| calibrate_contacts(&config)).map_err(to_py)?;

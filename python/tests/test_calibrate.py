@@ -278,3 +278,15 @@ def test_reference_link_is_a_keyword():
     root = treecal.calibrate(measurements=EXAMPLE_CSV, reference_link="base_link")
     default = treecal.calibrate(measurements=EXAMPLE_CSV)
     assert root.parameters == default.parameters
+
+
+def test_the_model_keywords_reach_the_calibration():
+    offsets = treecal.calibrate(measurements=EXAMPLE_CSV, model="offsets", seed=3)
+    names = {p["name"] for p in offsets.parameters}
+    assert any(n.endswith(" offset") for n in names), sorted(names)[:10]
+    assert offsets.report["model"]["spec"]["level"] == "offsets", offsets.report["model"]
+    frozen = treecal.calibrate(measurements=EXAMPLE_CSV, model="geometry", freeze=["left_joint1 *"], seed=3)
+    moved = {p["name"]: p["change"] for p in frozen.parameters}
+    assert all(v == 0.0 for n, v in moved.items() if n.startswith("left_joint1 ")), moved
+    with pytest.raises(treecal.TreecalError, match="prior_scale"):
+        treecal.calibrate(measurements=EXAMPLE_CSV, prior=True, prior_scale=0)

@@ -60,3 +60,28 @@ def test_settings_a_contact_calibration_does_not_use_are_refused(simulated: Path
         treecal.calibrate(identify_stiffness=True, **files)
     with pytest.raises(treecal.TreecalError, match="stiffness, plan not used"):
         treecal.calibrate(stiffness="s.yaml", plan="staged", **files)
+
+
+def test_the_model_flags_match_the_cli(simulated: Path, cli: str, tmp_path: Path) -> None:
+    files = {
+        "contacts": simulated / "contacts.csv",
+        "contact_setup": simulated / "contact-setup.yaml",
+        "validation": simulated / "contacts-validation.csv",
+    }
+    result = treecal.calibrate(model="auto", cv=3, **files)
+    assert result.report["model"]["name"] == "geometry", result.report["model_choice"]
+    assert [r["model"] for r in result.report["model_choice"]["rows"]] == ["offsets", "geometry", "geometry+prior"]
+    out = tmp_path / "cli"
+    subprocess.run(
+        [cli, "calibrate", "--contacts", str(files["contacts"]), "--contact-setup", str(files["contact_setup"]),
+         "--validation", str(files["validation"]), "--model", "auto", "--cv", "3", "-o", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    assert json.loads((out / "report.json").read_text()) == result.report
+    offsets = treecal.calibrate(model="offsets", freeze=["left_joint1*"], **files)
+    assert offsets.report["model"] == {"name": "offsets", "offsets": True, "prior": False}
+    with pytest.raises(treecal.TreecalError, match="model 'everything'"):
+        treecal.calibrate(model="everything", **files)
+    with pytest.raises(treecal.TreecalError, match="cv must be"):
+        treecal.calibrate(cv=1, **files)

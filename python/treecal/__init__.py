@@ -382,6 +382,12 @@ def calibrate(
     pixel_sigma: float = 0.5,
     contacts: Optional[PathLike] = None,
     contact_setup: Optional[PathLike] = None,
+    model: str = "adaptive",
+    prior: bool = False,
+    prior_scale: float = 1.0,
+    cv: Optional[int] = None,
+    freeze: Sequence[str] = (),
+    free: Sequence[str] = (),
 ) -> Calibration:
     """Calibrates `robot` (URDF path; None: the built-in Robonaut) from `measurements`.
 
@@ -394,7 +400,10 @@ def calibrate(
     `reference_link` names the link fixed in the world while measuring (a sole, a mobile
     base; None: the URDF root).
     `position_sigma` (m), `rotation_sigma` (rad) and `stiffness_prior` default to the CLI's
-    defaults (None).
+    defaults (None). `model` ("adaptive", "offsets", "geometry", "auto"), `prior`,
+    `prior_scale`, `cv` (folds) and `freeze` / `free` (parameter name patterns, as in
+    params.yaml) are the CLI's model flags (docs/identification.md; with contacts
+    docs/contacts.md, "The model the data support").
     Bad input raises :class:`TreecalError`; a failed verdict does not (see
     :attr:`Calibration.verdict`).
 
@@ -438,8 +447,15 @@ def calibrate(
         return _calibrate_contacts(
             robot, contacts, contact_setup, validation, reference_link, measurements,
             position_sigma, rotation_sigma, measurement_frame, length_unit, ignore_columns,
+            _model_arguments(model, prior, prior_scale, cv, freeze, free), seed,
         )
     if camera is not None:
+        asked = _model_arguments(model, prior, prior_scale, cv, freeze, free)
+        if asked != _model_arguments("adaptive", False, 1.0, None, (), ()):
+            raise TreecalError(
+                "calibrate: model, prior, prior_scale, cv, freeze and free are not used with camera= "
+                "(the camera calibration fits its own model); leave them out"
+            )
         return _calibrate_camera(
             robot, camera, detections, validation, measurements, pixel_sigma,
             position_sigma, rotation_sigma, measurement_frame, length_unit, angle_unit,
@@ -472,8 +488,31 @@ def calibrate(
         ignore_columns=_strings(ignore_columns, "ignore_columns"),
         strict=_flag(strict, "strict"),
         add_tool_links=_flag(add_tool_links, "add_tool_links"),
+        **_model_arguments(model, prior, prior_scale, cv, freeze, free),
     )
     return Calibration(inner)
+
+
+def _model_arguments(
+    model: Any, prior: Any, prior_scale: Any, cv: Any, freeze: Any, free: Any
+) -> Dict[str, Any]:
+    """The model keywords of `calibrate`, checked."""
+    folds = None
+    if cv is not None:
+        if isinstance(cv, bool) or not isinstance(cv, int) or cv < 2:
+            raise TreecalError(f"calibrate: cv must be a number of folds of at least 2, not {cv!r}")
+        folds = cv
+    scale = _float(prior_scale, "prior_scale")
+    if not scale > 0.0:
+        raise TreecalError(f"calibrate: prior_scale must be above 0, not {prior_scale!r}")
+    return dict(
+        model=_text(model, "model"),
+        prior=_flag(prior, "prior"),
+        prior_scale=scale,
+        cv=folds,
+        freeze=_strings(freeze, "freeze"),
+        free=_strings(free, "free"),
+    )
 
 
 DetectionsLike = Union[PathLike, Sequence[Mapping[str, Any]]]
@@ -533,7 +572,7 @@ def _calibrate_camera(
 def _calibrate_contacts(
     robot: Any, contacts: Any, contact_setup: Any, validation: Any, reference_link: Any,
     measurements: Any, position_sigma: Any, rotation_sigma: Any, measurement_frame: Any,
-    length_unit: Any, ignore_columns: Any,
+    length_unit: Any, ignore_columns: Any, model_arguments: Dict[str, Any], seed: Any,
 ) -> "Calibration":
     """`calibrate` from contacts (see there)."""
     if contacts is None or contact_setup is None:
@@ -554,6 +593,8 @@ def _calibrate_contacts(
         measurement_frame=_path(measurement_frame, "measurement_frame"),
         length_unit=_optional_text(length_unit, "length_unit"),
         ignore_columns=_strings(ignore_columns, "ignore_columns"),
+        seed=_seed(seed),
+        **model_arguments,
     )
     return Calibration(inner)
 

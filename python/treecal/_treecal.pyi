@@ -56,6 +56,12 @@ def calibrate(
     ignore_columns: List[str],
     strict: bool,
     add_tool_links: bool,
+    model: str,
+    prior: bool,
+    prior_scale: float,
+    cv: Optional[int],
+    freeze: List[str],
+    free: List[str],
 ) -> Calibration: ...
 
 def calibrate_camera(
@@ -91,6 +97,13 @@ def calibrate_contacts_files(
     measurement_frame: str,
     length_unit: Optional[str],
     ignore_columns: List[str],
+    model: str,
+    prior: bool,
+    prior_scale: float,
+    cv: Optional[int],
+    seed: int,
+    freeze: List[str],
+    free: List[str],
 ) -> Calibration: ...
 
 def verify(
