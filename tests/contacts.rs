@@ -416,6 +416,9 @@ fn flush_contacts_of_a_standing_humanoid_round_trip_through_the_cli() {
         "1",
         "--poses",
         "60",
+        // The shared NAO's collision meshes are not shipped with it.
+        "--collision-check",
+        "primitives-only",
         "--out",
         common::cli::path_str(&sim),
     ]);

@@ -82,6 +82,8 @@ fn config(
         candidates: 240,
         criterion: Criterion::O1,
         seed: 5,
+        package_paths: Vec::new(),
+        collision_check: treecal::sim::CollisionCheck::PrimitivesOnly,
     }
 }
 
@@ -493,4 +495,52 @@ fn the_cli_plans_contacts_that_calibrate_contacts_reads() {
     ]);
     assert!(!run.success);
     assert!(run.stderr.contains("'tuch'"), "{}", run.stderr);
+}
+
+/// Planned touches on the built-in robot (collision cylinders on every link): candidates in
+/// self-collision are rejected (the note counts them), and every planned configuration is free
+/// of self-collision but for the two hands that touch; with the check off none is rejected.
+#[test]
+fn planned_touches_are_free_of_self_collision_but_for_the_hands() {
+    let (_dir, config, plan) = builtin(&[ContactChoice::Touch]);
+    let rejected = |notes: &[treecal::workflow::Note]| -> usize {
+        let note = notes
+            .iter()
+            .find(|n| n.text.contains("projected configurations rejected"))
+            .unwrap_or_else(|| panic!("{notes:?}"));
+        let words: Vec<&str> = note.text.split_whitespace().collect();
+        let at = words.iter().position(|w| *w == "projected").unwrap();
+        words[at - 1].parse().unwrap()
+    };
+    assert!(rejected(&plan.notes) > 0, "{:?}", plan.notes);
+    let loaded = config.robot.load().unwrap();
+    let tree = &loaded.import.tree;
+    let checker = treecal::sim::CollisionChecker::new(tree).unwrap();
+    let problem = contacts_on_setup_planes(&config, &plan.rows);
+    let hands = treecal::sim::ContactCollisions::new(tree, &problem.model, checker.clone());
+    let mut touching = 0;
+    for m in &problem.training {
+        let Observation::Contact(contact) = &m.observation else {
+            continue;
+        };
+        assert!(hands.allows(contact, m.tool, &m.q), "{:?}", m.q);
+        touching += usize::from(checker.in_collision(&tree.link_poses(&m.q).unwrap()));
+    }
+    eprintln!(
+        "{touching} of {} planned touches have the hands in contact",
+        plan.rows.len()
+    );
+    let off = ContactPlanConfig {
+        collision_check: treecal::sim::CollisionCheck::Off,
+        ..config.clone()
+    };
+    let unchecked = plan_contacts(&off, &no_progress).unwrap();
+    assert!(
+        !unchecked
+            .notes
+            .iter()
+            .any(|n| n.text.contains("projected configurations rejected")),
+        "{:?}",
+        unchecked.notes
+    );
 }

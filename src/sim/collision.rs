@@ -365,6 +365,45 @@ impl CollisionChecker {
         removed
     }
 
+    /// Stops checking the pairs that collide in at least `fraction` of `configurations` (link
+    /// poses of random configurations): MoveIt's setup assistant disables pairs colliding in
+    /// 95 % of its samples as "always in collision" (coarse boxes of an ankle or a hip that
+    /// overlap wherever the joint is not near zero). Returns the pairs no longer checked.
+    ///
+    /// # Panics
+    ///
+    /// As [`Self::in_collision`].
+    pub fn ignore_pairs_mostly_colliding(
+        &mut self,
+        configurations: &[Vec<Pose>],
+        fraction: f64,
+    ) -> Vec<(LinkId, LinkId)> {
+        if configurations.is_empty() {
+            return Vec::new();
+        }
+        let mut hits = vec![0usize; self.pairs.len()];
+        for link_poses in configurations {
+            let placed = self.place(link_poses);
+            for (k, &(a, b)) in self.pairs.iter().enumerate() {
+                if self.pair_collides(&placed[a], a, &placed[b], b) {
+                    hits[k] += 1;
+                }
+            }
+        }
+        let threshold = fraction * configurations.len() as f64;
+        let mut removed = Vec::new();
+        let mut kept = Vec::with_capacity(self.pairs.len());
+        for (&(a, b), &n) in self.pairs.iter().zip(&hits) {
+            if n as f64 >= threshold {
+                removed.push((self.links[a].link, self.links[b].link));
+            } else {
+                kept.push((a, b));
+            }
+        }
+        self.pairs = kept;
+        removed
+    }
+
     /// Each shape-carrying link's pose (parry form) and bounding-sphere centre, root frame.
     fn place(&self, link_poses: &[Pose]) -> Vec<(ShapePose, ShapeVector)> {
         assert!(

@@ -7,9 +7,10 @@
 //! plane is placed through the first tool's face or contact point there; the touch seed is
 //! found from random starts) moved by a random step, and is projected back onto the contact
 //! by damped minimum-norm Newton steps in the joints (numerical joint derivatives: this places
-//! data, the calibration's Jacobians are analytic), clamped to the joint limits. Self-collision
-//! is not checked here.
+//! data, the calibration's Jacobians are analytic), clamped to the joint limits, and kept only when free of
+//! self-collision when the settings carry a check ([`ContactCollisions`]).
 
+use super::contact_collisions::ContactCollisions;
 pub use super::contact_trial::{
     contact_free_parameters, held_out_residual, independent_columns, linear_columns,
     run_contact_trial, ContactTrial, LINEAR_STD,
@@ -83,6 +84,8 @@ pub struct ContactSimulation {
     /// with the contacts (in the reference link's frame, σ
     /// [`super::contact_tracker::CONTACT_TRACKER_SIGMA`] when there is encoder noise).
     pub tracker_rows: bool,
+    /// The self-collision check of the generated configurations (`None`: not checked).
+    pub collisions: Option<ContactCollisions>,
 }
 
 impl Default for ContactSimulation {
@@ -100,6 +103,7 @@ impl Default for ContactSimulation {
             tables: 1,
             flush_tools: 1,
             tracker_rows: false,
+            collisions: None,
         }
     }
 }
@@ -239,7 +243,15 @@ fn point_group(
     let seed = match kind {
         ContactChoice::Touch | ContactChoice::Bar => {
             let nuisance = &blocks.nuisance;
-            contact_seed(truth, nuisance, &contact, 0, limits, rng, kind.name())?
+            let collisions = settings.collisions.as_ref();
+            contact_seed(
+                truth,
+                nuisance,
+                (&contact, 0),
+                limits,
+                (rng, collisions),
+                kind.name(),
+            )?
         }
         ContactChoice::Flush | ContactChoice::Plane => seed,
     };
@@ -269,19 +281,28 @@ impl SceneRows {
     ) -> Result<()> {
         let held_out = (settings.per_kind / 4).max(5);
         for index in 0..settings.per_kind + held_out {
-            let q = (0..100)
+            let q = (0..400)
                 .find_map(|_| {
                     let start: Vec<f64> = seed
                         .iter()
                         .zip(limits)
                         .map(|(v, (lo, hi))| (v + rng.random_range(-0.5..0.5)).clamp(*lo, *hi))
                         .collect();
-                    project(truth, nuisance, &contact, tool, &start, limits)
+                    let collisions = settings.collisions.as_ref();
+                    project_free(
+                        truth,
+                        nuisance,
+                        (&contact, tool),
+                        &start,
+                        limits,
+                        collisions,
+                    )
                 })
                 .ok_or_else(|| {
                     invalid(format!(
-                        "no further configuration found where the {} contact holds",
-                        kind.name()
+                        "no further configuration found where the {} contact holds{}",
+                        kind.name(),
+                        collision_hint(settings.collisions.as_ref())
                     ))
                 })?;
             let recorded = q
@@ -390,10 +411,9 @@ fn flush_groups(
                 contact_seed(
                     truth,
                     &blocks.nuisance,
-                    &contact,
-                    tool,
+                    (&contact, tool),
                     limits,
-                    rng,
+                    (rng, settings.collisions.as_ref()),
                     "flush",
                 )?
             };
@@ -407,22 +427,50 @@ fn flush_groups(
 fn contact_seed(
     truth: &McpcModel,
     nuisance: &Nuisance,
-    contact: &Contact,
-    tool: usize,
+    (contact, tool): (&Contact, usize),
     limits: &[(f64, f64)],
-    rng: &mut ChaCha8Rng,
+    (rng, collisions): (&mut ChaCha8Rng, Option<&ContactCollisions>),
     what: &str,
 ) -> Result<Vec<f64>> {
     (0..200)
         .find_map(|_| {
             let start = random_configuration(limits, rng);
-            project(truth, nuisance, contact, tool, &start, limits)
+            project_free(truth, nuisance, (contact, tool), &start, limits, collisions)
         })
         .ok_or_else(|| {
             invalid(format!(
-                "no configuration found where the {what} contact holds"
+                "no configuration found where the {what} contact holds{}",
+                collision_hint(collisions)
             ))
         })
+}
+
+/// [`project`], kept only when free of self-collision (but for what the contact touches), the
+/// joints no contact moves at rest ([`ContactCollisions::at_rest`]).
+fn project_free(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    (contact, tool): (&Contact, usize),
+    start: &[f64],
+    limits: &[(f64, f64)],
+    collisions: Option<&ContactCollisions>,
+) -> Option<Vec<f64>> {
+    match collisions {
+        None => project(model, nuisance, contact, tool, start, limits),
+        Some(c) => project(model, nuisance, contact, tool, &c.at_rest(start), limits)
+            .filter(|q| c.allows(contact, tool, q)),
+    }
+}
+
+/// The end of a "none found" message when configurations were rejected for self-collision.
+fn collision_hint(collisions: Option<&ContactCollisions>) -> String {
+    match collisions.map(ContactCollisions::rejected) {
+        Some(n) if n > 0 => format!(
+            " ({n} configurations where it holds were in self-collision; `collision_check` off \
+             skips the check)"
+        ),
+        _ => String::new(),
+    }
 }
 
 fn invalid(message: String) -> Error {
@@ -529,9 +577,25 @@ pub fn contact_configurations(
     rng: &mut ChaCha8Rng,
     what: &str,
 ) -> Result<Vec<Vec<f64>>> {
+    let at = (contact, tool);
+    collision_free_contact_configurations(tree, model, nuisance, at, count, (rng, None), what)
+}
+
+/// [`contact_configurations`] that are free of self-collision by `collisions` but for what
+/// the contact touches (`None`: not checked).
+pub fn collision_free_contact_configurations(
+    tree: &KinematicTree,
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    (contact, tool): (&Contact, usize),
+    count: usize,
+    (rng, collisions): (&mut ChaCha8Rng, Option<&ContactCollisions>),
+    what: &str,
+) -> Result<Vec<Vec<f64>>> {
     use rayon::prelude::*;
     let limits = limits_of(tree);
-    let seed = contact_seed(model, nuisance, contact, tool, &limits, rng, what)?;
+    let at = (contact, tool);
+    let seed = contact_seed(model, nuisance, at, &limits, (rng, collisions), what)?;
     let mut found = Vec::with_capacity(count);
     let mut tries = 0;
     while found.len() < count && tries < 20 * count.max(1) {
@@ -547,7 +611,7 @@ pub fn contact_configurations(
             .collect();
         let projected: Vec<Option<Vec<f64>>> = starts
             .par_iter()
-            .map(|start| project(model, nuisance, contact, tool, start, &limits))
+            .map(|start| project_free(model, nuisance, at, start, &limits, collisions))
             .collect();
         found.extend(projected.into_iter().flatten().take(count - found.len()));
     }

@@ -7,6 +7,8 @@ pub(crate) mod camera_planning;
 pub(crate) mod camera_setup;
 pub(crate) mod camera_visibility;
 mod collision;
+mod contact_collisions;
+pub use contact_collisions::ContactCollisions;
 mod contact_planning;
 mod contact_tracker;
 mod contact_trial;
@@ -35,9 +37,9 @@ pub use collision::{CollisionCheck, CollisionChecker, CollisionOptions, MeshLoad
 pub use contact_planning::{choose_contacts, ContactChoiceReport};
 pub use contact_tracker::{contact_tracker_frame, contact_tracker_rows, CONTACT_TRACKER_SIGMA};
 pub use contacts::{
-    contact_configurations, contact_free_parameters, contact_scene, held_out_residual,
-    independent_columns, linear_columns, onto_contact, run_contact_trial, ContactChoice,
-    ContactScene, ContactSimulation, ContactTrial, LINEAR_STD,
+    collision_free_contact_configurations, contact_configurations, contact_free_parameters,
+    contact_scene, held_out_residual, independent_columns, linear_columns, onto_contact,
+    run_contact_trial, ContactChoice, ContactScene, ContactSimulation, ContactTrial, LINEAR_STD,
 };
 pub use experiment::{
     run_trial, trial_seed, ArmErrors, BlunderReport, ErrorStats, RunSummary, Setup,

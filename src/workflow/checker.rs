@@ -13,6 +13,10 @@ use std::path::{Path, PathBuf};
 /// How many random configurations decide that a link pair always collides.
 const ALWAYS_COLLIDING_SAMPLES: usize = 100;
 
+/// The fraction of random configurations in which a pair that collides counts as colliding
+/// always (MoveIt's setup assistant's default) for contact configurations.
+const MOSTLY_COLLIDING: f64 = 0.95;
+
 /// The self-collision checker of `robot` for `check`: with [`CollisionCheck::Meshes`] its
 /// STL, OBJ and COLLADA meshes are resolved next to the URDF or, for `package://` names, in
 /// `package_paths` and then `ROS_PACKAGE_PATH`, and a mesh that cannot be used is an error
@@ -77,6 +81,62 @@ pub fn collision_checker(
         ignore_always_colliding(&mut checker, tree, notes);
     }
     Ok(checker)
+}
+
+/// The self-collision check of generated contact configurations ([`collision_checker`] with
+/// the hands of `model`'s tools allowed to touch in a `touch`); `None` with `check` off.
+pub fn contact_collisions(
+    robot: &RobotSource,
+    tree: &KinematicTree,
+    model: &crate::McpcModel,
+    (package_paths, check): (&[PathBuf], CollisionCheck),
+    notes: &mut Vec<Note>,
+) -> Result<Option<crate::sim::ContactCollisions>> {
+    let mut checker = collision_checker(robot, tree, package_paths, check, notes)?;
+    if check == CollisionCheck::Off {
+        return Ok(None);
+    }
+    // Shapes that overlap by design (an ankle's or a hip's coarse boxes) would reject nearly
+    // every contact configuration: as MoveIt's setup assistant, drop the pairs that collide in
+    // the zero configuration ("default") or in 95 % of random samples ("always").
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(0);
+    let mut samples: Vec<Vec<crate::math::Pose>> = tree
+        .link_poses(&tree.zero_configuration())
+        .into_iter()
+        .collect();
+    let removed_default = checker.ignore_pairs_always_colliding(&samples);
+    samples = sample_configurations(
+        tree,
+        None,
+        ALWAYS_COLLIDING_SAMPLES,
+        &mut rng,
+        &SamplingOptions::default(),
+        &[],
+    )
+    .unwrap_or_default()
+    .iter()
+    .filter_map(|q| tree.link_poses(q).ok())
+    .collect();
+    let removed_mostly = checker.ignore_pairs_mostly_colliding(&samples, MOSTLY_COLLIDING);
+    let removed: Vec<String> = removed_default
+        .iter()
+        .chain(&removed_mostly)
+        .map(|(a, b)| format!("{}–{}", tree.link(*a).name, tree.link(*b).name))
+        .collect();
+    if !removed.is_empty() {
+        notes.push(Note::info(format!(
+            "{} link pairs collide in the zero configuration or in {:.0} % of {} random ones \
+             (their shapes overlap by design) and are not checked for contact configurations: \
+             {}",
+            removed.len(),
+            MOSTLY_COLLIDING * 100.0,
+            samples.len(),
+            removed.join(", ")
+        )));
+    }
+    Ok(Some(crate::sim::ContactCollisions::new(
+        tree, model, checker,
+    )))
 }
 
 /// What the outputs say about the self-collision check, e.g. `meshes (12 shapes, 8 of them

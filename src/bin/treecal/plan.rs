@@ -95,6 +95,8 @@ fn run_contacts(args: PlanArgs, setup: std::path::PathBuf) -> Result<()> {
         candidates: args.candidates as usize,
         criterion: criterion(args.criterion),
         seed: args.seed,
+        package_paths: args.package_path,
+        collision_check: args.collision_check.into(),
     };
     check_contact_plan_output(&config, &out)?;
     let display = Display::new("plan", true);
