@@ -330,49 +330,19 @@ impl CollisionChecker {
             .collect()
     }
 
-    /// Stops checking the pairs that collide at every one of `configurations` (the link poses
-    /// of random configurations, see [`crate::sim::sample_configurations`]): links
-    /// whose meshes overlap by design (two links of a compact wrist), which no configuration
-    /// can separate and which MoveIt's setup assistant disables as "always in collision".
-    /// Returns the pairs no longer checked; none when `configurations` is empty.
-    ///
-    /// # Panics
-    ///
-    /// As [`Self::in_collision`].
+    /// [`Self::ignore_pairs_mostly_colliding`] at every one of `configurations`: links whose
+    /// meshes overlap by design (a compact wrist), MoveIt's "always in collision".
     pub fn ignore_pairs_always_colliding(
         &mut self,
         configurations: &[Vec<Pose>],
     ) -> Vec<(LinkId, LinkId)> {
-        let mut always = vec![!configurations.is_empty(); self.pairs.len()];
-        for link_poses in configurations {
-            let placed = self.place(link_poses);
-            for (k, &(a, b)) in self.pairs.iter().enumerate() {
-                if always[k] && !self.pair_collides(&placed[a], a, &placed[b], b) {
-                    always[k] = false;
-                }
-            }
-        }
-        let mut removed = Vec::new();
-        let mut kept = Vec::with_capacity(self.pairs.len());
-        for (&(a, b), &drop) in self.pairs.iter().zip(&always) {
-            if drop {
-                removed.push((self.links[a].link, self.links[b].link));
-            } else {
-                kept.push((a, b));
-            }
-        }
-        self.pairs = kept;
-        removed
+        self.ignore_pairs_mostly_colliding(configurations, 1.0)
     }
 
     /// Stops checking the pairs that collide in at least `fraction` of `configurations` (link
-    /// poses of random configurations): MoveIt's setup assistant disables pairs colliding in
-    /// 95 % of its samples as "always in collision" (coarse boxes of an ankle or a hip that
-    /// overlap wherever the joint is not near zero). Returns the pairs no longer checked.
-    ///
-    /// # Panics
-    ///
-    /// As [`Self::in_collision`].
+    /// poses of random configurations, [`crate::sim::sample_configurations`]; MoveIt's setup
+    /// assistant uses 95 %) and returns them; none when `configurations` is empty. Panics as
+    /// [`Self::in_collision`].
     pub fn ignore_pairs_mostly_colliding(
         &mut self,
         configurations: &[Vec<Pose>],

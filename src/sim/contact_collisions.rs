@@ -60,11 +60,15 @@ impl ContactCollisions {
                 Actuation::None => {}
             }
         }
-        let rest = super::contacts::limits_of(tree)
+        let rest = tree
+            .dof_limits()
             .into_iter()
             .enumerate()
             .filter(|(dof, _)| !used[*dof])
-            .map(|(dof, (lo, hi))| (dof, 0.0f64.clamp(lo, hi.max(lo))))
+            .map(|(dof, limits)| {
+                let value = limits.map_or(0.0, |l| 0.0f64.clamp(l.lower, l.upper.max(l.lower)));
+                (dof, value)
+            })
             .collect();
         let support = model.reference().map_or_else(Vec::new, |r| {
             (0..tree.links().len())
