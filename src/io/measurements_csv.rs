@@ -30,6 +30,7 @@ pub use write::{measurements_to_csv, measurements_to_csv_with, MeasurementWriteO
 mod checks;
 mod columns;
 mod read;
+mod stream;
 pub(super) use read::measurements_from_table;
 pub use read::{parse_measurements, read_measurements};
 
