@@ -156,11 +156,16 @@ pub(super) fn read_data(
         config.seed
     );
     notes.push(Note::info(validation_source.clone()));
-    let pick = |rows: &[usize]| rows.iter().map(|&i| all[i].clone()).collect();
     let ids = [&kept, &held].map(|rows| rows.iter().map(|&i| all_ids[i].clone()).collect());
+    // Moved, not cloned (`kept` and `held` share no row): one copy of the rows at a time.
+    let mut all: Vec<Option<Measurement>> = all.into_iter().map(Some).collect();
+    let mut pick = |rows: &[usize]| -> Vec<Measurement> {
+        rows.iter().filter_map(|&i| all[i].take()).collect()
+    };
+    let (measurements, validation) = (pick(&kept), pick(&held));
     Ok(Data {
-        measurements: pick(&kept),
-        validation: pick(&held),
+        measurements,
+        validation,
         validation_source,
         ids,
     })

@@ -12,7 +12,7 @@
 use super::read::{HeaderPlace, SetBuilder};
 use super::*;
 use crate::io::bounded::open_regular;
-use crate::io::csv_fields::CsvFields;
+use crate::io::csv_fields::{CsvFields, CsvRow};
 use crate::io::joints_csv::check_unique_columns;
 use crate::limits::{MAX_CSV_BYTES, MAX_CSV_COLUMNS, MAX_CSV_FIELD_BYTES, MAX_CSV_ROWS};
 use std::io::{BufRead, BufReader, Read};
@@ -26,6 +26,51 @@ pub(super) fn read_plain(
     options: &MeasurementReadOptions,
 ) -> Option<MeasurementSet> {
     let origin = path.display().to_string();
+    let start = |header: PlainHeader<'_>| {
+        let stated = parse_units_header(header.above, &origin).ok()?;
+        let place = HeaderPlace {
+            places: Places::Lines,
+            origin: &origin,
+            line: header.line,
+        };
+        let mut rows =
+            SetBuilder::start(header.headers, &stated, place, tree, model, options).ok()?;
+        rows.reserve(header.rows_guess);
+        Some(rows)
+    };
+    let each = |rows: &mut SetBuilder<'_>, row: CsvRow<'_>| rows.push(row).ok();
+    let rows = for_each_plain_row(path, &origin, start, each)?;
+    if rows.len() == 0 {
+        return None;
+    }
+    let mut set = rows.finish().ok()?;
+    set.measurements.shrink_to_fit();
+    set.ids.shrink_to_fit();
+    set.lines.shrink_to_fit();
+    Some(set)
+}
+
+/// The header of a plain file, as [`for_each_plain_row`] gives it.
+pub(super) struct PlainHeader<'h> {
+    /// The column names, trimmed.
+    pub(super) headers: &'h [String],
+    /// The 1-based line of the header.
+    pub(super) line: usize,
+    /// The text above the header and the header (for the units comment).
+    pub(super) above: &'h str,
+    /// About the number of data rows, from the size of the file and of its header.
+    pub(super) rows_guess: usize,
+}
+
+/// Reads the plain CSV file `path` (named `origin`): `start` with its header, then `each`
+/// with every data row. `None` when the file is not plain, is past a limit, has no header, or
+/// when `start` or `each` gives `None`.
+pub(super) fn for_each_plain_row<S>(
+    path: &Path,
+    origin: &str,
+    start: impl FnOnce(PlainHeader<'_>) -> Option<S>,
+    mut each: impl FnMut(&mut S, CsvRow<'_>) -> Option<()>,
+) -> Option<S> {
     let (file, size) = open_regular(path, MAX_CSV_BYTES).ok()?;
     let mut lines = PlainLines {
         reader: BufReader::with_capacity(1 << 16, file.take(MAX_CSV_BYTES + 1)),
@@ -47,39 +92,30 @@ pub(super) fn read_plain(
         // Two byte-order marks: the whole-text reader drops both.
         return None;
     }
-    let stated = parse_units_header(&above, &origin).ok()?;
-    drop(above);
     check_unique_columns(&headers, &format!("{origin}:{header_line}")).ok()?;
-    let place = HeaderPlace {
-        places: Places::Lines,
-        origin: &origin,
+    let rows_guess = usize::try_from(size / (lines.read + 1)).unwrap_or(0);
+    let mut state = start(PlainHeader {
+        headers: &headers,
         line: header_line,
-    };
-    let mut rows = SetBuilder::start(&headers, &stated, place, tree, model, options).ok()?;
-    // About the number of rows, from the size of the file and of its header.
-    let guess = usize::try_from(size / (lines.read + 1)).unwrap_or(0);
-    rows.reserve(guess.min(MAX_CSV_ROWS));
-    let mut row = CsvFields::new(headers, header_line);
+        above: &above,
+        rows_guess: rows_guess.min(MAX_CSV_ROWS),
+    })?;
+    drop(above);
+    let (mut row, mut count) = (CsvFields::new(headers, header_line), 0);
     while let Some((line, text)) = lines.next_or_end()? {
         if !plain_record(text)? {
             continue;
         }
-        if rows.len() == MAX_CSV_ROWS {
+        if count == MAX_CSV_ROWS {
             return None;
         }
+        count += 1;
         row.clear();
-        row.push_row(line, text.split(',').map(str::trim), &origin)
+        row.push_row(line, text.split(',').map(str::trim), origin)
             .ok()?;
-        rows.push(row.row(0)).ok()?;
+        each(&mut state, row.row(0))?;
     }
-    if rows.len() == 0 {
-        return None;
-    }
-    let mut set = rows.finish().ok()?;
-    set.measurements.shrink_to_fit();
-    set.ids.shrink_to_fit();
-    set.lines.shrink_to_fit();
-    Some(set)
+    Some(state)
 }
 
 /// Whether a plain line is a record (not a comment, not only empty fields); `None` if it is
