@@ -156,19 +156,26 @@ pub(super) fn read_data(
         config.seed
     );
     notes.push(Note::info(validation_source.clone()));
-    let ids = [&kept, &held].map(|rows| rows.iter().map(|&i| all_ids[i].clone()).collect());
-    // Moved, not cloned (`kept` and `held` share no row): one copy of the rows at a time.
-    let mut all: Vec<Option<Measurement>> = all.into_iter().map(Some).collect();
-    let mut pick = |rows: &[usize]| -> Vec<Measurement> {
-        rows.iter().filter_map(|&i| all[i].take()).collect()
-    };
-    let (measurements, validation) = (pick(&kept), pick(&held));
+    let (measurements, validation) = split_held(all, &held);
+    let (kept_ids, held_ids) = split_held(all_ids, &held);
+    debug_assert_eq!(kept.len(), measurements.len());
+    let ids = [kept_ids, held_ids];
     Ok(Data {
         measurements,
         validation,
         validation_source,
         ids,
     })
+}
+
+/// `items` without the rows `held` (ascending), and those rows, both in order. Moved in
+/// place, not copied: at 10⁶ configurations a copy of the measurements is about 700 MB.
+fn split_held<T>(items: Vec<T>, held: &[usize]) -> (Vec<T>, Vec<T>) {
+    // `Option<T>` has the size of `T` for these types: both collects reuse the allocation.
+    let mut slots: Vec<Option<T>> = items.into_iter().map(Some).collect();
+    let taken = held.iter().filter_map(|&i| slots.get_mut(i)?.take()).collect();
+    slots.retain(Option::is_some);
+    (slots.into_iter().flatten().collect(), taken)
 }
 
 /// A finished identification and how it was set up.
