@@ -184,3 +184,43 @@ impl<R: BufRead> PlainLines<R> {
         Some(Some((self.line, text)))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The data rows' lines and first fields, if the file with `text` is read as plain.
+    fn plain_rows(text: &str) -> Option<Vec<(usize, String)>> {
+        let dir = std::env::temp_dir().join(format!("treecal-plain-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(format!("{}.csv", text.len()));
+        std::fs::write(&path, text).unwrap();
+        let start = |header: PlainHeader<'_>| (header.headers[0] == "a").then(Vec::new);
+        let each = |rows: &mut Vec<(usize, String)>, row: CsvRow<'_>| {
+            rows.push((row.line, row.field(0).to_owned()));
+            Some(())
+        };
+        let rows = for_each_plain_row(&path, "f", start, each);
+        std::fs::remove_file(&path).unwrap();
+        rows
+    }
+
+    #[test]
+    fn plain_files_are_read_line_by_line_and_others_are_not() {
+        let expected = vec![(3, "1".to_owned()), (6, "3".to_owned())];
+        let plain = "# units: length=mm\na,b\n 1 ,2\n,\n\n3,4\n";
+        assert_eq!(plain_rows(plain), Some(expected.clone()));
+        assert_eq!(plain_rows(&plain.replace('\n', "\r\n")), Some(expected.clone()));
+        assert_eq!(plain_rows(&format!("\u{feff}{plain}")), Some(expected));
+        for other in [
+            "a,b\n\"1\",2\n",
+            "a,b\r1,2\n",
+            "a,b\n1,2\r",
+            "\u{feff}\u{feff}a,b\n1,2\n",
+            "a,a\n1,2\n",
+            "",
+        ] {
+            assert_eq!(plain_rows(other), None, "{other:?}");
+        }
+    }
+}
