@@ -14,7 +14,10 @@ fn rows(count: usize) -> Vec<String> {
     (1..=count)
         .map(|i| {
             let v = if i == 3 { 0.02 } else { 0.01 * i as f64 };
-            format!("{i},arms,left_tool,{v},{v},{v},{v},{v},{v},{v},{v},{},2,3", i % 5)
+            format!(
+                "{i},arms,left_tool,{v},{v},{v},{v},{v},{v},{v},{v},{},2,3",
+                i % 5
+            )
         })
         .collect()
 }
@@ -28,7 +31,8 @@ fn assert_same_both_ways(text: &str, options: &MeasurementReadOptions, what: &st
     std::fs::write(&path, text).unwrap();
     let origin = path.display().to_string();
     let from_file = read_measurements(&path, &tree, &model, options).map_err(|e| e.to_string());
-    let whole = parse_measurements(text, &origin, &tree, &model, options).map_err(|e| e.to_string());
+    let whole =
+        parse_measurements(text, &origin, &tree, &model, options).map_err(|e| e.to_string());
     assert_eq!(from_file, whole, "{what}");
     let targets = read_measured_targets(&path).map_err(|e| e.to_string());
     let whole_targets = measured_targets(text, &origin).map_err(|e| e.to_string());
@@ -55,7 +59,10 @@ fn a_file_read_line_by_line_gives_what_its_text_gives() {
         ("no final break", plain.trim_end().to_owned()),
         (
             "comments, blank and empty rows, spaces",
-            format!("\n# hello\n {HEADER} \n\n,,,\n# c\n{}\n", rows(4).join("\n\n")),
+            format!(
+                "\n# hello\n {HEADER} \n\n,,,\n# c\n{}\n",
+                rows(4).join("\n\n")
+            ),
         ),
         ("quoted", plain.replace("left_tool", "\"left_tool\"")),
         ("lone CR", plain.replacen('\n', "\r", 3)),

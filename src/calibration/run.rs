@@ -18,11 +18,11 @@ use super::sessions::{
 };
 use super::verdict::Finding;
 use crate::error::{Error, Result};
-use std::borrow::Cow;
 use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::Pose;
 use crate::measurement::Measurement;
 use nalgebra::DMatrix;
+use std::borrow::Cow;
 
 mod frame_refinement;
 mod input;
@@ -66,14 +66,10 @@ pub fn run_calibration(
         input.options,
     )?;
     let (given_measurements, given_validation) = (measurements, validation);
-    // From here on every row is in the first session's frame (validation: the training frame).
-    // With one session that is the data as given, not copied.
+    // From here on every row is in the first session's frame (validation: the training frame;
+    // with one session: the data as given, not copied).
     let measurements = in_first_frame.as_deref().unwrap_or(measurements);
-    let validation = match sessions.frames.len() {
-        0 | 1 => Cow::Borrowed(validation),
-        _ => Cow::Owned(validation_in_training_frames(validation, Some(&sessions))),
-    };
-    let validation = &validation[..];
+    let validation = &in_training_frames(validation, &sessions)[..];
     let frame_refinement = match (fitted_frame, input.flexibility) {
         (true, Some(flexibility)) => Some(refine_frame(
             input,
@@ -151,8 +147,20 @@ pub fn run_calibration(
         repeatability,
         sessions,
     };
-    assess(input, &mut run, (measurements, &measurement_rows), fitted_frame)?;
+    let kept = (measurements, &measurement_rows[..]);
+    assess(input, &mut run, kept, fitted_frame)?;
     Ok(run)
+}
+
+/// The validation rows in the training frames; with one session the rows as given.
+fn in_training_frames<'m>(
+    validation: &'m [Measurement],
+    sessions: &SessionsReport,
+) -> Cow<'m, [Measurement]> {
+    match sessions.frames.len() {
+        0 | 1 => Cow::Borrowed(validation),
+        _ => Cow::Owned(validation_in_training_frames(validation, Some(sessions))),
+    }
 }
 
 /// The indices of the identification rows the fit kept (of `count`), in order (for the

@@ -32,7 +32,8 @@ mod columns;
 mod read;
 mod stream;
 pub(super) use read::measurements_from_table;
-pub use read::{parse_measurements, read_measurements};
+pub use read::parse_measurements;
+pub use stream::read_measurements;
 
 /// How to read a measurement CSV. A unit left `None` is taken from the file's units comment
 /// (`# units: length=mm angle=deg`), else the default; a unit given here that contradicts the

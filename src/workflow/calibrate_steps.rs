@@ -173,7 +173,10 @@ pub(super) fn read_data(
 fn split_held<T>(items: Vec<T>, held: &[usize]) -> (Vec<T>, Vec<T>) {
     // `Option<T>` has the size of `T` for these types: both collects reuse the allocation.
     let mut slots: Vec<Option<T>> = items.into_iter().map(Some).collect();
-    let taken = held.iter().filter_map(|&i| slots.get_mut(i)?.take()).collect();
+    let taken = held
+        .iter()
+        .filter_map(|&i| slots.get_mut(i)?.take())
+        .collect();
     slots.retain(Option::is_some);
     (slots.into_iter().flatten().collect(), taken)
 }

@@ -24,15 +24,16 @@ struct ToolNames {
 
 impl ToolNames {
     fn start(headers: &[String], header_line: usize, origin: &str) -> Result<Self> {
-        let column = headers
-            .iter()
-            .position(|h| h == "tool")
-            .ok_or_else(|| Error::InvalidData {
-                origin: format!("{origin}:{header_line}"),
-                message: "the header has no 'tool' column; add one naming the measured tool \
+        let column =
+            headers
+                .iter()
+                .position(|h| h == "tool")
+                .ok_or_else(|| Error::InvalidData {
+                    origin: format!("{origin}:{header_line}"),
+                    message: "the header has no 'tool' column; add one naming the measured tool \
                     link of each row"
-                    .into(),
-            })?;
+                        .into(),
+                })?;
         Ok(Self {
             column,
             names: Vec::new(),

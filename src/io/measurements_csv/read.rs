@@ -8,17 +8,14 @@ use super::checks::{
 use super::columns::{classify, Columns};
 use super::*;
 
-/// Reads a measurement CSV file; see [`parse_measurements`].
-pub fn read_measurements(
+/// Reads a measurement CSV file as one text (any file the format allows; a plain file is read
+/// line by line by [`super::read_measurements`]); see [`parse_measurements`].
+pub(super) fn read_whole(
     path: &Path,
     tree: &KinematicTree,
     model: &McpcModel,
     options: &MeasurementReadOptions,
 ) -> Result<MeasurementSet> {
-    if let Some(set) = super::stream::read_plain(path, tree, model, options) {
-        return Ok(set);
-    }
-    // Not plain, or something is wrong: this reader names the place.
     let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
     let origin = path.display().to_string();
     let (table, header) = parse_table(&text, &origin)?;
@@ -138,7 +135,8 @@ impl<'a> SetBuilder<'a> {
         };
         let units = resolve_units(&stated, header, origin)?;
         let columns = classify(headers, line, places, tree, model, options, origin)?;
-        let (warnings, notes) = header_remarks(headers, line, &columns, places, origin, tree, options);
+        let (warnings, notes) =
+            header_remarks(headers, line, &columns, places, origin, tree, options);
         let set = MeasurementSet {
             measurements: Vec::new(),
             ids: Vec::new(),

@@ -17,9 +17,24 @@ use crate::io::joints_csv::check_unique_columns;
 use crate::limits::{MAX_CSV_BYTES, MAX_CSV_COLUMNS, MAX_CSV_FIELD_BYTES, MAX_CSV_ROWS};
 use std::io::{BufRead, BufReader, Read};
 
+/// Reads a measurement CSV file; see [`super::parse_measurements`]. A plain file is read line
+/// by line, anything else (and any file with an error) as one text.
+pub fn read_measurements(
+    path: &Path,
+    tree: &KinematicTree,
+    model: &McpcModel,
+    options: &MeasurementReadOptions,
+) -> Result<MeasurementSet> {
+    match read_plain(path, tree, model, options) {
+        Some(set) => Ok(set),
+        // Not plain, or something is wrong: the whole-text reader names the place.
+        None => super::read::read_whole(path, tree, model, options),
+    }
+}
+
 /// The measurements of the plain CSV file `path`, or `None` when the file is not plain or
 /// anything in it is wrong (then the whole-text reader says what).
-pub(super) fn read_plain(
+fn read_plain(
     path: &Path,
     tree: &KinematicTree,
     model: &McpcModel,
@@ -210,7 +225,10 @@ mod tests {
         let expected = vec![(3, "1".to_owned()), (6, "3".to_owned())];
         let plain = "# units: length=mm\na,b\n 1 ,2\n,\n\n3,4\n";
         assert_eq!(plain_rows(plain), Some(expected.clone()));
-        assert_eq!(plain_rows(&plain.replace('\n', "\r\n")), Some(expected.clone()));
+        assert_eq!(
+            plain_rows(&plain.replace('\n', "\r\n")),
+            Some(expected.clone())
+        );
         assert_eq!(plain_rows(&format!("\u{feff}{plain}")), Some(expected));
         for other in [
             "a,b\n\"1\",2\n",
