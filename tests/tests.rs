@@ -34,6 +34,7 @@ mod joint_errors;
 mod mcpc;
 mod measured_points;
 mod measurements_csv;
+mod measurements_stream;
 mod model_choice;
 mod observation;
 mod oracle;

@@ -22,6 +22,7 @@ use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::Pose;
 use crate::measurement::Measurement;
 use nalgebra::DMatrix;
+use std::borrow::Cow;
 
 mod frame_refinement;
 mod input;
@@ -65,9 +66,10 @@ pub fn run_calibration(
         input.options,
     )?;
     let (given_measurements, given_validation) = (measurements, validation);
-    // From here on every row is in the first session's frame (validation: the training frame).
-    let measurements = &in_first_frame[..];
-    let validation = &validation_in_training_frames(validation, Some(&sessions))[..];
+    // From here on every row is in the first session's frame (validation: the training frame;
+    // with one session: the data as given, not copied).
+    let measurements = in_first_frame.as_deref().unwrap_or(measurements);
+    let validation = &in_training_frames(validation, &sessions)[..];
     let frame_refinement = match (fitted_frame, input.flexibility) {
         (true, Some(flexibility)) => Some(refine_frame(
             input,
@@ -100,8 +102,7 @@ pub fn run_calibration(
     let repeatability =
         super::repeatability::repeatability(&report.model, measurements, validation);
     // Every validation row counts (its outliers are only marked).
-    let (measurement_rows, measurements) = kept_rows(measurements, &outliers);
-    let measurements = &measurements[..];
+    let measurement_rows = kept_rows(measurements.len(), &outliers);
     let parameters = estimates(input, &guess.model, &report);
     let (identification, validation_residuals) = before_and_after(
         input,
@@ -125,7 +126,7 @@ pub fn run_calibration(
         &sessions,
         &report,
         (&robust, &outliers),
-        measurements.len(),
+        measurement_rows.len(),
         validation.len(),
     );
     let mut run = CalibrationRun {
@@ -146,23 +147,32 @@ pub fn run_calibration(
         repeatability,
         sessions,
     };
-    assess(input, &mut run, measurements, fitted_frame)?;
+    let kept = (measurements, &measurement_rows[..]);
+    assess(input, &mut run, kept, fitted_frame)?;
     Ok(run)
 }
 
-/// The identification rows the fit kept, with their indices in the data given (for the
-/// reports' row ids).
-fn kept_rows(measurements: &[Measurement], outliers: &[Outlier]) -> (Vec<usize>, Vec<Measurement>) {
-    measurements
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| {
-            !outliers
-                .iter()
-                .any(|o| o.set == DataSet::Identification && o.index == *i)
-        })
-        .map(|(i, m)| (i, m.clone()))
-        .unzip()
+/// The validation rows in the training frames; with one session the rows as given.
+fn in_training_frames<'m>(
+    validation: &'m [Measurement],
+    sessions: &SessionsReport,
+) -> Cow<'m, [Measurement]> {
+    match sessions.frames.len() {
+        0 | 1 => Cow::Borrowed(validation),
+        _ => Cow::Owned(validation_in_training_frames(validation, Some(sessions))),
+    }
+}
+
+/// The indices of the identification rows the fit kept (of `count`), in order (for the
+/// reports' row ids). Linear: a mask, not a search of the outliers per row.
+fn kept_rows(count: usize, outliers: &[Outlier]) -> Vec<usize> {
+    let mut kept = vec![true; count];
+    for outlier in outliers {
+        if outlier.set == DataSet::Identification && outlier.index < count {
+            kept[outlier.index] = false;
+        }
+    }
+    (0..count).filter(|&i| kept[i]).collect()
 }
 
 /// The findings of the calibration itself, in order: the measurement frame's, the sessions',
@@ -268,7 +278,7 @@ fn root_mean_square(values: &[f64]) -> Option<f64> {
 fn assess(
     input: &CalibrationInput<'_>,
     run: &mut CalibrationRun,
-    measurements: &[Measurement],
+    (measurements, rows): (&[Measurement], &[usize]),
     fitted_frame: bool,
 ) -> Result<()> {
     if let Some(shifted) = run.repeatability.as_ref().filter(|r| r.shifted) {
@@ -284,10 +294,11 @@ fn assess(
     });
     if suspicious && input.diagnose_columns {
         let frame = run.report.model.world_from_base();
+        let kept: Vec<Measurement> = rows.iter().map(|&i| measurements[i].clone()).collect();
         if let Some(cause) = super::columns::diagnose_columns(
             input.tree,
             input.nominal,
-            measurements,
+            &kept,
             fitted_frame,
             &frame,
             input.options,
@@ -454,7 +465,8 @@ fn estimates(
 /// Tool poses at a configuration with a row's payload (kg at every tool, `None`: the model's).
 type PredictAt<'a> = dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>> + 'a;
 
-/// `rows[i]`: the index of `data[i]` in the data set the run was given.
+/// The before/after residuals of the rows `rows` of `data` (indices in the data set the run
+/// was given), per tool.
 fn arm_residuals(
     input: &CalibrationInput<'_>,
     data: &[Measurement],
@@ -467,9 +479,10 @@ fn arm_residuals(
     let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
     let mut indices = vec![Vec::new(); tools];
     let mut cache: super::predictor::Cached<'_, [Vec<Pose>; 2]> = None;
-    for (i, m) in data.iter().enumerate() {
+    for &row in rows {
+        let m = &data[row];
         if let Some(list) = indices.get_mut(m.tool) {
-            list.push(rows.get(i).copied().unwrap_or(i));
+            list.push(row);
         }
         let key = (m.q.as_slice(), m.payload);
         if cache.as_ref().is_none_or(|(k, _)| *k != key) {

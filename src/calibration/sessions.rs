@@ -29,6 +29,7 @@ use crate::math::{pose, Pose, Vec3};
 use crate::measurement::{Measurement, Observation};
 use crate::tree::Branches;
 use nalgebra::{Matrix3, Matrix6, UnitQuaternion, Vector6};
+use std::borrow::Cow;
 
 pub use super::session_findings::session_findings;
 
@@ -76,8 +77,11 @@ impl Sessions {
         self.of.iter().filter(|&&s| s == index).count()
     }
 
-    /// The rows of the first session (all rows when there is one session).
-    pub fn first_session(&self, measurements: &[Measurement]) -> Vec<Measurement> {
+    /// The rows of the first session (all rows, not copied, when there is one session).
+    pub fn first_session<'m>(&self, measurements: &'m [Measurement]) -> Cow<'m, [Measurement]> {
+        if self.names.len() < 2 && self.of.len() == measurements.len() {
+            return Cow::Borrowed(measurements);
+        }
         measurements
             .iter()
             .zip(&self.of)
@@ -154,8 +158,10 @@ pub struct SessionCalibration {
     pub report: CalibrationReport,
     /// The robust estimation of the last calibration.
     pub robust: RobustReport,
-    /// The measurements mapped into the first session's frame (the data the report fits).
-    pub measurements: Vec<Measurement>,
+    /// The measurements mapped into the first session's frame (the data the report fits);
+    /// `None` with one session: the data as given are in its frame (not copied: at 10⁶
+    /// configurations a copy is about 700 MB).
+    pub measurements: Option<Vec<Measurement>>,
     /// The session frames (one, the identity, with one session: nothing to fit).
     pub sessions: SessionsReport,
 }
@@ -422,7 +428,7 @@ pub fn calibrate_sessions(
         return Ok(SessionCalibration {
             report,
             robust,
-            measurements: measurements.to_vec(),
+            measurements: None,
             sessions: SessionsReport {
                 frames: vec![SessionFrame {
                     name: sessions.names.first().cloned().flatten(),
@@ -503,7 +509,7 @@ pub fn calibrate_sessions(
     Ok(SessionCalibration {
         report,
         robust,
-        measurements: data,
+        measurements: Some(data),
         sessions: SessionsReport {
             frames,
             rounds,

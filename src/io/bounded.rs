@@ -14,6 +14,25 @@ use std::path::Path;
 /// The bytes of the regular file `path`, at most `max_bytes` of them (else an error naming
 /// the file, its size and the limit).
 pub fn read_bytes(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
+    let (file, size) = open_regular(path, max_bytes)?;
+    // The size can change between the check and the read.
+    let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0));
+    file.take(max_bytes + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|source| Error::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_big(path, bytes.len() as u64, max_bytes));
+    }
+    Ok(bytes)
+}
+
+/// The regular file `path` opened for reading, and its size, at most `max_bytes` (else the
+/// errors of [`read_bytes`]). A reader must still stop one byte past `max_bytes`: the file
+/// can grow after the check.
+pub fn open_regular(path: &Path, max_bytes: u64) -> Result<(std::fs::File, u64)> {
     let io = |source| Error::Io {
         path: path.to_owned(),
         source,
@@ -24,26 +43,22 @@ pub fn read_bytes(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
     // And again on what was opened, in case the name was replaced in between.
     let metadata = file.metadata().map_err(io)?;
     ensure_regular(path, &metadata)?;
-    let too_big = |size: u64| Error::InvalidData {
+    let size = metadata.len();
+    if size > max_bytes {
+        return Err(too_big(path, size, max_bytes));
+    }
+    Ok((file, size))
+}
+
+/// The error of a file of `size` bytes, more than `max_bytes`.
+fn too_big(path: &Path, size: u64, max_bytes: u64) -> Error {
+    Error::InvalidData {
         origin: path.display().to_string(),
         message: format!(
             "the file has {size} bytes, more than the limit of {max_bytes} for this kind of \
              file (docs/file-formats.md, \"Limits\")"
         ),
-    };
-    let size = metadata.len();
-    if size > max_bytes {
-        return Err(too_big(size));
     }
-    // The size can change between the check and the read.
-    let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0));
-    file.take(max_bytes + 1)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
-    if bytes.len() as u64 > max_bytes {
-        return Err(too_big(bytes.len() as u64));
-    }
-    Ok(bytes)
 }
 
 /// The UTF-8 text of the regular file `path`, at most `max_bytes` long; see [`read_bytes`].

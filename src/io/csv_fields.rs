@@ -89,6 +89,13 @@ impl CsvFields {
         Ok(())
     }
 
+    /// Drops every data row (the columns stay), keeping the buffers' room.
+    pub fn clear(&mut self) {
+        self.text.clear();
+        self.ends.clear();
+        self.lines.clear();
+    }
+
     /// Number of data rows.
     pub fn len(&self) -> usize {
         self.lines.len()

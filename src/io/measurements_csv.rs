@@ -30,8 +30,10 @@ pub use write::{measurements_to_csv, measurements_to_csv_with, MeasurementWriteO
 mod checks;
 mod columns;
 mod read;
+mod stream;
 pub(super) use read::measurements_from_table;
-pub use read::{parse_measurements, read_measurements};
+pub use read::parse_measurements;
+pub use stream::read_measurements;
 
 /// How to read a measurement CSV. A unit left `None` is taken from the file's units comment
 /// (`# units: length=mm angle=deg`), else the default; a unit given here that contradicts the

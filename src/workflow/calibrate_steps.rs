@@ -156,14 +156,29 @@ pub(super) fn read_data(
         config.seed
     );
     notes.push(Note::info(validation_source.clone()));
-    let pick = |rows: &[usize]| rows.iter().map(|&i| all[i].clone()).collect();
-    let ids = [&kept, &held].map(|rows| rows.iter().map(|&i| all_ids[i].clone()).collect());
+    let (measurements, validation) = split_held(all, &held);
+    let (kept_ids, held_ids) = split_held(all_ids, &held);
+    debug_assert_eq!(kept.len(), measurements.len());
+    let ids = [kept_ids, held_ids];
     Ok(Data {
-        measurements: pick(&kept),
-        validation: pick(&held),
+        measurements,
+        validation,
         validation_source,
         ids,
     })
+}
+
+/// `items` without the rows `held` (ascending), and those rows, both in order. Moved in
+/// place, not copied: at 10⁶ configurations a copy of the measurements is about 700 MB.
+fn split_held<T>(items: Vec<T>, held: &[usize]) -> (Vec<T>, Vec<T>) {
+    // `Option<T>` has the size of `T` for these types: both collects reuse the allocation.
+    let mut slots: Vec<Option<T>> = items.into_iter().map(Some).collect();
+    let taken = held
+        .iter()
+        .filter_map(|&i| slots.get_mut(i)?.take())
+        .collect();
+    slots.retain(Option::is_some);
+    (slots.into_iter().flatten().collect(), taken)
 }
 
 /// A finished identification and how it was set up.

@@ -1,6 +1,7 @@
 //! The tools and targets a measurement CSV names, read without a robot model.
 
 // The parent's types, constants and imports.
+use super::stream::{for_each_plain_row, PlainHeader};
 use super::*;
 
 /// The distinct links named in the `tool` column of measurement CSV `text`, in order of first
@@ -8,36 +9,61 @@ use super::*;
 /// from them). An error when there is no `tool` column or no data row.
 pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
     let table = parse_csv_fields(text, origin)?;
-    let column = table
-        .headers
-        .iter()
-        .position(|h| h == "tool")
-        .ok_or_else(|| Error::InvalidData {
-            origin: format!("{origin}:{}", table.header_line),
-            message: "the header has no 'tool' column; add one naming the measured tool link \
-                of each row"
-                .into(),
-        })?;
-    let mut names: Vec<String> = Vec::new();
+    let mut names = ToolNames::start(&table.headers, table.header_line, origin)?;
     for row in table.rows() {
-        let (line, name) = (row.line, row.field(column));
+        names.see(row, origin)?;
+    }
+    names.finish(origin)
+}
+
+/// The tool names of a measurement CSV, gathered row by row.
+struct ToolNames {
+    column: usize,
+    names: Vec<String>,
+}
+
+impl ToolNames {
+    fn start(headers: &[String], header_line: usize, origin: &str) -> Result<Self> {
+        let column =
+            headers
+                .iter()
+                .position(|h| h == "tool")
+                .ok_or_else(|| Error::InvalidData {
+                    origin: format!("{origin}:{header_line}"),
+                    message: "the header has no 'tool' column; add one naming the measured tool \
+                    link of each row"
+                        .into(),
+                })?;
+        Ok(Self {
+            column,
+            names: Vec::new(),
+        })
+    }
+
+    fn see(&mut self, row: CsvRow<'_>, origin: &str) -> Result<()> {
+        let (line, name) = (row.line, row.field(self.column));
         if name.is_empty() {
             return Err(Error::InvalidData {
                 origin: format!("{origin}:{line}:tool"),
                 message: "the tool is empty; name the measured tool link".into(),
             });
         }
-        if !names.iter().any(|n| n == name) {
-            names.push(name.to_owned());
+        if !self.names.iter().any(|n| n == name) {
+            self.names.push(name.to_owned());
         }
+        Ok(())
     }
-    if names.is_empty() {
-        return Err(Error::InvalidData {
-            origin: origin.to_owned(),
-            message: "the file has a header but no data rows; add one row per measurement".into(),
-        });
+
+    fn finish(self, origin: &str) -> Result<Vec<String>> {
+        if self.names.is_empty() {
+            return Err(Error::InvalidData {
+                origin: origin.to_owned(),
+                message: "the file has a header but no data rows; add one row per measurement"
+                    .into(),
+            });
+        }
+        Ok(self.names)
     }
-    Ok(names)
 }
 
 /// The distinct `(tool, point)` pairs the rows of measurement CSV `text` name, in order of
@@ -45,38 +71,76 @@ pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
 /// tool then comes from `--tools`) and for a missing or empty `point`.
 pub fn measured_targets(text: &str, origin: &str) -> Result<Vec<(Option<String>, Option<String>)>> {
     let table = parse_csv_fields(text, origin)?;
-    let column = |name: &str| table.headers.iter().position(|h| h == name);
-    let (tool, point) = (column("tool"), column(POINT_COLUMN));
-    let mut pairs: Vec<(Option<String>, Option<String>)> = Vec::new();
+    let mut targets = Targets::start(&table.headers);
     for row in table.rows() {
+        targets.see(row, origin)?;
+    }
+    Ok(targets.pairs)
+}
+
+/// The `(tool, point)` pairs of a measurement CSV, gathered row by row.
+struct Targets {
+    tool: Option<usize>,
+    point: Option<usize>,
+    pairs: Vec<(Option<String>, Option<String>)>,
+}
+
+impl Targets {
+    fn start(headers: &[String]) -> Self {
+        let column = |name: &str| headers.iter().position(|h| h == name);
+        Self {
+            tool: column("tool"),
+            point: column(POINT_COLUMN),
+            pairs: Vec::new(),
+        }
+    }
+
+    fn see(&mut self, row: CsvRow<'_>, origin: &str) -> Result<()> {
         let line = row.line;
         let value = |c: Option<usize>| {
             c.map(|c| row.field(c))
                 .filter(|v| !v.is_empty())
                 .map(str::to_owned)
         };
-        let pair = (value(tool), value(point));
-        if tool.is_some() && pair.0.is_none() {
+        let pair = (value(self.tool), value(self.point));
+        if self.tool.is_some() && pair.0.is_none() {
             return Err(Error::InvalidData {
                 origin: format!("{origin}:{line}:tool"),
                 message: "the tool is empty; name the measured tool link".into(),
             });
         }
-        if !pairs.contains(&pair) {
-            pairs.push(pair);
+        if !self.pairs.contains(&pair) {
+            self.pairs.push(pair);
+        }
+        Ok(())
+    }
+}
+
+/// Reads a measurement CSV file's tool and point columns; see [`measured_targets`]. A plain
+/// file is read line by line ([`super::stream`]), anything else as one text.
+pub fn read_measured_targets(path: &Path) -> Result<Vec<(Option<String>, Option<String>)>> {
+    let origin = path.display().to_string();
+    let start = |header: PlainHeader<'_>| Some(Targets::start(header.headers));
+    let each = |targets: &mut Targets, row: CsvRow<'_>| targets.see(row, &origin).ok();
+    if let Some(targets) = for_each_plain_row(path, &origin, start, each) {
+        return Ok(targets.pairs);
+    }
+    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
+    measured_targets(&text, &origin)
+}
+
+/// Reads a measurement CSV file's tool column; see [`measured_tool_names`]. A plain file is
+/// read line by line ([`super::stream`]), anything else as one text.
+pub fn read_measured_tool_names(path: &Path) -> Result<Vec<String>> {
+    let origin = path.display().to_string();
+    let start =
+        |header: PlainHeader<'_>| ToolNames::start(header.headers, header.line, &origin).ok();
+    let each = |names: &mut ToolNames, row: CsvRow<'_>| names.see(row, &origin).ok();
+    if let Some(names) = for_each_plain_row(path, &origin, start, each) {
+        if let Ok(names) = names.finish(&origin) {
+            return Ok(names);
         }
     }
-    Ok(pairs)
-}
-
-/// Reads a measurement CSV file's tool and point columns; see [`measured_targets`].
-pub fn read_measured_targets(path: &Path) -> Result<Vec<(Option<String>, Option<String>)>> {
     let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
-    measured_targets(&text, &path.display().to_string())
-}
-
-/// Reads a measurement CSV file's tool column; see [`measured_tool_names`].
-pub fn read_measured_tool_names(path: &Path) -> Result<Vec<String>> {
-    let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
-    measured_tool_names(&text, &path.display().to_string())
+    measured_tool_names(&text, &origin)
 }

@@ -8,8 +8,9 @@ use super::checks::{
 use super::columns::{classify, Columns};
 use super::*;
 
-/// Reads a measurement CSV file; see [`parse_measurements`].
-pub fn read_measurements(
+/// Reads a measurement CSV file as one text (any file the format allows; a plain file is read
+/// line by line by [`super::read_measurements`]); see [`parse_measurements`].
+pub(super) fn read_whole(
     path: &Path,
     tree: &KinematicTree,
     model: &McpcModel,
@@ -70,85 +71,157 @@ pub(in crate::io) fn measurements_from_table(
     model: &McpcModel,
     options: &MeasurementReadOptions,
 ) -> Result<MeasurementSet> {
-    let stated = StatedUnits {
-        length: options.length_unit,
-        angle: options.angle_unit,
-        joint_length: options.joint_length_unit,
-        rotation: None,
-        line: None,
-    };
-    let units = resolve_units(&stated, header, origin)?;
-    let columns = classify(
-        &table.headers,
-        table.header_line,
+    let place = HeaderPlace {
         places,
-        tree,
-        model,
-        options,
         origin,
-    )?;
-    let (warnings, notes) = header_remarks(table, &columns, places, origin, tree, options);
+        line: table.header_line,
+    };
+    let mut rows = SetBuilder::start(&table.headers, header, place, tree, model, options)?;
     if table.is_empty() {
-        return Err(Error::InvalidData {
-            origin: origin.to_owned(),
-            message: "the file has a header but no data rows; add one row per measurement".into(),
-        });
+        return Err(no_data_rows(origin));
     }
-    let reader = RowReader {
-        table,
-        columns: &columns,
-        places,
-        origin,
-        tree,
-        options,
-        units,
-        tool_names: model
-            .tools()
-            .iter()
-            .map(|t| tree.link(t.link).name.as_str())
-            .collect(),
-        tool_dofs: tool_dofs(tree, model),
-    };
-    let mut set = MeasurementSet {
-        measurements: Vec::with_capacity(table.len()),
-        ids: Vec::with_capacity(table.len()),
-        lines: Vec::with_capacity(table.len()),
-        observation: columns.observation,
-        warnings,
-        notes,
-        units,
-    };
-    let mut tally = Tally {
-        outside: Vec::new(),
-        revolute_values: 0,
-        first_line_of_id: HashMap::new(),
-        repeats: Repeats::new(columns.id),
-        position_rows: Vec::new(),
-    };
-    for (index, row) in table.rows().enumerate() {
-        let (id, measurement) = reader.read_row(index, row, &mut tally)?;
-        set.measurements.push(measurement);
-        set.ids.push(id);
-        set.lines.push(row.line);
-        tally.repeats.see(row);
+    rows.reserve(table.len());
+    for row in table.rows() {
+        rows.push(row)?;
     }
-    set.warnings.extend(limit_warnings(
-        &tally.outside,
-        tally.revolute_values,
-        units.angle,
-        origin,
-    )?);
-    angles_look_like_radians(&set, tree, units.angle, origin)?;
-    set.warnings.extend(tally.repeats.warning(origin, places));
-    if let Some(note) = position_only_note(&tally.position_rows, columns.observation, origin) {
-        set.notes.push(note);
+    rows.finish()
+}
+
+/// The error of a table with a header but no rows.
+pub(super) fn no_data_rows(origin: &str) -> Error {
+    Error::InvalidData {
+        origin: origin.to_owned(),
+        message: "the file has a header but no data rows; add one row per measurement".into(),
     }
-    Ok(set)
+}
+
+/// Where the header of a table is and how its rows are named.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct HeaderPlace<'a> {
+    pub(super) places: Places,
+    pub(super) origin: &'a str,
+    /// The 1-based line of the header row.
+    pub(super) line: usize,
+}
+
+/// A [`MeasurementSet`] built one row at a time (a file streamed line by line, or a table).
+pub(super) struct SetBuilder<'a> {
+    reader: RowReader<'a>,
+    set: MeasurementSet,
+    tally: Tally,
+}
+
+impl<'a> SetBuilder<'a> {
+    /// Checks the header (`headers`, the stated units `header`) against the model.
+    pub(super) fn start(
+        headers: &[String],
+        header: &StatedUnits,
+        place: HeaderPlace<'a>,
+        tree: &'a KinematicTree,
+        model: &'a McpcModel,
+        options: &'a MeasurementReadOptions,
+    ) -> Result<Self> {
+        let HeaderPlace {
+            places,
+            origin,
+            line,
+        } = place;
+        let stated = StatedUnits {
+            length: options.length_unit,
+            angle: options.angle_unit,
+            joint_length: options.joint_length_unit,
+            rotation: None,
+            line: None,
+        };
+        let units = resolve_units(&stated, header, origin)?;
+        let columns = classify(headers, line, places, tree, model, options, origin)?;
+        let (warnings, notes) =
+            header_remarks(headers, line, &columns, places, origin, tree, options);
+        let set = MeasurementSet {
+            measurements: Vec::new(),
+            ids: Vec::new(),
+            lines: Vec::new(),
+            observation: columns.observation,
+            warnings,
+            notes,
+            units,
+        };
+        let tally = Tally {
+            outside: Vec::new(),
+            revolute_values: 0,
+            first_line_of_id: HashMap::new(),
+            repeats: Repeats::new(columns.id),
+            position_rows: Vec::new(),
+        };
+        let reader = RowReader {
+            headers: headers.to_vec(),
+            columns,
+            places,
+            origin,
+            tree,
+            options,
+            units,
+            tool_names: model
+                .tools()
+                .iter()
+                .map(|t| tree.link(t.link).name.as_str())
+                .collect(),
+            tool_dofs: tool_dofs(tree, model),
+        };
+        Ok(Self { reader, set, tally })
+    }
+
+    /// Room for `rows` more rows.
+    pub(super) fn reserve(&mut self, rows: usize) {
+        self.set.measurements.reserve(rows);
+        self.set.ids.reserve(rows);
+        self.set.lines.reserve(rows);
+    }
+
+    /// Number of rows read so far.
+    pub(super) fn len(&self) -> usize {
+        self.set.lines.len()
+    }
+
+    /// Reads the next data row.
+    pub(super) fn push(&mut self, row: CsvRow<'_>) -> Result<()> {
+        let index = self.set.lines.len();
+        let (id, measurement) = self.reader.read_row(index, row, &mut self.tally)?;
+        self.set.measurements.push(measurement);
+        self.set.ids.push(id);
+        self.set.lines.push(row.line);
+        self.tally.repeats.see(row);
+        Ok(())
+    }
+
+    /// The set, with the warnings and notes about all its rows.
+    pub(super) fn finish(self) -> Result<MeasurementSet> {
+        let Self {
+            reader,
+            mut set,
+            tally,
+        } = self;
+        let (origin, units) = (reader.origin, set.units);
+        set.warnings.extend(limit_warnings(
+            &tally.outside,
+            tally.revolute_values,
+            units.angle,
+            origin,
+        )?);
+        angles_look_like_radians(&set, reader.tree, units.angle, origin)?;
+        set.warnings
+            .extend(tally.repeats.warning(origin, reader.places));
+        if let Some(note) = position_only_note(&tally.position_rows, set.observation, origin) {
+            set.notes.push(note);
+        }
+        Ok(set)
+    }
 }
 
 /// The header's warnings (ignored columns the file does not have) and notes (columns skipped).
 fn header_remarks(
-    table: &CsvFields,
+    headers: &[String],
+    header_line: usize,
     columns: &Columns,
     places: Places,
     origin: &str,
@@ -157,7 +230,7 @@ fn header_remarks(
 ) -> (Vec<String>, Vec<String>) {
     let mut warnings = Vec::new();
     for name in &options.ignore_columns {
-        if !table.headers.contains(name) {
+        if !headers.contains(name) {
             warnings.push(format!(
                 "{origin}: column '{name}' is to be ignored but the file has no such column"
             ));
@@ -168,7 +241,7 @@ fn header_remarks(
         let listed: Vec<&str> = columns.skipped.iter().map(|(_, s)| s.as_str()).collect();
         notes.push(format!(
             "{}: {} column(s) neither a joint of '{}' nor a measurement column, not read: {}; list them with `ignore_columns` to silence this note",
-            places.header(origin, table.header_line, None),
+            places.header(origin, header_line, None),
             listed.len(),
             tree.name(),
             listed.join(", ")
@@ -204,8 +277,8 @@ fn tool_dofs(tree: &KinematicTree, model: &McpcModel) -> Vec<Vec<usize>> {
 
 /// What every row is read against.
 struct RowReader<'a> {
-    table: &'a CsvFields,
-    columns: &'a Columns,
+    headers: Vec<String>,
+    columns: Columns,
     places: Places,
     origin: &'a str,
     tree: &'a KinematicTree,
@@ -241,7 +314,7 @@ impl RowReader<'_> {
 
     /// A place in `row`: the cell of column `column`.
     fn place(&self, row: &Row<'_>, column: usize) -> String {
-        self.at(row, &self.table.headers[column])
+        self.at(row, &self.headers[column])
     }
 
     fn invalid(&self, row: &Row<'_>, column: usize, message: String) -> Error {
@@ -258,7 +331,7 @@ impl RowReader<'_> {
         fields: CsvRow<'_>,
         tally: &mut Tally,
     ) -> Result<(String, Measurement)> {
-        let columns = self.columns;
+        let columns = &self.columns;
         let line = fields.line;
         let row = Row {
             line,
@@ -340,7 +413,7 @@ impl RowReader<'_> {
     /// The model tool the row measures (a tool link, or the marker link of a point on it),
     /// and the tool link's name as the row gives it.
     fn tool<'r>(&'r self, row: &Row<'r>) -> Result<(usize, &'r str)> {
-        let columns = self.columns;
+        let columns = &self.columns;
         let tool_names = &self.tool_names;
         let tool_column = columns.tool.unwrap_or(0);
         let tool_name = match columns.tool {
@@ -443,7 +516,7 @@ impl RowReader<'_> {
         tool_name: &str,
         given: &[bool],
     ) -> Result<()> {
-        let (tree, columns) = (self.tree, self.columns);
+        let (tree, columns) = (self.tree, &self.columns);
         for &dof in &self.tool_dofs[tool] {
             if given[dof] {
                 continue;
@@ -470,7 +543,7 @@ impl RowReader<'_> {
 
     /// What the row observes (SI).
     fn observation(&self, row: &Row<'_>, tally: &mut Tally) -> Result<Observation> {
-        let (columns, fields) = (self.columns, row.fields);
+        let (columns, fields) = (&self.columns, row.fields);
         let (length, rotation) = (self.units.length, self.units.rotation);
         // A pose layout's row without any orientation cell is a position (a session measured
         // with single markers, in the same file as the 6-DoF rows).
@@ -486,7 +559,7 @@ impl RowReader<'_> {
         };
         let mut values = Vec::with_capacity(observed.len());
         for &column in observed {
-            let (scale, unit, quantity) = match column_quantity(&self.table.headers[column]) {
+            let (scale, unit, quantity) = match column_quantity(&self.headers[column]) {
                 ColumnQuantity::Length => {
                     (length.in_metres(), length.symbol(), Some(Quantity::Length))
                 }

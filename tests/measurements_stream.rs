@@ -1,0 +1,81 @@
+//! The measurement CSV read from a file line by line (a plain file) must give what its text
+//! read whole gives: the same set, warnings and notes, or the same error message.
+
+use crate::common::*;
+use treecal::io::{
+    measured_targets, measured_tool_names, parse_measurements, read_measured_targets,
+    read_measured_tool_names, read_measurements, MeasurementReadOptions,
+};
+
+const HEADER: &str = "id,stage,tool,torso_joint1,torso_joint2,left_joint1,left_joint2,left_joint3,left_joint4,left_joint5,left_joint6,x,y,z";
+
+/// `count` left-arm rows (row `i` at joint values `0.01·i`), the third repeating the second.
+fn rows(count: usize) -> Vec<String> {
+    (1..=count)
+        .map(|i| {
+            let v = if i == 3 { 0.02 } else { 0.01 * i as f64 };
+            format!(
+                "{i},arms,left_tool,{v},{v},{v},{v},{v},{v},{v},{v},{},2,3",
+                i % 5
+            )
+        })
+        .collect()
+}
+
+/// Reads `text` from a file and whole, and checks both ways give the same.
+fn assert_same_both_ways(text: &str, options: &MeasurementReadOptions, what: &str) {
+    let (tree, model) = robonaut_model();
+    let dir = std::env::temp_dir().join(format!("treecal-stream-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("m.csv");
+    std::fs::write(&path, text).unwrap();
+    let origin = path.display().to_string();
+    let from_file = read_measurements(&path, &tree, &model, options).map_err(|e| e.to_string());
+    let whole =
+        parse_measurements(text, &origin, &tree, &model, options).map_err(|e| e.to_string());
+    assert_eq!(from_file, whole, "{what}");
+    let targets = read_measured_targets(&path).map_err(|e| e.to_string());
+    let whole_targets = measured_targets(text, &origin).map_err(|e| e.to_string());
+    assert_eq!(targets, whole_targets, "{what}: targets");
+    let tools = read_measured_tool_names(&path).map_err(|e| e.to_string());
+    let whole_tools = measured_tool_names(text, &origin).map_err(|e| e.to_string());
+    assert_eq!(tools, whole_tools, "{what}: tool names");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_file_read_line_by_line_gives_what_its_text_gives() {
+    let body = rows(6).join("\n");
+    let plain = format!("# units: length=mm angle=rad\n{HEADER}\n{body}\n");
+    let strict = MeasurementReadOptions {
+        strict_limits: true,
+        ..Default::default()
+    };
+    let cases = [
+        ("plain", plain.clone()),
+        ("CRLF", plain.replace('\n', "\r\n")),
+        ("byte-order mark", format!("\u{feff}{plain}")),
+        ("two marks", format!("\u{feff}\u{feff}{plain}")),
+        ("no final break", plain.trim_end().to_owned()),
+        (
+            "comments, blank and empty rows, spaces",
+            format!(
+                "\n# hello\n {HEADER} \n\n,,,\n# c\n{}\n",
+                rows(4).join("\n\n")
+            ),
+        ),
+        ("quoted", plain.replace("left_tool", "\"left_tool\"")),
+        ("lone CR", plain.replacen('\n', "\r", 3)),
+        ("bad value", plain.replace("0.04", "x")),
+        ("too many fields", plain.replace(",2,3", ",2,3,4")),
+        ("repeated id", plain.replace("\n5,", "\n4,")),
+        ("header only", format!("{HEADER}\n")),
+        ("empty", String::new()),
+        ("two unit comments", format!("# units: length=mm\n{plain}")),
+        ("outside limits", plain.replace("0.06", "9")),
+    ];
+    for (what, text) in &cases {
+        assert_same_both_ways(text, &MeasurementReadOptions::default(), what);
+        assert_same_both_ways(text, &strict, what);
+    }
+}
