@@ -55,7 +55,7 @@ pub struct ContactCalibrateConfig {
     pub tracker: Option<CameraTrackerInput>,
     /// Which model describes the robot: joint zero offsets, every joint frame's four
     /// parameters, chosen by cross-validation (`auto`), or (`Adaptive`, the default) the full
-    /// geometry unless its fit leaves residuals over [`CONTACT_ADAPTIVE_SIGMA`] times the
+    /// geometry unless its fit leaves residuals over [`super::CONTACT_ADAPTIVE_SIGMA`] times the
     /// declared σ's, then as `auto` (`docs/contacts.md`, "The model the data support").
     pub model: ModelChoice,
     /// The default prior on the nominal values with its σ's times this factor (`prior`,

@@ -117,7 +117,7 @@ impl Targets {
 }
 
 /// Reads a measurement CSV file's tool and point columns; see [`measured_targets`]. A plain
-/// file is read line by line ([`super::stream`]), anything else as one text.
+/// file is read line by line (`measurements_csv::stream`), anything else as one text.
 pub fn read_measured_targets(path: &Path) -> Result<Vec<(Option<String>, Option<String>)>> {
     let origin = path.display().to_string();
     let start = |header: PlainHeader<'_>| Some(Targets::start(header.headers));
@@ -130,7 +130,7 @@ pub fn read_measured_targets(path: &Path) -> Result<Vec<(Option<String>, Option<
 }
 
 /// Reads a measurement CSV file's tool column; see [`measured_tool_names`]. A plain file is
-/// read line by line ([`super::stream`]), anything else as one text.
+/// read line by line (`measurements_csv::stream`), anything else as one text.
 pub fn read_measured_tool_names(path: &Path) -> Result<Vec<String>> {
     let origin = path.display().to_string();
     let start =
