@@ -14,7 +14,7 @@ use super::model_choice::{
     grouped_folds, posture_groups, ModelChoice, ModelLevel, ParameterPatterns,
 };
 use super::note::Note;
-use crate::calibration::{IdentificationOptions, Prior};
+use crate::calibration::{IdentificationOptions, MeasurementKind, Prior, RowKind};
 use crate::error::{Error, Result};
 use crate::measurement::{Contact, Measurement, Observation};
 use crate::tree::KinematicTree;
@@ -285,6 +285,7 @@ fn evaluate(
         .par_iter()
         .map(|fold| held_out_violations(input, &problem, spec, contacts, fold))
         .collect();
+    let noise = input.options.noise();
     let mut squares = vec![(0.0, 0usize); contacts.len()];
     let mut sums = [Sum::default(); 4];
     for (fold, outcome) in folds.iter().zip(outcomes) {
@@ -299,18 +300,15 @@ fn evaluate(
             }
         };
         for (&i, (contact, values)) in fold.iter().zip(violations) {
-            let sigmas = sigmas(&contact, input.options);
-            let whitened: f64 = values
-                .iter()
-                .zip(&sigmas)
-                .map(|(v, s)| (v / s).powi(2))
-                .sum();
+            let mut whitened = 0.0;
+            for (value, &kind) in values.iter().zip(contact.row_kinds()) {
+                let scaled = value / noise.sigma(kind);
+                whitened += scaled * scaled;
+                sums[0].add(scaled);
+                sums[summary_of(kind)].add(*value);
+            }
             squares[i].0 += whitened / values.len() as f64;
             squares[i].1 += 1;
-            for ((value, sigma), kind) in values.iter().zip(&sigmas).zip(kinds(&contact)) {
-                sums[kind].add(*value);
-                sums[0].add(value / sigma);
-            }
         }
     }
     let errors: Vec<Option<f64>> = squares
@@ -349,23 +347,13 @@ fn held_out_violations(
     )
 }
 
-/// Each equation's kind: 1 height, 2 tilt, 3 gap or bar length.
-fn kinds(contact: &Contact) -> Vec<usize> {
-    match contact {
-        Contact::Flush { .. } => vec![1, 2, 2],
-        Contact::Point { .. } => vec![1],
-        Contact::Touch { .. } => vec![3, 3, 3],
-        Contact::Distance { .. } => vec![3],
-    }
-}
-
-/// The σ of each equation of `contact` (the fit's: the setup's σ's).
-fn sigmas(contact: &Contact, options: &IdentificationOptions) -> Vec<f64> {
-    match contact {
-        Contact::Flush { .. } => vec![options.height_sigma, options.tilt_sigma, options.tilt_sigma],
-        Contact::Point { .. } => vec![options.height_sigma],
-        Contact::Touch { .. } => vec![options.gap_sigma; 3],
-        Contact::Distance { .. } => vec![options.length_sigma],
+/// Where a row of `kind` is summed for the table: 1 heights, 2 tilts, 3 gaps and bar lengths
+/// (0 is every row over its σ).
+fn summary_of(kind: RowKind) -> usize {
+    match kind {
+        RowKind::Height => 1,
+        RowKind::Tilt => 2,
+        _ => 3,
     }
 }
 
