@@ -249,10 +249,13 @@ fn fit_model(
         seed: config.seed,
     };
     let prior = config.prior.is_some();
-    let (spec, cv) = choose_contact_model(&input, config.model, prior, folds, notes)?;
-    let problem = candidate_problem(tree, problem, spec, &config.patterns)?;
-    let fit = fit_candidate(&problem, options, spec, input.prior_scale)?;
-    Ok((problem, fit, spec, cv))
+    let choice = choose_contact_model(&input, config.model, prior, folds, notes)?;
+    let problem = candidate_problem(tree, problem, choice.spec, &config.patterns)?;
+    let fit = match choice.fit {
+        Some(fit) => fit,
+        None => fit_candidate(&problem, options, choice.spec, input.prior_scale)?,
+    };
+    Ok((problem, fit, choice.spec, choice.cv))
 }
 
 /// The training and held-out contacts: the contacts file and the validation file, or every

@@ -9,7 +9,7 @@
 
 use super::contact_fit::{contact_violations, fit_contacts, ContactFit, ContactProblem};
 use super::contact_model::{offsets_model, robot_free};
-use super::cross_validation::{paired, SIGNIFICANT_T};
+use super::cross_validation::{paired, DEFAULT_FOLDS, REPEATS, SIGNIFICANT_T};
 use super::model_choice::{
     grouped_folds, posture_groups, ModelChoice, ModelLevel, ParameterPatterns,
 };
@@ -481,6 +481,17 @@ pub struct ContactFolds {
     pub seed: u64,
 }
 
+/// The model of a contact calibration ([`choose_contact_model`]).
+pub struct ContactModelChoice {
+    /// The model.
+    pub spec: ContactModelSpec,
+    /// The cross-validation, when one ran.
+    pub cv: Option<ContactCv>,
+    /// The fit of `spec` on the base problem when the choice needed it already (`Adaptive`
+    /// keeping the full geometry): the same fit the caller would make.
+    pub fit: Option<ContactFit>,
+}
+
 /// The model of a contact calibration and, when one ran, its cross-validation: `model` as
 /// asked (offsets or geometry, with the prior when `prior`), `auto` by the rule, `Adaptive`
 /// the full geometry unless its fit's σ̂ exceeds [`CONTACT_ADAPTIVE_SIGMA`]. A
@@ -491,34 +502,33 @@ pub fn choose_contact_model(
     prior: bool,
     folds: ContactFolds,
     notes: &mut Vec<Note>,
-) -> Result<(ContactModelSpec, Option<ContactCv>)> {
+) -> Result<ContactModelChoice> {
     let asked = |offsets: bool| ContactModelSpec { offsets, prior };
-    let repeats = if folds.repeats == 0 { 3 } else { folds.repeats };
+    let repeats = if folds.repeats == 0 {
+        REPEATS
+    } else {
+        folds.repeats
+    };
     let run = |k: usize| cross_validate_contacts(input, k, repeats, folds.seed);
-    let by_data = match model {
-        ModelChoice::Level(level) => {
-            let spec = asked(level == ModelLevel::Offsets);
-            let cv = folds.k.map(run).transpose()?;
-            return Ok((spec, cv));
-        }
-        ModelChoice::Auto => true,
+    let kept = |spec, fit| -> Result<ContactModelChoice> {
+        let cv = folds.k.map(run).transpose()?;
+        Ok(ContactModelChoice { spec, cv, fit })
+    };
+    match model {
+        ModelChoice::Level(level) => return kept(asked(level == ModelLevel::Offsets), None),
+        ModelChoice::Auto => {}
         ModelChoice::Adaptive => {
             let fit = fit_candidate(input.base, input.options, asked(false), input.prior_scale)?;
             let scale = fit.after.residual_scale;
-            let shows = scale.is_finite() && scale > CONTACT_ADAPTIVE_SIGMA;
-            if shows {
-                notes.push(Note::info(format!(
-                    "model choice: the geometry fit leaves residuals {scale:.1}× the setup's σ's (over {CONTACT_ADAPTIVE_SIGMA}): the model is chosen by cross-validation (`model` geometry keeps the full geometry)"
-                )));
+            if !(scale.is_finite() && scale > CONTACT_ADAPTIVE_SIGMA) {
+                return kept(asked(false), Some(fit));
             }
-            shows
+            notes.push(Note::info(format!(
+                "model choice: the geometry fit leaves residuals {scale:.1}× the setup's σ's (over {CONTACT_ADAPTIVE_SIGMA}): the model is chosen by cross-validation (`model` geometry keeps the full geometry)"
+            )));
         }
-    };
-    if !by_data {
-        let cv = folds.k.map(run).transpose()?;
-        return Ok((asked(false), cv));
     }
-    match run(folds.k.unwrap_or(5)) {
+    let (spec, cv) = match run(folds.k.unwrap_or(DEFAULT_FOLDS)) {
         Ok(cv) => {
             let spec = cv.chosen.map_or(asked(false), |i| cv.rows[i].spec);
             notes.push(Note::info(format!(
@@ -526,15 +536,20 @@ pub fn choose_contact_model(
                 spec.name(),
                 cv.reason
             )));
-            Ok((spec, Some(cv)))
+            (spec, Some(cv))
         }
         Err(error) => {
             notes.push(Note::warning(format!(
                 "model choice (contacts): no cross-validation ({error}); the full geometry is fitted"
             )));
-            Ok((asked(false), None))
+            (asked(false), None)
         }
-    }
+    };
+    Ok(ContactModelChoice {
+        spec,
+        cv,
+        fit: None,
+    })
 }
 
 /// report.md's lines on the model: which, and the cross-validation table when one ran.

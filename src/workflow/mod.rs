@@ -75,8 +75,8 @@ pub use checks::{check_outputs, count, sigmas, unused_stage_rows, Output};
 pub use compare::{compare, CompareConfig, Comparison, COMPARE_FILES};
 pub use contact_cv::{
     candidate_problem, choose_contact_model, cross_validate_contacts, fit_candidate, ContactCv,
-    ContactCvInput, ContactCvRow, ContactFolds, ContactModelSpec, CONTACT_ADAPTIVE_SIGMA,
-    CONTACT_CANDIDATES, CONTACT_RULE,
+    ContactCvInput, ContactCvRow, ContactFolds, ContactModelChoice, ContactModelSpec,
+    CONTACT_ADAPTIVE_SIGMA, CONTACT_CANDIDATES, CONTACT_RULE,
 };
 pub use contact_fit::{contact_violations, fit_contacts, plane_start, ContactFit, ContactProblem};
 pub use cross_validation::{
