@@ -5,7 +5,7 @@ use super::Note;
 use crate::io::{mesh_file_loader, package_dirs};
 use crate::sim::{sample_configurations, SamplingOptions};
 use crate::sim::{CollisionCheck, CollisionChecker, CollisionOptions};
-use crate::tree::KinematicTree;
+use crate::tree::{KinematicTree, LinkId};
 use crate::{Error, Result};
 use rand::SeedableRng;
 use std::path::{Path, PathBuf};
@@ -99,30 +99,14 @@ pub fn contact_collisions(
     // Shapes that overlap by design (an ankle's or a hip's coarse boxes) would reject nearly
     // every contact configuration: as MoveIt's setup assistant, drop the pairs that collide in
     // the zero configuration ("default") or in 95 % of random samples ("always").
-    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(0);
-    let mut samples: Vec<Vec<crate::math::Pose>> = tree
+    let zero: Vec<Vec<crate::math::Pose>> = tree
         .link_poses(&tree.zero_configuration())
         .into_iter()
         .collect();
-    let removed_default = checker.ignore_pairs_always_colliding(&samples);
-    samples = sample_configurations(
-        tree,
-        None,
-        ALWAYS_COLLIDING_SAMPLES,
-        &mut rng,
-        &SamplingOptions::default(),
-        &[],
-    )
-    .unwrap_or_default()
-    .iter()
-    .filter_map(|q| tree.link_poses(q).ok())
-    .collect();
+    let removed_default = checker.ignore_pairs_always_colliding(&zero);
+    let samples = random_link_poses(tree);
     let removed_mostly = checker.ignore_pairs_mostly_colliding(&samples, MOSTLY_COLLIDING);
-    let removed: Vec<String> = removed_default
-        .iter()
-        .chain(&removed_mostly)
-        .map(|(a, b)| format!("{}–{}", tree.link(*a).name, tree.link(*b).name))
-        .collect();
+    let removed = pair_names(tree, removed_default.iter().chain(&removed_mostly));
     if !removed.is_empty() {
         notes.push(Note::info(format!(
             "{} link pairs collide in the zero configuration or in {:.0} % of {} random ones \
@@ -164,8 +148,23 @@ fn ignore_always_colliding(
     tree: &KinematicTree,
     notes: &mut Vec<Note>,
 ) {
+    let poses = random_link_poses(tree);
+    let removed = checker.ignore_pairs_always_colliding(&poses);
+    if !removed.is_empty() {
+        notes.push(Note::info(format!(
+            "{} link pairs collide at all {} random configurations (their collision meshes overlap by design) and are not checked: {}",
+            removed.len(),
+            poses.len(),
+            pair_names(tree, &removed).join(", ")
+        )));
+    }
+}
+
+/// The link poses of [`ALWAYS_COLLIDING_SAMPLES`] seeded random configurations (none for a
+/// robot that cannot be sampled).
+fn random_link_poses(tree: &KinematicTree) -> Vec<Vec<crate::math::Pose>> {
     let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(0);
-    let samples = sample_configurations(
+    sample_configurations(
         tree,
         None,
         ALWAYS_COLLIDING_SAMPLES,
@@ -173,24 +172,21 @@ fn ignore_always_colliding(
         &SamplingOptions::default(),
         &[],
     )
-    .unwrap_or_default();
-    let poses: Vec<_> = samples
-        .iter()
-        .filter_map(|q| tree.link_poses(q).ok())
-        .collect();
-    let removed = checker.ignore_pairs_always_colliding(&poses);
-    if !removed.is_empty() {
-        let names: Vec<String> = removed
-            .iter()
-            .map(|(a, b)| format!("{}–{}", tree.link(*a).name, tree.link(*b).name))
-            .collect();
-        notes.push(Note::info(format!(
-            "{} link pairs collide at all {} random configurations (their collision meshes overlap by design) and are not checked: {}",
-            removed.len(),
-            poses.len(),
-            names.join(", ")
-        )));
-    }
+    .unwrap_or_default()
+    .iter()
+    .filter_map(|q| tree.link_poses(q).ok())
+    .collect()
+}
+
+/// `a–b` for each link pair.
+fn pair_names<'a>(
+    tree: &KinematicTree,
+    pairs: impl IntoIterator<Item = &'a (LinkId, LinkId)>,
+) -> Vec<String> {
+    pairs
+        .into_iter()
+        .map(|(a, b)| format!("{}–{}", tree.link(*a).name, tree.link(*b).name))
+        .collect()
 }
 
 /// One line naming every mesh left out, first the ones not found, then the unreadable ones
