@@ -20,7 +20,7 @@
 //! such). See `docs/mcpc.md`, "Reference link".
 
 use crate::kinematics::{McpcModel, ParameterOwner};
-use crate::tree::{Actuation, KinematicTree};
+use crate::tree::KinematicTree;
 use nalgebra::DMatrix;
 
 /// Configurations the structural null space is computed at.
@@ -92,11 +92,7 @@ fn structural_null_space(model: &McpcModel, free: &[usize]) -> DMatrix<f64> {
     let dofs = model
         .frames()
         .iter()
-        .filter_map(|f| match f.actuation {
-            Actuation::Independent(d) => Some(d.0),
-            Actuation::Mimic { master, .. } => Some(master.0),
-            Actuation::None => None,
-        })
+        .filter_map(|f| f.actuation.driver().map(|d| d.0))
         .max()
         .map_or(0, |d| d + 1);
     let tools = model.tools().len();

@@ -13,7 +13,7 @@ use super::solver::{combination, Combination};
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ParameterOwner, ToolJacobian};
 use crate::measurement::{Measurement, Observation};
-use crate::tree::{Actuation, Branches, KinematicTree};
+use crate::tree::{Branches, KinematicTree};
 use nalgebra::{DMatrix, DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -592,11 +592,7 @@ fn validate(
     let dofs = model
         .frames()
         .iter()
-        .map(|f| match f.actuation {
-            Actuation::Independent(dof) => dof.0 + 1,
-            Actuation::Mimic { master, .. } => master.0 + 1,
-            Actuation::None => 0,
-        })
+        .map(|f| f.actuation.driver().map_or(0, |dof| dof.0 + 1))
         .max()
         .unwrap_or(0);
     for (index, row) in rows.iter().enumerate() {

@@ -5,7 +5,6 @@
 
 use crate::kinematics::{FrameKind, McpcModel};
 use crate::measurement::Measurement;
-use crate::tree::Actuation;
 use serde::Serialize;
 
 /// A validation row repeats an identification posture when every joint of its tool's chain
@@ -63,10 +62,8 @@ fn chain_dofs(model: &McpcModel, tool: usize) -> Vec<(usize, bool)> {
     let mut dofs: Vec<(usize, bool)> = Vec::new();
     for &f in chain {
         let frame = &model.frames()[f];
-        let dof = match frame.actuation {
-            Actuation::Independent(dof) => dof.0,
-            Actuation::Mimic { master, .. } => master.0,
-            Actuation::None => continue,
+        let Some(dof) = frame.actuation.driver().map(|d| d.0) else {
+            continue;
         };
         if !dofs.iter().any(|(d, _)| *d == dof) {
             dofs.push((dof, frame.kind == FrameKind::Revolute));

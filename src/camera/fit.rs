@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::math::{pose_error, Pose};
 use crate::measurement::{Measurement, Observation};
-use crate::tree::{Actuation, KinematicTree};
+use crate::tree::KinematicTree;
 use nalgebra::{DMatrix, DVector, Vector6};
 
 /// Settings of a camera calibration.
@@ -246,11 +246,7 @@ impl CameraProblem<'_> {
         let dofs = model
             .frames()
             .iter()
-            .map(|f| match f.actuation {
-                Actuation::Independent(d) => d.0 + 1,
-                Actuation::Mimic { master, .. } => master.0 + 1,
-                Actuation::None => 0,
-            })
+            .map(|f| f.actuation.driver().map_or(0, |dof| dof.0 + 1))
             .max()
             .unwrap_or(0);
         for view in self.views {

@@ -11,7 +11,7 @@
 
 use super::collision::CollisionChecker;
 use crate::measurement::Contact;
-use crate::tree::{Actuation, KinematicTree, LinkId};
+use crate::tree::{KinematicTree, LinkId};
 use crate::McpcModel;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -50,14 +50,9 @@ impl ContactCollisions {
             .map(|tool| hand(tree, tool.link))
             .collect();
         let mut used = vec![false; tree.dof_count()];
-        for frame in model.frames() {
-            match frame.actuation {
-                Actuation::Independent(dof) | Actuation::Mimic { master: dof, .. } => {
-                    if let Some(u) = used.get_mut(dof.0) {
-                        *u = true;
-                    }
-                }
-                Actuation::None => {}
+        for dof in model.frames().iter().filter_map(|f| f.actuation.driver()) {
+            if let Some(u) = used.get_mut(dof.0) {
+                *u = true;
             }
         }
         let rest = tree

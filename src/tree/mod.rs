@@ -87,6 +87,17 @@ pub enum Actuation {
     },
 }
 
+impl Actuation {
+    /// The independent joint variable that drives the joint (its own, or a mimic's master);
+    /// `None` for a fixed joint.
+    pub fn driver(&self) -> Option<DofId> {
+        match *self {
+            Actuation::Independent(dof) | Actuation::Mimic { master: dof, .. } => Some(dof),
+            Actuation::None => None,
+        }
+    }
+}
+
 /// Joint position limits (rad or m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {

@@ -208,11 +208,7 @@ fn joint_columns(
     let moving: Vec<usize> = tree
         .path_from_root(tool_link)
         .into_iter()
-        .filter_map(|j| match tree.joint(j).actuation {
-            Actuation::Independent(dof) => Some(dof.0),
-            Actuation::Mimic { master, .. } => Some(master.0),
-            Actuation::None => None,
-        })
+        .filter_map(|j| tree.joint(j).actuation.driver().map(|dof| dof.0))
         .collect();
     let mut used = Vec::new();
     let mut unused = Vec::new();

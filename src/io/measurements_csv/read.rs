@@ -261,12 +261,7 @@ fn tool_dofs(tree: &KinematicTree, model: &McpcModel) -> Vec<Vec<usize>> {
             let mut dofs: Vec<usize> = tree
                 .path_between(reference, t.link)
                 .into_iter()
-                .filter_map(|j| match tree.joint(j).actuation {
-                    Actuation::Independent(dof) | Actuation::Mimic { master: dof, .. } => {
-                        Some(dof.0)
-                    }
-                    Actuation::None => None,
-                })
+                .filter_map(|j| tree.joint(j).actuation.driver().map(|dof| dof.0))
                 .collect();
             dofs.sort_unstable();
             dofs.dedup();
