@@ -7,8 +7,9 @@
 //! plane is placed through the first tool's face or contact point there; the touch seed is
 //! found from random starts) moved by a random step, and is projected back onto the contact
 //! by damped minimum-norm Newton steps in the joints (numerical joint derivatives: this places
-//! data, the calibration's Jacobians are analytic), clamped to the joint limits, and kept only when free of
-//! self-collision when the settings carry a check ([`ContactCollisions`]).
+//! data, the calibration's Jacobians are analytic), clamped to the joint limits. Simulated
+//! trials are not checked for self-collision; [`collision_free_contact_configurations`]
+//! (`plan`'s candidates) keeps only configurations a [`ContactCollisions`] allows.
 
 use super::contact_collisions::ContactCollisions;
 pub use super::contact_trial::{
@@ -84,8 +85,6 @@ pub struct ContactSimulation {
     /// with the contacts (in the reference link's frame, σ
     /// [`super::contact_tracker::CONTACT_TRACKER_SIGMA`] when there is encoder noise).
     pub tracker_rows: bool,
-    /// The self-collision check of the generated configurations (`None`: not checked).
-    pub collisions: Option<ContactCollisions>,
 }
 
 impl Default for ContactSimulation {
@@ -103,7 +102,6 @@ impl Default for ContactSimulation {
             tables: 1,
             flush_tools: 1,
             tracker_rows: false,
-            collisions: None,
         }
     }
 }
@@ -243,13 +241,12 @@ fn point_group(
     let seed = match kind {
         ContactChoice::Touch | ContactChoice::Bar => {
             let nuisance = &blocks.nuisance;
-            let collisions = settings.collisions.as_ref();
             contact_seed(
                 truth,
                 nuisance,
                 (&contact, 0),
                 limits,
-                (rng, collisions),
+                (rng, None),
                 kind.name(),
             )?
         }
@@ -281,28 +278,19 @@ impl SceneRows {
     ) -> Result<()> {
         let held_out = (settings.per_kind / 4).max(5);
         for index in 0..settings.per_kind + held_out {
-            let q = (0..400)
+            let q = (0..100)
                 .find_map(|_| {
                     let start: Vec<f64> = seed
                         .iter()
                         .zip(limits)
                         .map(|(v, (lo, hi))| (v + rng.random_range(-0.5..0.5)).clamp(*lo, *hi))
                         .collect();
-                    let collisions = settings.collisions.as_ref();
-                    project_free(
-                        truth,
-                        nuisance,
-                        (&contact, tool),
-                        &start,
-                        limits,
-                        collisions,
-                    )
+                    project(truth, nuisance, &contact, tool, &start, limits)
                 })
                 .ok_or_else(|| {
                     invalid(format!(
-                        "no further configuration found where the {} contact holds{}",
-                        kind.name(),
-                        collision_hint(settings.collisions.as_ref())
+                        "no further configuration found where the {} contact holds",
+                        kind.name()
                     ))
                 })?;
             let recorded = q
@@ -413,7 +401,7 @@ fn flush_groups(
                     &blocks.nuisance,
                     (&contact, tool),
                     limits,
-                    (rng, settings.collisions.as_ref()),
+                    (rng, None),
                     "flush",
                 )?
             };

@@ -36,10 +36,9 @@ pub(super) fn simulate_contacts(
         &mut notes,
     )?;
     let tree = &import.tree;
-    // Simulated trials keep the generator's configurations unchecked (`ContactSimulation::
-    // collisions` None): with the check, Atlas standing on a sole loses the encoder-noise
-    // consistency the done-means ask for (one trial at 3.3×) and its right hand's data (see
-    // docs/contacts.md); `plan --contact-setup` checks its candidates.
+    // Simulated trials are not checked for self-collision: with the check, Atlas standing on a
+    // sole lost the encoder-noise consistency the done-means ask for (one trial at 3.3×) and
+    // its right hand's gain (docs/contacts.md); `plan --contact-setup` checks its candidates.
     let settings = contact_settings(config);
     let done = AtomicUsize::new(0);
     let trials: Vec<ContactTrial> = (0..config.trials)
