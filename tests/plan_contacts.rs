@@ -523,7 +523,7 @@ fn planned_touches_are_free_of_self_collision_but_for_the_hands() {
         let Observation::Contact(contact) = &m.observation else {
             continue;
         };
-        assert!(hands.allows(contact, m.tool, &m.q), "{:?}", m.q);
+        assert!(hands.allows(Some(contact), m.tool, &m.q), "{:?}", m.q);
         touching += usize::from(checker.in_collision(&tree.link_poses(&m.q).unwrap()));
     }
     eprintln!(

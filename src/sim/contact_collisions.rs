@@ -49,22 +49,7 @@ impl ContactCollisions {
             .iter()
             .map(|tool| hand(tree, tool.link))
             .collect();
-        let mut used = vec![false; tree.dof_count()];
-        for dof in model.frames().iter().filter_map(|f| f.actuation.driver()) {
-            if let Some(u) = used.get_mut(dof.0) {
-                *u = true;
-            }
-        }
-        let rest = tree
-            .dof_limits()
-            .into_iter()
-            .enumerate()
-            .filter(|(dof, _)| !used[*dof])
-            .map(|(dof, limits)| {
-                let value = limits.map_or(0.0, |l| 0.0f64.clamp(l.lower, l.upper.max(l.lower)));
-                (dof, value)
-            })
-            .collect();
+        let rest = super::stance::resting_joints(tree, model);
         let support = model.reference().map_or_else(Vec::new, |r| {
             (0..tree.links().len())
                 .map(LinkId)
@@ -94,9 +79,9 @@ impl ContactCollisions {
         q
     }
 
-    /// Whether `q` is free of self-collision but for what `contact` of `tool` touches;
-    /// counts a rejection.
-    pub fn allows(&self, contact: &Contact, tool: usize, q: &[f64]) -> bool {
+    /// Whether `q` is free of self-collision but for what `contact` of `tool` touches (`None`:
+    /// no contact, every pair but the support leg's counts); counts a rejection.
+    pub fn allows(&self, contact: Option<&Contact>, tool: usize, q: &[f64]) -> bool {
         let free = self.free(contact, tool, q);
         if !free {
             self.rejected.fetch_add(1, Ordering::Relaxed);
@@ -104,7 +89,7 @@ impl ContactCollisions {
         free
     }
 
-    fn free(&self, contact: &Contact, tool: usize, q: &[f64]) -> bool {
+    fn free(&self, contact: Option<&Contact>, tool: usize, q: &[f64]) -> bool {
         let Ok(poses) = self.tree.link_poses(q) else {
             return false;
         };
@@ -113,7 +98,7 @@ impl ContactCollisions {
         }
         let support = |x: &LinkId, y: &LinkId| self.support.contains(x) && self.support.contains(y);
         let hands = match contact {
-            Contact::Touch { tool2, .. } => self.hands.get(tool).zip(self.hands.get(*tool2)),
+            Some(Contact::Touch { tool2, .. }) => self.hands.get(tool).zip(self.hands.get(*tool2)),
             _ => None,
         };
         self.checker.colliding_pairs(&poses).iter().all(|(x, y)| {

@@ -4,7 +4,8 @@
 //! exactly (the tracker's σ is the rows' whole noise), so a fit's σ̂ of the tracker rows is 1
 //! when the declared σ is the one simulated.
 
-use super::contacts::{limits_of, random_configuration};
+use super::contacts::random_configuration;
+use super::stance::contact_limits;
 use crate::kinematics::McpcModel;
 use crate::math::{Pose, Vec3};
 use crate::measurement::{Measurement, Observation};
@@ -35,7 +36,7 @@ pub fn contact_tracker_rows(
     (tracker_from_reference, sigma): (&Pose, f64),
     rng: &mut ChaCha8Rng,
 ) -> Vec<Measurement> {
-    let limits = limits_of(tree);
+    let limits = contact_limits(tree, truth);
     let mut rows = Vec::with_capacity(count * tools.len());
     for _ in 0..count {
         let q = random_configuration(&limits, rng);

@@ -7,11 +7,14 @@
 //! plane is placed through the first tool's face or contact point there; the touch seed is
 //! found from random starts) moved by a random step, and is projected back onto the contact
 //! by damped minimum-norm Newton steps in the joints (numerical joint derivatives: this places
-//! data, the calibration's Jacobians are analytic), clamped to the joint limits. Simulated
-//! trials are not checked for self-collision; [`collision_free_contact_configurations`]
-//! (`plan`'s candidates) keeps only configurations a [`ContactCollisions`] allows.
+//! data, the calibration's Jacobians are analytic), clamped to the ranges of the stance
+//! ([`super::contact_limits`]: a standing robot's support leg near its rest, the joints no
+//! frame moves at rest). Every configuration drawn or projected is kept only when the
+//! [`ContactCollisions`] of the settings (or of [`collision_free_contact_configurations`],
+//! `plan`'s candidates) allows it.
 
 use super::contact_collisions::ContactCollisions;
+use super::stance::contact_limits;
 pub use super::contact_trial::{
     contact_free_parameters, held_out_residual, independent_columns, linear_columns,
     run_contact_trial, ContactTrial, LINEAR_STD,
@@ -85,6 +88,8 @@ pub struct ContactSimulation {
     /// with the contacts (in the reference link's frame, σ
     /// [`super::contact_tracker::CONTACT_TRACKER_SIGMA`] when there is encoder noise).
     pub tracker_rows: bool,
+    /// The self-collision check every generated configuration passes (`None`: not checked).
+    pub collisions: Option<ContactCollisions>,
 }
 
 impl Default for ContactSimulation {
@@ -102,6 +107,7 @@ impl Default for ContactSimulation {
             tables: 1,
             flush_tools: 1,
             tracker_rows: false,
+            collisions: None,
         }
     }
 }
@@ -153,7 +159,7 @@ pub fn contact_scene(
             blocks.add(format!("point {}", name(t)), &["x", "y", "z"], values, &[])
         })
         .collect();
-    let limits = limits_of(tree);
+    let limits = contact_limits(tree, truth);
     let mut groups = Vec::new();
     for &kind in &settings.kinds {
         if kind == ContactChoice::Flush {
@@ -194,7 +200,7 @@ fn point_group(
     points: &[usize],
     rng: &mut ChaCha8Rng,
 ) -> Result<Group> {
-    let seed = random_configuration(limits, rng);
+    let seed = free_configuration(limits, rng, settings.collisions.as_ref())?;
     let contact = match kind {
         ContactChoice::Flush => {
             return Err(Error::Internal(
@@ -246,7 +252,7 @@ fn point_group(
                 nuisance,
                 (&contact, 0),
                 limits,
-                (rng, None),
+                (rng, settings.collisions.as_ref()),
                 kind.name(),
             )?
         }
@@ -285,7 +291,8 @@ impl SceneRows {
                         .zip(limits)
                         .map(|(v, (lo, hi))| (v + rng.random_range(-0.5..0.5)).clamp(*lo, *hi))
                         .collect();
-                    project(truth, nuisance, &contact, tool, &start, limits)
+                    let collisions = settings.collisions.as_ref();
+                    project_free(truth, nuisance, (&contact, tool), &start, limits, collisions)
                 })
                 .ok_or_else(|| {
                     invalid(format!(
@@ -381,7 +388,7 @@ fn flush_groups(
     let tables = settings.tables.max(1);
     let mut groups = Vec::new();
     for table in 0..tables {
-        let seed = random_configuration(limits, rng);
+        let seed = free_configuration(limits, rng, settings.collisions.as_ref())?;
         let session = if tables > 1 {
             format!("plane day{}", table + 1)
         } else {
@@ -401,7 +408,7 @@ fn flush_groups(
                     &blocks.nuisance,
                     (&contact, tool),
                     limits,
-                    (rng, None),
+                    (rng, settings.collisions.as_ref()),
                     "flush",
                 )?
             };
@@ -433,6 +440,27 @@ fn contact_seed(
         })
 }
 
+/// A random configuration within `limits` free of self-collision by `collisions` (the first
+/// draw when not checked).
+fn free_configuration(
+    limits: &[(f64, f64)],
+    rng: &mut ChaCha8Rng,
+    collisions: Option<&ContactCollisions>,
+) -> Result<Vec<f64>> {
+    let Some(collisions) = collisions else {
+        return Ok(random_configuration(limits, rng));
+    };
+    (0..200)
+        .map(|_| random_configuration(limits, rng))
+        .find(|q| collisions.allows(None, 0, q))
+        .ok_or_else(|| {
+            invalid(format!(
+                "no configuration free of self-collision found in 200 random draws{}",
+                collision_hint(Some(collisions))
+            ))
+        })
+}
+
 /// [`project`], kept only when free of self-collision (but for what the contact touches), the
 /// joints no contact moves at rest ([`ContactCollisions::at_rest`]).
 fn project_free(
@@ -446,7 +474,7 @@ fn project_free(
     match collisions {
         None => project(model, nuisance, contact, tool, start, limits),
         Some(c) => project(model, nuisance, contact, tool, &c.at_rest(start), limits)
-            .filter(|q| c.allows(contact, tool, q)),
+            .filter(|q| c.allows(Some(contact), tool, q)),
     }
 }
 
@@ -466,18 +494,6 @@ fn invalid(message: String) -> Error {
         origin: "contact simulation".into(),
         message,
     }
-}
-
-/// Each joint variable's range (unbounded: [−π, π]).
-pub(super) fn limits_of(tree: &KinematicTree) -> Vec<(f64, f64)> {
-    tree.dof_limits()
-        .iter()
-        .map(|l| {
-            l.map_or((-std::f64::consts::PI, std::f64::consts::PI), |l| {
-                (l.lower, l.upper)
-            })
-        })
-        .collect()
 }
 
 pub(super) fn random_configuration(limits: &[(f64, f64)], rng: &mut ChaCha8Rng) -> Vec<f64> {
@@ -581,7 +597,7 @@ pub fn collision_free_contact_configurations(
     what: &str,
 ) -> Result<Vec<Vec<f64>>> {
     use rayon::prelude::*;
-    let limits = limits_of(tree);
+    let limits = contact_limits(tree, model);
     let at = (contact, tool);
     let seed = contact_seed(model, nuisance, at, &limits, (rng, collisions), what)?;
     let mut found = Vec::with_capacity(count);
@@ -616,5 +632,5 @@ pub fn onto_contact(
     (contact, tool): (&Contact, usize),
     start: &[f64],
 ) -> Option<Vec<f64>> {
-    project(model, nuisance, contact, tool, start, &limits_of(tree))
+    project(model, nuisance, contact, tool, start, &contact_limits(tree, model))
 }

@@ -21,6 +21,7 @@ mod noise;
 mod planning;
 mod pose_set;
 mod sampling;
+mod stance;
 mod trial_report;
 mod truth;
 
@@ -53,4 +54,5 @@ pub use planning::{
 };
 pub use pose_set::{staged_pose_set, StagedPoseSet};
 pub use sampling::{sample_configurations, SamplingOptions};
+pub use stance::{contact_limits, STANCE_ANGLE, STANCE_LENGTH};
 pub use truth::{true_model, with_joint_errors, ErrorRanges, JointErrorRanges};

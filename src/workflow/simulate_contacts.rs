@@ -3,6 +3,7 @@
 
 use super::simulate::{SimulateConfig, Simulation};
 use super::source::NominalRobot;
+use super::checker::contact_collisions;
 use super::{Note, Progress, ProgressFn};
 use crate::io::{
     contact_setup_to_yaml, BarSetup, ContactSetup, FreeSetup, PoseEntry, SigmaSetup, ToolSetup,
@@ -36,10 +37,12 @@ pub(super) fn simulate_contacts(
         &mut notes,
     )?;
     let tree = &import.tree;
-    // Simulated trials are not checked for self-collision: with the check, Atlas standing on a
-    // sole lost the encoder-noise consistency the done-means ask for (one trial at 3.3×) and
-    // its right hand's gain (docs/contacts.md); `plan --contact-setup` checks its candidates.
-    let settings = contact_settings(config);
+    // Every generated configuration is free of self-collision (but for the hands of a touch)
+    // by the URDF's collision shapes, `--collision-check` as for tracker trials; a standing
+    // robot holds its support leg near its stance (`crate::sim::contact_limits`).
+    let mut settings = contact_settings(config);
+    let check = (config.package_paths.as_slice(), config.collision_check);
+    settings.collisions = contact_collisions(&config.robot, tree, &nominal, check, &mut notes)?;
     let done = AtomicUsize::new(0);
     let trials: Vec<ContactTrial> = (0..config.trials)
         .into_par_iter()
@@ -55,12 +58,12 @@ pub(super) fn simulate_contacts(
             result
         })
         .collect::<Result<_>>()?;
-    notes.push(Note::info(
-        "contacts: simulated contact configurations are not checked for self-collision (`plan \
-         --contact-setup` checks its candidates); a flush face's offset along its normal is held at its nominal value (it \
+    notes.push(Note::info(format!(
+        "contacts: {}; a flush face's offset along its normal is held at its nominal value (it \
          aliases the plane's height exactly); tools' offsets are held (they alias the contact \
          points)",
-    ));
+        collision_words(settings.collisions.as_ref())
+    )));
     if let Some(first) = trials.first() {
         let unseen = first.free.len() - first.rank;
         if unseen > 0 {
@@ -127,6 +130,22 @@ pub(super) fn simulate_contacts(
         }
     }
     Ok(simulation)
+}
+
+/// What the notes say about the self-collision check of the generated configurations.
+fn collision_words(collisions: Option<&crate::sim::ContactCollisions>) -> String {
+    match collisions {
+        None => "simulated contact configurations are not checked for self-collision \
+                 (`--collision-check off`)"
+            .to_owned(),
+        Some(c) => format!(
+            "every simulated contact configuration is free of self-collision ({} link pairs \
+             checked; the hands of a touch may meet, the support leg is held near its stance; \
+             {} projected configurations rejected)",
+            c.pair_count(),
+            c.rejected()
+        ),
+    }
 }
 
 /// tracker.csv beside trial 1's contacts (`--observation flush,tracker`): the true robot's
