@@ -7,6 +7,7 @@ pub(crate) mod calibrate_markdown;
 pub(crate) mod camera;
 pub(crate) mod check;
 pub(crate) mod compare;
+mod contact_scores;
 pub(crate) mod contacts;
 pub(crate) mod html;
 pub(crate) mod html_chart;
@@ -38,9 +39,8 @@ pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use compare::{
     CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures, COMPARE_SCHEMA,
 };
-pub use contacts::{
-    contact_report, contact_unobservable_markdown, written_contacts, ContactScores, Errors, Scored,
-};
+pub use contact_scores::{written_contacts, ContactScores, Errors, Scored};
+pub use contacts::{contact_report, contact_unobservable_markdown};
 pub use html::escape;
 pub use html::{calibration_html, HtmlReport, Scene, SceneConfiguration};
 pub use html_chart::parameter_chart_svg;

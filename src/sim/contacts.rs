@@ -14,11 +14,11 @@
 //! `plan`'s candidates) allows it.
 
 use super::contact_collisions::ContactCollisions;
-use super::stance::contact_limits;
 pub use super::contact_trial::{
     contact_free_parameters, held_out_residual, independent_columns, linear_columns,
     run_contact_trial, ContactTrial, LINEAR_STD,
 };
+use super::stance::contact_limits;
 use super::truth::ErrorRanges;
 use crate::calibration::{contact_violation, NuisanceBlock, Tools};
 use crate::calibration::{Nuisance, RobotState};
@@ -292,7 +292,14 @@ impl SceneRows {
                         .map(|(v, (lo, hi))| (v + rng.random_range(-0.5..0.5)).clamp(*lo, *hi))
                         .collect();
                     let collisions = settings.collisions.as_ref();
-                    project_free(truth, nuisance, (&contact, tool), &start, limits, collisions)
+                    project_free(
+                        truth,
+                        nuisance,
+                        (&contact, tool),
+                        &start,
+                        limits,
+                        collisions,
+                    )
                 })
                 .ok_or_else(|| {
                     invalid(format!(
@@ -632,5 +639,12 @@ pub fn onto_contact(
     (contact, tool): (&Contact, usize),
     start: &[f64],
 ) -> Option<Vec<f64>> {
-    project(model, nuisance, contact, tool, start, &contact_limits(tree, model))
+    project(
+        model,
+        nuisance,
+        contact,
+        tool,
+        start,
+        &contact_limits(tree, model),
+    )
 }

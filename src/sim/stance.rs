@@ -99,12 +99,18 @@ mod tests {
     #[test]
     fn a_standing_robot_holds_its_support_leg_and_rests_what_the_model_does_not_move() {
         let mut notes = Vec::new();
-        let free = RobotSource::BuiltIn.nominal(None, None, &mut notes).unwrap();
+        let free = RobotSource::BuiltIn
+            .nominal(None, None, &mut notes)
+            .unwrap();
         let tree = &free.import.tree;
         let full = limits_of(tree);
         // Without a reference link, every joint the model moves keeps its limits.
         let resting = resting_joints(tree, &free.model);
-        for (dof, (range, limit)) in contact_limits(tree, &free.model).iter().zip(&full).enumerate() {
+        for (dof, (range, limit)) in contact_limits(tree, &free.model)
+            .iter()
+            .zip(&full)
+            .enumerate()
+        {
             if resting.iter().any(|(d, _)| *d == dof) {
                 assert_eq!(range.0, range.1);
             } else {

@@ -1,9 +1,9 @@
 //! `simulate --observation flush|plane|touch|bar` (a comma list of contacts): seeded contact
 //! trials ([`crate::sim::contacts`]) on the robot, with their summary.md and results.json.
 
+use super::checker::contact_collisions;
 use super::simulate::{SimulateConfig, Simulation};
 use super::source::NominalRobot;
-use super::checker::contact_collisions;
 use super::{Note, Progress, ProgressFn};
 use crate::io::{
     contact_setup_to_yaml, BarSetup, ContactSetup, FreeSetup, PoseEntry, SigmaSetup, ToolSetup,
