@@ -15,6 +15,7 @@ mod contacts;
 mod contacts_check;
 mod contacts_humanoid;
 mod contacts_model;
+mod contacts_sessions;
 mod contacts_tracker;
 mod corpus;
 mod deploy;

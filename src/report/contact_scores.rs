@@ -165,14 +165,52 @@ pub struct ContactScores {
     pub before: Scored,
     /// Calibrated robot, training planes.
     pub after: Scored,
+    /// Held-out contacts of sessions without training contacts (a new table set-up), each
+    /// session's plane fitted to its held-out contacts with the robot held: registered nominal
+    /// robot, calibrated robot. Empty when every held-out session has training contacts.
+    pub new_sessions: [Scored; 2],
     /// Registered nominal robot, planes refitted to the held-out contacts (diagnostic).
     pub before_refit: Scored,
     /// Calibrated robot, planes refitted to the held-out contacts (diagnostic).
     pub after_refit: Scored,
     /// Training contacts under the registered nominal robot and the calibrated one.
     pub training: [Scored; 2],
-    /// Held-out rows of sessions without training rows (scored only with a refitted plane).
+    /// Held-out rows of sessions without training rows (scored in `new_sessions`).
     pub unscored: usize,
+}
+
+/// What a contact calibration's verdict compares.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Judged {
+    /// Held-out contacts with their training planes (and new sessions' with fitted planes).
+    HeldOut,
+    /// Only held-out contacts of sessions without training contacts, planes fitted to them.
+    NewSessions,
+    /// The training contacts (nothing held out).
+    Training,
+}
+
+impl Judged {
+    /// report.json's `held_out.judged`: `held_out`, `new_sessions` or `training`.
+    pub fn key(self) -> &'static str {
+        match self {
+            Judged::HeldOut => "held_out",
+            Judged::NewSessions => "new_sessions",
+            Judged::Training => "training",
+        }
+    }
+
+    /// The words of the verdict: "the calibrated robot predicts {words} better …".
+    pub fn words(self) -> &'static str {
+        match self {
+            Judged::HeldOut => "the held-out contacts",
+            Judged::NewSessions => {
+                "the held-out contacts (all of sessions without training contacts: each \
+                 session's plane fitted to its held-out contacts, the robot held)"
+            }
+            Judged::Training => "its training contacts (no contact was held out)",
+        }
+    }
 }
 
 impl ContactScores {
@@ -187,14 +225,24 @@ impl ContactScores {
         let score = |r: &crate::calibration::IdentificationReport, rows: &[Measurement]| {
             Scored::of(model, &r.parameters, &r.nuisance, rows)
         };
-        let refit = |r: &crate::calibration::IdentificationReport| -> Result<Scored> {
-            refitted(problem, &r.parameters, &r.nuisance, options)
+        let refit = |r: &crate::calibration::IdentificationReport,
+                     rows: &[Measurement]|
+         -> Result<Scored> {
+            let mut fitted = model.clone();
+            fitted.set_parameters(&r.parameters)?;
+            refitted(problem, rows, &fitted, &r.nuisance, options)
+        };
+        let new_sessions = if rest.is_empty() {
+            Default::default()
+        } else {
+            [refit(&fit.before, &rest)?, refit(&fit.after, &rest)?]
         };
         Ok(Self {
             before: score(&fit.before, &scorable)?,
             after: score(&fit.after, &scorable)?,
-            before_refit: refit(&fit.before)?,
-            after_refit: refit(&fit.after)?,
+            new_sessions,
+            before_refit: refit(&fit.before, &problem.validation)?,
+            after_refit: refit(&fit.after, &problem.validation)?,
             training: [
                 score(&fit.before, &problem.training)?,
                 score(&fit.after, &problem.training)?,
@@ -203,18 +251,38 @@ impl ContactScores {
         })
     }
 
-    /// The held-out contacts `after` scores, predicted by `model` at its own parameters (the
-    /// written calibrated.urdf read back) with the fitted `nuisance`.
+    /// The held-out contacts the verdict judges by ([`ContactScores::judged`]), predicted by
+    /// `model` at its own parameters (the written calibrated.urdf read back) with the fitted
+    /// `nuisance` (new sessions' planes fitted again to their held-out contacts).
     pub fn rescore(
         problem: &ContactProblem,
         model: &McpcModel,
         nuisance: &Nuisance,
+        options: &IdentificationOptions,
     ) -> Result<Scored> {
-        Scored::of(model, &model.parameters(), nuisance, &scorable(problem).0)
+        let (scorable, rest) = scorable(problem);
+        if scorable.is_empty() && !rest.is_empty() {
+            refitted(problem, &rest, model, nuisance, options)
+        } else {
+            Scored::of(model, &model.parameters(), nuisance, &scorable)
+        }
     }
 
-    /// Whether the calibrated robot beats the registered nominal robot on the held-out
-    /// contacts (training planes), or on the training contacts when none are held out.
+    /// What the verdict compares, and the calibrated robot's figures there.
+    pub fn judged(&self) -> (Judged, &Scored) {
+        if self.after.overall.count() > 0 {
+            (Judged::HeldOut, &self.after)
+        } else if self.new_sessions[1].overall.count() > 0 {
+            (Judged::NewSessions, &self.new_sessions[1])
+        } else {
+            (Judged::Training, &self.training[1])
+        }
+    }
+
+    /// Whether the calibrated robot beats the registered nominal robot, overall and for every
+    /// tool, on the held-out contacts: those with their training planes, and those of new
+    /// sessions with their planes fitted to them; on the training contacts when none are held
+    /// out.
     pub fn better_than_nominal(&self) -> bool {
         let compare = |before: &Errors, after: &Errors| match (before.primary(), after.primary()) {
             (Some(b), Some(a)) => Some(a < b),
@@ -230,10 +298,14 @@ impl ContactScores {
                     .unwrap_or(true)
             })
         };
-        match compare(&self.before.overall, &self.after.overall) {
-            Some(better) => better && each(&self.before, &self.after),
-            None => compare(&self.training[0].overall, &self.training[1].overall)
-                .is_some_and(|better| better && each(&self.training[0], &self.training[1])),
+        let gains = |[before, after]: [&Scored; 2]| {
+            compare(&before.overall, &after.overall).map(|better| better && each(before, after))
+        };
+        let known = gains([&self.before, &self.after]);
+        let new = gains([&self.new_sessions[0], &self.new_sessions[1]]);
+        match (known, new) {
+            (None, None) => gains([&self.training[0], &self.training[1]]).unwrap_or(false),
+            (known, new) => known.unwrap_or(true) && new.unwrap_or(true),
         }
     }
 }
@@ -252,17 +324,17 @@ fn has_plane(m: &Measurement) -> bool {
     )
 }
 
-/// The held-out contacts scored with each session's plane refitted to them (the robot and the
-/// other nuisance held): planes restart from a closed-form fit to the held-out contacts.
+/// The held-out contacts `rows` scored with each session's plane refitted to them (the robot
+/// and the other nuisance held): planes restart from a closed-form fit to the held-out
+/// contacts.
 fn refitted(
     problem: &ContactProblem,
-    parameters: &[f64],
+    rows: &[Measurement],
+    model: &McpcModel,
     nuisance: &Nuisance,
     options: &IdentificationOptions,
 ) -> Result<Scored> {
-    let mut model = problem.model.clone();
-    model.set_parameters(parameters)?;
-    let mut rows = problem.validation.clone();
+    let mut rows = rows.to_vec();
     let mut nuisance = nuisance.clone();
     let mut values = nuisance.values();
     let mut free = Vec::new();
@@ -276,7 +348,7 @@ fn refitted(
             continue;
         }
         let setup = problem.setup_planes[session];
-        let start = plane_start(&model, &nuisance, &of_session, &setup);
+        let start = plane_start(model, &nuisance, &of_session, &setup);
         for m in &mut rows {
             if let Observation::Contact(
                 Contact::Flush { plane, .. } | Contact::Point { plane, .. },
@@ -297,7 +369,7 @@ fn refitted(
     let nuisance = if free.is_empty() {
         nuisance
     } else {
-        identify_with_nuisance(&model, &nuisance, &rows, None, &Rigid, &free, options)?.nuisance
+        identify_with_nuisance(model, &nuisance, &rows, None, &Rigid, &free, options)?.nuisance
     };
-    Scored::of(&model, &model.parameters(), &nuisance, &rows)
+    Scored::of(model, &model.parameters(), &nuisance, &rows)
 }

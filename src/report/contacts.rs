@@ -54,13 +54,19 @@ pub fn contact_report(
         md,
         "**Verdict: {}**\n",
         if usable {
-            "usable — the calibrated robot predicts the held-out contacts better than the \
-             registered nominal robot, overall and for every tool; calibrated.urdf written (one \
-             URDF for all chains)"
+            format!(
+                "usable — the calibrated robot predicts {} better than the registered nominal \
+                 robot, overall and for every tool; calibrated.urdf written (one URDF for all \
+                 chains)",
+                scores.judged().0.words()
+            )
         } else {
-            "not usable — the calibrated robot does not predict the held-out contacts better \
-             than the registered nominal robot, overall and for every tool; calibrated.urdf \
-             was not written"
+            format!(
+                "not usable — the calibrated robot does not predict {} better than the \
+                 registered nominal robot, overall and for every tool; calibrated.urdf was not \
+                 written",
+                scores.judged().0.words()
+            )
         }
     );
     let kinds: Vec<&str> = problem.kinds.iter().map(|k| k.name()).collect();
@@ -133,19 +139,37 @@ fn held_out_markdown(scores: &ContactScores, header: &str, tools: &[String]) -> 
     md.push_str(
         "## Held-out contacts, each session's plane as the training fit found it (primary)\n\n",
     );
-    md.push_str(header);
-    let _ = writeln!(
-        md,
-        "| registered nominal robot (only the nuisance fitted) | {} |",
-        scores.before.overall.cells()
-    );
-    let _ = writeln!(md, "| calibrated | {} |\n", scores.after.overall.cells());
+    if scores.after.overall.count() > 0 || scores.unscored == 0 {
+        md.push_str(header);
+        let _ = writeln!(
+            md,
+            "| registered nominal robot (only the nuisance fitted) | {} |",
+            scores.before.overall.cells()
+        );
+        let _ = writeln!(md, "| calibrated | {} |\n", scores.after.overall.cells());
+    } else {
+        md.push_str("No held-out contact belongs to a session with training contacts.\n\n");
+    }
     if scores.unscored > 0 {
         let _ = writeln!(
             md,
-            "{} held-out contacts belong to sessions without training contacts: their plane \
-             is unknown, they are scored in the diagnostic below only.\n",
+            "{} held-out contacts belong to sessions without training contacts (a new table \
+             set-up): their plane is unknown to the training fit, so each such session's plane \
+             (3 parameters) is fitted to its held-out contacts with the robot held, for both \
+             robots below; the verdict counts them.\n",
             scores.unscored
+        );
+        md.push_str(header);
+        let [before, after] = &scores.new_sessions;
+        let _ = writeln!(
+            md,
+            "| registered nominal robot, new sessions (plane fitted to them) | {} |",
+            before.overall.cells()
+        );
+        let _ = writeln!(
+            md,
+            "| calibrated, new sessions (plane fitted to them) | {} |\n",
+            after.overall.cells()
         );
     }
     if scores.after.sessions.len() > 1 {
@@ -234,6 +258,8 @@ fn contact_json(
         "held_out": {
             "training_plane": {"before": scores.before.overall.json(), "after": scores.after.overall.json()},
             "refitted_plane_diagnostic": {"before": scores.before_refit.overall.json(), "after": scores.after_refit.overall.json()},
+            "new_sessions_fitted_plane": {"contacts": scores.unscored, "before": scores.new_sessions[0].overall.json(), "after": scores.new_sessions[1].overall.json()},
+            "judged": scores.judged().0.key(),
             "sessions": scores.after.sessions.iter().map(|(s, e)| (s.clone(), json!({"before": scores.before.sessions[s].json(), "after": e.json()}))).collect::<serde_json::Map<_, _>>(),
             "tools": scores.after.tools.iter().filter_map(|(t, e)| Some((tree.link(problem.model.tools().get(*t)?.link).name.clone(), json!({"before": scores.before.tools.get(t)?.json(), "after": e.json()})))).collect::<serde_json::Map<_, _>>(),
         },

@@ -39,7 +39,7 @@ pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use compare::{
     CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures, COMPARE_SCHEMA,
 };
-pub use contact_scores::{written_contacts, ContactScores, Errors, Scored};
+pub use contact_scores::{written_contacts, ContactScores, Errors, Judged, Scored};
 pub use contacts::{contact_report, contact_unobservable_markdown};
 pub use html::escape;
 pub use html::{calibration_html, HtmlReport, Scene, SceneConfiguration};

@@ -206,8 +206,8 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
     }
     if let Some(export) = &export {
         let placed = (&problem, &calibrated, &fit);
-        let written = written_scores(&export.urdf, &links, reference.as_deref(), placed)?;
-        let (markdown, json) = written_contacts(&written, &scores.after);
+        let written = written_scores(&export.urdf, &links, reference.as_deref(), placed, &options)?;
+        let (markdown, json) = written_contacts(&written, scores.judged().1);
         report_markdown.push_str(&markdown);
         if let Some(object) = report_json.as_object_mut() {
             object.insert("written".into(), json);

@@ -6,6 +6,7 @@ use super::contact_fit::{ContactFit, ContactProblem};
 use super::model_choice::ParameterPatterns;
 use super::note::Note;
 use super::source::branches;
+use crate::calibration::IdentificationOptions;
 use crate::error::{Error, Result};
 use crate::io::ContactSetup;
 use crate::kinematics::{JointErrorTerms, McpcModel, ParameterKind};
@@ -56,6 +57,7 @@ pub(super) fn written_scores(
     links: &[String],
     reference: Option<&str>,
     (problem, calibrated, fit): (&ContactProblem, &McpcModel, &ContactFit),
+    options: &IdentificationOptions,
 ) -> Result<Scored> {
     let import = parse_urdf(urdf, "calibrated.urdf")?;
     let branches = branches(&import, Some(links), reference)?;
@@ -63,13 +65,16 @@ pub(super) fn written_scores(
     // Where the calibration put the robot (with tracker rows: their fitted frame, which the
     // planes are expressed in).
     model.set_world_from_base(&calibrated.world_from_base());
-    ContactScores::rescore(problem, &model, &fit.after.nuisance)
+    ContactScores::rescore(problem, &model, &fit.after.nuisance, options)
 }
 
 /// A warning when the written URDF does not predict the held-out contacts as the calibration
 /// did (beyond round-off of the written numbers).
 pub(super) fn written_differs(written: &Scored, scores: &ContactScores) -> Option<Note> {
-    let (Some(w), Some(a)) = (written.overall.primary(), scores.after.overall.primary()) else {
+    let (Some(w), Some(a)) = (
+        written.overall.primary(),
+        scores.judged().1.overall.primary(),
+    ) else {
         return None;
     };
     ((w - a).abs() > 1e-3 * a.max(1e-3)).then(|| {
