@@ -180,3 +180,99 @@ fn encoder_noise_on_a_standing_humanoid_matches_its_covariance() {
         assert!(consistency <= 1.5, "{trial}");
     }
 }
+
+/// Flush contacts fix no length: one hand on three tables with encoder noise, and the full
+/// geometry shrinks Atlas to about 0.8× its size (a smaller robot's contacts move less under
+/// the noise) while every held-out height still fits. The default refits with the prior,
+/// which holds the scale, and says so; `--model geometry` forced fails the verdict, naming the
+/// size.
+#[test]
+fn a_contact_fit_that_shrinks_the_robot_is_refitted_or_refused() {
+    let Some(atlas) = shared_robot("atlas_v5/atlas_v5.urdf") else {
+        eprintln!("skipped: the shared Atlas URDF is not there");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim");
+    let run = treecal(&[
+        "simulate",
+        "--robot",
+        path_str(&atlas),
+        "--tools",
+        "l_hand",
+        "--reference-link",
+        "l_foot",
+        "--observation",
+        "flush",
+        "--tables",
+        "3",
+        "--encoder-noise",
+        "1e-3",
+        "--poses",
+        "30",
+        "--torso-poses",
+        "0",
+        "--trials",
+        "1",
+        "--collision-check",
+        "primitives-only",
+        "-o",
+        path_str(&sim),
+    ]);
+    assert_success(&run, "simulate flush, one hand, three tables, on Atlas");
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sim.join("results.json")).unwrap()).unwrap();
+    let truth = results["trials"][0]["true_size_ratio"].as_f64().unwrap();
+    assert!((truth - 1.0).abs() < 0.15, "the true robot's size: {truth}");
+    let calibrate = |out: &str, extra: &[&str]| {
+        let mut args = vec!["calibrate", "--robot", path_str(&atlas), "--contacts"];
+        let files = [
+            sim.join("contacts.csv"),
+            sim.join("contact-setup.yaml"),
+            sim.join("contacts-validation.csv"),
+            dir.path().join(out),
+        ];
+        args.extend([
+            path_str(&files[0]),
+            "--contact-setup",
+            path_str(&files[1]),
+            "--validation",
+            path_str(&files[2]),
+            "--out",
+            path_str(&files[3]),
+        ]);
+        args.extend(extra);
+        let run = treecal(&args);
+        let json = std::fs::read_to_string(files[3].join("report.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+        (run, json)
+    };
+    // Default: the geometry's shrink is named, the prior holds the scale, the result is usable.
+    let (run, json) = calibrate("default", &[]);
+    assert_success(&run, "calibrate --contacts (default)");
+    assert!(run.stderr.contains("its nominal size"), "{run}");
+    let json = json.unwrap();
+    assert_eq!(json["model"]["name"], "geometry+prior", "{json}");
+    let ratio = json["size_ratio"].as_f64().unwrap();
+    assert!((ratio - 1.0).abs() < 0.05, "{ratio}");
+    assert_eq!(json["usable"], true);
+    // Forced geometry: refused, with the size in the verdict, and nothing exported.
+    let (run, json) = calibrate("forced", &["--model", "geometry"]);
+    assert!(!run.success, "{run}");
+    assert!(
+        run.stdout
+            .contains("not usable — the calibrated robot is 0."),
+        "{run}"
+    );
+    let json = json.unwrap();
+    assert!(
+        json["refused"].as_str().unwrap().contains("fix no length"),
+        "{json}"
+    );
+    assert!(
+        (json["size_ratio"].as_f64().unwrap() - 1.0).abs() > 0.15,
+        "{json}"
+    );
+    assert!(!dir.path().join("forced/calibrated.urdf").exists());
+}

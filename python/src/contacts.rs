@@ -28,7 +28,14 @@ impl PyContactCalibration {
         let reasons = if self.inner.usable() {
             serde_json::json!([])
         } else {
-            serde_json::json!([{"status": "failed", "code": "contacts-not-better", "message": NOT_BETTER}])
+            match &self.inner.refused {
+                Some(reason) => {
+                    serde_json::json!([{"status": "failed", "code": "contacts-scale", "message": reason}])
+                }
+                None => {
+                    serde_json::json!([{"status": "failed", "code": "contacts-not-better", "message": NOT_BETTER}])
+                }
+            }
         };
         let status = if self.inner.usable() { "ok" } else { "failed" };
         serde_json::json!({"status": status, "reasons": reasons}).to_string()

@@ -47,13 +47,16 @@ pub fn contact_report(
     scores: &ContactScores,
     reference: &str,
     urdf_changes: Option<usize>,
+    refused: Option<&str>,
 ) -> (String, serde_json::Value) {
     let usable = urdf_changes.is_some();
     let mut md = format!("# Contact calibration: {}\n\n", tree.name());
     let _ = writeln!(
         md,
         "**Verdict: {}**\n",
-        if usable {
+        if let Some(reason) = refused {
+            format!("not usable — {reason}; calibrated.urdf was not written")
+        } else if usable {
             format!(
                 "usable — the calibrated robot predicts {} better than the registered nominal \
                  robot, overall and for every tool; calibrated.urdf written (one URDF for all \

@@ -18,9 +18,11 @@ use super::contact_cv::{
     ContactCvInput, ContactFolds, ContactModelSpec,
 };
 use super::contact_fit::{plane_start, ContactFit, ContactProblem};
-use super::contact_model::{robot_free, setup_model, written_differs, written_scores, SetupModel};
+use super::contact_model::{only_tools, robot_free, setup_model, written_differs};
+use super::contact_model::{written_scores, SetupModel};
+use super::contact_scale::{has_length_reference, scale_held, size_ratio};
 use super::contact_tracker::{contact_kind_scales, tracker_links, ContactTracker};
-use super::model_choice::{ModelChoice, ParameterPatterns};
+use super::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
 use super::note::Note;
 use super::source::RobotSource;
 use crate::calibration::NuisanceBlock;
@@ -51,6 +53,9 @@ pub struct ContactCalibrateConfig {
     pub validation: Option<PathBuf>,
     /// The reference link; overrides the setup's.
     pub reference_link: Option<String>,
+    /// The setup's tools (by setup name or link) to calibrate, e.g. one side of a two-handed
+    /// set-up; contacts of other tools are left out, and so are their chains [default: all].
+    pub tools: Option<Vec<String>>,
     /// Tracker rows fitted with the contacts, each with its σ (`measurements`).
     pub tracker: Option<CameraTrackerInput>,
     /// Which model describes the robot: joint zero offsets, every joint frame's four
@@ -82,6 +87,9 @@ pub struct ContactCalibration {
     pub report_json: serde_json::Value,
     /// calibrated.urdf (all chains), `None` when the verdict failed.
     pub urdf: Option<String>,
+    /// Why the verdict failed when the calibrated robot beat the registered nominal robot but
+    /// cannot be trusted (its size off: `docs/contacts.md`, "The length scale").
+    pub refused: Option<String>,
 }
 
 /// The files `calibrate --contacts` writes into its output folder.
@@ -120,9 +128,13 @@ impl ContactCalibration {
 pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCalibration> {
     let robot = config.robot.load()?;
     let mut notes = robot.notes();
-    let setup = read_contact_setup(&config.setup)?;
+    let mut setup = read_contact_setup(&config.setup)?;
     let tree = &robot.import.tree;
-    let (training, validation) = read_rows(config, tree, &mut notes)?;
+    let (mut training, mut validation) = read_rows(config, tree, &mut notes)?;
+    if let Some(wanted) = &config.tools {
+        let rows = (&mut training, &mut validation);
+        notes.push(only_tools(&mut setup, wanted, rows, &config.setup)?);
+    }
     let tracked = match &config.tracker {
         Some(input) => tracker_links(input)?,
         None => Vec::new(),
@@ -160,13 +172,15 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             tracker.rows.len()
         )));
     }
-    let (problem, fit, spec, cv) = fit_model(config, tree, &problem, &options, &mut notes)?;
+    let fitted = fit_model(config, tree, &problem, &options, &mut notes)?;
+    let (fitted, refused) = hold_scale(config, tree, &problem, fitted, &options, &mut notes)?;
+    let (problem, fit, spec, cv) = fitted;
     let scores = ContactScores::new(&problem, &fit, &options)?;
     let mut calibrated = problem.model.clone();
     calibrated.set_parameters(&fit.after.parameters)?;
     let kinds = contact_kind_scales(&problem, &fit, &options)?;
     let registration = tracker.as_ref().map(|t| t.registration(&calibrated));
-    let better = scores.better_than_nominal();
+    let better = scores.better_than_nominal() && refused.is_none();
     let export = if better {
         let export_options = ExportOptions {
             add_tool_links: true,
@@ -192,6 +206,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             .as_deref()
             .unwrap_or(tree.link(tree.root()).name.as_str()),
         export.as_ref().map(|e| e.changes.len()),
+        refused.as_deref(),
     );
     report_markdown.push_str(&kinds_markdown(&kinds, registration.as_ref()));
     report_markdown.push_str(&model_markdown(spec, cv.as_ref()));
@@ -203,6 +218,11 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             serde_json::json!({ "name": spec.name(), "offsets": spec.offsets, "prior": spec.prior }),
         );
         object.insert("model_choice".into(), serde_json::json!(cv));
+        object.insert(
+            "size_ratio".into(),
+            serde_json::json!(size_ratio(&problem.model, &calibrated, &problem.training)),
+        );
+        object.insert("refused".into(), serde_json::json!(refused));
     }
     if let Some(export) = &export {
         let placed = (&problem, &calibrated, &fit);
@@ -219,6 +239,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         report_markdown,
         report_json,
         urdf: export.map(|e| e.urdf),
+        refused,
     })
 }
 
@@ -230,12 +251,7 @@ fn fit_model(
     problem: &ContactProblem,
     options: &IdentificationOptions,
     notes: &mut Vec<Note>,
-) -> Result<(
-    ContactProblem,
-    ContactFit,
-    ContactModelSpec,
-    Option<ContactCv>,
-)> {
+) -> Result<Fitted> {
     let input = ContactCvInput {
         tree,
         base: problem,
@@ -256,6 +272,77 @@ fn fit_model(
         None => fit_candidate(&problem, options, choice.spec, input.prior_scale)?,
     };
     Ok((problem, fit, choice.spec, choice.cv))
+}
+
+/// A contact fit: the problem of its model, the fit, the model, the cross-validation.
+type Fitted = (
+    ContactProblem,
+    ContactFit,
+    ContactModelSpec,
+    Option<ContactCv>,
+);
+
+/// `fitted` when it keeps the robot's size ([`contact_scale`](super::contact_scale)), or,
+/// where the model was the data's choice, refitted with the prior on the nominal values (which
+/// holds the scale); with the reason the verdict fails when the size is still off.
+fn hold_scale(
+    config: &ContactCalibrateConfig,
+    tree: &KinematicTree,
+    base: &ContactProblem,
+    fitted: Fitted,
+    options: &IdentificationOptions,
+    notes: &mut Vec<Note>,
+) -> Result<(Fitted, Option<String>)> {
+    let ratio = |(problem, fit, ..): &Fitted| {
+        let mut calibrated = problem.model.clone();
+        calibrated.set_parameters(&fit.after.parameters).ok()?;
+        size_ratio(&problem.model, &calibrated, &problem.training)
+    };
+    let first = ratio(&fitted);
+    if has_length_reference(base) || scale_held(first) {
+        return Ok((fitted, None));
+    }
+    let first = first.unwrap_or(1.0);
+    let why = "flush, point and touch contacts fix no length, and encoder noise pulls a free \
+               fit towards a smaller robot (docs/contacts.md, \"The length scale\")";
+    let data_choose = matches!(config.model, ModelChoice::Adaptive | ModelChoice::Auto);
+    if fitted.2.prior || !data_choose {
+        let reason = format!(
+            "the calibrated robot is {first:.3}× the nominal robot's size (its tools' spread \
+             over the training configurations): {why}; use the default model or --prior, or add \
+             a bar of known length or tracker rows"
+        );
+        notes.push(Note::warning(reason.clone()));
+        return Ok((fitted, Some(reason)));
+    }
+    let with_prior = ContactCalibrateConfig {
+        model: ModelChoice::Level(if fitted.2.offsets {
+            ModelLevel::Offsets
+        } else {
+            ModelLevel::Geometry
+        }),
+        prior: Some(config.prior.unwrap_or(1.0)),
+        cv: None,
+        ..config.clone()
+    };
+    let refit = fit_model(&with_prior, tree, base, options, notes)?;
+    let second = ratio(&refit);
+    notes.push(Note::warning(format!(
+        "the '{}' fit made the robot {first:.3}× its nominal size (its tools' spread over the \
+         training configurations): {why}; refitted with the prior on the nominal values, which \
+         holds the scale: '{}', {:.3}×; a bar of known length or tracker rows fix the scale",
+        fitted.2.name(),
+        refit.2.name(),
+        second.unwrap_or(1.0)
+    )));
+    let refused = (!scale_held(second)).then(|| {
+        format!(
+            "the calibrated robot is {:.3}× the nominal robot's size even with the prior: {why}",
+            second.unwrap_or(1.0)
+        )
+    });
+    let (problem, fit, spec, _) = refit;
+    Ok(((problem, fit, spec, fitted.3), refused))
 }
 
 /// The training and held-out contacts: the contacts file and the validation file, or every

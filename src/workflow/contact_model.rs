@@ -8,12 +8,13 @@ use super::note::Note;
 use super::source::branches;
 use crate::calibration::IdentificationOptions;
 use crate::error::{Error, Result};
-use crate::io::ContactSetup;
+use crate::io::{ContactRow, ContactSetup};
 use crate::kinematics::{JointErrorTerms, McpcModel, ParameterKind};
 use crate::report::{ContactScores, Scored};
 use crate::sim::contact_free_parameters;
 use crate::tree::KinematicTree;
 use crate::urdf::{parse_urdf, UrdfImport};
+use std::path::Path;
 
 /// The one model of a contact set-up: the setup's tools (then `extra` links, e.g. tracked
 /// ones) measured from the reference link (`reference`, else the setup's).
@@ -126,4 +127,69 @@ pub(super) fn offsets_model(model: McpcModel, offsets_only: bool) -> Result<Mcpc
         backlash: false,
     };
     model.with_joint_errors(offsets, None)
+}
+
+/// The setup's tools that make contacts: `wanted` (setup names or links) or all.
+pub(super) fn chosen_tools(
+    setup: &ContactSetup,
+    wanted: Option<&[String]>,
+    origin: &str,
+) -> Result<Vec<String>> {
+    let Some(wanted) = wanted else {
+        return Ok(setup.tools.keys().cloned().collect());
+    };
+    wanted
+        .iter()
+        .map(|name| {
+            setup
+                .tools
+                .iter()
+                .find(|(key, tool)| *key == name || tool.link == *name)
+                .map(|(key, _)| key.clone())
+                .ok_or_else(|| Error::InvalidData {
+                    origin: origin.to_owned(),
+                    message: format!(
+                        "tool '{}' of --tools is not a tool of the setup file (tools: {}); add \
+                         it to the setup's tools with its link",
+                        crate::limits::cut(name),
+                        setup.tools.keys().cloned().collect::<Vec<_>>().join(", ")
+                    ),
+                })
+        })
+        .collect()
+}
+
+/// Keeps the setup's tools `wanted` (setup names or links) and the contacts they make alone
+/// (a touch or a bar with a tool left out goes too); the note says what was left out.
+pub(super) fn only_tools(
+    setup: &mut ContactSetup,
+    wanted: &[String],
+    (training, validation): (&mut Vec<ContactRow>, &mut Vec<ContactRow>),
+    setup_path: &Path,
+) -> Result<Note> {
+    let chosen = chosen_tools(setup, Some(wanted), &setup_path.display().to_string())?;
+    setup.tools.retain(|name, _| chosen.contains(name));
+    let keep = |row: &ContactRow| {
+        chosen.contains(&row.tool) && row.tool2.as_ref().is_none_or(|t| chosen.contains(t))
+    };
+    let before = (training.len(), validation.len());
+    training.retain(keep);
+    validation.retain(keep);
+    if training.is_empty() {
+        return Err(Error::InvalidData {
+            origin: "--tools".into(),
+            message: format!(
+                "no training contact is made by {} alone; name tools that have contacts in the \
+                 contacts file",
+                chosen.join(", ")
+            ),
+        });
+    }
+    Ok(Note::info(format!(
+        "tools {}: the model holds their chains only; {} training and {} held-out contacts of \
+         other tools left out",
+        chosen.join(", "),
+        before.0 - training.len(),
+        before.1 - validation.len()
+    )))
 }

@@ -29,6 +29,7 @@ pub(crate) mod compare;
 pub(crate) mod contact_cv;
 pub(crate) mod contact_fit;
 mod contact_model;
+mod contact_scale;
 mod contact_tracker;
 pub(crate) mod cross_validation;
 pub(crate) mod export;

@@ -11,7 +11,7 @@ use super::calibrate_contacts::{contact_options, contact_problem};
 use super::checker::contact_collisions;
 use super::checks::{check_outputs, Output};
 use super::contact_fit::{fit_contacts, ContactFit, ContactProblem};
-use super::contact_model::setup_model;
+use super::contact_model::{chosen_tools, setup_model};
 use super::source::RobotSource;
 use super::{Note, Progress, ProgressFn};
 use crate::calibration::{weighted_jacobian, Criterion, Rigid};
@@ -174,36 +174,6 @@ pub fn plan_contacts(
         text,
         json,
     })
-}
-
-/// The setup's tools that make contacts: `wanted` (setup names or links) or all.
-fn chosen_tools(
-    setup: &ContactSetup,
-    wanted: Option<&[String]>,
-    origin: &str,
-) -> Result<Vec<String>> {
-    let Some(wanted) = wanted else {
-        return Ok(setup.tools.keys().cloned().collect());
-    };
-    wanted
-        .iter()
-        .map(|name| {
-            setup
-                .tools
-                .iter()
-                .find(|(key, tool)| *key == name || tool.link == *name)
-                .map(|(key, _)| key.clone())
-                .ok_or_else(|| Error::InvalidData {
-                    origin: origin.to_owned(),
-                    message: format!(
-                        "tool '{}' of --tools is not a tool of the setup file (tools: {}); add \
-                         it to the setup's tools with its link",
-                        crate::limits::cut(name),
-                        setup.tools.keys().cloned().collect::<Vec<_>>().join(", ")
-                    ),
-                })
-        })
-        .collect()
 }
 
 /// One row per contact group to plan (its `q` empty): flush and plane per session × tool with

@@ -97,6 +97,7 @@ pub(super) fn simulate_contacts(
                 "observable_error": t.observable_error,
                 "consistency": t.consistency,
                 "residual_scale": t.report.residual_scale,
+                "true_size_ratio": super::contact_scale::size_ratio(&nominal, &t.truth, &t.scene.measurements),
                 "iterations": t.report.iterations,
             })
         })

@@ -103,6 +103,7 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
         setup: setup.to_owned(),
         validation: args.validation.clone(),
         reference_link: args.reference_link.clone(),
+        tools: args.tools.clone(),
         tracker: tracker_input(args),
         model: model_choice(args.model),
         prior: args.prior.then_some(args.prior_scale),
@@ -120,8 +121,10 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
         &calibration.report_markdown,
         calibration.write(&args.out),
         calibration.usable(),
-        "the calibrated robot does not predict the held-out contacts better than the \
-         registered nominal robot",
+        calibration.refused.as_deref().unwrap_or(
+            "the calibrated robot does not predict the held-out contacts better than the \
+             registered nominal robot",
+        ),
     )
 }
 
