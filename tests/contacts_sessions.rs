@@ -152,3 +152,61 @@ fn held_out_contacts_of_training_sessions_are_judged_with_their_training_planes(
     );
     assert!(!report.contains("new sessions (plane fitted to them)"));
 }
+
+#[test]
+fn tools_restrict_a_contact_calibration_to_one_side() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim");
+    let run = treecal(&[
+        "simulate",
+        "--observation",
+        "flush",
+        "--both-hands",
+        "--trials",
+        "1",
+        "--poses",
+        "30",
+        "--out",
+        path_str(&sim),
+    ]);
+    assert_success(&run, "simulate --observation flush --both-hands");
+    let files = [
+        sim.join("contacts.csv"),
+        sim.join("contact-setup.yaml"),
+        sim.join("contacts-validation.csv"),
+    ];
+    let calibrate = |tools: &str, out: &Path| {
+        treecal(&[
+            "calibrate",
+            "--contacts",
+            path_str(&files[0]),
+            "--contact-setup",
+            path_str(&files[1]),
+            "--validation",
+            path_str(&files[2]),
+            "--tools",
+            tools,
+            "--out",
+            path_str(out),
+        ])
+    };
+    let out = dir.path().join("left");
+    let run = calibrate("left_tool", &out);
+    assert_success(&run, "calibrate --contacts --tools left_tool");
+    assert!(
+        run.stderr
+            .contains("tools left_tool: the model holds their chains only"),
+        "{run}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let tools = json["held_out"]["tools"].as_object().unwrap();
+    assert_eq!(tools.keys().collect::<Vec<_>>(), ["left_tool"], "{json}");
+    let run = calibrate("no_such_tool", &dir.path().join("bad"));
+    assert!(!run.success, "{run}");
+    assert!(
+        run.stderr
+            .contains("'no_such_tool' of --tools is not a tool of the setup"),
+        "{run}"
+    );
+}

@@ -110,7 +110,7 @@ impl PyContactCalibration {
 #[pyfunction]
 #[pyo3(signature = (*, robot, contacts, contact_setup, validation, reference_link, measurements,
     position_sigma, rotation_sigma, measurement_frame, length_unit, ignore_columns, model, prior,
-    prior_scale, cv, seed, freeze, free))]
+    prior_scale, cv, seed, freeze, free, tools=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate_contacts_files(
     py: Python<'_>,
@@ -132,6 +132,7 @@ pub fn calibrate_contacts_files(
     seed: u64,
     freeze: Vec<String>,
     free: Vec<String>,
+    tools: Option<Vec<String>>,
 ) -> PyResult<PyContactCalibration> {
     let length_unit: Option<treecal::io::LengthUnit> =
         crate::calibrate::parse_unit(length_unit.as_deref())?;
@@ -151,6 +152,7 @@ pub fn calibrate_contacts_files(
         setup: contact_setup,
         validation,
         reference_link,
+        tools,
         tracker,
         model: crate::calibrate::model_choice(model)?,
         prior: prior.then_some(prior_scale),

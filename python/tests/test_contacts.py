@@ -85,3 +85,20 @@ def test_the_model_flags_match_the_cli(simulated: Path, cli: str, tmp_path: Path
         treecal.calibrate(model="everything", **files)
     with pytest.raises(treecal.TreecalError, match="cv must be"):
         treecal.calibrate(cv=1, **files)
+
+
+def test_tools_keep_one_side_of_a_contact_calibration(simulated: Path) -> None:
+    """`tools=` keeps the named setup tools, as `--tools` does (it was refused before)."""
+    result = treecal.calibrate(
+        contacts=simulated / "contacts.csv",
+        contact_setup=simulated / "contact-setup.yaml",
+        validation=simulated / "contacts-validation.csv",
+        tools=["left_tool"],
+    )
+    assert "left_tool" in result.report["held_out"]["tools"]
+    with pytest.raises(treecal.TreecalError, match="no_such_tool"):
+        treecal.calibrate(
+            contacts=simulated / "contacts.csv",
+            contact_setup=simulated / "contact-setup.yaml",
+            tools=["no_such_tool"],
+        )

@@ -435,7 +435,6 @@ def calibrate(
                 ("identify_stiffness", identify_stiffness),
                 ("stiffness_prior", stiffness_prior is not None),
                 ("plan", plan is not None),
-                ("tools", tools is not None),
             )
             if given
         ]
@@ -447,7 +446,7 @@ def calibrate(
         return _calibrate_contacts(
             robot, contacts, contact_setup, validation, reference_link, measurements,
             position_sigma, rotation_sigma, measurement_frame, length_unit, ignore_columns,
-            _model_arguments(model, prior, prior_scale, cv, freeze, free), seed,
+            _model_arguments(model, prior, prior_scale, cv, freeze, free), seed, tools,
         )
     if camera is not None:
         asked = _model_arguments(model, prior, prior_scale, cv, freeze, free)
@@ -573,6 +572,7 @@ def _calibrate_contacts(
     robot: Any, contacts: Any, contact_setup: Any, validation: Any, reference_link: Any,
     measurements: Any, position_sigma: Any, rotation_sigma: Any, measurement_frame: Any,
     length_unit: Any, ignore_columns: Any, model_arguments: Dict[str, Any], seed: Any,
+    tools: Any = None,
 ) -> "Calibration":
     """`calibrate` from contacts (see there)."""
     if contacts is None or contact_setup is None:
@@ -594,6 +594,7 @@ def _calibrate_contacts(
         length_unit=_optional_text(length_unit, "length_unit"),
         ignore_columns=_strings(ignore_columns, "ignore_columns"),
         seed=_seed(seed),
+        tools=None if tools is None else _strings(tools, "tools"),
         **model_arguments,
     )
     return Calibration(inner)

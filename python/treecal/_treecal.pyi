@@ -104,6 +104,7 @@ def calibrate_contacts_files(
     seed: int,
     freeze: List[str],
     free: List[str],
+    tools: Optional[List[str]] = None,
 ) -> Calibration: ...
 
 def verify(

@@ -114,7 +114,7 @@ pub struct CalibrateArgs {
     /// fitted rigid; of the model flags it takes --model (adaptive: the full geometry, or
     /// chosen by cross-validation among offsets, geometry and geometry with the prior when its
     /// residuals exceed twice the setup's σ's), --prior, --prior-scale, --cv, --cv-repeats,
-    /// --freeze and --free.
+    /// --freeze and --free; --tools keeps the named setup tools (one side) and their contacts.
     #[arg(
         long,
         value_name = "C.csv",
