@@ -125,7 +125,11 @@ fn analytic_load_change_matches_the_load_differences() {
 fn analytic_load_change_matches_the_load_differences_on_robonaut_2() {
     let (tree, model) = TestRobot::load(&robonaut2()).tree_and_model();
     let flexibility = FlexibilityModel::new(&tree, &model, &Stiffness::default()).unwrap();
-    assert!(flexibility.total_mass() > 10.0, "{}", flexibility.total_mass());
+    assert!(
+        flexibility.total_mass() > 10.0,
+        "{}",
+        flexibility.total_mass()
+    );
     let loaded = flexibility.for_payload(Some(5.0)).unwrap().into_owned();
     check_against_load_differences(&tree, &model, &loaded, (23, 1e-3), 1e-6);
     check_against_load_differences(&tree, &model, &loaded, (24, 0.0), 1e-6);

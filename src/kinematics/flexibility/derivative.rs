@@ -7,7 +7,7 @@
 
 use super::apply::Deflection;
 use super::compliance::{left_jacobian, right_jacobian};
-use super::load_change::{Change, Reach};
+use super::load_change::{Change, Reach, Scratch};
 use super::loads::Evaluation;
 use super::model::FlexibilityModel;
 use crate::error::Result;
@@ -142,20 +142,27 @@ impl FlexibilityModel {
         let values = model.parameters();
         let mut shifted = model.clone();
         let mut columns = Vec::with_capacity(parameters.len());
+        let (mut scratch, mut change) = (Scratch::default(), Change::default());
         for &p in parameters {
             let analytic = match how {
                 LoadChange::Analytic => Reach::of(model, &deflection.evaluation, &root, p),
                 LoadChange::Differenced => None,
             };
-            let change = match analytic {
-                Some(reach) => self.load_change(model, &deflection.evaluation, &reach),
+            match analytic {
+                Some(reach) => self.load_change(
+                    model,
+                    &deflection.evaluation,
+                    &reach,
+                    &mut scratch,
+                    &mut change,
+                ),
                 None => {
                     shifted.set_parameter(p, values[p] + step)?;
                     let evaluation = self.evaluate_with(&shifted, q, &tree_poses);
                     shifted.set_parameter(p, values[p])?;
-                    base.differences(self, &evaluation, step)
+                    change = base.differences(self, &evaluation, step);
                 }
-            };
+            }
             let tools = self.deformation_motions(model, &deflection, &base, &change);
             columns.push(
                 tools

@@ -10,6 +10,7 @@ use super::loads::{beam_frame, Evaluation};
 use super::model::{FlexibilityModel, Place, SegmentEnd};
 use crate::kinematics::McpcModel;
 use crate::math::{Mat3, Transform, Vec3};
+use nalgebra::Vector6;
 
 /// How one MCPC parameter moves the nominal chain, per unit parameter: what it reaches turns
 /// by `omega`, and a point x of it moves by `linear + omega × x`.
@@ -117,9 +118,25 @@ impl Reach {
 /// What a parameter changes, per unit: each joint's local rotation `[Δα, Δβ, Δθ]`, and each
 /// segment's parts in its proximal nominal moved frame (free end, translation, rotation; see
 /// `derivative.rs`).
+#[derive(Debug, Default)]
 pub(super) struct Change {
     pub(super) joints: Vec<Vec3>,
     pub(super) segments: Vec<[Vec3; 3]>,
+}
+
+/// The buffers of [`FlexibilityModel::load_change`], reused from one parameter to the next.
+#[derive(Default)]
+pub(super) struct Scratch {
+    /// Per mass: its velocity (zero outside the reach).
+    velocities: Vec<Vec3>,
+    /// Per frame and per tool: the change of the subtree's moment about the base origin.
+    torque: Vec<Vec3>,
+    tool_torque: Vec<Vec3>,
+    /// Per segment: whether anything of it changes (an end, its frame, a load on it).
+    touched: Vec<bool>,
+    /// Per segment: its beam's change (touched segments only) and the change of `d_link`.
+    beams: Vec<Option<Beam>>,
+    d_local: Vec<Vector6<f64>>,
 }
 
 /// A segment's beam at the evaluation and its change: clamp, length, axis and beam frame.
@@ -136,39 +153,58 @@ struct Beam {
 }
 
 impl FlexibilityModel {
-    /// The change of every deformation with the parameter of `reach`, in closed form.
+    /// The change of every deformation with the parameter of `reach`, in closed form, into
+    /// `change`. What the parameter leaves alone (another arm's joints and segments) is zero
+    /// without arithmetic.
     pub(super) fn load_change(
         &self,
         model: &McpcModel,
         evaluation: &Evaluation,
         reach: &Reach,
-    ) -> Change {
-        let velocities: Vec<Vec3> = self
-            .masses
-            .iter()
-            .zip(&evaluation.positions)
-            .map(|(mass, position)| {
-                let moves = match mass.place {
-                    Place::Body(frame, _) | Place::Tree { frame, .. } => reach.frames[frame],
-                    Place::Tool(tool, _)
-                    | Place::ToolBody(tool, _)
-                    | Place::ToolTree { tool, .. } => reach.tools[tool],
-                };
-                if moves {
-                    reach.velocity(position)
-                } else {
-                    Vec3::zeros()
-                }
-            })
-            .collect();
+        scratch: &mut Scratch,
+        change: &mut Change,
+    ) {
+        let Scratch {
+            velocities,
+            torque,
+            tool_torque,
+            touched,
+            ..
+        } = scratch;
+        velocities.clear();
+        velocities.extend(
+            self.masses
+                .iter()
+                .zip(&evaluation.positions)
+                .map(|(mass, position)| {
+                    let moves = match mass.place {
+                        Place::Body(frame, _) | Place::Tree { frame, .. } => reach.frames[frame],
+                        Place::Tool(tool, _)
+                        | Place::ToolBody(tool, _)
+                        | Place::ToolTree { tool, .. } => reach.tools[tool],
+                    };
+                    if moves {
+                        reach.velocity(position)
+                    } else {
+                        Vec3::zeros()
+                    }
+                }),
+        );
         // The weights stay; their moments about the base origin change by v × w.
-        let mut torque = vec![Vec3::zeros(); model.frames().len()];
-        let mut tool_torque = vec![Vec3::zeros(); model.tools().len()];
-        for (mass, velocity) in self.masses.iter().zip(&velocities) {
-            let change = velocity.cross(&(evaluation.gravity * mass.mass));
-            torque[mass.frame] += change;
+        reset(torque, model.frames().len(), Vec3::zeros());
+        reset(tool_torque, model.tools().len(), Vec3::zeros());
+        reset(touched, self.segments.len(), false);
+        for (k, (mass, velocity)) in self.masses.iter().zip(velocities.iter()).enumerate() {
+            if *velocity == Vec3::zeros() {
+                continue;
+            }
+            let moment = velocity.cross(&(evaluation.gravity * mass.mass));
+            torque[mass.frame] += moment;
             if let Place::Tool(tool, _) = mass.place {
-                tool_torque[tool] += change;
+                tool_torque[tool] += moment;
+            }
+            if let Some(index) = evaluation.mass_segments[k] {
+                touched[index] = true;
             }
         }
         for i in (0..torque.len()).rev() {
@@ -177,22 +213,21 @@ impl FlexibilityModel {
                 torque[p] += t;
             }
         }
-        let joints = (0..torque.len())
-            .map(|i| {
-                let moved = &evaluation.moved[i];
-                let joint = &evaluation.deformations.joints[i];
-                // τ = N − o × F in the moved frame: dτ_local = Rᵀ(dN − do × F − ω × τ).
-                let d_moment =
-                    torque[i] - reach.of_frame(i, &moved.translation).cross(&joint.force);
-                let local = moved.rotation.transpose()
-                    * (d_moment - reach.turning(i).cross(&joint.moment));
-                let (bending, torsion) = self.joint_compliance[i];
-                Vec3::new(bending * local.x, bending * local.y, torsion * local.z)
-            })
-            .collect();
-        let segments =
-            self.segment_changes(evaluation, reach, &velocities, (&torque, &tool_torque));
-        Change { joints, segments }
+        change.joints.clear();
+        change.joints.extend((0..torque.len()).map(|i| {
+            if !reach.frames[i] && torque[i] == Vec3::zeros() {
+                return Vec3::zeros();
+            }
+            let moved = &evaluation.moved[i];
+            let joint = &evaluation.deformations.joints[i];
+            // τ = N − o × F in the moved frame: dτ_local = Rᵀ(dN − do × F − ω × τ).
+            let d_moment = torque[i] - reach.of_frame(i, &moved.translation).cross(&joint.force);
+            let local =
+                moved.rotation.transpose() * (d_moment - reach.turning(i).cross(&joint.moment));
+            let (bending, torsion) = self.joint_compliance[i];
+            Vec3::new(bending * local.x, bending * local.y, torsion * local.z)
+        }));
+        self.segment_changes(evaluation, reach, scratch, change);
     }
 
     /// Every segment's change of parts, from its tip load and its self-weight loads.
@@ -200,32 +235,59 @@ impl FlexibilityModel {
         &self,
         evaluation: &Evaluation,
         reach: &Reach,
-        velocities: &[Vec3],
-        (torque, tool_torque): (&[Vec3], &[Vec3]),
-    ) -> Vec<[Vec3; 3]> {
+        scratch: &mut Scratch,
+        change: &mut Change,
+    ) {
         let loads = &evaluation.loads;
-        let beams: Vec<Beam> = (0..self.segments.len())
-            .map(|index| self.beam_change(evaluation, reach, index))
-            .collect();
-        let mut d_local: Vec<nalgebra::Vector6<f64>> = beams
-            .iter()
-            .zip(&self.segments)
-            .zip(&evaluation.deformations.segments)
-            .map(|((beam, segment), placed)| {
-                let (force, tip_torque, d_tip_torque) = match segment.end {
-                    SegmentEnd::Frame(j) => (loads.force[j], loads.torque[j], torque[j]),
-                    SegmentEnd::Tool(t) => (loads.tool_force[t], loads.tool_torque[t], tool_torque[t]),
-                };
-                let moment = tip_torque - placed.end.cross(&force);
-                let d_moment = d_tip_torque - beam.d_end.cross(&force);
-                beam.deflection_change(&segment.compliance, beam.length, beam.d_length, &force, (&moment, &d_moment))
-            })
-            .collect();
+        let Scratch {
+            velocities,
+            torque,
+            tool_torque,
+            touched,
+            beams,
+            d_local,
+        } = scratch;
+        beams.clear();
+        d_local.clear();
+        for (index, segment) in self.segments.iter().enumerate() {
+            let (force, tip_torque, d_tip_torque, end_moves) = match segment.end {
+                SegmentEnd::Frame(j) => {
+                    (loads.force[j], loads.torque[j], torque[j], reach.frames[j])
+                }
+                SegmentEnd::Tool(t) => (
+                    loads.tool_force[t],
+                    loads.tool_torque[t],
+                    tool_torque[t],
+                    reach.tools[t],
+                ),
+            };
+            touched[index] |=
+                end_moves || reach.frames[segment.frame] || d_tip_torque != Vec3::zeros();
+            if !touched[index] {
+                beams.push(None);
+                d_local.push(Vector6::zeros());
+                continue;
+            }
+            let beam = self.beam_change(evaluation, reach, index);
+            let placed = &evaluation.deformations.segments[index];
+            let moment = tip_torque - placed.end.cross(&force);
+            let d_moment = d_tip_torque - beam.d_end.cross(&force);
+            d_local.push(beam.deflection_change(
+                &segment.compliance,
+                beam.length,
+                beam.d_length,
+                &force,
+                (&moment, &d_moment),
+            ));
+            beams.push(Some(beam));
+        }
         for (k, (mass, position)) in self.masses.iter().zip(&evaluation.positions).enumerate() {
             let Some(index) = evaluation.mass_segments[k] else {
                 continue;
             };
-            let beam = &beams[index];
+            let Some(beam) = &beams[index] else {
+                continue;
+            };
             let velocity = &velocities[k];
             let raw = (position - beam.start).dot(&beam.axis);
             let (station, d_station) = if raw <= 0.0 {
@@ -250,17 +312,19 @@ impl FlexibilityModel {
                 (&moment, &d_moment),
             );
         }
-        beams
-            .iter()
-            .zip(&d_local)
-            .zip(&evaluation.deformations.segments)
-            .zip(&self.segments)
-            .map(|(((beam, d_local), placed), segment)| {
-                let moved = &evaluation.moved[segment.frame];
-                let to_local = moved.rotation.transpose();
+        change.segments.clear();
+        change
+            .segments
+            .extend(self.segments.iter().enumerate().map(|(index, segment)| {
+                let Some(beam) = &beams[index] else {
+                    return [Vec3::zeros(); 3];
+                };
+                let placed = &evaluation.deformations.segments[index];
+                let d_local = &d_local[index];
+                let to_local = evaluation.moved[segment.frame].rotation.transpose();
                 let turning = reach.turning(segment.frame);
                 // The deformation in the base frame is B·local; in the moved frame Rᵀ·(B·local).
-                let in_base = |rows: usize, value: &Vec3| -> Vec3 {
+                let in_moved = |rows: usize, value: &Vec3| -> Vec3 {
                     let local = placed.local.fixed_rows::<3>(rows);
                     let d = d_local.fixed_rows::<3>(rows);
                     let change = beam.d_frame * local + beam.frame * d;
@@ -269,11 +333,10 @@ impl FlexibilityModel {
                 let along = placed.end - placed.start;
                 [
                     to_local * (beam.d_end - beam.d_start - turning.cross(&along)),
-                    in_base(0, &placed.translation),
-                    in_base(3, &placed.rotation),
+                    in_moved(0, &placed.translation),
+                    in_moved(3, &placed.rotation),
                 ]
-            })
-            .collect()
+            }));
     }
 
     /// Segment `index`'s beam and its change with the parameter of `reach` (beam frame:
@@ -349,6 +412,12 @@ impl FlexibilityModel {
     }
 }
 
+/// `buffer` as `size` copies of `value`, in its own allocation.
+fn reset<T: Clone>(buffer: &mut Vec<T>, size: usize, value: T) {
+    buffer.clear();
+    buffer.resize(size, value);
+}
+
 impl Beam {
     /// The change of the deflection under `force` and `moment` (base frame, with the
     /// moment's change; the force is a weight, constant) at `station`.
@@ -359,7 +428,7 @@ impl Beam {
         d_station: f64,
         force: &Vec3,
         (moment, d_moment): (&Vec3, &Vec3),
-    ) -> nalgebra::Vector6<f64> {
+    ) -> Vector6<f64> {
         let (to_beam, d_to_beam) = (self.frame.transpose(), self.d_frame.transpose());
         let local_force = to_beam * force;
         let local_moment = to_beam * moment;
