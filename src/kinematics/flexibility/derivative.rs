@@ -198,6 +198,10 @@ impl FlexibilityModel {
     ) -> Vec<Motion> {
         let segment_motion = |index: usize| -> Motion {
             let [d_end, d_shift, d_psi] = &change.segments[index];
+            if [d_end, d_shift, d_psi].iter().all(|d| **d == Vec3::zeros()) {
+                // A segment the parameter leaves alone (the analytic change is exactly zero).
+                return Motion::zero();
+            }
             let [end0, shift0, _] = &base.segments[index];
             let (jacobian, rotation) = &base.segment_exp[index];
             let omega_local = jacobian * d_psi;
@@ -223,9 +227,11 @@ impl FlexibilityModel {
             if let Some(index) = self.segment_to_frame[i] {
                 motion = motion.add(&segment_motion(index));
             }
-            let after = &deflection.deflected[i];
-            let omega = after.rotation * (base.joint_jacobians[i] * change.joints[i]);
-            motion = motion.add(&Motion::about(omega, &after.translation, Vec3::zeros()));
+            if change.joints[i] != Vec3::zeros() {
+                let after = &deflection.deflected[i];
+                let omega = after.rotation * (base.joint_jacobians[i] * change.joints[i]);
+                motion = motion.add(&Motion::about(omega, &after.translation, Vec3::zeros()));
+            }
             frames.push(motion);
         }
         (0..model.tools().len())
