@@ -143,6 +143,7 @@ impl FlexibilityModel {
         let mut shifted = model.clone();
         let mut columns = Vec::with_capacity(parameters.len());
         let (mut scratch, mut change) = (Scratch::default(), Change::default());
+        let (mut frame_motions, mut tools) = (Vec::new(), Vec::new());
         for &p in parameters {
             let analytic = match how {
                 LoadChange::Analytic => Reach::of(model, &deflection.evaluation, &root, p),
@@ -163,7 +164,13 @@ impl FlexibilityModel {
                     change = base.differences(self, &evaluation, step);
                 }
             }
-            let tools = self.deformation_motions(model, &deflection, &base, &change);
+            self.deformation_motions(
+                model,
+                &deflection,
+                &base,
+                &change,
+                (&mut frame_motions, &mut tools),
+            );
             columns.push(
                 tools
                     .iter()
@@ -195,7 +202,8 @@ impl FlexibilityModel {
         deflection: &Deflection,
         base: &BaseParts,
         change: &Change,
-    ) -> Vec<Motion> {
+        (frames, tools): (&mut Vec<Motion>, &mut Vec<Motion>),
+    ) {
         let segment_motion = |index: usize| -> Motion {
             let [d_end, d_shift, d_psi] = &change.segments[index];
             if [d_end, d_shift, d_psi].iter().all(|d| **d == Vec3::zeros()) {
@@ -218,7 +226,7 @@ impl FlexibilityModel {
                 frame.rotation * d_translation,
             )
         };
-        let mut frames: Vec<Motion> = Vec::with_capacity(model.frames().len());
+        frames.clear();
         for (i, frame) in model.frames().iter().enumerate() {
             let mut motion = match frame.parent {
                 Some(p) => frames[p],
@@ -234,15 +242,14 @@ impl FlexibilityModel {
             }
             frames.push(motion);
         }
-        (0..model.tools().len())
-            .map(|t| {
-                let motion = self.tool_parent[t].map_or(Motion::zero(), |p| frames[p]);
-                match self.segment_to_tool[t] {
-                    Some(index) => motion.add(&segment_motion(index)),
-                    None => motion,
-                }
-            })
-            .collect()
+        tools.clear();
+        tools.extend((0..model.tools().len()).map(|t| {
+            let motion = self.tool_parent[t].map_or(Motion::zero(), |p| frames[p]);
+            match self.segment_to_tool[t] {
+                Some(index) => motion.add(&segment_motion(index)),
+                None => motion,
+            }
+        }));
     }
 
     /// The forward differences of the whole deflected chain (`(pose(p + step) ⊖ pose(p)) /

@@ -396,6 +396,12 @@ fn nearest_segment(
         };
         (point - placed.start - along * t).norm()
     };
+    // A body with one segment (all but a branching torso's): that one, no distance needed.
+    let mut candidates = model.iter().enumerate().filter(|(_, s)| s.frame == frame);
+    let first = candidates.next()?.0;
+    if candidates.next().is_none() {
+        return Some(first);
+    }
     // Each distance once (the first of equal ones still wins).
     model
         .iter()
