@@ -141,6 +141,9 @@ pub(super) struct Scratch {
 
 /// A segment's beam at the evaluation and its change: clamp, length, axis and beam frame.
 struct Beam {
+    /// Whether the beam itself stays (no end moves, its frame does not turn): then only its
+    /// tip load changes, and a mass that stays adds nothing.
+    still: bool,
     start: Vec3,
     d_start: Vec3,
     d_end: Vec3,
@@ -289,6 +292,9 @@ impl FlexibilityModel {
                 continue;
             };
             let velocity = &velocities[k];
+            if beam.still && *velocity == Vec3::zeros() {
+                continue;
+            }
             let raw = (position - beam.start).dot(&beam.axis);
             let (station, d_station) = if raw <= 0.0 {
                 (0.0, 0.0)
@@ -363,6 +369,7 @@ impl FlexibilityModel {
         if along.try_normalize(1e-12).is_none() {
             let frame = beam_frame(&d_along, &moved.rotation, segment.reference_axis);
             return Beam {
+                still: false,
                 start: placed.start,
                 d_start,
                 d_end,
@@ -399,6 +406,7 @@ impl FlexibilityModel {
         };
         let d_y = d_z.cross(&axis) + z.cross(&d_axis);
         Beam {
+            still: d_start == Vec3::zeros() && d_end == Vec3::zeros() && turning == Vec3::zeros(),
             start: placed.start,
             d_start,
             d_end,
