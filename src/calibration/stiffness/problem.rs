@@ -129,7 +129,7 @@ impl<'a> Problem<'a> {
 
     /// Weighted residual and, if asked, the Jacobian over the free geometry and the compliance
     /// scales `chosen` (per unit scale; at scale 1 that is per unit of its logarithm too): the compliance columns exact (see `ComplianceBasis::jacobian`), the
-    /// geometric ones by forward differences of the deflected poses (a deflection changes with
+    /// geometric ones the analytic derivative of the deflected poses (a deflection changes with
     /// the geometry through its lever arms, which the deflected-chain Jacobian leaves out; with
     /// compliances moving by tens of percent that slows the joint fit to a crawl).
     ///
@@ -301,7 +301,7 @@ impl<'a> Problem<'a> {
     }
 
     /// Per group and free parameter, the change of every deflected tool pose per unit
-    /// parameter (semi-analytic, see `FlexibilityModel::deflected_pose_derivatives`).
+    /// parameter (analytic, see `FlexibilityModel::deflected_pose_derivatives`).
     fn geometry_motions(
         &self,
         model: &McpcModel,

@@ -77,6 +77,37 @@ pub fn point_load_deflection(
     )
 }
 
+/// The change of [`point_load_deflection`] when the length, the station, the force and the
+/// moment change by `d_length`, `d_station`, `d_force` and `d_moment` (first order; the
+/// station is the clamped one and `d_station` its change, which the caller decides at a
+/// clamp). Its partial derivatives (docs/flexibility.md §11): `∂(a²(3L − a)/6) = a²/2·dL +
+/// (aL − a²/2)·da`, `∂(a(2L − a)/2) = a·dL + (L − a)·da`, `∂(a²/2) = a·da`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn point_load_deflection_change(
+    length: f64,
+    d_length: f64,
+    compliance: &BeamCompliance,
+    station: f64,
+    d_station: f64,
+    (force, d_force): (&Vec3, &Vec3),
+    (moment, d_moment): (&Vec3, &Vec3),
+) -> Vector6<f64> {
+    let a = station.clamp(0.0, length);
+    let (cy, cz) = (compliance.bending_y, compliance.bending_z);
+    let d_by_force = a * a / 2.0 * d_length + (a * length - a * a / 2.0) * d_station;
+    let d_by_moment = a * d_length + (length - a) * d_station;
+    let d_turn = a * d_station;
+    let held = point_load_deflection(length, compliance, station, d_force, d_moment);
+    held + Vector6::new(
+        force.x * d_station * compliance.axial,
+        cz * (force.y * d_by_force + moment.z * d_by_moment),
+        cy * (force.z * d_by_force - moment.y * d_by_moment),
+        moment.x * d_station * compliance.torsion,
+        cy * (-force.z * d_turn + moment.y * d_station),
+        cz * (force.y * d_turn + moment.z * d_station),
+    )
+}
+
 /// Tip deflection of a cantilever of length `length` under a uniform load `per_length`
 /// (beam frame, N/m) along its whole length:
 /// ```text

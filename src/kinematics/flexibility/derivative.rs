@@ -1,12 +1,13 @@
 //! How the deflected tool poses change with the MCPC parameters: the deflections change with
 //! the geometry through the lever arms of the loads, which a Jacobian on the deflected chain
-//! leaves out. Semi-analytic (docs/flexibility.md §11): the deflected chain's analytic
-//! Jacobian with every inserted deformation held, plus each deformation's own change (from a
-//! forward difference of the loads and deformations only, not of the chain) carried to the
-//! tools as a small rigid motion.
+//! leaves out. Analytic (docs/flexibility.md §11): the deflected chain's analytic Jacobian
+//! with every inserted deformation held, plus each deformation's own change (in closed form,
+//! `load_change.rs`; or a forward difference of the loads and deformations only, not of the
+//! chain) carried to the tools as a small rigid motion.
 
 use super::apply::Deflection;
 use super::compliance::{left_jacobian, right_jacobian};
+use super::load_change::{Change, Reach, Scratch};
 use super::loads::Evaluation;
 use super::model::FlexibilityModel;
 use crate::error::Result;
@@ -47,6 +48,15 @@ impl Motion {
     }
 }
 
+/// How a deformation's change with a parameter is had.
+#[derive(Debug, Clone, Copy)]
+enum LoadChange {
+    /// In closed form (`load_change.rs`), where the parameter is a frame's or a tool's.
+    Analytic,
+    /// A forward difference of the loads and deformations.
+    Differenced,
+}
+
 /// Segment `index`'s inserted transform `S = (R_s, t_s)` in its proximal nominal moved frame
 /// (see `deflected_frames`), by its parts: the free end `e`, the translation `L·u` and the
 /// rotation vector `ψ` (`R_s = Exp(ψ)`, `t_s = e + L·u − R_s·e`).
@@ -66,13 +76,15 @@ impl FlexibilityModel {
     /// every deflected tool pose ([`Self::deflected_tool_poses`]) per unit parameter at
     /// configuration `q`, `[dp; δθ]` in the convention of [`pose_error`].
     ///
-    /// Semi-analytic (docs/flexibility.md §11): the analytic Jacobian of the deflected chain
-    /// with every deformation held, plus the change of each joint's and segment's deformation
-    /// (a forward difference of step `step` of the loads and deformations, not of the chain)
-    /// as a small rigid motion of what follows it. Agrees with central differences of
-    /// [`Self::deflected_tool_poses`] to ~1e-7 relative (1e-9 with joint compliance alone;
-    /// `tests/flexibility_derivative.rs`). With a reference link (the measurement frame on a
-    /// moving link) it is the forward difference of the whole deflected chain.
+    /// Analytic (docs/flexibility.md §11): the analytic Jacobian of the deflected chain with
+    /// every deformation held, plus the change of each joint's and segment's deformation in
+    /// closed form (the loads' change with the geometry) as a small rigid motion of what
+    /// follows it. Agrees with central differences of [`Self::deflected_tool_poses`] to
+    /// ~1e-7 relative (1e-9 with joint compliance alone; `tests/flexibility_derivative.rs`).
+    /// `step` is the forward-difference step of the loads for the parameters that are not a
+    /// frame's or a tool's (joint errors, the measurement frame); with a reference link (the
+    /// measurement frame on a moving link) every column is the forward difference of the
+    /// whole deflected chain.
     pub fn deflected_pose_derivatives(
         &self,
         tree: &KinematicTree,
@@ -80,6 +92,32 @@ impl FlexibilityModel {
         q: &[f64],
         parameters: &[usize],
         step: f64,
+    ) -> Result<Vec<Vec<Vector6<f64>>>> {
+        self.pose_derivatives(tree, model, q, parameters, step, LoadChange::Analytic)
+    }
+
+    /// [`Self::deflected_pose_derivatives`] with every deformation's change a forward
+    /// difference (step `step`) of the loads and deformations: the semi-analytic derivative
+    /// the analytic one is checked against (`tests/flexibility_derivative.rs`).
+    pub fn deflected_pose_derivatives_by_load_differences(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        q: &[f64],
+        parameters: &[usize],
+        step: f64,
+    ) -> Result<Vec<Vec<Vector6<f64>>>> {
+        self.pose_derivatives(tree, model, q, parameters, step, LoadChange::Differenced)
+    }
+
+    fn pose_derivatives(
+        &self,
+        tree: &KinematicTree,
+        model: &McpcModel,
+        q: &[f64],
+        parameters: &[usize],
+        step: f64,
+        how: LoadChange,
     ) -> Result<Vec<Vec<Vector6<f64>>>> {
         self.check(tree, model, q)?;
         let tree_poses = if self.uses_tree {
@@ -100,14 +138,39 @@ impl FlexibilityModel {
             .map(|t| t.translation)
             .collect();
         let base = BaseParts::new(self, &deflection);
+        let root = model.world_from_root_transform(q);
         let values = model.parameters();
         let mut shifted = model.clone();
         let mut columns = Vec::with_capacity(parameters.len());
+        let (mut scratch, mut change) = (Scratch::default(), Change::default());
+        let (mut frame_motions, mut tools) = (Vec::new(), Vec::new());
         for &p in parameters {
-            shifted.set_parameter(p, values[p] + step)?;
-            let evaluation = self.evaluate_with(&shifted, q, &tree_poses);
-            shifted.set_parameter(p, values[p])?;
-            let tools = self.deformation_motions(model, &deflection, &base, &evaluation, step);
+            let analytic = match how {
+                LoadChange::Analytic => Reach::of(model, &deflection.evaluation, &root, p),
+                LoadChange::Differenced => None,
+            };
+            match analytic {
+                Some(reach) => self.load_change(
+                    model,
+                    &deflection.evaluation,
+                    &reach,
+                    &mut scratch,
+                    &mut change,
+                ),
+                None => {
+                    shifted.set_parameter(p, values[p] + step)?;
+                    let evaluation = self.evaluate_with(&shifted, q, &tree_poses);
+                    shifted.set_parameter(p, values[p])?;
+                    change = base.differences(self, &evaluation, step);
+                }
+            }
+            self.deformation_motions(
+                model,
+                &deflection,
+                &base,
+                &change,
+                (&mut frame_motions, &mut tools),
+            );
             columns.push(
                 tools
                     .iter()
@@ -131,27 +194,29 @@ impl FlexibilityModel {
         Ok(columns)
     }
 
-    /// Per tool, the rigid motion that the change of every deformation on its path (from the
-    /// deformations at `deflection` to `evaluation`, per `step`) gives it.
+    /// Per tool, the rigid motion that `change` (per unit parameter, from the deformations at
+    /// `deflection`) gives it along its path.
     fn deformation_motions(
         &self,
         model: &McpcModel,
         deflection: &Deflection,
         base: &BaseParts,
-        evaluation: &Evaluation,
-        step: f64,
-    ) -> Vec<Motion> {
+        change: &Change,
+        (frames, tools): (&mut Vec<Motion>, &mut Vec<Motion>),
+    ) {
         let segment_motion = |index: usize| -> Motion {
-            let [end, shift, psi] = segment_parts(self, evaluation, index);
-            let [end0, shift0, psi0] = &base.segments[index];
+            let [d_end, d_shift, d_psi] = &change.segments[index];
+            if [d_end, d_shift, d_psi].iter().all(|d| **d == Vec3::zeros()) {
+                // A segment the parameter leaves alone (the analytic change is exactly zero).
+                return Motion::zero();
+            }
+            let [end0, shift0, _] = &base.segments[index];
             let (jacobian, rotation) = &base.segment_exp[index];
-            let d_end = (end - end0) / step;
-            let omega_local = jacobian * ((psi - psi0) / step);
+            let omega_local = jacobian * d_psi;
             let rotated_end = rotation * end0;
             // t_s = e + L·u − R_s·e, so dt_s = de + d(L·u) − ω × (R_s·e) − R_s·de.
-            let d_translation = d_end + (shift - shift0) / step
-                - omega_local.cross(&rotated_end)
-                - rotation * d_end;
+            let d_translation =
+                d_end + d_shift - omega_local.cross(&rotated_end) - rotation * d_end;
             let translation = end0 + shift0 - rotated_end;
             // A point y (after S, in D's coordinates) moves by ω × (y − t_s) + dt_s.
             let frame = &deflection.deflected[self.segments[index].frame];
@@ -161,7 +226,7 @@ impl FlexibilityModel {
                 frame.rotation * d_translation,
             )
         };
-        let mut frames: Vec<Motion> = Vec::with_capacity(model.frames().len());
+        frames.clear();
         for (i, frame) in model.frames().iter().enumerate() {
             let mut motion = match frame.parent {
                 Some(p) => frames[p],
@@ -170,22 +235,21 @@ impl FlexibilityModel {
             if let Some(index) = self.segment_to_frame[i] {
                 motion = motion.add(&segment_motion(index));
             }
-            let local = evaluation.deformations.joints[i].local.fixed_rows::<3>(3);
-            let after = &deflection.deflected[i];
-            let omega =
-                after.rotation * (base.joint_jacobians[i] * ((local - base.joints[i]) / step));
-            motion = motion.add(&Motion::about(omega, &after.translation, Vec3::zeros()));
+            if change.joints[i] != Vec3::zeros() {
+                let after = &deflection.deflected[i];
+                let omega = after.rotation * (base.joint_jacobians[i] * change.joints[i]);
+                motion = motion.add(&Motion::about(omega, &after.translation, Vec3::zeros()));
+            }
             frames.push(motion);
         }
-        (0..model.tools().len())
-            .map(|t| {
-                let motion = self.tool_parent[t].map_or(Motion::zero(), |p| frames[p]);
-                match self.segment_to_tool[t] {
-                    Some(index) => motion.add(&segment_motion(index)),
-                    None => motion,
-                }
-            })
-            .collect()
+        tools.clear();
+        tools.extend((0..model.tools().len()).map(|t| {
+            let motion = self.tool_parent[t].map_or(Motion::zero(), |p| frames[p]);
+            match self.segment_to_tool[t] {
+                Some(index) => motion.add(&segment_motion(index)),
+                None => motion,
+            }
+        }));
     }
 
     /// The forward differences of the whole deflected chain (`(pose(p + step) ⊖ pose(p)) /
@@ -237,6 +301,27 @@ struct BaseParts {
 }
 
 impl BaseParts {
+    /// The change from these parts to `evaluation`'s, per `step` (a forward difference).
+    fn differences(&self, model: &FlexibilityModel, evaluation: &Evaluation, step: f64) -> Change {
+        let joints = evaluation
+            .deformations
+            .joints
+            .iter()
+            .zip(&self.joints)
+            .map(|(joint, base)| (joint.local.fixed_rows::<3>(3) - base) / step)
+            .collect();
+        let segments = self
+            .segments
+            .iter()
+            .enumerate()
+            .map(|(index, base)| {
+                let parts = segment_parts(model, evaluation, index);
+                [0, 1, 2].map(|k| (parts[k] - base[k]) / step)
+            })
+            .collect();
+        Change { joints, segments }
+    }
+
     fn new(model: &FlexibilityModel, deflection: &Deflection) -> Self {
         let evaluation = &deflection.evaluation;
         let joints: Vec<Vec3> = evaluation

@@ -63,6 +63,16 @@ pub(crate) struct Evaluation {
     pub(crate) moved: Vec<Transform>,
     /// Every tool frame, base frame.
     pub(crate) tools: Vec<Transform>,
+    /// Σᵢ of every frame (before its joint's motion), base frame.
+    pub(crate) frames: Vec<Transform>,
+    /// Every mass's position, base frame (in `FlexibilityModel::masses` order).
+    pub(crate) positions: Vec<Vec3>,
+    /// The segment each mass's self-weight loads (`None`: none).
+    pub(crate) mass_segments: Vec<Option<usize>>,
+    /// The subtree loads the deformations come from.
+    pub(crate) loads: Loads,
+    /// Gravity in the base frame, m/s².
+    pub(crate) gravity: Vec3,
 }
 
 impl FlexibilityModel {
@@ -141,7 +151,7 @@ impl FlexibilityModel {
         let loads = self.loads(model, &gravity, &positions, tools.len());
         let joints = self.joint_deformations(&moved, &loads);
         let mut segments = self.segment_deformations(&frames, &moved, &tools, &loads);
-        self.add_self_weight(&mut segments, &positions, &gravity);
+        let mass_segments = self.add_self_weight(&mut segments, &positions, &gravity);
         for segment in &mut segments {
             segment.translation = segment.base_from_beam * segment.local.fixed_rows::<3>(0);
             segment.rotation = segment.base_from_beam * segment.local.fixed_rows::<3>(3);
@@ -150,6 +160,11 @@ impl FlexibilityModel {
             deformations: Deformations { joints, segments },
             moved,
             tools,
+            frames,
+            positions,
+            mass_segments,
+            loads,
+            gravity,
         }
     }
 
@@ -315,14 +330,16 @@ impl FlexibilityModel {
     }
 
     /// Self-weight: each link's weight at its centre of mass projected on its segment, with
-    /// the moment of the offset (see docs/flexibility.md).
+    /// the moment of the offset (see docs/flexibility.md). Returns the segment each mass
+    /// loads.
     fn add_self_weight(
         &self,
         segments: &mut [SegmentDeformation],
         positions: &[Vec3],
         gravity: &Vec3,
-    ) {
-        for (mass, position) in self.masses.iter().zip(positions) {
+    ) -> Vec<Option<usize>> {
+        let mut chosen = vec![None; self.masses.len()];
+        for ((mass, position), chosen) in self.masses.iter().zip(positions).zip(&mut chosen) {
             if mass.segment.is_none() {
                 continue;
             }
@@ -332,6 +349,7 @@ impl FlexibilityModel {
             else {
                 continue;
             };
+            *chosen = Some(index);
             let segment = &mut segments[index];
             let axis = segment.base_from_beam.column(0).into_owned();
             let length = (segment.end - segment.start).norm();
@@ -348,16 +366,17 @@ impl FlexibilityModel {
                 &(to_beam * (position - on_axis).cross(&weight)),
             );
         }
+        chosen
     }
 }
 
 /// The weight each joint carries, and the weight of the masses at each tool, as forces and
 /// moments about the base origin, base frame (N, N·m).
-struct Loads {
-    force: Vec<Vec3>,
-    torque: Vec<Vec3>,
-    tool_force: Vec<Vec3>,
-    tool_torque: Vec<Vec3>,
+pub(crate) struct Loads {
+    pub(crate) force: Vec<Vec3>,
+    pub(crate) torque: Vec<Vec3>,
+    pub(crate) tool_force: Vec<Vec3>,
+    pub(crate) tool_torque: Vec<Vec3>,
 }
 
 /// The segment of frame `frame`'s body nearest to `point` (base frame), the first on ties.
@@ -377,6 +396,12 @@ fn nearest_segment(
         };
         (point - placed.start - along * t).norm()
     };
+    // A body with one segment (all but a branching torso's): that one, no distance needed.
+    let mut candidates = model.iter().enumerate().filter(|(_, s)| s.frame == frame);
+    let first = candidates.next()?.0;
+    if candidates.next().is_none() {
+        return Some(first);
+    }
     // Each distance once (the first of equal ones still wins).
     model
         .iter()
@@ -391,7 +416,7 @@ fn nearest_segment(
 /// The beam frame of a segment along `along` (base frame): x along the segment, z the moved
 /// frame's `reference` column made perpendicular to x, y = z × x. A zero-length segment gets
 /// the moved frame itself (its deflection is zero anyway).
-fn beam_frame(along: &Vec3, moved: &Mat3, reference: usize) -> Mat3 {
+pub(super) fn beam_frame(along: &Vec3, moved: &Mat3, reference: usize) -> Mat3 {
     let Some(x) = along.try_normalize(1e-12) else {
         return *moved;
     };

@@ -13,7 +13,8 @@
 //!   [`FlexibilityModel::tool_deflections`], and the deflected forward kinematics,
 //!   [`FlexibilityModel::deflected_tool_poses`].
 //! - `derivative`: how the deflected tool poses change with the MCPC parameters,
-//!   [`FlexibilityModel::deflected_pose_derivatives`].
+//!   [`FlexibilityModel::deflected_pose_derivatives`]; `load_change`: the loads' and
+//!   deformations' change with one parameter in closed form.
 //!
 //! The model, its sign conventions and the comparison with the paper: `docs/flexibility.md`.
 
@@ -21,6 +22,7 @@ mod apply;
 mod beam;
 mod compliance;
 mod derivative;
+mod load_change;
 mod loads;
 mod model;
 pub(crate) mod names;
