@@ -126,7 +126,8 @@ impl Deflected<'_> {
 /// with the parameters. At 5000 N·m/rad and 20 kg the deflections are centimetres and
 /// degrees, and a 5 cm error in a lever arm changes them by a good fraction, so the Jacobian
 /// on the deflected chain alone ([`Deflected`]) makes the iteration converge only linearly.
-/// The missing part — the exact derivative of the deflected poses (forward differences) minus
+/// The missing part — the exact derivative of the deflected poses (the loads' change in closed
+/// form for frame and tool parameters, forward differences for the others) minus
 /// the deflected-chain Jacobian — is computed per configuration once the iterates settle and
 /// reused while the parameters stay within [`CORRECTION_RADIUS`] of where it was computed (its
 /// own change is second order): two or three times per calibration.
@@ -248,8 +249,8 @@ impl<'a> DeflectedWithDerivative<'a> {
     }
 
     /// Columns `columns` of `J_exact − J_chain` at `model` into `correction`: the exact
-    /// derivative of the deflected poses (semi-analytic,
-    /// `FlexibilityModel::deflected_pose_derivatives`) minus the chain's.
+    /// derivative of the deflected poses (`FlexibilityModel::deflected_pose_derivatives`)
+    /// minus the chain's.
     fn fill(
         &self,
         model: &McpcModel,
