@@ -14,15 +14,15 @@
 
 use super::camera_tracker::CameraTrackerInput;
 use super::contact_cv::{
-    candidate_problem, choose_contact_model, fit_candidate, model_markdown, ContactCv,
-    ContactCvInput, ContactFolds, ContactModelSpec,
+    candidate_problem, choose_contact_model, fit_candidate, model_markdown, ContactCvInput,
+    ContactFolds,
 };
-use super::contact_fit::{plane_start, ContactFit, ContactProblem};
+use super::contact_fit::{plane_start, ContactProblem};
 use super::contact_model::{only_tools, robot_free, setup_model, written_differs};
 use super::contact_model::{written_scores, SetupModel};
-use super::contact_scale::{has_length_reference, scale_held, size_ratio};
+use super::contact_scale::{hold_scale, size_ratio, Fitted};
 use super::contact_tracker::{contact_kind_scales, tracker_links, ContactTracker};
-use super::model_choice::{ModelChoice, ModelLevel, ParameterPatterns};
+use super::model_choice::{ModelChoice, ParameterPatterns};
 use super::note::Note;
 use super::source::RobotSource;
 use crate::calibration::NuisanceBlock;
@@ -172,8 +172,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             tracker.rows.len()
         )));
     }
-    let fitted = fit_model(config, tree, &problem, &options, &mut notes)?;
-    let (fitted, refused) = hold_scale(config, tree, &problem, fitted, &options, &mut notes)?;
+    let (fitted, refused) = fit_holding_scale(config, tree, &problem, &options, &mut notes)?;
     let (problem, fit, spec, cv) = fitted;
     let scores = ContactScores::new(&problem, &fit, &options)?;
     let mut calibrated = problem.model.clone();
@@ -243,6 +242,29 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
     })
 }
 
+/// [`fit_model`], then [`hold_scale`]: refitted with the prior when the model was the data's
+/// choice and the fit changed the robot's size; the reason the verdict fails when it still
+/// does.
+fn fit_holding_scale(
+    config: &ContactCalibrateConfig,
+    tree: &KinematicTree,
+    problem: &ContactProblem,
+    options: &IdentificationOptions,
+    notes: &mut Vec<Note>,
+) -> Result<(Fitted, Option<String>)> {
+    let fitted = fit_model(config, tree, problem, options, notes)?;
+    let refit = |model, prior, notes: &mut Vec<Note>| {
+        let config = ContactCalibrateConfig {
+            model,
+            prior,
+            cv: None,
+            ..config.clone()
+        };
+        fit_model(&config, tree, problem, options, notes)
+    };
+    hold_scale((config.model, config.prior), problem, fitted, refit, notes)
+}
+
 /// The model the config asks for or the data choose ([`choose_contact_model`]), as a problem,
 /// and its fit.
 fn fit_model(
@@ -272,77 +294,6 @@ fn fit_model(
         None => fit_candidate(&problem, options, choice.spec, input.prior_scale)?,
     };
     Ok((problem, fit, choice.spec, choice.cv))
-}
-
-/// A contact fit: the problem of its model, the fit, the model, the cross-validation.
-type Fitted = (
-    ContactProblem,
-    ContactFit,
-    ContactModelSpec,
-    Option<ContactCv>,
-);
-
-/// `fitted` when it keeps the robot's size ([`contact_scale`](super::contact_scale)), or,
-/// where the model was the data's choice, refitted with the prior on the nominal values (which
-/// holds the scale); with the reason the verdict fails when the size is still off.
-fn hold_scale(
-    config: &ContactCalibrateConfig,
-    tree: &KinematicTree,
-    base: &ContactProblem,
-    fitted: Fitted,
-    options: &IdentificationOptions,
-    notes: &mut Vec<Note>,
-) -> Result<(Fitted, Option<String>)> {
-    let ratio = |(problem, fit, ..): &Fitted| {
-        let mut calibrated = problem.model.clone();
-        calibrated.set_parameters(&fit.after.parameters).ok()?;
-        size_ratio(&problem.model, &calibrated, &problem.training)
-    };
-    let first = ratio(&fitted);
-    if has_length_reference(base) || scale_held(first) {
-        return Ok((fitted, None));
-    }
-    let first = first.unwrap_or(1.0);
-    let why = "flush, point and touch contacts fix no length, and encoder noise pulls a free \
-               fit towards a smaller robot (docs/contacts.md, \"The length scale\")";
-    let data_choose = matches!(config.model, ModelChoice::Adaptive | ModelChoice::Auto);
-    if fitted.2.prior || !data_choose {
-        let reason = format!(
-            "the calibrated robot is {first:.3}× the nominal robot's size (its tools' spread \
-             over the training configurations): {why}; use the default model or --prior, or add \
-             a bar of known length or tracker rows"
-        );
-        notes.push(Note::warning(reason.clone()));
-        return Ok((fitted, Some(reason)));
-    }
-    let with_prior = ContactCalibrateConfig {
-        model: ModelChoice::Level(if fitted.2.offsets {
-            ModelLevel::Offsets
-        } else {
-            ModelLevel::Geometry
-        }),
-        prior: Some(config.prior.unwrap_or(1.0)),
-        cv: None,
-        ..config.clone()
-    };
-    let refit = fit_model(&with_prior, tree, base, options, notes)?;
-    let second = ratio(&refit);
-    notes.push(Note::warning(format!(
-        "the '{}' fit made the robot {first:.3}× its nominal size (its tools' spread over the \
-         training configurations): {why}; refitted with the prior on the nominal values, which \
-         holds the scale: '{}', {:.3}×; a bar of known length or tracker rows fix the scale",
-        fitted.2.name(),
-        refit.2.name(),
-        second.unwrap_or(1.0)
-    )));
-    let refused = (!scale_held(second)).then(|| {
-        format!(
-            "the calibrated robot is {:.3}× the nominal robot's size even with the prior: {why}",
-            second.unwrap_or(1.0)
-        )
-    });
-    let (problem, fit, spec, _) = refit;
-    Ok(((problem, fit, spec, fitted.3), refused))
 }
 
 /// The training and held-out contacts: the contacts file and the validation file, or every

@@ -14,7 +14,11 @@
 //! than [`SCALE_TOLERANCE`] (15 %), the default model choice refits with the prior on the nominal
 //! values (which holds the scale), and a result still off fails the verdict.
 
-use super::contact_fit::ContactProblem;
+use super::contact_cv::{ContactCv, ContactModelSpec};
+use super::contact_fit::{ContactFit, ContactProblem};
+use super::model_choice::{ModelChoice, ModelLevel};
+use super::note::Note;
+use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::measurement::{Contact, Measurement, Observation};
 use std::collections::BTreeMap;
@@ -72,4 +76,70 @@ pub(crate) fn size_ratio(
 /// Whether `ratio` is within [`SCALE_TOLERANCE`] of 1.
 pub(super) fn scale_held(ratio: Option<f64>) -> bool {
     ratio.is_none_or(|r| (r - 1.0).abs() <= SCALE_TOLERANCE)
+}
+
+/// A contact fit: the problem of its model, the fit, the model, the cross-validation.
+pub(super) type Fitted = (
+    ContactProblem,
+    ContactFit,
+    ContactModelSpec,
+    Option<ContactCv>,
+);
+
+/// `fitted` (of the `model` and `prior` asked for) when it keeps the robot's size (the module
+/// documentation), or, where the model was the data's choice, `refit` with the prior on the
+/// nominal values (which holds the scale); with the reason the verdict fails when the size is
+/// still off.
+pub(super) fn hold_scale(
+    (model, prior): (ModelChoice, Option<f64>),
+    base: &ContactProblem,
+    fitted: Fitted,
+    refit: impl FnOnce(ModelChoice, Option<f64>, &mut Vec<Note>) -> Result<Fitted>,
+    notes: &mut Vec<Note>,
+) -> Result<(Fitted, Option<String>)> {
+    let ratio = |(problem, fit, ..): &Fitted| {
+        let mut calibrated = problem.model.clone();
+        calibrated.set_parameters(&fit.after.parameters).ok()?;
+        size_ratio(&problem.model, &calibrated, &problem.training)
+    };
+    let first = ratio(&fitted);
+    if has_length_reference(base) || scale_held(first) {
+        return Ok((fitted, None));
+    }
+    let first = first.unwrap_or(1.0);
+    let why = "flush, point and touch contacts fix no length, and encoder noise pulls a free \
+               fit towards a smaller robot (docs/contacts.md, \"The length scale\")";
+    let data_choose = matches!(model, ModelChoice::Adaptive | ModelChoice::Auto);
+    if fitted.2.prior || !data_choose {
+        let reason = format!(
+            "the calibrated robot is {first:.3}× the nominal robot's size (its tools' spread \
+             over the training configurations): {why}; use the default model or --prior, or add \
+             a bar of known length or tracker rows"
+        );
+        notes.push(Note::warning(reason.clone()));
+        return Ok((fitted, Some(reason)));
+    }
+    let level = if fitted.2.offsets {
+        ModelLevel::Offsets
+    } else {
+        ModelLevel::Geometry
+    };
+    let refit = refit(ModelChoice::Level(level), Some(prior.unwrap_or(1.0)), notes)?;
+    let second = ratio(&refit);
+    notes.push(Note::warning(format!(
+        "the '{}' fit made the robot {first:.3}× its nominal size (its tools' spread over the \
+         training configurations): {why}; refitted with the prior on the nominal values, which \
+         holds the scale: '{}', {:.3}×; a bar of known length or tracker rows fix the scale",
+        fitted.2.name(),
+        refit.2.name(),
+        second.unwrap_or(1.0)
+    )));
+    let refused = (!scale_held(second)).then(|| {
+        format!(
+            "the calibrated robot is {:.3}× the nominal robot's size even with the prior: {why}",
+            second.unwrap_or(1.0)
+        )
+    });
+    let (problem, fit, spec, _) = refit;
+    Ok(((problem, fit, spec, fitted.3), refused))
 }
