@@ -169,16 +169,19 @@ pub(super) fn read_data(
 }
 
 /// `items` without the rows `held` (ascending), and those rows, both in order. Moved in
-/// place, not copied: at 10⁶ configurations a copy of the measurements is about 700 MB.
-fn split_held<T>(items: Vec<T>, held: &[usize]) -> (Vec<T>, Vec<T>) {
-    // `Option<T>` has the size of `T` for these types: both collects reuse the allocation.
-    let mut slots: Vec<Option<T>> = items.into_iter().map(Some).collect();
-    let taken = held
-        .iter()
-        .filter_map(|&i| slots.get_mut(i)?.take())
-        .collect();
-    slots.retain(Option::is_some);
-    (slots.into_iter().flatten().collect(), taken)
+/// place, not copied: at 10⁶ configurations a copy of the measurements is about 700 MB (and a
+/// kept set collected anew, grown by doubling, was the peak of the whole run at 10⁶).
+fn split_held<T>(mut items: Vec<T>, held: &[usize]) -> (Vec<T>, Vec<T>) {
+    let mut next = held.iter().copied().peekable();
+    let mut index = 0;
+    let mut taken = Vec::with_capacity(held.len());
+    // `extract_if` visits the items in order, once each, and keeps the rest where they are.
+    taken.extend(items.extract_if(.., |_| {
+        let is_held = next.next_if_eq(&index).is_some();
+        index += 1;
+        is_held
+    }));
+    (items, taken)
 }
 
 /// A finished identification and how it was set up.
@@ -333,5 +336,20 @@ pub(super) fn export_calibrated(
             ));
             None
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::split_held;
+
+    #[test]
+    fn split_held_keeps_both_parts_in_order() {
+        let items: Vec<String> = (0..10).map(|i| i.to_string()).collect();
+        let (kept, held) = split_held(items, &[0, 4, 5, 9]);
+        assert_eq!(kept, ["1", "2", "3", "6", "7", "8"]);
+        assert_eq!(held, ["0", "4", "5", "9"]);
+        let (kept, held) = split_held(vec![1, 2], &[]);
+        assert_eq!((kept, held), (vec![1, 2], vec![]));
     }
 }
