@@ -181,6 +181,9 @@ fn split_held<T>(mut items: Vec<T>, held: &[usize]) -> (Vec<T>, Vec<T>) {
         index += 1;
         is_held
     }));
+    // The held rows' room back to the system (a large buffer shrinks in place): at 10⁶
+    // configurations about 90 MB of resident memory through the identification.
+    items.shrink_to_fit();
     (items, taken)
 }
 
