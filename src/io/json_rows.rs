@@ -25,7 +25,13 @@ pub fn to_json_rows<T: serde::Serialize>(value: &T) -> Result<String> {
     String::from_utf8(bytes).map_err(|e| invalid(e.to_string()))
 }
 
-fn render<T: serde::Serialize, W: Write>(value: &T, out: &mut W) -> Result<()> {
+/// As [`to_json_rows`], written to `out` as it is rendered (the same bytes, never held whole).
+pub fn write_json_rows<T: serde::Serialize>(value: &T, out: &mut dyn Write) -> Result<()> {
+    render(value, out)?;
+    out.write_all(b"\n").map_err(|e| invalid(e.to_string()))
+}
+
+fn render<T: serde::Serialize, W: Write + ?Sized>(value: &T, out: &mut W) -> Result<()> {
     let mut serializer = serde_json::Serializer::with_formatter(out, Shallow::default());
     value
         .serialize(&mut serializer)

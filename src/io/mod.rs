@@ -67,7 +67,7 @@ pub use joints_csv::{
     append_poses, configurations, joint_value, parse_csv, pose_fields, ColumnMapping, POSE_COLUMNS,
 };
 pub use joints_stream::{open_csv_records, CsvRecords};
-pub use json_rows::to_json_rows;
+pub use json_rows::{to_json_rows, write_json_rows};
 pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
 pub use measurement_table::{MeasurementTable, ObservationRows};
 pub use measurements_csv::{
@@ -101,8 +101,8 @@ pub use units::{
     parse_units_header, resolve_units, AngleUnit, LengthUnit, MeasurementUnits, StatedUnits,
 };
 pub use write::{
-    check_output_dir, check_output_file, check_output_folder, replace_folder, write_atomically,
-    write_atomically_with,
+    check_output_dir, check_output_file, check_output_folder, replace_folder,
+    replace_folder_streamed, write_atomically, write_atomically_with, StreamedFile,
 };
 
 use crate::error::{Error, Result};

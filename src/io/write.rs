@@ -181,6 +181,20 @@ fn folder_name(folder: &Path) -> Result<String> {
 /// no staging folder behind. Call [`check_output_folder`] first: this does not check what the
 /// old folder holds.
 pub fn replace_folder(folder: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
+    replace_folder_streamed(folder, files, &[])
+}
+
+/// A file of an output folder whose contents `write` streams into it (through a buffer), for
+/// outputs too large to hold whole in memory.
+pub type StreamedFile<'a> = (&'a str, &'a dyn Fn(&mut dyn Write) -> Result<()>);
+
+/// As [`replace_folder`], with the files of `streamed` written after `files` by their
+/// writers; an error from a writer leaves the previous folder as it was, as any other.
+pub fn replace_folder_streamed(
+    folder: &Path,
+    files: &[(String, Vec<u8>)],
+    streamed: &[StreamedFile<'_>],
+) -> Result<()> {
     let io = |path: &Path, source| Error::Io {
         path: path.to_owned(),
         source,
@@ -191,18 +205,28 @@ pub fn replace_folder(folder: &Path, files: &[(String, Vec<u8>)]) -> Result<()> 
     let _lock = lock_output(&parent, &name)?;
     recover(&parent, &name)?;
     let staging = aside(&parent, &name, "new");
-    let written = (|| -> std::io::Result<()> {
-        std::fs::create_dir(&staging)?;
+    let written = (|| -> Result<()> {
+        std::fs::create_dir(&staging).map_err(|e| io(folder, e))?;
         for (file, contents) in files {
-            let mut handle = std::fs::File::create(staging.join(file))?;
-            handle.write_all(contents)?;
-            handle.sync_all()?;
+            let mut handle =
+                std::fs::File::create(staging.join(file)).map_err(|e| io(folder, e))?;
+            handle.write_all(contents).map_err(|e| io(folder, e))?;
+            handle.sync_all().map_err(|e| io(folder, e))?;
+        }
+        for (file, write) in streamed {
+            let handle = std::fs::File::create(staging.join(file)).map_err(|e| io(folder, e))?;
+            let mut buffered = std::io::BufWriter::with_capacity(1 << 20, handle);
+            write(&mut buffered)?;
+            let handle = buffered
+                .into_inner()
+                .map_err(|e| io(folder, e.into_error()))?;
+            handle.sync_all().map_err(|e| io(folder, e))?;
         }
         Ok(())
     })();
-    if let Err(source) = written {
+    if let Err(error) = written {
         let _ = std::fs::remove_dir_all(&staging);
-        return Err(io(folder, source));
+        return Err(error);
     }
     if !folder.exists() {
         if let Err(source) = std::fs::rename(&staging, folder) {

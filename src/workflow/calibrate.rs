@@ -12,9 +12,10 @@ use super::calibrate_outputs::outputs;
 use super::calibrate_steps::{check_config, export_calibrated, read_data, Loaded};
 use super::checks::{check_outputs, Output};
 use super::note::Note;
+use super::report_json::ReportParts;
 use crate::calibration::{ParameterEstimate, Verdict};
 use crate::error::{Error, Result};
-use crate::io::{check_output_folder, replace_folder, write_atomically};
+use crate::io::{check_output_folder, replace_folder_streamed, write_atomically, StreamedFile};
 use std::path::{Path, PathBuf};
 
 /// The files [`Calibration::write`] writes besides the SVG plots.
@@ -65,16 +66,30 @@ pub struct Calibration {
     pub report_markdown: String,
     /// The calibrated URDF; `None` when the verdict failed or the model cannot be exported.
     pub urdf: Option<String>,
-    /// Every output file: `(name, bytes)`.
+    /// Every output file: `(name, bytes)`; without report.json after
+    /// [`calibrate_for_writing`] (then [`Calibration::write`] renders it into the folder).
     pub files: Vec<(String, Vec<u8>)>,
     /// The input files it was computed from ([`CalibrateConfig::inputs`]): the writers refuse
     /// to replace or delete them.
     pub inputs: Vec<PathBuf>,
+    /// report.json not yet rendered ([`calibrate_for_writing`]): its value and typed rows.
+    unrendered_report: Option<(serde_json::Value, ReportParts)>,
 }
 
 /// Calibrates: reads the inputs, identifies the parameters (and the stiffness if asked),
 /// checks the result, exports the URDF and renders the reports. Writes nothing.
 pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
+    calibrate_rendering(config, true)
+}
+
+/// As [`calibrate`], with report.json left unrendered until [`Calibration::write`] streams it
+/// into the folder: at 10⁶ configurations a text of about 900 MB never held in memory.
+/// [`Calibration::files`] lacks report.json; [`Calibration::report`] still gives its value.
+pub fn calibrate_for_writing(config: &CalibrateConfig) -> Result<Calibration> {
+    calibrate_rendering(config, false)
+}
+
+fn calibrate_rendering(config: &CalibrateConfig, render_report: bool) -> Result<Calibration> {
     let started = super::provenance::Started::now();
     check_config(config)?;
     let loaded = Loaded::new(config)?;
@@ -101,12 +116,16 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
     let parameters = std::mem::take(&mut result.run.parameters);
     drop((data, result));
     let provenance = super::provenance::calibrate_record(config, started)?;
+    if !render_report {
+        outputs.files.retain(|(name, _)| name != "report.json");
+    }
     super::provenance::attach(
         &provenance,
         "report.json",
         (&mut outputs.report, &outputs.report_parts),
         &mut outputs.files,
     )?;
+    let unrendered_report = (!render_report).then_some((outputs.report, outputs.report_parts));
     Ok(Calibration {
         verdict: outputs.verdict,
         notes,
@@ -115,6 +134,7 @@ pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
         urdf: outputs.urdf,
         files: outputs.files,
         inputs: config.inputs().into_iter().map(Path::to_owned).collect(),
+        unrendered_report,
     })
 }
 
@@ -122,6 +142,9 @@ impl Calibration {
     /// The content of report.json, parsed from the file's text (`files`): at 10⁵ rows a
     /// value of some hundreds of MB, so the calibration holds only the text.
     pub fn report(&self) -> serde_json::Value {
+        if let Some((report, parts)) = &self.unrendered_report {
+            return super::report_json::value(report, parts).unwrap_or(serde_json::Value::Null);
+        }
         self.files
             .iter()
             .find(|(name, _)| name == "report.json")
@@ -139,7 +162,15 @@ impl Calibration {
     pub fn write(&self, out: &Path) -> Result<()> {
         check_outputs(&[Output::Folder(out)], &self.input_paths())?;
         check_output_folder(out, &is_output_file)?;
-        replace_folder(out, &self.files)
+        let render = |out: &mut dyn std::io::Write| match &self.unrendered_report {
+            Some((report, parts)) => super::report_json::write(report, parts, out),
+            None => Ok(()),
+        };
+        let streamed: Vec<StreamedFile<'_>> = match self.unrendered_report {
+            Some(_) => vec![("report.json", &render)],
+            None => Vec::new(),
+        };
+        replace_folder_streamed(out, &self.files, &streamed)
     }
 
     /// Writes the calibrated URDF to `path` (atomically); an error when there is none (a

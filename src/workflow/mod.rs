@@ -54,8 +54,8 @@ pub(crate) mod verify;
 
 pub use artifact_joint_errors::JOINT_ERRORS_FILE;
 pub use calibrate::{
-    calibrate, CalibrateConfig, Calibration, GravityFrame, MeasurementFrameChoice, NoiseChoice,
-    ParameterRow,
+    calibrate, calibrate_for_writing, CalibrateConfig, Calibration, GravityFrame,
+    MeasurementFrameChoice, NoiseChoice, ParameterRow,
 };
 pub use calibrate::{is_output_file, OUTPUT_FILES};
 pub use calibrate_artifact::{registration_text, COMPENSATED_URDF, REGISTRATION_FILE};

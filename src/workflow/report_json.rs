@@ -21,7 +21,7 @@ pub const POSTURES_KEY: &str = "identification_postures";
 const ROW_SETS: [&str; 2] = ["identification", "validation"];
 
 /// The per-row arrays of report.json, kept typed; [`render`] writes them at their places.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub(crate) struct ReportParts {
     /// Per set of [`ROW_SETS`], per arm (in the report's order), its rows.
     rows: [Vec<Vec<RowErrors>>; 2],
@@ -78,6 +78,20 @@ pub(crate) fn summary_value(mut summary: CalibrationSummary) -> Result<(Value, R
 /// [`crate::io::to_json_rows`].
 pub(crate) fn render(report: &Value, parts: &ReportParts) -> Result<String> {
     crate::io::to_json_rows(&Spliced { report, parts })
+}
+
+/// As [`render`], written to `out` as it is rendered ([`crate::io::write_json_rows`]).
+pub(crate) fn write(
+    report: &Value,
+    parts: &ReportParts,
+    out: &mut dyn std::io::Write,
+) -> Result<()> {
+    crate::io::write_json_rows(&Spliced { report, parts }, out)
+}
+
+/// report.json's value: `report` with `parts` at their places.
+pub(crate) fn value(report: &Value, parts: &ReportParts) -> Result<Value> {
+    serde_json::to_value(Spliced { report, parts }).map_err(json_error)
 }
 
 fn json_error(e: serde_json::Error) -> Error {

@@ -1,4 +1,4 @@
-//! `treecal calibrate`: flags → [`CalibrateConfig`] → [`treecal::workflow::calibrate`] →
+//! `treecal calibrate`: flags → [`CalibrateConfig`] → [`treecal::workflow::calibrate_for_writing`] →
 //! notes on stderr, report.md on stdout, the files in `--out`.
 
 use crate::cli::{
@@ -7,12 +7,12 @@ use crate::cli::{
 };
 use std::path::Path;
 use treecal::workflow::{
-    calibrate, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, NoiseChoice, PlanSource,
-    RobotSource, StiffnessSource,
-};
-use treecal::workflow::{
     calibrate_camera_files, CameraCalibrateConfig, CameraContactsInput, CameraTrackerInput,
     DetectionsSource,
+};
+use treecal::workflow::{
+    calibrate_for_writing, CalibrateConfig, MeasurementFrameChoice, MeasurementSource, NoiseChoice,
+    PlanSource, RobotSource, StiffnessSource,
 };
 use treecal::workflow::{ModelChoice, ModelLevel, ParameterPatterns};
 use treecal::{Error, Result};
@@ -29,7 +29,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     // The output folder is replaced as a whole at the end: refuse one that holds an input or
     // is not a previous output before computing anything.
     config.check_output(&args.out)?;
-    let calibration = calibrate(&config)?;
+    // report.json is rendered straight into the folder (at 10⁶ configurations ~900 MB).
+    let calibration = calibrate_for_writing(&config)?;
     finish(
         &args,
         &calibration.notes,
