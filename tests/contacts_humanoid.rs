@@ -5,7 +5,7 @@
 //! TALOS has 15) from the shared robots stands in for TALOS.
 
 use crate::common;
-use crate::common::cli::{assert_success, path_str, treecal};
+use crate::common::cli::{assert_success, calibrate_contacts, path_str, treecal};
 use std::path::{Path, PathBuf};
 
 /// A robot of the shared robots (`TREECAL_SHARED_DIR`, `../shared`, `/work/shared`).
@@ -225,34 +225,12 @@ fn a_contact_fit_that_shrinks_the_robot_is_refitted_or_refused() {
     let truth = results["trials"][0]["true_size_ratio"].as_f64().unwrap();
     assert!((truth - 1.0).abs() < 0.15, "the true robot's size: {truth}");
     let calibrate = |out: &str, extra: &[&str]| {
-        let mut args = vec!["calibrate", "--robot", path_str(&atlas), "--contacts"];
-        let files = [
-            sim.join("contacts.csv"),
-            sim.join("contact-setup.yaml"),
-            sim.join("contacts-validation.csv"),
-            dir.path().join(out),
-        ];
-        args.extend([
-            path_str(&files[0]),
-            "--contact-setup",
-            path_str(&files[1]),
-            "--validation",
-            path_str(&files[2]),
-            "--out",
-            path_str(&files[3]),
-        ]);
-        args.extend(extra);
-        let run = treecal(&args);
-        let json = std::fs::read_to_string(files[3].join("report.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
-        (run, json)
+        calibrate_contacts(&sim, Some(&atlas), &dir.path().join(out), extra)
     };
     // Default: the geometry's shrink is named, the prior holds the scale, the result is usable.
     let (run, json) = calibrate("default", &[]);
     assert_success(&run, "calibrate --contacts (default)");
     assert!(run.stderr.contains("its nominal size"), "{run}");
-    let json = json.unwrap();
     assert_eq!(json["model"]["name"], "geometry+prior", "{json}");
     let ratio = json["size_ratio"].as_f64().unwrap();
     assert!((ratio - 1.0).abs() < 0.05, "{ratio}");
@@ -265,7 +243,6 @@ fn a_contact_fit_that_shrinks_the_robot_is_refitted_or_refused() {
             .contains("not usable — the calibrated robot is 0."),
         "{run}"
     );
-    let json = json.unwrap();
     assert!(
         json["refused"].as_str().unwrap().contains("fix no length"),
         "{json}"

@@ -6,7 +6,7 @@
 //! data choose the model by cross-validation (`--model auto`, or by default when the residuals
 //! are over twice the declared σ's).
 
-use crate::common::cli::{assert_error, assert_success, path_str, treecal};
+use crate::common::cli::{assert_error, assert_success, calibrate_contacts, path_str, treecal};
 use std::path::Path;
 
 /// The built-in robot's simulated flush contacts (noise-free, the truth off in every joint
@@ -31,39 +31,6 @@ fn simulate_with(dir: &Path, encoder: &str) {
         path_str(dir),
     ]);
     assert_success(&run, "simulate --observation flush");
-}
-
-/// `calibrate --contacts` on the files in `sim` with `robot` (the built-in robot when `None`)
-/// and `extra` flags: the run and report.json.
-fn calibrate(
-    sim: &Path,
-    robot: Option<&Path>,
-    out: &Path,
-    extra: &[&str],
-) -> (crate::common::cli::Run, serde_json::Value) {
-    let files = [
-        sim.join("contacts.csv"),
-        sim.join("contact-setup.yaml"),
-        sim.join("contacts-validation.csv"),
-    ];
-    let mut args = vec![
-        "calibrate",
-        "--contacts",
-        path_str(&files[0]),
-        "--contact-setup",
-        path_str(&files[1]),
-        "--validation",
-        path_str(&files[2]),
-        "--out",
-        path_str(out),
-    ];
-    if let Some(robot) = robot {
-        args.extend(["--robot", path_str(robot)]);
-    }
-    args.extend_from_slice(extra);
-    let run = treecal(&args);
-    let report = crate::common::cli::report_json_or_null(out);
-    (run, report)
 }
 
 /// Held-out height RMS (mm) of `which` ("before", "after") with the training planes.
@@ -97,7 +64,7 @@ fn offsets_geometry_and_frozen_parameters_are_fitted_and_exported_as_fitted() {
         ("frozen", vec!["--freeze", "left_*"]),
     ] {
         let out = dir.path().join(name);
-        let (run, report) = calibrate(&sim, None, &out, &extra);
+        let (run, report) = calibrate_contacts(&sim, None, &out, &extra);
         assert_success(&run, name);
         let count = unknowns(&run);
         let (before, after) = (height(&report, "before"), height(&report, "after"));
@@ -116,7 +83,7 @@ fn offsets_geometry_and_frozen_parameters_are_fitted_and_exported_as_fitted() {
         let again = dir.path().join(format!("{name}-again"));
         let urdf = out.join("calibrated.urdf");
         // (Its own calibration may not gain further: only its "before" is read.)
-        let (_, reread) = calibrate(&sim, Some(&urdf), &again, &extra);
+        let (_, reread) = calibrate_contacts(&sim, Some(&urdf), &again, &extra);
         let written = height(&reread, "before");
         assert!(
             (written - after).abs() < 1e-4 + 1e-4 * after,
@@ -147,14 +114,14 @@ fn model_flags_a_contact_calibration_does_not_use_are_errors() {
         vec!["--joint-errors", "harmonics"],
         vec!["--significant", "2"],
     ] {
-        let (run, _) = calibrate(&sim, None, &out, &extra);
+        let (run, _) = calibrate_contacts(&sim, None, &out, &extra);
         assert_eq!(run.code, Some(2), "{extra:?}\n{run}");
         assert!(
             run.stderr.contains("cannot be used with") && run.stderr.contains(extra[0]),
             "{extra:?}\n{run}"
         );
     }
-    let (run, _) = calibrate(&sim, None, &out, &["--freeze", "no_such_joint*"]);
+    let (run, _) = calibrate_contacts(&sim, None, &out, &["--freeze", "no_such_joint*"]);
     assert_error(
         &run,
         &["--freeze", "'no_such_joint*'", "matches no parameter"],
@@ -187,7 +154,8 @@ fn the_data_choose_the_contact_model_when_asked() {
     simulate(&sim);
     // Noise-free, the truth off in every joint frame parameter: the full geometry is exact
     // and significantly better than the prior's reference.
-    let (run, report) = calibrate(&sim, None, &dir.path().join("auto"), &["--model", "auto"]);
+    let (run, report) =
+        calibrate_contacts(&sim, None, &dir.path().join("auto"), &["--model", "auto"]);
     assert_success(&run, "auto");
     let (name, rows) = model_of(&report);
     assert_eq!(name, "geometry", "{run}");
@@ -205,12 +173,12 @@ fn the_data_choose_the_contact_model_when_asked() {
     assert!(table.contains("| geometry **(chosen)** |"), "{table}");
     // Residuals at the declared noise (here none): the default fits the full geometry without
     // a cross-validation, and says nothing about a model choice.
-    let (run, report) = calibrate(&sim, None, &dir.path().join("default"), &[]);
+    let (run, report) = calibrate_contacts(&sim, None, &dir.path().join("default"), &[]);
     assert_success(&run, "default");
     assert_eq!(model_of(&report), ("geometry".to_owned(), Vec::new()));
     assert!(!run.stderr.contains("model choice"), "{run}");
     // A model asked for is kept; --cv adds the table; --prior holds the geometry near nominal.
-    let (run, report) = calibrate(
+    let (run, report) = calibrate_contacts(
         &sim,
         None,
         &dir.path().join("prior"),
@@ -244,7 +212,7 @@ fn residuals_over_the_declared_noise_let_the_data_choose() {
         .replace("tilt: 0.01", "tilt: 0.0001");
     assert_ne!(text, tight, "{text}");
     std::fs::write(&setup, tight).unwrap();
-    let (run, report) = calibrate(&sim, None, &dir.path().join("out"), &[]);
+    let (run, report) = calibrate_contacts(&sim, None, &dir.path().join("out"), &[]);
     assert_success(&run, "default");
     assert!(
         run.stderr.contains("the geometry fit leaves residuals")

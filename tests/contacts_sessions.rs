@@ -3,7 +3,7 @@
 //! for both robots; those figures count in the verdict, which says what it judged by — never
 //! "better on the held-out contacts" over zero contacts.
 
-use crate::common::cli::{assert_success, path_str, treecal};
+use crate::common::cli::{assert_success, calibrate_contacts, path_str, treecal};
 use std::path::Path;
 
 /// The built-in robot's noise-free flush contacts on two tables (sessions `day1`, `day2`).
@@ -170,39 +170,18 @@ fn tools_restrict_a_contact_calibration_to_one_side() {
         path_str(&sim),
     ]);
     assert_success(&run, "simulate --observation flush --both-hands");
-    let files = [
-        sim.join("contacts.csv"),
-        sim.join("contact-setup.yaml"),
-        sim.join("contacts-validation.csv"),
-    ];
-    let calibrate = |tools: &str, out: &Path| {
-        treecal(&[
-            "calibrate",
-            "--contacts",
-            path_str(&files[0]),
-            "--contact-setup",
-            path_str(&files[1]),
-            "--validation",
-            path_str(&files[2]),
-            "--tools",
-            tools,
-            "--out",
-            path_str(out),
-        ])
-    };
-    let out = dir.path().join("left");
-    let run = calibrate("left_tool", &out);
+    let calibrate =
+        |tools: &str, out: &Path| calibrate_contacts(&sim, None, out, &["--tools", tools]);
+    let (run, json) = calibrate("left_tool", &dir.path().join("left"));
     assert_success(&run, "calibrate --contacts --tools left_tool");
     assert!(
         run.stderr
             .contains("tools left_tool: the model holds their chains only"),
         "{run}"
     );
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let tools = json["held_out"]["tools"].as_object().unwrap();
     assert_eq!(tools.keys().collect::<Vec<_>>(), ["left_tool"], "{json}");
-    let run = calibrate("no_such_tool", &dir.path().join("bad"));
+    let (run, _) = calibrate("no_such_tool", &dir.path().join("bad"));
     assert!(!run.success, "{run}");
     assert!(
         run.stderr

@@ -27,9 +27,6 @@ pub struct ContactCollisions {
     support: Arc<Vec<LinkId>>,
     /// Projected configurations rejected for self-collision so far.
     rejected: Arc<AtomicUsize>,
-    /// The joints no frame of the model moves (a standing humanoid's other leg, a head), each
-    /// with the value it rests at: zero, within its limits.
-    rest: Arc<Vec<(usize, f64)>>,
 }
 
 impl std::fmt::Debug for ContactCollisions {
@@ -49,7 +46,6 @@ impl ContactCollisions {
             .iter()
             .map(|tool| hand(tree, tool.link))
             .collect();
-        let rest = super::stance::resting_joints(tree, model);
         let support = model.reference().map_or_else(Vec::new, |r| {
             (0..tree.links().len())
                 .map(LinkId)
@@ -62,21 +58,7 @@ impl ContactCollisions {
             hands: Arc::new(hands),
             support: Arc::new(support),
             rejected: Arc::new(AtomicUsize::new(0)),
-            rest: Arc::new(rest),
         }
-    }
-
-    /// `start` with the joints no contact moves at rest (zero, within their limits): a
-    /// random leg or head would collide for no reason a lab's robot has, and moves nothing
-    /// the contacts see.
-    pub fn at_rest(&self, start: &[f64]) -> Vec<f64> {
-        let mut q = start.to_vec();
-        for &(dof, value) in self.rest.iter() {
-            if let Some(v) = q.get_mut(dof) {
-                *v = value;
-            }
-        }
-        q
     }
 
     /// Whether `q` is free of self-collision but for what `contact` of `tool` touches (`None`:

@@ -303,8 +303,9 @@ impl SceneRows {
                 })
                 .ok_or_else(|| {
                     invalid(format!(
-                        "no further configuration found where the {} contact holds",
-                        kind.name()
+                        "no further configuration found where the {} contact holds{}",
+                        kind.name(),
+                        collision_hint(settings.collisions.as_ref())
                     ))
                 })?;
             let recorded = q
@@ -468,8 +469,8 @@ fn free_configuration(
         })
 }
 
-/// [`project`], kept only when free of self-collision (but for what the contact touches), the
-/// joints no contact moves at rest ([`ContactCollisions::at_rest`]).
+/// [`project`], kept only when free of self-collision (but for what the contact touches); the
+/// joints no contact moves rest already, `start` being within [`contact_limits`].
 fn project_free(
     model: &McpcModel,
     nuisance: &Nuisance,
@@ -480,7 +481,7 @@ fn project_free(
 ) -> Option<Vec<f64>> {
     match collisions {
         None => project(model, nuisance, contact, tool, start, limits),
-        Some(c) => project(model, nuisance, contact, tool, &c.at_rest(start), limits)
+        Some(c) => project(model, nuisance, contact, tool, start, limits)
             .filter(|q| c.allows(Some(contact), tool, q)),
     }
 }

@@ -40,7 +40,7 @@ fn rest_value((lower, upper): (f64, f64)) -> f64 {
 }
 
 /// The joint variables no frame of `model` moves, each with its rest value.
-pub(super) fn resting_joints(tree: &KinematicTree, model: &McpcModel) -> Vec<(usize, f64)> {
+fn resting_joints(tree: &KinematicTree, model: &McpcModel) -> Vec<(usize, f64)> {
     let used = driven(tree, model.frames().iter().map(|f| &f.actuation));
     limits_of(tree)
         .into_iter()

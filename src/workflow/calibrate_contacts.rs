@@ -20,7 +20,7 @@ use super::contact_cv::{
 use super::contact_fit::{plane_start, ContactProblem};
 use super::contact_model::{only_tools, robot_free, setup_model, written_differs};
 use super::contact_model::{written_scores, SetupModel};
-use super::contact_scale::{hold_scale, size_ratio, Fitted};
+use super::contact_scale::{hold_scale, Fitted, ScaleCheck};
 use super::contact_tracker::{contact_kind_scales, tracker_links, ContactTracker};
 use super::model_choice::{ModelChoice, ParameterPatterns};
 use super::note::Note;
@@ -172,7 +172,8 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             tracker.rows.len()
         )));
     }
-    let (fitted, refused) = fit_holding_scale(config, tree, &problem, &options, &mut notes)?;
+    let (fitted, scale) = fit_holding_scale(config, tree, &problem, &options, &mut notes)?;
+    let refused = scale.refused;
     let (problem, fit, spec, cv) = fitted;
     let scores = ContactScores::new(&problem, &fit, &options)?;
     let mut calibrated = problem.model.clone();
@@ -217,10 +218,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
             serde_json::json!({ "name": spec.name(), "offsets": spec.offsets, "prior": spec.prior }),
         );
         object.insert("model_choice".into(), serde_json::json!(cv));
-        object.insert(
-            "size_ratio".into(),
-            serde_json::json!(size_ratio(&problem.model, &calibrated, &problem.training)),
-        );
+        object.insert("size_ratio".into(), serde_json::json!(scale.ratio));
         object.insert("refused".into(), serde_json::json!(refused));
     }
     if let Some(export) = &export {
@@ -243,15 +241,15 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
 }
 
 /// [`fit_model`], then [`hold_scale`]: refitted with the prior when the model was the data's
-/// choice and the fit changed the robot's size; the reason the verdict fails when it still
-/// does.
+/// choice and the fit changed the robot's size; the kept fit's size, and the reason the
+/// verdict fails when it is still off.
 fn fit_holding_scale(
     config: &ContactCalibrateConfig,
     tree: &KinematicTree,
     problem: &ContactProblem,
     options: &IdentificationOptions,
     notes: &mut Vec<Note>,
-) -> Result<(Fitted, Option<String>)> {
+) -> Result<(Fitted, ScaleCheck)> {
     let fitted = fit_model(config, tree, problem, options, notes)?;
     let refit = |model, prior, notes: &mut Vec<Note>| {
         let config = ContactCalibrateConfig {

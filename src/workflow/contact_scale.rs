@@ -36,8 +36,9 @@ pub(super) fn has_length_reference(problem: &ContactProblem) -> bool {
     problem.training.iter().any(|m| {
         !matches!(
             m.observation,
-            Observation::Contact(Contact::Flush { .. } | Contact::Point { .. })
-                | Observation::Contact(Contact::Touch { .. })
+            Observation::Contact(
+                Contact::Flush { .. } | Contact::Point { .. } | Contact::Touch { .. }
+            )
         )
     })
 }
@@ -45,7 +46,7 @@ pub(super) fn has_length_reference(problem: &ContactProblem) -> bool {
 /// The calibrated robot's size over the nominal robot's: the RMS spread of the tools' origins
 /// over the training configurations (each tool about its own centroid), `calibrated` over
 /// `nominal`; `None` when the nominal points do not spread.
-pub(crate) fn size_ratio(
+pub(super) fn size_ratio(
     nominal: &McpcModel,
     calibrated: &McpcModel,
     rows: &[Measurement],
@@ -78,6 +79,15 @@ pub(super) fn scale_held(ratio: Option<f64>) -> bool {
     ratio.is_none_or(|r| (r - 1.0).abs() <= SCALE_TOLERANCE)
 }
 
+/// What [`hold_scale`] found: the kept fit's size over the nominal robot's ([`size_ratio`]),
+/// and why the verdict fails when that size is off.
+pub(super) struct ScaleCheck {
+    /// The kept fit's size ratio (`None`: the nominal tool points do not spread).
+    pub ratio: Option<f64>,
+    /// Why the verdict fails, when the size stays off.
+    pub refused: Option<String>,
+}
+
 /// A contact fit: the problem of its model, the fit, the model, the cross-validation.
 pub(super) type Fitted = (
     ContactProblem,
@@ -96,17 +106,21 @@ pub(super) fn hold_scale(
     fitted: Fitted,
     refit: impl FnOnce(ModelChoice, Option<f64>, &mut Vec<Note>) -> Result<Fitted>,
     notes: &mut Vec<Note>,
-) -> Result<(Fitted, Option<String>)> {
+) -> Result<(Fitted, ScaleCheck)> {
     let ratio = |(problem, fit, ..): &Fitted| {
         let mut calibrated = problem.model.clone();
         calibrated.set_parameters(&fit.after.parameters).ok()?;
         size_ratio(&problem.model, &calibrated, &problem.training)
     };
-    let first = ratio(&fitted);
-    if has_length_reference(base) || scale_held(first) {
-        return Ok((fitted, None));
+    let measured = ratio(&fitted);
+    if has_length_reference(base) || scale_held(measured) {
+        let check = ScaleCheck {
+            ratio: measured,
+            refused: None,
+        };
+        return Ok((fitted, check));
     }
-    let first = first.unwrap_or(1.0);
+    let first = measured.unwrap_or(1.0);
     let why = "flush, point and touch contacts fix no length, and encoder noise pulls a free \
                fit towards a smaller robot (docs/contacts.md, \"The length scale\")";
     let data_choose = matches!(model, ModelChoice::Adaptive | ModelChoice::Auto);
@@ -117,7 +131,11 @@ pub(super) fn hold_scale(
              a bar of known length or tracker rows"
         );
         notes.push(Note::warning(reason.clone()));
-        return Ok((fitted, Some(reason)));
+        let check = ScaleCheck {
+            ratio: measured,
+            refused: Some(reason),
+        };
+        return Ok((fitted, check));
     }
     let level = if fitted.2.offsets {
         ModelLevel::Offsets
@@ -141,5 +159,9 @@ pub(super) fn hold_scale(
         )
     });
     let (problem, fit, spec, _) = refit;
-    Ok(((problem, fit, spec, fitted.3), refused))
+    let check = ScaleCheck {
+        ratio: second,
+        refused,
+    };
+    Ok(((problem, fit, spec, fitted.3), check))
 }

@@ -111,3 +111,37 @@ pub fn report_json_or_null(dir: &Path) -> serde_json::Value {
         serde_json::Value::Null
     }
 }
+
+/// `calibrate --contacts` on the files `simulate --observation …` wrote into `sim` (contacts.csv,
+/// contact-setup.yaml, contacts-validation.csv), with `robot` (the built-in robot when `None`)
+/// and `extra` flags: the run and report.json.
+pub fn calibrate_contacts(
+    sim: &Path,
+    robot: Option<&Path>,
+    out: &Path,
+    extra: &[&str],
+) -> (Run, serde_json::Value) {
+    let files = [
+        sim.join("contacts.csv"),
+        sim.join("contact-setup.yaml"),
+        sim.join("contacts-validation.csv"),
+    ];
+    let mut args = vec![
+        "calibrate",
+        "--contacts",
+        path_str(&files[0]),
+        "--contact-setup",
+        path_str(&files[1]),
+        "--validation",
+        path_str(&files[2]),
+        "--out",
+        path_str(out),
+    ];
+    if let Some(robot) = robot {
+        args.extend(["--robot", path_str(robot)]);
+    }
+    args.extend_from_slice(extra);
+    let run = treecal(&args);
+    let report = report_json_or_null(out);
+    (run, report)
+}
