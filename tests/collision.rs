@@ -792,3 +792,34 @@ fn pairs_that_always_collide_are_not_checked() {
         "{run}"
     );
 }
+
+/// A URDF without `<collision>` elements (the second robot's arm) leaves the check nothing to
+/// test: `plan` warns on stderr that its poses are not checked, and names the way out. The
+/// built-in robot, whose links carry shapes, plans without that warning (no false alarm).
+#[test]
+fn plan_warns_when_the_urdf_has_no_collision_shapes() {
+    use crate::common::cli::*;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("poses.csv");
+    let bare = repo().join("tests/data/second_robot_arm.urdf");
+    let plan = |robot: Option<&std::path::Path>| {
+        let mut args = vec!["plan", "--poses", "8", "--candidates", "200", "-o"];
+        args.push(path_str(&out));
+        if let Some(robot) = robot {
+            args.extend(["--robot", robot.to_str().unwrap()]);
+        }
+        treecal(&args)
+    };
+    let run = plan(Some(&bare));
+    assert_success(&run, "plan on a URDF without collision shapes");
+    for text in [
+        "warning: 'second_robot_arm' has 0 collision shape(s)",
+        "NOT checked for self-collision",
+        "--collision-check off",
+    ] {
+        assert!(run.stderr.contains(text), "{text}: {run}");
+    }
+    let run = plan(None);
+    assert_success(&run, "plan on the built-in robot");
+    assert!(!run.stderr.contains("NOT checked"), "{run}");
+}

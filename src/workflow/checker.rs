@@ -80,7 +80,24 @@ pub fn collision_checker(
     if checker.loaded_meshes() > 0 {
         ignore_always_colliding(&mut checker, tree, notes);
     }
+    if checker.pair_count() == 0 {
+        notes.push(Note::warning(nothing_checked(tree, &checker)));
+    }
     Ok(checker)
+}
+
+/// The warning for a check that has no link pair to test: the URDF has no `<collision>`
+/// shapes, or they sit on one link or on neighbours only. A plan run on the robot would then
+/// come with no protection at all, so it is said loudly, not only in the statement.
+fn nothing_checked(tree: &KinematicTree, checker: &CollisionChecker) -> String {
+    format!(
+        "'{}' has {} collision shape(s) and no pair of non-adjacent links that both have one: \
+         configurations are NOT checked for self-collision; add `<collision>` elements to the \
+         URDF's links (or give the meshes with `package_path`), or say `collision_check` off to \
+         accept unchecked configurations",
+        tree.name(),
+        checker.shape_count()
+    )
 }
 
 /// The self-collision check of generated contact configurations ([`collision_checker`] with
