@@ -377,3 +377,150 @@ fn the_report_names_every_session_with_its_rows_and_frame() {
         "{said:#?}"
     );
 }
+
+/// One file per session, as labs record them: the three sessions of the second robot written
+/// as `day1_poses.csv`, `day2_points.csv`, `day3_points.csv` without a `session` column (each
+/// numbering its rows from 1) and given as three `measurements` files calibrate exactly as one
+/// file with the `session` column: the same sessions (named by the files), the same frames and
+/// the same validation figures. The repeated row ids are prefixed with their session, and a
+/// note says how the files were read.
+#[test]
+fn one_file_per_session_calibrates_as_a_session_column() {
+    use treecal::workflow::{calibrate, CalibrateConfig, MeasurementSource, RobotSource};
+    let robot = second_robot(33);
+    let dir = tempfile::tempdir().unwrap();
+    let positions = robot.clone_rows_as_positions();
+    let (kept, held) = robot.split(6);
+    let write = |rows: Vec<Measurement>, name: &str| {
+        let text = treecal::io::measurements_to_csv(&robot.tree, &robot.nominal, &rows).unwrap();
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let rows = |indices: &[usize], session: Option<&str>, labelled: bool| -> Vec<Measurement> {
+        indices
+            .iter()
+            .map(|&i| positions[i].clone())
+            .filter(|m| session.is_none() || m.session.as_deref() == session)
+            .map(|mut m| {
+                if !labelled {
+                    m.session = None;
+                }
+                m
+            })
+            .collect()
+    };
+    let per_session: Vec<_> = SESSIONS
+        .iter()
+        .map(|s| write(rows(&kept, Some(s), false), &format!("{s}.csv")))
+        .collect();
+    let one_file = write(rows(&kept, None, true), "training.csv");
+    let validation = write(rows(&held, None, true), "validation.csv");
+    let run = |measurements: MeasurementSource| {
+        calibrate(&CalibrateConfig {
+            robot: RobotSource::File(robot.urdf.clone()),
+            measurements,
+            validation: Some(MeasurementSource::Csv(validation.clone())),
+            tools: Some(vec![crate::common::second_robot::TOOL.into()]),
+            position_sigma: 3e-4,
+            // The geometry alone: no cross-validation (the model error of the rigid fit of
+            // series-elastic joints would start one), the comparison is the same.
+            model: treecal::workflow::ModelChoice::Level(treecal::workflow::ModelLevel::Geometry),
+            ..Default::default()
+        })
+        .unwrap()
+    };
+    let files = run(MeasurementSource::from_paths(per_session));
+    let column = run(MeasurementSource::Csv(one_file));
+    let (a, b) = (files.report(), column.report());
+    assert_eq!(a["sessions"]["training"], b["sessions"]["training"]);
+    assert_eq!(a["sessions"]["training"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        a["artifact"]["urdf_alone"]["errors"],
+        b["artifact"]["urdf_alone"]["errors"]
+    );
+    let said: Vec<&str> = files.notes.iter().map(|n| n.text.as_str()).collect();
+    for text in [
+        "3 measurement files read as one set, each file its own session",
+        "'day2_points' 14 rows",
+        "every id is prefixed with its session, e.g. 'day1_poses/1'",
+    ] {
+        assert!(said.iter().any(|t| t.contains(text)), "{text}: {said:#?}");
+    }
+}
+
+/// The CLI takes `--measurements` and `--validation` more than once (each file a session, as
+/// `one_file_per_session_calibrates_as_a_session_column` shows through the library); a camera
+/// or contact calibration reads one file each and says so before reading anything.
+#[test]
+fn measurements_and_validation_files_repeat_on_the_command_line() {
+    use crate::common::cli::*;
+    let robot = second_robot(34);
+    let dir = tempfile::tempdir().unwrap();
+    let positions = robot.clone_rows_as_positions();
+    let (kept, held) = robot.split(6);
+    let write = |indices: &[usize], session: Option<&str>, name: &str| {
+        let rows: Vec<Measurement> = indices
+            .iter()
+            .map(|&i| positions[i].clone())
+            .filter(|m| session.is_none() || m.session.as_deref() == session)
+            .map(|mut m| {
+                m.session = None;
+                m
+            })
+            .collect();
+        let text = treecal::io::measurements_to_csv(&robot.tree, &robot.nominal, &rows).unwrap();
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path_str(&path).to_owned()
+    };
+    let files: Vec<String> = SESSIONS
+        .iter()
+        .map(|s| write(&kept, Some(s), &format!("{s}.csv")))
+        .collect();
+    let validation = write(&held, None, "held.csv");
+    let out = dir.path().join("out");
+    let urdf = robot.urdf.display().to_string();
+    let mut args = vec!["calibrate", "--robot", &urdf, "--tools", "arm_tool_link"];
+    args.extend(["--model", "geometry", "--position-sigma", "0.3"]);
+    for file in &files {
+        args.extend(["--measurements", file.as_str()]);
+    }
+    args.extend(["--validation", validation.as_str(), "--out", path_str(&out)]);
+    let run = treecal(&args);
+    assert!(
+        run.stderr.contains("3 measurement files read as one set"),
+        "{run}"
+    );
+    assert!(out.join("report.json").exists(), "{run}");
+    let report = report_json(&out);
+    let names: Vec<&str> = report["sessions"]["training"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, SESSIONS);
+    let run = treecal(&[
+        "calibrate",
+        "--contacts",
+        &files[0],
+        "--contact-setup",
+        &files[1],
+        "--measurements",
+        &files[0],
+        "--measurements",
+        &files[1],
+        "--out",
+        path_str(&out),
+    ]);
+    assert_error(
+        &run,
+        &[
+            "--measurements",
+            "given 2 times",
+            "with --contacts it takes one file",
+        ],
+        "contacts with two measurement files",
+    );
+}

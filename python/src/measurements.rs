@@ -32,6 +32,8 @@ pub struct TablePayload {
 pub enum SourceArg {
     /// A measurement CSV.
     Csv(PathBuf),
+    /// Several measurement CSVs (each its own session).
+    Files(Vec<PathBuf>),
     /// Arrays.
     Table(TablePayload),
 }
@@ -40,6 +42,7 @@ pub enum SourceArg {
 pub fn measurement_source(arg: SourceArg) -> PyResult<MeasurementSource> {
     match arg {
         SourceArg::Csv(path) => Ok(MeasurementSource::Csv(path)),
+        SourceArg::Files(paths) => Ok(MeasurementSource::from_paths(paths)),
         SourceArg::Table(payload) => Ok(MeasurementSource::Table(table(payload)?)),
     }
 }

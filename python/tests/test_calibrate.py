@@ -290,3 +290,22 @@ def test_the_model_keywords_reach_the_calibration():
     assert all(v == 0.0 for n, v in moved.items() if n.startswith("left_joint1 ")), moved
     with pytest.raises(treecal.TreecalError, match="prior_scale"):
         treecal.calibrate(measurements=EXAMPLE_CSV, prior=True, prior_scale=0)
+
+
+def test_a_list_of_files_is_one_set_with_a_session_per_file(tmp_path):
+    # The example split in two files (header and comment lines kept): each is its own session.
+    lines = EXAMPLE_CSV.read_text().splitlines(keepends=True)
+    head = [line for line in lines if line.startswith("#")]
+    rows = [line for line in lines if not line.startswith("#")]
+    header, data = rows[0], rows[1:]
+    # Configuration by configuration (each measures both tools on two rows), alternately.
+    parts = ([r for i, r in enumerate(data) if i // 2 % 2 == k] for k in (0, 1))
+    first, second = tmp_path / "monday.csv", tmp_path / "tuesday.csv"
+    for path, part in zip((first, second), parts):
+        path.write_text("".join(head + [header] + part))
+    result = treecal.calibrate(measurements=[first, second], seed=3)
+    names = [s["name"] for s in result.report["sessions"]["training"]]
+    assert names == ["monday", "tuesday"], result.report["sessions"]
+    assert any("2 measurement files read as one set" in text for _, text in result.notes)
+    with pytest.raises(treecal.TreecalError, match="measurements"):
+        treecal.calibrate(measurements=[], seed=3)

@@ -287,7 +287,7 @@ class Measurements:
         }
 
 
-MeasurementsLike = Union[PathLike, Measurements]
+MeasurementsLike = Union[PathLike, Sequence[PathLike], Measurements]
 
 
 def _measurement_source(value: Optional[MeasurementsLike], name: str) -> Any:
@@ -298,7 +298,15 @@ def _measurement_source(value: Optional[MeasurementsLike], name: str) -> Any:
         return value._payload()
     if isinstance(value, (str, os.PathLike)):
         return _path(value, name)
-    raise TreecalError(f"{name}: expected a CSV path or treecal.Measurements, got {type(value).__name__}")
+    if isinstance(value, (list, tuple)) and value and all(
+        isinstance(v, (str, os.PathLike)) for v in value
+    ):
+        # Several CSVs, read as one set, each file its own session (the CLI's repeated flag).
+        return [_path(v, name) for v in value]
+    raise TreecalError(
+        f"{name}: expected a CSV path, a list of CSV paths or treecal.Measurements, "
+        f"got {type(value).__name__}"
+    )
 
 
 class Calibration:
@@ -392,7 +400,8 @@ def calibrate(
     """Calibrates `robot` (URDF path; None: the built-in Robonaut) from `measurements`.
 
     The same job as ``treecal calibrate`` with the same defaults; keyword names are the CLI's
-    flags. `measurements` and `validation` are a measurement CSV path or a
+    flags. `measurements` and `validation` are a measurement CSV path, a list of them (read
+    as one set, each file its own session unless its rows name one) or a
     :class:`Measurements`; without `validation` a seeded fifth is held out. `plan` is
     "staged", "simultaneous", a plan YAML path, or None (staged when rows are labelled
     torso/arms). `measurement_frame` is "auto", "fit", "base" or a registration YAML path;

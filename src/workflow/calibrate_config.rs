@@ -126,17 +126,19 @@ impl CalibrateConfig {
             MeasurementFrameChoice::File(path) => Some(path.as_path()),
             _ => None,
         };
-        [
-            self.robot.path(),
-            self.measurements.path(),
-            self.validation.as_ref().and_then(MeasurementSource::path),
+        let validation = self.validation.iter().flat_map(MeasurementSource::paths);
+        let rest = [
             self.stiffness.as_ref().and_then(StiffnessSource::path),
             self.plan.path(),
             frame,
-        ]
-        .into_iter()
-        .flatten()
-        .collect()
+        ];
+        self.robot
+            .path()
+            .into_iter()
+            .chain(self.measurements.paths())
+            .chain(validation)
+            .chain(rest.into_iter().flatten())
+            .collect()
     }
 }
 

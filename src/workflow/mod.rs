@@ -34,6 +34,7 @@ mod contact_tracker;
 pub(crate) mod cross_validation;
 pub(crate) mod export;
 pub(crate) mod fk;
+mod measurement_files;
 pub(crate) mod model;
 pub(crate) mod model_choice;
 pub(crate) mod note;

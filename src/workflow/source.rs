@@ -193,6 +193,10 @@ pub fn measured_branches(
             tree.link_id(name).map_err(|e| Error::InvalidData {
                 origin: match measurements {
                     MeasurementSource::Csv(path) => format!("{}: tool column", path.display()),
+                    MeasurementSource::Files(paths) => format!(
+                        "{}: tool column",
+                        super::measurement_files::origin(paths)
+                    ),
                     MeasurementSource::Table(table) => table.place_of_tool(name),
                 },
                 message: format!(
@@ -335,6 +339,10 @@ pub fn add_measured_points(
 pub enum MeasurementSource {
     /// A measurement CSV.
     Csv(PathBuf),
+    /// Several measurement CSVs read as one set, in order, each file its own session (rows
+    /// without a `session` get the file's name: `super::measurement_files`); at least two
+    /// ([`MeasurementSource::from_paths`]).
+    Files(Vec<PathBuf>),
     /// Arrays in memory.
     Table(MeasurementTable),
 }
@@ -347,19 +355,31 @@ impl Default for MeasurementSource {
 }
 
 impl MeasurementSource {
+    /// The measurement files given: none is the default (an error naming the missing file
+    /// when read), one a [`MeasurementSource::Csv`], more [`MeasurementSource::Files`].
+    pub fn from_paths(mut paths: Vec<PathBuf>) -> Self {
+        match paths.len() {
+            0 => Self::default(),
+            1 => MeasurementSource::Csv(paths.remove(0)),
+            _ => MeasurementSource::Files(paths),
+        }
+    }
+
     /// How messages and reports name the measurements: the path, or the table's origin.
     pub fn origin(&self) -> String {
         match self {
             MeasurementSource::Csv(path) => path.display().to_string(),
+            MeasurementSource::Files(paths) => super::measurement_files::origin(paths),
             MeasurementSource::Table(table) => table.origin.clone(),
         }
     }
 
-    /// The file, if the measurements are one.
-    pub fn path(&self) -> Option<&Path> {
+    /// The files the measurements are read from (none for a table).
+    pub fn paths(&self) -> Vec<&Path> {
         match self {
-            MeasurementSource::Csv(path) => Some(path),
-            MeasurementSource::Table(_) => None,
+            MeasurementSource::Csv(path) => vec![path.as_path()],
+            MeasurementSource::Files(paths) => paths.iter().map(PathBuf::as_path).collect(),
+            MeasurementSource::Table(_) => Vec::new(),
         }
     }
 
@@ -368,6 +388,12 @@ impl MeasurementSource {
     pub fn targets(&self) -> Result<Vec<(Option<String>, Option<String>)>> {
         match self {
             MeasurementSource::Csv(path) => read_measured_targets(path),
+            MeasurementSource::Files(paths) => Ok(super::measurement_files::union_in_order(
+                paths
+                    .iter()
+                    .map(|p| read_measured_targets(p))
+                    .collect::<Result<_>>()?,
+            )),
             MeasurementSource::Table(table) => table.targets(),
         }
     }
@@ -376,6 +402,12 @@ impl MeasurementSource {
     pub fn tool_names(&self) -> Result<Vec<String>> {
         match self {
             MeasurementSource::Csv(path) => read_measured_tool_names(path),
+            MeasurementSource::Files(paths) => Ok(super::measurement_files::union_in_order(
+                paths
+                    .iter()
+                    .map(|p| read_measured_tool_names(p))
+                    .collect::<Result<_>>()?,
+            )),
             MeasurementSource::Table(table) => table.tool_names(),
         }
     }
@@ -389,6 +421,9 @@ impl MeasurementSource {
     ) -> Result<MeasurementSet> {
         match self {
             MeasurementSource::Csv(path) => read_measurements(path, tree, model, options),
+            MeasurementSource::Files(paths) => {
+                super::measurement_files::read_files(paths, tree, model, options)
+            }
             MeasurementSource::Table(table) => table.to_measurements(tree, model, options),
         }
     }

@@ -480,7 +480,7 @@ fn finish(
             .as_ref()
             .and_then(|s| s.path().map(Path::to_owned)),
     );
-    inputs.extend(config.measurements.path().map(Path::to_owned));
+    inputs.extend(config.measurements.paths().into_iter().map(Path::to_owned));
     inputs.extend(files.report.clone());
     let mut settings = config.clone();
     if let MeasurementSource::Table(table) = &config.measurements {

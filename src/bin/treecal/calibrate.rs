@@ -20,9 +20,11 @@ use treecal::{Error, Result};
 pub fn run(args: CalibrateArgs) -> Result<()> {
     // With --camera, contacts are fitted with the pixels (`run_camera`).
     if let (Some(camera), Some(detections)) = (&args.camera, &args.detections) {
+        one_file_each(&args, "--camera")?;
         return run_camera(&args, camera, detections);
     }
     if let (Some(contacts), Some(setup)) = (&args.contacts, &args.contact_setup) {
+        one_file_each(&args, "--contacts")?;
         return run_contacts(&args, contacts, setup);
     }
     let config = config(&args);
@@ -50,8 +52,9 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
     };
     CalibrateConfig {
         robot: RobotSource::from_path(args.robot.clone()),
-        measurements: MeasurementSource::Csv(args.measurements.clone().unwrap_or_default()),
-        validation: args.validation.clone().map(MeasurementSource::Csv),
+        measurements: MeasurementSource::from_paths(args.measurements.clone()),
+        validation: (!args.validation.is_empty())
+            .then(|| MeasurementSource::from_paths(args.validation.clone())),
         stiffness: args.stiffness.clone().map(StiffnessSource::File),
         tools: args.tools.clone(),
         reference_link: args.reference_link.clone(),
@@ -102,7 +105,7 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
         robot: RobotSource::from_path(args.robot.clone()),
         contacts: contacts.to_owned(),
         setup: setup.to_owned(),
-        validation: args.validation.clone(),
+        validation: args.validation.first().cloned(),
         reference_link: args.reference_link.clone(),
         tools: args.tools.clone(),
         tracker: tracker_input(args),
@@ -129,9 +132,30 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
     )
 }
 
+/// Camera and contact calibrations read one tracker file and one validation file: more is
+/// an error naming the flag (join the files, with a `session` column, instead).
+fn one_file_each(args: &CalibrateArgs, mode: &str) -> Result<()> {
+    for (setting, files) in [
+        ("measurements", &args.measurements),
+        ("validation", &args.validation),
+    ] {
+        if files.len() > 1 {
+            return Err(Error::setting(
+                setting,
+                format!(
+                    "given {} times; with {mode} it takes one file: join the rows into one file \
+                     (a `session` column keeps one measurement frame per day)",
+                    files.len()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The tracker rows of `--measurements` fitted with pixels or contacts, with their σ's.
 fn tracker_input(args: &CalibrateArgs) -> Option<CameraTrackerInput> {
-    args.measurements.as_ref().map(|path| CameraTrackerInput {
+    args.measurements.first().map(|path| CameraTrackerInput {
         measurements: path.clone(),
         position_sigma: args.position_sigma,
         rotation_sigma: args.rotation_sigma,
@@ -159,7 +183,7 @@ fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<
         tools: args.tools.clone(),
         camera_file: camera.to_owned(),
         detections: DetectionsSource::File(detections.to_owned()),
-        validation: args.validation.clone(),
+        validation: args.validation.first().cloned(),
         pixel_sigma: args.pixel_sigma,
         tracker: tracker_input(args),
         contacts: match (&args.contacts, &args.contact_setup) {

@@ -103,10 +103,12 @@ pub struct CalibrateArgs {
     /// such as "harmonics on arm_6" chosen by the same rule (docs/identification.md).
     #[arg(long)]
     pub cv_joint_steps: bool,
-    /// Measurement CSV (one row per tool observation); with --camera or --contacts, tracker
-    /// rows fitted together with the pixels or the contacts (mixed data, each with its σ).
+    /// Measurement CSV (one row per tool observation); repeatable: several files are read as
+    /// one set, each file its own session (one measurement frame each) unless its rows name
+    /// their `session`; with --camera or --contacts (one file), tracker rows fitted together
+    /// with the pixels or the contacts (mixed data, each with its σ).
     #[arg(long, value_name = "M.csv", required_unless_present_any = ["contacts", "camera"])]
-    pub measurements: Option<PathBuf>,
+    pub measurements: Vec<PathBuf>,
     /// Contacts CSV (docs/contacts.md, docs/file-formats.md): calibrate from contacts — faces
     /// flush on a plane, points on a plane, touches, a bar — instead of --measurements; with
     /// --contact-setup. --validation then takes held-out contacts; with --camera, the contacts
@@ -129,11 +131,12 @@ pub struct CalibrateArgs {
     /// points, each session's nominal plane, the bar, what is fitted.
     #[arg(long, value_name = "S.yaml", requires = "contacts")]
     pub contact_setup: Option<PathBuf>,
-    /// Validation measurements (same format) [default: hold out a seeded fifth]; with
-    /// --contacts, held-out contacts; with --camera, held-out detections (a detections CSV),
-    /// predicted but not fitted.
+    /// Validation measurements (same format) [default: hold out a seeded fifth]; repeatable
+    /// as --measurements (each file its own session); with --contacts, held-out contacts;
+    /// with --camera, held-out detections (a detections CSV), predicted but not fitted (one
+    /// file).
     #[arg(long, value_name = "V.csv")]
-    pub validation: Option<PathBuf>,
+    pub validation: Vec<PathBuf>,
     /// Camera file (cameras and targets, docs/file-formats.md): calibrate from the pixels of
     /// --detections, alone or with the tracker rows of --measurements (docs/camera.md).
     #[arg(
