@@ -313,3 +313,49 @@ fn verify_without_a_calibration_or_with_a_wrong_one_names_what_to_give() {
     ]);
     crate::common::cli::assert_error(&run, &["--frame base", "--registration"], "no registration");
 }
+
+/// A calibration compensated with the user's own stiffness file (which stays outside the
+/// output folder): verify without `--stiffness` scores the URDF rigid and says loudly that the
+/// calibration validated the URDF with that file, naming both figures; with the file, no such
+/// warning, and the figure is the compensated one (no false alarm).
+#[test]
+fn verify_warns_when_the_validated_compensation_is_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let stiffness = repo().join("robots/robonaut/stiffness.yaml");
+    let example = repo().join("robots/robonaut/example/measurements.csv");
+    let run = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&example),
+        "--stiffness",
+        path_str(&stiffness),
+        "--out",
+        path_str(&out),
+    ]);
+    assert_success(&run, "calibrate with --stiffness");
+    let verified = dir.path().join("verify");
+    let verify = |extra: &[&str]| {
+        let mut args = vec!["verify", "--calibration", path_str(&out)];
+        args.extend(["--measurements", path_str(&example)]);
+        args.extend(["--out", path_str(&verified)]);
+        args.extend_from_slice(extra);
+        treecal(&args)
+    };
+    let rigid = verify(&[]);
+    assert_success(&rigid, "verify without --stiffness");
+    for text in [
+        "warning: the calibration was validated as calibrated.urdf + ",
+        "stiffness.yaml (",
+        "scores the URDF rigid, like calibrated.urdf alone (",
+        "give --stiffness",
+    ] {
+        assert!(rigid.stderr.contains(text), "{text}: {rigid}");
+    }
+    let compensated = verify(&["--stiffness", path_str(&stiffness)]);
+    assert_success(&compensated, "verify with --stiffness");
+    assert!(
+        !compensated.stderr.contains("validated as"),
+        "{compensated}"
+    );
+}

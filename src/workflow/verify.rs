@@ -224,6 +224,43 @@ fn no_robot(config: &VerifyConfig) -> Error {
     }
 }
 
+/// A warning when the calibration's headline figure came with a compensation file this
+/// verification does not have: calibrate compensated with the user's own stiffness file
+/// (which stays outside the output folder) and verify, given no `stiffness`, scores the URDF
+/// rigid, which can be far worse (the built-in Robonaut's example: 0.09 mm compensated,
+/// 54 mm rigid). The warning names what the calibration validated.
+fn rigid_where_compensated(files: &Resolved) -> Result<Option<Note>> {
+    let (None, Some(path)) = (&files.stiffness, &files.report) else {
+        return Ok(None);
+    };
+    let report = read_calibration_report(path)?;
+    let with = &report["artifact"]["with_compensation"];
+    let Some(validated) = with["files"].as_str() else {
+        return Ok(None);
+    };
+    let figure = |value: &serde_json::Value| {
+        value["errors"]["rms_position_mm"]
+            .as_f64()
+            .map_or_else(String::new, |rms| format!(" ({rms:.3} mm)"))
+    };
+    let advice = if validated.contains("joint_errors.yaml") {
+        "verify does not apply joint_errors.yaml: its figures compare with the URDF alone"
+    } else {
+        "give `stiffness` with the stiffness file the calibration used to verify what was \
+         validated"
+    };
+    Ok(Some(Note::warning(format!(
+        "the calibration was validated as {validated}{}, but no compensation is applied \
+         here: this verification scores the URDF rigid, like {} alone{} in the calibration; \
+         {advice}",
+        figure(with),
+        report["artifact"]["urdf_alone"]["files"]
+            .as_str()
+            .unwrap_or("the URDF"),
+        figure(&report["artifact"]["urdf_alone"]),
+    ))))
+}
+
 /// The recorded identification postures of a calibration's report.json.
 pub(crate) fn read_postures(path: &Path) -> Result<Option<RecordedPostures>> {
     postures_of(&read_calibration_report(path)?, path)
@@ -277,6 +314,7 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     let set = config.measurements.read(tree, &loaded.nominal, &options)?;
     notes.extend(set.warnings.iter().map(Note::warning));
     notes.extend(set.notes.iter().map(Note::info));
+    notes.extend(rigid_where_compensated(&files)?);
     let frame = measurement_frame(config, &files)?;
     let names = file_names(&files, frame.1.is_some());
     let compensation = files.stiffness.as_ref().map(CompensationFile::Source);

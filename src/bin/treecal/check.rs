@@ -13,7 +13,8 @@ fn config(args: CheckArgs) -> CheckConfig {
         tools: args.tools,
         reference_link: args.reference_link,
         pose_file: args.pose_file.or(args.poses),
-        measurements: args.measurements.map(MeasurementSource::Csv),
+        measurements: (!args.measurements.is_empty())
+            .then(|| MeasurementSource::from_paths(args.measurements)),
         length_unit: args.length_unit,
         joint_length_unit: args.joint_length_unit,
         angle_unit: args.angle_unit.map(|unit| match unit {

@@ -36,9 +36,10 @@ pub struct VerifyArgs {
     /// calibration's stiffness.yaml when written, else rigid].
     #[arg(long, value_name = "S.yaml")]
     pub stiffness: Option<PathBuf>,
-    /// The fresh measurements (CSV, as for calibrate).
-    #[arg(long, value_name = "M.csv")]
-    pub measurements: PathBuf,
+    /// The fresh measurements (CSV, as for calibrate); repeatable: several files are one set,
+    /// each file its own session (its own frame with --frame fit).
+    #[arg(long, value_name = "M.csv", required = true)]
+    pub measurements: Vec<PathBuf>,
     /// How the measurement frame is found.
     #[arg(long, value_enum, default_value = "fit")]
     pub frame: FrameArg,

@@ -12,7 +12,7 @@ pub fn run(args: VerifyArgs) -> Result<()> {
         robot: args.robot,
         registration: args.registration,
         stiffness: args.stiffness.map(StiffnessSource::File),
-        measurements: MeasurementSource::Csv(args.measurements),
+        measurements: MeasurementSource::from_paths(args.measurements),
         tools: args.tools,
         length_unit: args.length_unit,
         angle_unit: args.angle_unit,

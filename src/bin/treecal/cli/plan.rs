@@ -136,9 +136,10 @@ pub struct CheckArgs {
     /// The old spelling of --pose-file (a file, not a count as in simulate and plan).
     #[arg(long, value_name = "P.csv", conflicts_with = "measurements", hide = true, value_parser = parse_pose_file)]
     pub poses: Option<PathBuf>,
-    /// Measurement CSV (docs/file-formats.md): its configurations, tools and stages are analysed.
+    /// Measurement CSV (docs/file-formats.md): its configurations, tools and stages are analysed;
+    /// repeatable (several files are one set, as for calibrate).
     #[arg(long, value_name = "M.csv")]
-    pub measurements: Option<PathBuf>,
+    pub measurements: Vec<PathBuf>,
     /// Unit of lengths in --measurements (positions, targets, prismatic joints) [default: the
     /// file's `# units:` comment, else m].
     #[arg(long, value_parser = parse_length_unit)]
