@@ -5,6 +5,7 @@
 //! the nominal robot several times worse than a registration would: a baseline that flatters
 //! the calibration.
 
+use super::coarse_to_fine::CoarseToFine;
 use super::observation::{kind_of, Nuisance, RobotState, Tools};
 use super::options::IdentificationOptions;
 use crate::error::Result;
@@ -12,6 +13,7 @@ use crate::kinematics::McpcModel;
 use crate::math::Pose;
 use crate::measurement::Measurement;
 use nalgebra::{DMatrix, DVector, UnitQuaternion, Vector3};
+use rayon::prelude::*;
 
 /// Levenberg–Marquardt iterations at most.
 const MAX_ITERATIONS: usize = 100;
@@ -56,18 +58,56 @@ pub fn registered_nominal(
         model.set_parameters(&parameters)?;
         Ok(model)
     };
-    let cost_at = |x: &DVector<f64>| -> Result<f64> {
-        let model = model_at(x)?;
-        Ok(chunks(measurements, weights)
-            .map(|(rows, w)| weighted_residual(&model, rows, w, options).norm_squared())
-            .sum())
+    let rows = Rows {
+        measurements,
+        weights,
+        options,
+        // Many rows: the Jacobian's tool poses from the centre's (one forward kinematics per
+        // configuration instead of one per shifted model); the same solution to the tolerance.
+        centre_poses: CoarseToFine::DEFAULT.subsample(measurements).is_some(),
     };
-    let mut x = DVector::zeros(unknowns);
-    let mut cost = cost_at(&x)?;
+    model_at(&levenberg_marquardt(
+        DVector::zeros(unknowns),
+        &model_at,
+        &rows,
+    )?)
+}
+
+/// The rows a registration is fitted to, their weights (empty: all 1) and σ's.
+struct Rows<'a> {
+    measurements: &'a [Measurement],
+    weights: &'a [f64],
+    options: &'a IdentificationOptions,
+    /// Whether the Jacobian moves the centre's tool poses ([`centre_jacobian`]) rather than
+    /// computing every shifted model's.
+    centre_poses: bool,
+}
+
+impl Rows<'_> {
+    /// The weighted squared residual of every row at `model`, summed block by block in order
+    /// (the blocks in parallel: the same sum on any number of threads).
+    fn cost(&self, model: &McpcModel) -> f64 {
+        let blocks: Vec<(&[Measurement], &[f64])> =
+            chunks(self.measurements, self.weights).collect();
+        let parts: Vec<f64> = blocks
+            .par_iter()
+            .map(|(rows, w)| weighted_residual(model, rows, w, self.options).norm_squared())
+            .collect();
+        parts.into_iter().sum()
+    }
+}
+
+/// Levenberg–Marquardt from `x` over `rows`, until a step no longer lowers the cost.
+fn levenberg_marquardt(
+    mut x: DVector<f64>,
+    model_at: &dyn Fn(&DVector<f64>) -> Result<McpcModel>,
+    rows: &Rows<'_>,
+) -> Result<DVector<f64>> {
+    let unknowns = x.len();
+    let mut cost = rows.cost(&model_at(&x)?);
     let mut damping = 1e-3;
     for _ in 0..MAX_ITERATIONS {
-        let (normal, gradient) =
-            normal_equations(&x, unknowns, &model_at, measurements, weights, options)?;
+        let (normal, gradient) = normal_equations(&x, unknowns, model_at, rows)?;
         let mut improved = false;
         for _ in 0..12 {
             let scale = normal.diagonal().map(|d| d.max(1e-12));
@@ -78,7 +118,7 @@ pub fn registered_nominal(
                 break;
             };
             let trial = &x + &step;
-            let trial_cost = cost_at(&trial)?;
+            let trial_cost = rows.cost(&model_at(&trial)?);
             if trial_cost < cost {
                 let decrease = cost - trial_cost;
                 x = trial;
@@ -93,7 +133,7 @@ pub fn registered_nominal(
             break;
         }
     }
-    model_at(&x)
+    Ok(x)
 }
 
 /// Measurements per block of the normal equations: the Jacobian is never held for all rows
@@ -116,14 +156,13 @@ fn chunks<'a>(
 }
 
 /// JᵀJ and Jᵀr of the weighted residual at `x`, the Jacobian by central differences,
-/// accumulated block by block over the measurements.
+/// accumulated block by block over the rows (the blocks in parallel, added in order: the same
+/// sums on any number of threads).
 fn normal_equations(
     x: &DVector<f64>,
     unknowns: usize,
     model_at: &dyn Fn(&DVector<f64>) -> Result<McpcModel>,
-    measurements: &[Measurement],
-    weights: &[f64],
-    options: &IdentificationOptions,
+    rows: &Rows<'_>,
 ) -> Result<(DMatrix<f64>, DVector<f64>)> {
     let centre = model_at(x)?;
     let mut shifted = Vec::with_capacity(unknowns);
@@ -133,22 +172,134 @@ fn normal_equations(
         minus[k] -= STEP;
         shifted.push((model_at(&plus)?, model_at(&minus)?));
     }
+    let (options, centre_poses) = (rows.options, rows.centre_poses);
+    let block = |(rows, w): &(&[Measurement], &[f64])| -> Result<(DMatrix<f64>, DVector<f64>)> {
+        let residual = weighted_residual(&centre, rows, w, options);
+        let jacobian = if centre_poses {
+            centre_jacobian(&centre, &shifted, rows, w, options)
+        } else {
+            let mut jacobian = DMatrix::zeros(residual.len(), unknowns);
+            for (k, (plus, minus)) in shifted.iter().enumerate() {
+                let column = (weighted_residual(plus, rows, w, options)
+                    - weighted_residual(minus, rows, w, options))
+                    / (2.0 * STEP);
+                jacobian.set_column(k, &column);
+            }
+            jacobian
+        };
+        crate::limits::ensure_finite(jacobian.iter(), "the nominal robot's registration")?;
+        Ok((jacobian.tr_mul(&jacobian), jacobian.tr_mul(&residual)))
+    };
+    let blocks: Vec<(&[Measurement], &[f64])> = chunks(rows.measurements, rows.weights).collect();
+    let parts: Vec<Result<(DMatrix<f64>, DVector<f64>)>> = blocks.par_iter().map(block).collect();
     let mut normal = DMatrix::zeros(unknowns, unknowns);
     let mut gradient = DVector::zeros(unknowns);
-    for (rows, w) in chunks(measurements, weights) {
-        let residual = weighted_residual(&centre, rows, w, options);
-        let mut jacobian = DMatrix::zeros(residual.len(), unknowns);
-        for (k, (plus, minus)) in shifted.iter().enumerate() {
-            let column = (weighted_residual(plus, rows, w, options)
-                - weighted_residual(minus, rows, w, options))
-                / (2.0 * STEP);
-            jacobian.set_column(k, &column);
-        }
-        crate::limits::ensure_finite(jacobian.iter(), "the nominal robot's registration")?;
-        normal += jacobian.tr_mul(&jacobian);
-        gradient += jacobian.tr_mul(&residual);
+    for part in parts {
+        let (block_normal, block_gradient) = part?;
+        normal += block_normal;
+        gradient += block_gradient;
     }
     Ok((normal, gradient))
+}
+
+/// How a shifted model's tool poses follow from the centre's: `left · pose · right[tool]`
+/// (the measurement frame moves on the left, a tool's constant transform on the right).
+struct PoseShift {
+    left: Pose,
+    right: Vec<Pose>,
+}
+
+impl PoseShift {
+    fn between(centre: &McpcModel, shifted: &McpcModel) -> PoseShift {
+        let right = centre
+            .tools()
+            .iter()
+            .zip(shifted.tools())
+            .map(|(c, s)| c.constant_transform().inverse() * s.constant_transform())
+            .collect();
+        PoseShift {
+            left: shifted.world_from_base() * centre.world_from_base().inverse(),
+            right,
+        }
+    }
+}
+
+/// The central-difference Jacobian of [`weighted_residual`] with every shifted model's tool
+/// pose moved from the centre's ([`PoseShift`]): one forward kinematics per configuration.
+/// The same rows as the centre's residual.
+fn centre_jacobian(
+    centre: &McpcModel,
+    shifted: &[(McpcModel, McpcModel)],
+    measurements: &[Measurement],
+    weights: &[f64],
+    options: &IdentificationOptions,
+) -> DMatrix<f64> {
+    let shifts: Vec<(PoseShift, PoseShift)> = shifted
+        .iter()
+        .map(|(plus, minus)| {
+            (
+                PoseShift::between(centre, plus),
+                PoseShift::between(centre, minus),
+            )
+        })
+        .collect();
+    let noise = options.noise();
+    let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(measurements.len() * 6); shifts.len()];
+    let mut cached: Option<(&[f64], Vec<Pose>)> = None;
+    let (mut error, mut plus_error, mut minus_error) = (Vec::new(), Vec::new(), Vec::new());
+    let mut moved = Vec::new();
+    for (i, m) in measurements.iter().enumerate() {
+        if cached.as_ref().is_none_or(|(q, _)| *q != m.q.as_slice()) {
+            cached = Some((m.q.as_slice(), centre.tool_poses(&m.q)));
+        }
+        let poses = cached.as_ref().map_or(&[][..], |(_, p)| p.as_slice());
+        if m.tool >= poses.len() {
+            continue;
+        }
+        let w = weights.get(i).copied().unwrap_or(1.0).max(0.0).sqrt();
+        let kind = kind_of(&m.observation);
+        error.resize(kind.rows(), 0.0);
+        if kind.residual(&state(centre, m, poses), &mut error).is_err() {
+            continue;
+        }
+        plus_error.resize(kind.rows(), 0.0);
+        minus_error.resize(kind.rows(), 0.0);
+        for (k, ((plus, minus), (plus_shift, minus_shift))) in
+            shifted.iter().zip(&shifts).enumerate()
+        {
+            moved.clear();
+            moved.extend_from_slice(poses);
+            moved[m.tool] = plus_shift.left * poses[m.tool] * plus_shift.right[m.tool];
+            let plus_ok = kind
+                .residual(&state(plus, m, &moved), &mut plus_error)
+                .is_ok();
+            moved[m.tool] = minus_shift.left * poses[m.tool] * minus_shift.right[m.tool];
+            let minus_ok = kind
+                .residual(&state(minus, m, &moved), &mut minus_error)
+                .is_ok();
+            for ((p, n), row_kind) in plus_error.iter().zip(&minus_error).zip(kind.row_kinds()) {
+                let value = match plus_ok && minus_ok {
+                    true => w * (p - n) / noise.sigma(*row_kind) / (2.0 * STEP),
+                    false => 0.0,
+                };
+                columns[k].push(value);
+            }
+        }
+    }
+    let rows = columns.first().map_or(0, Vec::len);
+    DMatrix::from_fn(rows, columns.len(), |r, c| columns[c][r])
+}
+
+/// The robot state of measurement `m` with the tool poses `poses`.
+fn state<'a>(model: &'a McpcModel, m: &'a Measurement, poses: &'a [Pose]) -> RobotState<'a> {
+    RobotState {
+        model,
+        q: &m.q,
+        tool: m.tool,
+        tools: Tools::Poses(poses),
+        offset: None,
+        nuisance: Nuisance::none(),
+    }
 }
 
 /// `frame` moved by `delta` = (translation, rotation vector) in the measurement frame, turned

@@ -29,6 +29,7 @@
 
 pub(crate) mod baseline;
 pub(crate) mod checks;
+mod coarse_to_fine;
 pub(crate) mod columns;
 pub(crate) mod frame;
 pub(crate) mod gauge;

@@ -11,6 +11,7 @@ use crate::kinematics::{McpcModel, ParameterOwner};
 use crate::measurement::Measurement;
 use crate::tree::Branches;
 use nalgebra::Vector6;
+use std::borrow::Cow;
 
 mod anderson;
 mod locked_arm;
@@ -177,11 +178,12 @@ struct StageContext<'a> {
     max_cycles: usize,
 }
 
-/// One stage's measurements (indices and copies) and its options (the observation weights,
-/// robust estimation, of its measurements): the same in every cycle.
-struct StageInput {
+/// One stage's measurements (indices and copies; the rows given, not a copy, when the stage
+/// takes them all: at 10⁶ configurations a copy was ~400 MB) and its options (the observation
+/// weights, robust estimation, of its measurements): the same in every cycle.
+struct StageInput<'m> {
     selected: Vec<usize>,
-    data: Vec<Measurement>,
+    data: Cow<'m, [Measurement]>,
     options: IdentificationOptions,
 }
 
@@ -314,18 +316,18 @@ pub(super) fn linear_offsets(
 }
 
 /// Each stage's measurements and options (empty for a skipped stage).
-fn stage_inputs(
+fn stage_inputs<'m>(
     plan: &Plan,
     skipped: &[bool],
-    measurements: &[Measurement],
+    measurements: &'m [Measurement],
     options: &IdentificationOptions,
-) -> Result<Vec<StageInput>> {
+) -> Result<Vec<StageInput<'m>>> {
     let mut inputs = Vec::with_capacity(plan.stages.len());
     for (stage, &skip) in plan.stages.iter().zip(skipped) {
         if skip {
             inputs.push(StageInput {
                 selected: Vec::new(),
-                data: Vec::new(),
+                data: Cow::Owned(Vec::new()),
                 options: options.for_measurements(&[]),
             });
             continue;
@@ -345,7 +347,10 @@ fn stage_inputs(
             });
         }
         inputs.push(StageInput {
-            data: selected.iter().map(|&i| measurements[i].clone()).collect(),
+            data: match selected.len() == measurements.len() {
+                true => Cow::Borrowed(measurements),
+                false => Cow::Owned(selected.iter().map(|&i| measurements[i].clone()).collect()),
+            },
             options: options.for_measurements(&selected),
             selected,
         });
@@ -359,7 +364,7 @@ fn stage_inputs(
 fn coupled_stage(
     context: &StageContext<'_>,
     stage: &Stage,
-    input: &StageInput,
+    input: &StageInput<'_>,
     current: &mut McpcModel,
     previous: &mut CoupledStart,
 ) -> Result<StageReport> {
@@ -438,7 +443,7 @@ fn coupled_stage(
 /// current torso for Exact until they stop changing.
 fn coupled_offsets(
     context: &StageContext<'_>,
-    input: &StageInput,
+    input: &StageInput<'_>,
     current: &McpcModel,
 ) -> Result<Option<Vec<Vector6<f64>>>> {
     Ok(match context.compensation {
@@ -487,7 +492,7 @@ fn copy_torso_back(
 fn free_stage(
     context: &StageContext<'_>,
     stage: &Stage,
-    input: &StageInput,
+    input: &StageInput<'_>,
     current: &mut McpcModel,
 ) -> Result<StageReport> {
     let data = &input.data;

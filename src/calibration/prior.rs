@@ -121,4 +121,12 @@ impl PriorRows {
     pub(crate) fn count(&self) -> usize {
         self.weights.iter().filter(|w| **w > 0.0).count()
     }
+
+    /// The same rows with every weight times `factor` (a prior against a fraction of the data).
+    pub(crate) fn scaled(&self, factor: f64) -> PriorRows {
+        PriorRows {
+            weights: self.weights.iter().map(|w| w * factor).collect(),
+            centers: self.centers.clone(),
+        }
+    }
 }

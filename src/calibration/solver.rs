@@ -15,6 +15,7 @@
 //! `linear_algebra`, `solver_analysis`, `solver_report`); they are re-exported here under their
 //! former paths.
 
+use super::coarse_to_fine::CoarseToFine;
 use super::linearise::{residual_rms, rows_of};
 use super::normal_equations::{accumulate_with, NormalEquations, Problem, Products};
 use super::observation::{kind_of, Nuisance};
@@ -72,6 +73,26 @@ pub fn identify_with_nuisance(
     free: &[usize],
     options: &IdentificationOptions,
 ) -> Result<IdentificationReport> {
+    identify_coarse_to_fine(
+        (model, nuisance),
+        (measurements, offsets),
+        predictor,
+        free,
+        options,
+        CoarseToFine::DEFAULT,
+    )
+}
+
+/// [`identify_with_nuisance`] with the thresholds of the coarse-to-fine start given (tests
+/// lower them).
+pub(crate) fn identify_coarse_to_fine(
+    (model, nuisance): (&McpcModel, &Nuisance),
+    (measurements, offsets): (&[Measurement], Option<&[Vector6<f64>]>),
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+    thresholds: CoarseToFine,
+) -> Result<IdentificationReport> {
     validate(model, nuisance, measurements, offsets, free, options)?;
     let prior_rows = if nuisance.is_empty() {
         prior_rows(model, measurements, offsets, predictor, free, options)?
@@ -93,8 +114,50 @@ pub fn identify_with_nuisance(
         options,
         prior: prior_rows.as_ref(),
     };
-    let descent = descend(model, nuisance, &problem)?;
+    let descent = match thresholds.subsample(measurements) {
+        Some(selected) if nuisance.is_empty() => {
+            descend_from_subsample(model, nuisance, &problem, &selected)?
+        }
+        _ => descend(model, nuisance, &problem)?,
+    };
     summarise(descent, &problem)
+}
+
+/// The descent over every row of `problem`, started where the descent over the rows
+/// `selected` (an evenly spread subsample, [`CoarseToFine`]) converged from `model`: the same
+/// full-data solution, reached with most iterations paid on the subsample. The report counts
+/// the iterations of both; its costs are the full-data ones.
+fn descend_from_subsample(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    problem: &Problem<'_>,
+    selected: &[usize],
+) -> Result<Descent> {
+    let coarse = {
+        let measurements: Vec<Measurement> = selected
+            .iter()
+            .map(|&i| problem.measurements[i].clone())
+            .collect();
+        let offsets: Option<Vec<Vector6<f64>>> = problem
+            .offsets
+            .map(|offsets| selected.iter().map(|&i| offsets[i]).collect());
+        let options = problem.options.for_measurements(selected);
+        // The prior weighs against a fraction of the data: scaled alike, the subsample's
+        // optimum is near the full one.
+        let fraction = selected.len() as f64 / problem.measurements.len() as f64;
+        let prior = problem.prior.map(|prior| prior.scaled(fraction));
+        let subsample = Problem {
+            measurements: &measurements,
+            offsets: offsets.as_deref(),
+            options: &options,
+            prior: prior.as_ref(),
+            ..*problem
+        };
+        descend(model, nuisance, &subsample)?
+    };
+    let mut fine = descend(&coarse.model, &coarse.nuisance, problem)?;
+    fine.iterations += coarse.iterations;
+    Ok(fine)
 }
 
 /// Where the Levenberg–Marquardt iteration ended.

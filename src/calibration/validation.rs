@@ -107,12 +107,13 @@ impl ChainPostures {
     /// The postures prepared for many [`PostureIndex::stratum`] look-ups.
     pub fn index(&self) -> PostureIndex<'_> {
         let ranges = self.ranges();
-        // The (at most two) joints that spread the postures over the most tolerances: binned
-        // on both, a repeat is searched among the few postures in the cells around `q`.
+        // The (at most three) joints that spread the postures over the most tolerances: binned
+        // on them, a repeat is searched among the few postures in the cells around `q` (two
+        // keys left ~40 postures per cell at 10⁶ configurations: a look-up cost grew with N).
         let spread = |k: usize| (ranges[k].1 - ranges[k].0) / repeat_tolerance(self.dofs[k].1);
         let mut by_spread: Vec<usize> = (0..self.dofs.len()).collect();
         by_spread.sort_by(|&a, &b| spread(b).total_cmp(&spread(a)).then(a.cmp(&b)));
-        by_spread.truncate(2);
+        by_spread.truncate(KEYS);
         let mut index = PostureIndex {
             chain: self,
             ranges,
@@ -120,12 +121,18 @@ impl ChainPostures {
             order: (0..self.postures.len()).collect(),
             cells: Vec::new(),
         };
-        let cells: Vec<(i64, i64)> = self.postures.iter().map(|p| index.cell(p, |k| k)).collect();
+        let cells: Vec<Cell> = self.postures.iter().map(|p| index.cell(p, |k| k)).collect();
         index.order.sort_by_key(|&i| (cells[i], i));
         index.cells = index.order.iter().map(|&i| cells[i]).collect();
         index
     }
 }
+
+/// The joints a [`PostureIndex`] bins the postures along (at most).
+const KEYS: usize = 3;
+
+/// A posture's cell: its bin on each key joint (0 for a missing key).
+type Cell = [i64; KEYS];
 
 fn repeat_tolerance(angle: bool) -> f64 {
     if angle {
@@ -136,9 +143,9 @@ fn repeat_tolerance(angle: bool) -> f64 {
 }
 
 /// [`ChainPostures`] prepared for many look-ups ([`ChainPostures::index`]): the ranges computed
-/// once, the postures sorted by their cell on (at most) two joints, each cell twice the repeat
+/// once, the postures sorted by their cell on (at most) three joints, each cell twice the repeat
 /// tolerance wide. Each look-up is logarithmic in the number of postures plus the postures in
-/// the nine cells around `q` (so the strata of N rows cost about N log N, not N² as with one
+/// the 27 cells around `q` (so the strata of N rows cost about N log N, not N² as with one
 /// sorted joint), with the same result as a scan of all.
 #[derive(Debug, Clone)]
 pub struct PostureIndex<'a> {
@@ -149,14 +156,14 @@ pub struct PostureIndex<'a> {
     /// Posture indices, sorted by their cells (ties by index).
     order: Vec<usize>,
     /// Those cells, in the same order.
-    cells: Vec<(i64, i64)>,
+    cells: Vec<Cell>,
 }
 
 impl PostureIndex<'_> {
     /// The cell of a point whose value of `chain.dofs[k]` is `value(position of k)`: on each
     /// key joint, the value in units of twice its repeat tolerance, rounded down (0 for a
-    /// missing second key). Two values within the tolerance are at most one cell apart.
-    fn cell(&self, point: &[f64], position: impl Fn(usize) -> usize) -> (i64, i64) {
+    /// missing key). Two values within the tolerance are at most one cell apart.
+    fn cell(&self, point: &[f64], position: impl Fn(usize) -> usize) -> Cell {
         let on = |slot: usize| {
             self.keys.get(slot).map_or(0, |&k| {
                 let v = point.get(position(k)).copied().unwrap_or(0.0);
@@ -164,7 +171,7 @@ impl PostureIndex<'_> {
                 (v / (2.0 * repeat_tolerance(self.chain.dofs[k].1))).floor() as i64
             })
         };
-        (on(0), on(1))
+        [on(0), on(1), on(2)]
     }
 
     /// The identification posture (its index in [`ChainPostures::postures`], the first of
@@ -182,14 +189,14 @@ impl PostureIndex<'_> {
         if chain.dofs.is_empty() {
             return (!chain.postures.is_empty()).then_some(0);
         }
-        // Every candidate lies in the cells one either side of `q`'s on both key joints; the
+        // Every candidate lies in the cells one either side of `q`'s on every key joint; the
         // full test decides, exactly as a scan of every posture would.
-        let (a, b) = self.cell(q, |k| chain.dofs[k].0);
+        let [a, b, c] = self.cell(q, |k| chain.dofs[k].0);
         let mut first: Option<usize> = None;
-        for da in -1..=1 {
-            let row = a.saturating_add(da);
-            let low = (row, b.saturating_sub(1));
-            let high = (row, b.saturating_add(1));
+        for (da, db) in (-1..=1).flat_map(|da| (-1..=1).map(move |db| (da, db))) {
+            let (row, column) = (a.saturating_add(da), b.saturating_add(db));
+            let low = [row, column, c.saturating_sub(1)];
+            let high = [row, column, c.saturating_add(1)];
             let start = self.cells.partition_point(|&c| c < low);
             let end = self.cells.partition_point(|&c| c <= high);
             let found = self.order[start.min(end)..end]

@@ -232,6 +232,12 @@ pub(super) fn outputs(
     let mut summary = summary(config, loaded, data, result, export.as_ref());
     summary.stiffness = identified.as_ref().map(|(s, _)| s.clone());
     summary.artifact = Some(artifact.report);
+    // The per-row residuals live on in the summary's typed rows: freed before the plots, the
+    // page and report.json are rendered (at 10⁶ configurations some 200 MB at the peak).
+    let run = &mut result.run;
+    (run.identification, run.validation) = (Vec::new(), Vec::new());
+    run.robust.residuals = Vec::new();
+    run.validation_strata = Vec::new();
     let run = &result.run;
     let mut markdown = calibration_markdown(&summary, &result.options);
     if let Some(sessions) = &summary.sessions {
