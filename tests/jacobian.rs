@@ -53,8 +53,14 @@ fn check(model: &McpcModel, q: &[f64], what: &str) {
     for (tool, jacobian) in analytic.iter().enumerate().rev() {
         model.tool_jacobian_into((tool + 1) % analytic.len(), &other, &mut chain, &mut single);
         let pose = model.tool_jacobian_into(tool, q, &mut chain, &mut single);
-        assert_eq!(single, jacobian.jacobian, "{what}: tool_jacobian_into, tool {tool}");
-        assert_eq!(pose, jacobian.pose, "{what}: tool_jacobian_into pose, tool {tool}");
+        assert_eq!(
+            single, jacobian.jacobian,
+            "{what}: tool_jacobian_into, tool {tool}"
+        );
+        assert_eq!(
+            pose, jacobian.pose,
+            "{what}: tool_jacobian_into pose, tool {tool}"
+        );
     }
 }
 
