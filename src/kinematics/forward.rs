@@ -118,19 +118,13 @@ impl McpcModel {
         let count = self.frames().len();
         let mut frames: Vec<Transform> = Vec::with_capacity(count);
         let mut moved: Vec<Transform> = Vec::with_capacity(count);
-        // The last moved frame in registers (see `moved_frames_into`).
-        let mut last: Option<(usize, Transform)> = None;
         for (index, frame) in self.frames().iter().enumerate() {
-            let parent = match (frame.parent, &last) {
-                (Some(p), Some((l, transform))) if *l == p => transform,
-                (Some(p), _) => &moved[p],
-                (None, _) => &world_from_root,
+            let transform = match frame.parent {
+                Some(p) => moved[p].then(self.frame_constant(index)),
+                None => world_from_root.then(self.frame_constant(index)),
             };
-            let transform = parent.then(self.frame_constant(index));
-            let after = self.moved(index, q, &transform);
-            moved.push(after);
+            moved.push(self.moved(index, q, &transform));
             frames.push(transform);
-            last = Some((index, after));
         }
         (frames, moved)
     }

@@ -186,19 +186,12 @@ impl FlexibilityModel {
         let mut deflected: Vec<Transform> = Vec::with_capacity(count);
         let mut previous: Vec<Transform> = Vec::with_capacity(kept);
         let mut frames: Vec<Transform> = Vec::with_capacity(kept);
-        // The frame just deflected, kept in registers: in a chain it is usually the next
-        // frame's parent, and reading it back from `deflected` right after the write stalls.
-        let mut last: Option<(usize, Transform)> = None;
         for (i, frame) in model.frames().iter().enumerate() {
-            let parent = |p: usize| match &last {
-                Some((l, transform)) if *l == p => *transform,
-                _ => deflected[p],
-            };
             // Without a segment, the parent's frame as it is (`then` with the identity gives
             // the same values).
             let before = match (frame.parent, self.segment_to_frame[i]) {
-                (Some(p), Some(index)) => parent(p).then(&segment_transform(index)),
-                (Some(p), None) => parent(p),
+                (Some(p), Some(index)) => deflected[p].then(&segment_transform(index)),
+                (Some(p), None) => deflected[p],
                 (None, _) => world_from_root,
             };
             let sigma = before.then(model.frame_constant(i));
@@ -208,12 +201,10 @@ impl FlexibilityModel {
                 FrameKind::Prismatic => sigma.translated_z(value),
             };
             let local = deformations.joints[i].local.fixed_rows::<3>(3).into_owned();
-            let after = after_motion.then(&Transform {
+            deflected.push(after_motion.then(&Transform {
                 rotation: exp(&local),
                 translation: Vec3::zeros(),
-            });
-            deflected.push(after);
-            last = Some((i, after));
+            }));
             if whole {
                 previous.push(before);
                 frames.push(sigma);
