@@ -47,6 +47,21 @@ fn check(model: &McpcModel, q: &[f64], what: &str) {
     for (buffered, jacobian) in jacobians.iter().zip(&analytic) {
         assert_eq!(buffered, &jacobian.jacobian, "{what}: tool_jacobians_into");
     }
+    // One tool at a time on the same buffers, after the other tools and configurations: the
+    // sines of its own chain only are refreshed, and those are all it reads.
+    let mut single = nalgebra::DMatrix::zeros(0, 0);
+    for (tool, jacobian) in analytic.iter().enumerate().rev() {
+        model.tool_jacobian_into((tool + 1) % analytic.len(), &other, &mut chain, &mut single);
+        let pose = model.tool_jacobian_into(tool, q, &mut chain, &mut single);
+        assert_eq!(
+            single, jacobian.jacobian,
+            "{what}: tool_jacobian_into, tool {tool}"
+        );
+        assert_eq!(
+            pose, jacobian.pose,
+            "{what}: tool_jacobian_into pose, tool {tool}"
+        );
+    }
 }
 
 #[test]

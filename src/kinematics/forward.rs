@@ -30,6 +30,8 @@ pub(crate) struct JointMotions {
     values: Vec<f64>,
     sines: Vec<f64>,
     cosines: Vec<f64>,
+    /// Work space of [`Self::fill_frames`]: the chosen frames' values, sines and cosines.
+    picked: [Vec<f64>; 3],
 }
 
 impl JointMotions {
@@ -39,6 +41,29 @@ impl JointMotions {
         self.values
             .extend((0..model.frames().len()).map(|frame| model.joint_value(frame, q)));
         sin_cos_all(&self.values, &mut self.sines, &mut self.cosines);
+    }
+
+    /// [`Self::fill`] for `frames` only (the same values for those; the other frames keep
+    /// what they held): one tool's chain needs the sines of its own joints, not the others'.
+    pub(crate) fn fill_frames(&mut self, model: &McpcModel, q: &[f64], frames: &[&[usize]]) {
+        let count = model.frames().len();
+        for buffer in [&mut self.values, &mut self.sines, &mut self.cosines] {
+            buffer.resize(count, 0.0);
+        }
+        let [values, sines, cosines] = &mut self.picked;
+        values.clear();
+        values.extend(
+            frames
+                .iter()
+                .flat_map(|f| f.iter())
+                .map(|&frame| model.joint_value(frame, q)),
+        );
+        sin_cos_all(values, sines, cosines);
+        for (k, &frame) in frames.iter().flat_map(|f| f.iter()).enumerate() {
+            self.values[frame] = values[k];
+            self.sines[frame] = sines[k];
+            self.cosines[frame] = cosines[k];
+        }
     }
 
     /// `transform · Q(θ)` for the joint of frame `frame` (the same bits as
@@ -166,12 +191,19 @@ impl McpcModel {
     ) {
         motions.fill(self, q);
         moved.resize(self.frames().len(), Transform::identity());
+        // The frame just computed, kept in registers: reading a parent back from `moved`
+        // right after writing it stalls on the store, and in a chain the parent is usually
+        // the frame just before.
+        let mut last: Option<(usize, Transform)> = None;
         for (index, frame) in self.frames().iter().enumerate() {
-            let placed = match frame.parent {
-                Some(p) => moved[p].then(self.frame_constant(index)),
-                None => world_from_root.then(self.frame_constant(index)),
+            let parent = match (frame.parent, &last) {
+                (Some(p), Some((l, transform))) if *l == p => transform,
+                (Some(p), _) => &moved[p],
+                (None, _) => world_from_root,
             };
-            moved[index] = motions.apply(self, index, &placed);
+            let placed = motions.apply(self, index, &parent.then(self.frame_constant(index)));
+            moved[index] = placed;
+            last = Some((index, placed));
         }
     }
 

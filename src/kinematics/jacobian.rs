@@ -70,9 +70,7 @@ impl McpcModel {
         chain.motions.fill(self, q);
         self.joint_error_factors(q, &mut chain.joint_error_factors);
         chain.world_from_root = self.moving_root(q);
-        for frame in 0..self.frames().len() {
-            self.set_chain_frame(frame, chain);
-        }
+        self.set_chain_frames(0..self.frames().len(), chain);
         for tool in 0..self.tools().len() {
             self.set_chain_tool(tool, chain);
         }
@@ -108,15 +106,38 @@ impl McpcModel {
     }
 
     /// `previous` and `frames` of `frame`, from its parent's (already set) frame and
-    /// `chain.motions` (filled at the configuration).
-    #[inline]
-    fn set_chain_frame(&self, frame: usize, chain: &mut ChainFrames) {
+    /// `chain.motions` (filled at the configuration). `last` is the frame set just before, if
+    /// any: when it is the parent it is taken from there rather than read back from
+    /// `chain.frames`, which it has only just been written to (reading it back stalls on the
+    /// store). Returns the frame.
+    #[inline(always)]
+    fn set_chain_frame(
+        &self,
+        frame: usize,
+        chain: &mut ChainFrames,
+        last: Option<&(usize, Transform)>,
+    ) -> Transform {
         let previous = match self.frames()[frame].parent {
-            Some(p) => chain.motions.apply(self, p, &chain.frames[p]),
+            Some(p) => match last {
+                Some((index, parent)) if *index == p => chain.motions.apply(self, p, parent),
+                _ => chain.motions.apply(self, p, &chain.frames[p]),
+            },
             None => self.chain_root(chain),
         };
-        chain.frames[frame] = previous.then(self.frame_constant(frame));
+        let sigma = previous.then(self.frame_constant(frame));
+        chain.frames[frame] = sigma;
         chain.previous[frame] = previous;
+        sigma
+    }
+
+    /// [`Self::set_chain_frame`] of `frames` in order (parents before their children).
+    #[inline(always)]
+    fn set_chain_frames(&self, frames: impl Iterator<Item = usize>, chain: &mut ChainFrames) {
+        let mut last = None;
+        for frame in frames {
+            let sigma = self.set_chain_frame(frame, chain, last.as_ref());
+            last = Some((frame, sigma));
+        }
     }
 
     /// `tool_previous` and `tools` of `tool`, from its last frame (already set).
@@ -230,12 +251,11 @@ impl McpcModel {
         jacobian: &mut DMatrix<f64>,
     ) -> Pose {
         self.size_chain(chain);
-        chain.motions.fill(self, q);
+        let frames = [self.reference_chain(), self.tool_chain(tool)];
+        chain.motions.fill_frames(self, q, &frames);
         self.joint_error_factors(q, &mut chain.joint_error_factors);
         chain.world_from_root = self.moving_root(q);
-        for &frame in self.reference_chain().iter().chain(self.tool_chain(tool)) {
-            self.set_chain_frame(frame, chain);
-        }
+        self.set_chain_frames(frames.iter().flat_map(|f| f.iter().copied()), chain);
         self.set_chain_tool(tool, chain);
         self.reset_jacobian(jacobian);
         self.fill_tool_jacobian(tool, chain, jacobian);
