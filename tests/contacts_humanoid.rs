@@ -5,7 +5,7 @@
 //! TALOS has 15) from the shared robots stands in for TALOS.
 
 use crate::common;
-use crate::common::cli::{assert_success, calibrate_contacts, path_str, treecal};
+use crate::common::cli::{assert_success, calibrate_contacts, path_str, treecal, Run};
 use std::path::{Path, PathBuf};
 
 /// A robot of the shared robots (`TREECAL_SHARED_DIR`, `../shared`, `/work/shared`).
@@ -39,6 +39,16 @@ fn heights(dir: &Path) -> (serde_json::Value, [f64; 2]) {
     (json, pair)
 }
 
+/// `simulate` on Atlas standing on `l_foot`, `tools` flush on tables, into `out`, with `extra`
+/// flags.
+fn simulate_flush_on_atlas(atlas: &Path, tools: &str, out: &Path, extra: &[&str]) -> Run {
+    let mut args = vec!["simulate", "--robot", path_str(atlas), "--tools", tools];
+    args.extend(["--reference-link", "l_foot", "--observation", "flush"]);
+    args.extend_from_slice(extra);
+    args.extend(["--out", path_str(out)]);
+    treecal(&args)
+}
+
 #[test]
 fn table_contacts_of_both_hands_calibrate_per_side_and_together() {
     let Some(atlas) = shared_robot("atlas_v5/atlas_v5.urdf") else {
@@ -48,34 +58,28 @@ fn table_contacts_of_both_hands_calibrate_per_side_and_together() {
     let atlas = path_str(&atlas).to_owned();
     let dir = tempfile::tempdir().unwrap();
     let sim = dir.path().join("sim");
-    let run = treecal(&[
-        "simulate",
-        "--robot",
-        &atlas,
-        "--tools",
+    let run = simulate_flush_on_atlas(
+        Path::new(&atlas),
         "l_hand,r_hand",
-        "--reference-link",
-        "l_foot",
-        "--observation",
-        "flush",
-        "--tables",
-        "3",
-        "--both-hands",
-        "--encoder-noise",
-        "1e-4",
-        "--angle-error",
-        "0.01",
-        "--length-error",
-        "0.01",
-        "--poses",
-        "20",
-        "--torso-poses",
-        "0",
-        "--trials",
-        "1",
-        "--out",
-        path_str(&sim),
-    ]);
+        &sim,
+        &[
+            "--tables",
+            "3",
+            "--both-hands",
+            "--encoder-noise",
+            "1e-4",
+            "--angle-error",
+            "0.01",
+            "--length-error",
+            "0.01",
+            "--poses",
+            "20",
+            "--torso-poses",
+            "0",
+            "--trials",
+            "1",
+        ],
+    );
     assert_success(&run, "simulate flush, three tables, both hands on Atlas");
     let csv = std::fs::read_to_string(sim.join("contacts.csv")).unwrap();
     for needle in [",day1,flush,l_hand,", ",day3,flush,r_hand,"] {
@@ -152,23 +156,12 @@ fn encoder_noise_on_a_standing_humanoid_matches_its_covariance() {
     };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sim");
-    let run = treecal(&[
-        "simulate",
-        "--robot",
-        path_str(&atlas),
-        "--tools",
+    let run = simulate_flush_on_atlas(
+        &atlas,
         "l_hand",
-        "--reference-link",
-        "l_foot",
-        "--observation",
-        "flush",
-        "--trials",
-        "5",
-        "--encoder-noise",
-        "1e-4",
-        "-o",
-        path_str(&out),
-    ]);
+        &out,
+        &["--trials", "5", "--encoder-noise", "1e-4"],
+    );
     assert_success(&run, "simulate flush on Atlas");
     let results: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
@@ -194,31 +187,25 @@ fn a_contact_fit_that_shrinks_the_robot_is_refitted_or_refused() {
     };
     let dir = tempfile::tempdir().unwrap();
     let sim = dir.path().join("sim");
-    let run = treecal(&[
-        "simulate",
-        "--robot",
-        path_str(&atlas),
-        "--tools",
+    let run = simulate_flush_on_atlas(
+        &atlas,
         "l_hand",
-        "--reference-link",
-        "l_foot",
-        "--observation",
-        "flush",
-        "--tables",
-        "3",
-        "--encoder-noise",
-        "1e-3",
-        "--poses",
-        "30",
-        "--torso-poses",
-        "0",
-        "--trials",
-        "1",
-        "--collision-check",
-        "primitives-only",
-        "-o",
-        path_str(&sim),
-    ]);
+        &sim,
+        &[
+            "--tables",
+            "3",
+            "--encoder-noise",
+            "1e-3",
+            "--poses",
+            "30",
+            "--torso-poses",
+            "0",
+            "--trials",
+            "1",
+            "--collision-check",
+            "primitives-only",
+        ],
+    );
     assert_success(&run, "simulate flush, one hand, three tables, on Atlas");
     let results: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(sim.join("results.json")).unwrap()).unwrap();

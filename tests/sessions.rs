@@ -378,6 +378,29 @@ fn the_report_names_every_session_with_its_rows_and_frame() {
     );
 }
 
+/// Writes the rows `indices` of `positions` to `path` as a measurement CSV: only those of
+/// `session` when given, with their `session` labels when `labelled`.
+fn write_rows(
+    robot: &SecondRobot,
+    positions: &[Measurement],
+    (indices, session, labelled): (&[usize], Option<&str>, bool),
+    path: &std::path::Path,
+) {
+    let rows: Vec<Measurement> = indices
+        .iter()
+        .map(|&i| positions[i].clone())
+        .filter(|m| session.is_none() || m.session.as_deref() == session)
+        .map(|mut m| {
+            if !labelled {
+                m.session = None;
+            }
+            m
+        })
+        .collect();
+    let text = treecal::io::measurements_to_csv(&robot.tree, &robot.nominal, &rows).unwrap();
+    std::fs::write(path, text).unwrap();
+}
+
 /// One file per session, as labs record them: the three sessions of the second robot written
 /// as `day1_poses.csv`, `day2_points.csv`, `day3_points.csv` without a `session` column (each
 /// numbering its rows from 1) and given as three `measurements` files calibrate exactly as one
@@ -391,31 +414,17 @@ fn one_file_per_session_calibrates_as_a_session_column() {
     let dir = tempfile::tempdir().unwrap();
     let positions = robot.clone_rows_as_positions();
     let (kept, held) = robot.split(6);
-    let write = |rows: Vec<Measurement>, name: &str| {
-        let text = treecal::io::measurements_to_csv(&robot.tree, &robot.nominal, &rows).unwrap();
+    let write = |indices: &[usize], session: Option<&str>, labelled: bool, name: &str| {
         let path = dir.path().join(name);
-        std::fs::write(&path, text).unwrap();
+        write_rows(&robot, &positions, (indices, session, labelled), &path);
         path
-    };
-    let rows = |indices: &[usize], session: Option<&str>, labelled: bool| -> Vec<Measurement> {
-        indices
-            .iter()
-            .map(|&i| positions[i].clone())
-            .filter(|m| session.is_none() || m.session.as_deref() == session)
-            .map(|mut m| {
-                if !labelled {
-                    m.session = None;
-                }
-                m
-            })
-            .collect()
     };
     let per_session: Vec<_> = SESSIONS
         .iter()
-        .map(|s| write(rows(&kept, Some(s), false), &format!("{s}.csv")))
+        .map(|s| write(&kept, Some(s), false, &format!("{s}.csv")))
         .collect();
-    let one_file = write(rows(&kept, None, true), "training.csv");
-    let validation = write(rows(&held, None, true), "validation.csv");
+    let one_file = write(&kept, None, true, "training.csv");
+    let validation = write(&held, None, true, "validation.csv");
     let run = |measurements: MeasurementSource| {
         calibrate(&CalibrateConfig {
             robot: RobotSource::File(robot.urdf.clone()),
@@ -460,18 +469,8 @@ fn measurements_and_validation_files_repeat_on_the_command_line() {
     let positions = robot.clone_rows_as_positions();
     let (kept, held) = robot.split(6);
     let write = |indices: &[usize], session: Option<&str>, name: &str| {
-        let rows: Vec<Measurement> = indices
-            .iter()
-            .map(|&i| positions[i].clone())
-            .filter(|m| session.is_none() || m.session.as_deref() == session)
-            .map(|mut m| {
-                m.session = None;
-                m
-            })
-            .collect();
-        let text = treecal::io::measurements_to_csv(&robot.tree, &robot.nominal, &rows).unwrap();
         let path = dir.path().join(name);
-        std::fs::write(&path, text).unwrap();
+        write_rows(&robot, &positions, (indices, session, false), &path);
         path_str(&path).to_owned()
     };
     let files: Vec<String> = SESSIONS

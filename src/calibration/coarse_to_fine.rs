@@ -104,44 +104,11 @@ mod tests {
     fn coarse_to_fine_reaches_the_full_data_optimum() {
         use crate::calibration::observation::Nuisance;
         use crate::calibration::solver::{identify_coarse_to_fine, IdentificationOptions, Rigid};
-        use crate::kinematics::McpcModel;
-        use nalgebra::UnitQuaternion;
-        use rand::rngs::ChaCha8Rng;
-        use rand::{RngExt, SeedableRng};
+        use crate::calibration::test_problems::{problem, robonaut, with_noise};
 
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/robonaut/robonaut.urdf");
-        let tree = crate::load_urdf(&path).expect("robonaut.urdf loads").tree;
-        let branches = crate::detect_branches(&tree, None).expect("branches");
-        let model = McpcModel::from_tree(&tree, &branches).expect("model");
-        let mut rng = ChaCha8Rng::seed_from_u64(24);
-        let mut truth = model.clone();
-        let values: Vec<f64> = model
-            .parameters()
-            .iter()
-            .map(|v| v + rng.random_range(-0.01..0.01))
-            .collect();
-        truth.set_parameters(&values).expect("parameters");
-        let mut measurements = Vec::new();
-        for _ in 0..1500 {
-            let q: Vec<f64> = (0..tree.dof_count())
-                .map(|_| rng.random_range(-2.0..2.0))
-                .collect();
-            for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
-                let mut noisy = pose;
-                noisy.translation.vector += Vector3::from_fn(|_, _| rng.random_range(-2e-4..2e-4));
-                let turn = Vector3::from_fn(|_, _| rng.random_range(-2e-3..2e-3));
-                noisy.rotation = UnitQuaternion::from_scaled_axis(turn) * noisy.rotation;
-                measurements.push(Measurement {
-                    payload: None,
-                    tool,
-                    q: q.clone(),
-                    observation: Observation::Pose(noisy),
-                    stage: None,
-                    session: None,
-                });
-            }
-        }
+        let robot = robonaut();
+        let model = &robot.0;
+        let measurements = with_noise(problem(&robot, 1500, true), [2e-4, 2e-3]);
         // Robust weights, some rows left out: the subsample takes its rows' weights.
         let options = IdentificationOptions {
             observation_weights: (0..measurements.len())
@@ -152,7 +119,7 @@ mod tests {
         let free: Vec<usize> = (0..model.parameter_count()).collect();
         let run = |thresholds: CoarseToFine| {
             identify_coarse_to_fine(
-                (&model, Nuisance::none()),
+                (model, Nuisance::none()),
                 (&measurements, None),
                 &Rigid,
                 &free,

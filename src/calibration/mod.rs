@@ -57,6 +57,8 @@ pub(crate) mod solver;
 mod solver_analysis;
 mod solver_report;
 pub(crate) mod stiffness;
+#[cfg(test)]
+mod test_problems;
 pub(crate) mod validation;
 pub(crate) mod verdict;
 

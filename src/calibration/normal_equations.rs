@@ -360,57 +360,7 @@ mod tests {
     use super::*;
     use crate::calibration::linearise::Linearisation;
     use crate::calibration::predictor::Rigid;
-    use crate::measurement::Observation;
-    use crate::{detect_branches, load_urdf};
-    use rand::rngs::ChaCha8Rng;
-    use rand::{RngExt, SeedableRng};
-
-    /// The built-in Robonaut and its number of joint values.
-    fn robonaut() -> (McpcModel, usize) {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/robonaut/robonaut.urdf");
-        let tree = load_urdf(&path).expect("robonaut.urdf loads").tree;
-        let branches = detect_branches(&tree, None).expect("branches");
-        let model = McpcModel::from_tree(&tree, &branches).expect("model");
-        (model, tree.dof_count())
-    }
-
-    /// Measurements of a model off the nominal one at random configurations: full poses, or
-    /// positions only (a rank-deficient problem).
-    fn problem(
-        (model, dofs): &(McpcModel, usize),
-        configurations: usize,
-        poses: bool,
-    ) -> Vec<Measurement> {
-        let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let mut truth = model.clone();
-        let values: Vec<f64> = model
-            .parameters()
-            .iter()
-            .map(|v| v + rng.random_range(-0.02..0.02))
-            .collect();
-        truth.set_parameters(&values).expect("parameters");
-        let mut measurements = Vec::new();
-        for _ in 0..configurations {
-            let q: Vec<f64> = (0..*dofs).map(|_| rng.random_range(-2.0..2.0)).collect();
-            for (tool, pose) in truth.tool_poses(&q).into_iter().enumerate() {
-                let observation = if poses {
-                    Observation::Pose(pose)
-                } else {
-                    Observation::Position(pose.translation.vector)
-                };
-                measurements.push(Measurement {
-                    payload: None,
-                    tool,
-                    q: q.clone(),
-                    observation,
-                    stage: None,
-                    session: None,
-                });
-            }
-        }
-        measurements
-    }
+    use crate::calibration::test_problems::{problem, robonaut};
 
     fn relative(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
         (a - b).amax() / b.amax()

@@ -2,7 +2,7 @@
 //! each file is then its own measurement session (one measurement frame each,
 //! `calibration::sessions`) unless its rows name their session themselves.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::io::{read_measurements, MeasurementReadOptions, MeasurementSet};
 use crate::kinematics::McpcModel;
 use crate::tree::KinematicTree;
@@ -55,49 +55,34 @@ pub(super) fn union_in_order<T: PartialEq>(lists: Vec<Vec<T>>) -> Vec<T> {
 
 /// Reads every file (each as [`read_measurements`] reads one) into one set, in file order.
 /// Rows without a `session` get their file's session name ([`session_names`]); row ids that
-/// repeat across files are prefixed with it (`day1/12`), said in a note.
+/// repeat across files are prefixed with it (`day1/12`), said in a note. No file is an error.
 pub(super) fn read_files(
     paths: &[PathBuf],
     tree: &KinematicTree,
     model: &McpcModel,
     options: &MeasurementReadOptions,
 ) -> Result<MeasurementSet> {
-    let names = session_names(paths);
-    let sets = paths
+    let mut sets = paths
         .iter()
         .map(|path| read_measurements(path, tree, model, options))
-        .collect::<Result<Vec<_>>>()?;
-    let mut labelled = Vec::with_capacity(sets.len());
-    let mut merged: Option<MeasurementSet> = None;
-    for (mut set, name) in sets.into_iter().zip(&names) {
-        let unlabelled = set
-            .measurements
-            .iter_mut()
-            .filter(|m| m.session.is_none())
-            .map(|m| m.session = Some(name.clone()))
-            .count();
-        labelled.push(format!(
-            "'{name}' {} rows{}",
-            set.measurements.len(),
-            if unlabelled == set.measurements.len() {
-                String::new()
-            } else {
-                " (sessions from its `session` column)".into()
-            }
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .zip(session_names(paths));
+    let Some((mut set, name)) = sets.next() else {
+        return Err(Error::setting(
+            "measurements",
+            "no measurement file given: name at least one CSV",
         ));
-        merged = Some(match merged {
-            None => set,
-            Some(mut all) => {
-                all.measurements.append(&mut set.measurements);
-                all.ids.append(&mut set.ids);
-                all.lines.append(&mut set.lines);
-                all.warnings.append(&mut set.warnings);
-                all.notes.append(&mut set.notes);
-                all
-            }
-        });
+    };
+    let mut labelled = vec![label_session(&mut set, &name)];
+    for (mut more, name) in sets {
+        labelled.push(label_session(&mut more, &name));
+        set.measurements.append(&mut more.measurements);
+        set.ids.append(&mut more.ids);
+        set.lines.append(&mut more.lines);
+        set.warnings.append(&mut more.warnings);
+        set.notes.append(&mut more.notes);
     }
-    let mut set = merged.expect("`Files` holds at least two paths");
     set.notes.push(format!(
         "{} measurement files read as one set, each file its own session (one measurement \
          frame each): {}",
@@ -108,6 +93,23 @@ pub(super) fn read_files(
         set.notes.push(note);
     }
     Ok(set)
+}
+
+/// Gives the rows of one file's `set` without a `session` the file's session `name`; says
+/// how many rows the file has and whether it named sessions itself.
+fn label_session(set: &mut MeasurementSet, name: &str) -> String {
+    let unlabelled = set
+        .measurements
+        .iter_mut()
+        .filter(|m| m.session.is_none())
+        .map(|m| m.session = Some(name.to_owned()))
+        .count();
+    let own = if unlabelled == set.measurements.len() {
+        ""
+    } else {
+        " (sessions from its `session` column)"
+    };
+    format!("'{name}' {} rows{own}", set.measurements.len())
 }
 
 /// Prefixes every id with its row's session when an id occurs in two sessions (files that

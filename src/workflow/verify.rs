@@ -229,15 +229,12 @@ fn no_robot(config: &VerifyConfig) -> Error {
 /// (which stays outside the output folder) and verify, given no `stiffness`, scores the URDF
 /// rigid, which can be far worse (the built-in Robonaut's example: 0.09 mm compensated,
 /// 54 mm rigid). The warning names what the calibration validated.
-fn rigid_where_compensated(files: &Resolved) -> Result<Option<Note>> {
-    let (None, Some(path)) = (&files.stiffness, &files.report) else {
-        return Ok(None);
+fn rigid_where_compensated(files: &Resolved, report: Option<&serde_json::Value>) -> Option<Note> {
+    let (None, Some(report)) = (&files.stiffness, report) else {
+        return None;
     };
-    let report = read_calibration_report(path)?;
     let with = &report["artifact"]["with_compensation"];
-    let Some(validated) = with["files"].as_str() else {
-        return Ok(None);
-    };
+    let validated = with["files"].as_str()?;
     let figure = |value: &serde_json::Value| {
         value["errors"]["rms_position_mm"]
             .as_f64()
@@ -249,7 +246,7 @@ fn rigid_where_compensated(files: &Resolved) -> Result<Option<Note>> {
         "give `stiffness` with the stiffness file the calibration used to verify what was \
          validated"
     };
-    Ok(Some(Note::warning(format!(
+    Some(Note::warning(format!(
         "the calibration was validated as {validated}{}, but no compensation is applied \
          here: this verification scores the URDF rigid, like {} alone{} in the calibration; \
          {advice}",
@@ -258,12 +255,7 @@ fn rigid_where_compensated(files: &Resolved) -> Result<Option<Note>> {
             .as_str()
             .unwrap_or("the URDF"),
         figure(&report["artifact"]["urdf_alone"]),
-    ))))
-}
-
-/// The recorded identification postures of a calibration's report.json.
-pub(crate) fn read_postures(path: &Path) -> Result<Option<RecordedPostures>> {
-    postures_of(&read_calibration_report(path)?, path)
+    )))
 }
 
 /// The recorded identification postures of a report.json read from `path`.
@@ -314,7 +306,16 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
     let set = config.measurements.read(tree, &loaded.nominal, &options)?;
     notes.extend(set.warnings.iter().map(Note::warning));
     notes.extend(set.notes.iter().map(Note::info));
-    notes.extend(rigid_where_compensated(&files)?);
+    // report.json is read once (at 10⁶ rows it is ~900 MB): for the warning and the strata.
+    let recorded = files
+        .report
+        .as_ref()
+        .map(|path| read_calibration_report(path).map(|report| (path, report)))
+        .transpose()?;
+    notes.extend(rigid_where_compensated(
+        &files,
+        recorded.as_ref().map(|(_, r)| r),
+    ));
     let frame = measurement_frame(config, &files)?;
     let names = file_names(&files, frame.1.is_some());
     let compensation = files.stiffness.as_ref().map(CompensationFile::Source);
@@ -332,8 +333,8 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
         config.gravity_frame,
     )?;
     let (predicted, sessions) = refit(config, &set.measurements, predicted);
-    let chains = match &files.report {
-        Some(path) => match read_postures(path)? {
+    let chains = match &recorded {
+        Some((path, report)) => match postures_of(report, path)? {
             Some(recorded) => Some(chains_of(
                 &recorded,
                 tree,
