@@ -621,3 +621,112 @@ fn a_wrong_fixed_frame_marks_its_consequences() {
     }
     assert!(!frame.message.starts_with("probable"));
 }
+
+/// A blunder among the validation rows (a bumped target, a mistyped value: 0.4 m off) is
+/// marked and counted in every figure, but it does not decide the verdict: the validation
+/// checks judge the rows not flagged (and say so), the headline gives both figures. Without
+/// that, one row made a good calibration "no better than the nominal robot" (failed, nothing
+/// written).
+#[test]
+fn a_validation_blunder_is_counted_but_does_not_fail_a_good_calibration() {
+    let mut s = scene(2809, 1.0, &tracker());
+    let data = measure(&mut s, 30, 1.0, &rigid);
+    let mut validation = measure(&mut s, 12, 1.0, &rigid);
+    if let Observation::Pose(pose) = &mut validation[5].observation {
+        pose.translation.vector += Vector3::new(0.0, 0.4, 0.0);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let config = CalibrateConfig {
+        robot: RobotSource::File(robot("robonaut/robonaut.urdf")),
+        measurements: MeasurementSource::Csv(csv(&s, dir.path(), "data.csv", &data)),
+        validation: Some(MeasurementSource::Csv(csv(
+            &s,
+            dir.path(),
+            "validation.csv",
+            &validation,
+        ))),
+        position_sigma: NOISE,
+        rotation_sigma: ROTATION_NOISE,
+        ..CalibrateConfig::default()
+    };
+    let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
+    assert!(outcome.usable(), "{:?}", outcome.verdict);
+    let reason = |code: &str| outcome.verdict.reasons.iter().find(|r| r.code == code);
+    assert!(
+        reason("validation-worse").is_none(),
+        "{:?}",
+        outcome.verdict
+    );
+    assert!(
+        reason("urdf-alone-worse").is_none(),
+        "{:?}",
+        outcome.verdict
+    );
+    let outliers = reason("outliers").expect("the blunder is named");
+    assert!(
+        outliers
+            .message
+            .contains(&format!("1 of {} validation", validation.len())),
+        "{}",
+        outliers.message
+    );
+    // Every row counts in the headline figure, which says what the flagged row does to it.
+    let report = outcome.report();
+    let all = number(&report["validation_strata"]["strata"][0]["rms_position_mm"]);
+    assert!(all > 50.0, "the blunder counts: {all} mm");
+    let headline = outcome
+        .report_markdown
+        .lines()
+        .find(|l| l.starts_with("**Held-out accuracy:**"))
+        .expect("a headline");
+    assert!(
+        headline.contains(&format!("over all {} validation rows", validation.len()))
+            && headline.contains("1 of them flagged as outliers"),
+        "{headline}"
+    );
+    // Without the flagged row the calibration is at the noise, the nominal robot is not.
+    let clean: Vec<Measurement> = validation
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != 5)
+        .map(|(_, m)| m.clone())
+        .collect();
+    let urdf = file(&outcome.files, "calibrated.urdf").expect("calibrated.urdf");
+    let registration = file(&outcome.files, "registration.yaml").expect("registration.yaml");
+    let frame = parse_registration(registration, "registration.yaml").unwrap();
+    let links: Vec<String> = s
+        .nominal
+        .tools()
+        .iter()
+        .map(|t| s.tree.link(t.link).name.clone())
+        .collect();
+    assert!(
+        rescore(urdf, &frame, &links, &clean) < 0.5,
+        "calibrated at the noise"
+    );
+}
+
+/// The same checks on validation data that are all off (another set-up): no row stands out,
+/// none is set aside, and the calibration fails as before.
+#[test]
+fn validation_data_all_off_still_fail() {
+    let mut s = scene(2810, 1.0, &Pose::identity());
+    let data = measure(&mut s, 30, 1.0, &rigid);
+    let mut validation = measure(&mut s, 12, 1.0, &rigid);
+    for m in &mut validation {
+        m.q.iter_mut().for_each(|q| *q += 0.2);
+    }
+    let result = run(&s, MeasurementFrame::Fit, &data, &validation);
+    let codes: Vec<&str> = result.findings.iter().map(|f| f.code.as_str()).collect();
+    assert!(
+        codes.contains(&"validation-worse") || codes.contains(&"validation-prediction"),
+        "{codes:?}"
+    );
+    assert!(
+        result
+            .findings
+            .iter()
+            .all(|f| !f.message.contains("judged without")),
+        "{codes:?}"
+    );
+}

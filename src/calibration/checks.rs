@@ -351,20 +351,112 @@ fn expected_validation_rms(run: &CalibrationRun) -> Option<f64> {
     Some((noise * noise + predicted * predicted).sqrt()).filter(|e| e.is_finite() && *e > 0.0)
 }
 
-/// On the validation data the calibrated model must beat the registered nominal one (RMS
-/// position error over every row), unless the nominal model is already within the noise.
-pub fn validation_improves(run: &CalibrationRun) -> Option<Finding> {
-    let expected = expected_validation_rms(run);
-    let worse: Vec<String> = run
+/// The validation rows the validation checks judge, per arm: RMS position error before and
+/// after (mm) over them.
+struct JudgedArm<'a> {
+    arm: &'a str,
+    before: f64,
+    after: f64,
+}
+
+/// The validation rows the checks judge. Every row counts in the report's figures; a few rows
+/// the robust loss flags as outliers (a bumped target, a mistyped joint value) would decide
+/// these checks alone — one 600 mm blunder makes any calibration "no better than the nominal
+/// robot" — so the checks judge the rows not flagged, as long as those are the majority, and
+/// say so (`set_aside` names how many rows they left out). With most rows flagged the rows are
+/// not blunders but the data: every row is judged.
+struct JudgedValidation<'a> {
+    arms: Vec<JudgedArm<'a>>,
+    after_rms: Option<f64>,
+    set_aside: usize,
+}
+
+/// Per validation row (in validation order): whether the validation checks set it aside —
+/// flagged as an outlier by the robust loss, while fewer than half the rows are flagged (with
+/// more, the rows are not blunders but the data, and none is set aside). Every row still counts
+/// in the reported figures; only the pass/fail comparisons skip these.
+pub fn validation_set_aside(run: &CalibrationRun) -> Vec<bool> {
+    let rows: usize = run.validation.iter().map(|a| a.position_mm[1].len()).sum();
+    let mut flagged = vec![false; rows];
+    for outlier in &run.outliers {
+        if outlier.set == super::robust::DataSet::Validation && outlier.index < rows {
+            flagged[outlier.index] = true;
+        }
+    }
+    let count = flagged.iter().filter(|&&f| f).count();
+    if 2 * count >= rows {
+        flagged.iter_mut().for_each(|f| *f = false);
+    }
+    flagged
+}
+
+fn judged_validation(run: &CalibrationRun) -> JudgedValidation<'_> {
+    let flagged = validation_set_aside(run);
+    let set_aside = flagged.iter().filter(|&&f| f).count();
+    let keep = |row: usize| !flagged.get(row).copied().unwrap_or(false);
+    let rms = |values: Vec<f64>| {
+        (!values.is_empty())
+            .then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())
+    };
+    let mut all_after = Vec::new();
+    let arms = run
         .validation
         .iter()
-        .filter(|arm| arm.after.rms_position_mm >= arm.before.rms_position_mm)
+        .filter_map(|arm| {
+            let kept = |k: usize| -> Vec<f64> {
+                arm.rows
+                    .iter()
+                    .zip(&arm.position_mm[k])
+                    .filter(|(&row, _)| keep(row))
+                    .map(|(_, &v)| v)
+                    .collect()
+            };
+            let after = kept(1);
+            all_after.extend_from_slice(&after);
+            Some(JudgedArm {
+                arm: &arm.arm,
+                before: rms(kept(0))?,
+                after: rms(after)?,
+            })
+        })
+        .collect();
+    JudgedValidation {
+        arms,
+        after_rms: rms(all_after),
+        set_aside,
+    }
+}
+
+impl JudgedValidation<'_> {
+    /// How the rows were chosen, for a finding's message (empty when every row is judged).
+    fn rows_judged(&self) -> String {
+        if self.set_aside == 0 {
+            String::new()
+        } else {
+            format!(
+                " (judged without the {} validation row(s) flagged as outliers, named in the outliers warning; they count in every figure of the report)",
+                self.set_aside
+            )
+        }
+    }
+}
+
+/// On the validation data the calibrated model must beat the registered nominal one (RMS
+/// position error over the rows [`judged_validation`] keeps), unless the nominal model is
+/// already within the noise.
+pub fn validation_improves(run: &CalibrationRun) -> Option<Finding> {
+    let expected = expected_validation_rms(run);
+    let judged = judged_validation(run);
+    let worse: Vec<String> = judged
+        .arms
+        .iter()
+        .filter(|arm| arm.after >= arm.before)
         // A nominal model already at the noise floor cannot be improved measurably.
-        .filter(|arm| expected.is_none_or(|e| arm.before.rms_position_mm > 2.0 * e))
+        .filter(|arm| expected.is_none_or(|e| arm.before > 2.0 * e))
         .map(|arm| {
             format!(
                 "{} (RMS position error {:.4} mm before, {:.4} mm after)",
-                arm.arm, arm.before.rms_position_mm, arm.after.rms_position_mm
+                arm.arm, arm.before, arm.after
             )
         })
         .collect();
@@ -372,20 +464,24 @@ pub fn validation_improves(run: &CalibrationRun) -> Option<Finding> {
         Finding::failed(
             "validation-worse",
             format!(
-                "on the validation data the calibrated model is no better than the nominal one: {}; the calibration does not describe the robot (swapped tools or columns, units, or validation data from another set-up)",
-                worse.join("; ")
+                "on the validation data the calibrated model is no better than the nominal one: {}{}; the calibration does not describe the robot (swapped tools or columns, units, or validation data from another set-up)",
+                worse.join("; "),
+                judged.rows_judged()
             ),
         )
     })
 }
 
-/// The validation error against what the identification predicts for it.
+/// The validation error (over the rows [`judged_validation`] keeps) against what the
+/// identification predicts for it.
 pub fn validation_matches_prediction(run: &CalibrationRun) -> Option<Finding> {
     let expected = expected_validation_rms(run)?;
-    let actual = rms_after(&run.validation)?;
+    let judged = judged_validation(run);
+    let actual = judged.after_rms?;
     let ratio = actual / expected;
     let message = format!(
-        "the RMS validation position error {actual:.4} mm is {ratio:.1}× what the identification predicts ({expected:.4} mm: its residuals and the parameter uncertainty); the model fits the identification data but does not carry over (too few or too similar configurations, or validation data taken differently)"
+        "the RMS validation position error {actual:.4} mm{} is {ratio:.1}× what the identification predicts ({expected:.4} mm: its residuals and the parameter uncertainty); the model fits the identification data but does not carry over (too few or too similar configurations, or validation data taken differently)",
+        judged.rows_judged()
     );
     if ratio > VALIDATION_FAILED {
         Some(Finding::failed("validation-prediction", message))

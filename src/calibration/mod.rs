@@ -66,8 +66,9 @@ pub use baseline::registered_nominal;
 pub use checks::{
     assess, conditioning, convergence, joint_errors_plausible, position_only, rank, redundancy,
     residual_scale, stiffness_below_zero, unexplained_mm, validation_improves,
-    validation_matches_prediction, CONDITION_WARNING, JOINT_ERROR_FAILED, JOINT_ERROR_WARNING,
-    REDUNDANCY_WARNING, SIGMA_FAILED, SIGMA_WARNING, VALIDATION_FAILED, VALIDATION_WARNING,
+    validation_matches_prediction, validation_set_aside, CONDITION_WARNING, JOINT_ERROR_FAILED,
+    JOINT_ERROR_WARNING, REDUNDANCY_WARNING, SIGMA_FAILED, SIGMA_WARNING, VALIDATION_FAILED,
+    VALIDATION_WARNING,
 };
 pub use columns::{
     diagnose_columns, mark_consequences, CONSEQUENCES, CONSEQUENCE_PREFIX, DIAGNOSIS_ROWS,

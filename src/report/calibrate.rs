@@ -275,20 +275,50 @@ pub fn parameter_file<'a>(robot: &'a str, run: &'a CalibrationRun) -> ParameterF
     }
 }
 
-/// The held-out accuracy in mm, whatever σ was declared: every validation row, the
-/// registered nominal robot, and what the written URDF gives alone.
-/// The held-out headline: the RMS position error over every validation row (mm), the row
-/// count, and the registered nominal robot's RMS over the same rows (mm); `None` without
-/// validation figures.
-pub(super) fn held_out_headline(summary: &CalibrationSummary) -> Option<(f64, usize, f64)> {
+/// The held-out headline: RMS position error over every validation row, the rows, the
+/// registered nominal robot's RMS, and the rows the robust loss flagged (marked, counted).
+pub(super) struct Headline {
+    pub rms: f64,
+    pub observations: usize,
+    pub before_rms: f64,
+    /// With flagged rows: how many, and the RMS after and before over the other rows (mm).
+    pub without_flagged: Option<(usize, f64, f64)>,
+}
+
+impl Headline {
+    /// ", K of them flagged as outliers (marked and counted; without them A mm, before B mm)",
+    /// or nothing.
+    pub fn flagged_text(&self) -> String {
+        self.without_flagged
+            .map_or(String::new(), |(count, after, before)| {
+                format!(
+                    "; {count} of them flagged as outliers, marked and counted (without them: {after:.3} mm, before {before:.3} mm)"
+                )
+            })
+    }
+}
+
+pub(super) fn held_out_headline(summary: &CalibrationSummary) -> Option<Headline> {
     let all = summary.validation_strata.as_ref()?.strata.first()?;
     let rms = all.rms_position_mm?;
-    let before: Vec<f64> = summary
-        .validation
-        .iter()
-        .flat_map(|a| a.rows.iter().map(|r| r.position_mm.before))
-        .collect();
-    let before_rms =
-        (before.iter().map(|v| v * v).sum::<f64>() / before.len().max(1) as f64).sqrt();
-    Some((rms, all.observations, before_rms))
+    let rows = || summary.validation.iter().flat_map(|a| a.rows.iter());
+    let root_mean_square = |values: Vec<f64>| {
+        (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
+    };
+    let before_rms = root_mean_square(rows().map(|r| r.position_mm.before).collect());
+    let flagged = rows().filter(|r| r.outlier).count();
+    let without_flagged = (flagged > 0 && flagged < all.observations).then(|| {
+        let kept = || rows().filter(|r| !r.outlier);
+        (
+            flagged,
+            root_mean_square(kept().map(|r| r.position_mm.after).collect()),
+            root_mean_square(kept().map(|r| r.position_mm.before).collect()),
+        )
+    });
+    Some(Headline {
+        rms,
+        observations: all.observations,
+        before_rms,
+        without_flagged,
+    })
 }

@@ -268,13 +268,16 @@ fn parameters_markdown(out: &mut String, summary: &CalibrationSummary) {
 }
 
 fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
-    let Some((rms, observations, before_rms)) = held_out_headline(summary) else {
+    let Some(headline) = held_out_headline(summary) else {
         return;
     };
     let _ = write!(
         out,
-        "**Held-out accuracy:** RMS position error {rms:.3} mm over all {} validation rows (before: {before_rms:.3} mm, the registered nominal robot)",
-        observations
+        "**Held-out accuracy:** RMS position error {:.3} mm over all {} validation rows (before: {:.3} mm, the registered nominal robot){}",
+        headline.rms,
+        headline.observations,
+        headline.before_rms,
+        headline.flagged_text()
     );
     let written = summary.artifact.as_ref().into_iter().flat_map(|a| {
         [a.urdf_alone.as_ref(), a.with_compensation.as_ref()]

@@ -153,10 +153,14 @@ fn verdict_html(out: &mut String, s: &CalibrationSummary) {
         }
         out.push_str("</ul>\n");
     }
-    if let Some((rms, observations, before_rms)) = super::calibrate::held_out_headline(s) {
+    if let Some(headline) = super::calibrate::held_out_headline(s) {
         let _ = writeln!(
             out,
-            "<p class=\"headline\"><strong>Held-out accuracy:</strong> RMS position error {rms:.3} mm over all {observations} validation rows (before: {before_rms:.3} mm, the registered nominal robot).</p>"
+            "<p class=\"headline\"><strong>Held-out accuracy:</strong> RMS position error {:.3} mm over all {} validation rows (before: {:.3} mm, the registered nominal robot){}.</p>",
+            headline.rms,
+            headline.observations,
+            headline.before_rms,
+            escape(&headline.flagged_text())
         );
     }
     out.push_str("</section>\n");

@@ -211,6 +211,7 @@ pub(super) fn assess(
         fitted,
         frame,
         before: registered.as_ref().map(|r| r.errors.rms_position_mm),
+        set_aside: crate::calibration::validation_set_aside(&identified.run),
     };
     let scores = written.score(export, compensation.as_ref())?;
     findings.extend(scores.findings);
@@ -237,6 +238,19 @@ struct Written<'a> {
     frame: Pose,
     /// The registered nominal robot's RMS validation position error (mm), if there are rows.
     before: Option<f64>,
+    /// Per validation row: whether the comparisons with `before` leave it out (a few rows
+    /// flagged as outliers, [`crate::calibration::validation_set_aside`]); every row still
+    /// counts in the scores reported.
+    set_aside: Vec<bool>,
+}
+
+/// A URDF's RMS validation position error and the registered nominal robot's, over the rows
+/// the comparisons judge (mm), and the rows they left out.
+#[derive(Clone, Copy)]
+struct Judged {
+    rms: f64,
+    before: f64,
+    set_aside: usize,
 }
 
 /// The scores of the written outputs and what they decided.
@@ -299,11 +313,11 @@ impl Written<'_> {
             .chain(joint_errors.as_ref().map(|_| JOINT_ERRORS_FILE))
             .collect();
         let companion = (!files.is_empty()).then(|| files.join(" + "));
+        let judged_rows = self.judged_rows(validation);
+        let mut judged = self.judged(&alone, export, &alone_name, judged_rows.as_deref())?;
         if let Some(file) = &companion {
-            let worse = self
-                .before
-                .is_some_and(|b| alone.errors.rms_position_mm > b);
-            let compensated_name = if worse {
+            let worse = judged.filter(|j| j.rms > j.before);
+            let compensated_name = if worse.is_some() {
                 COMPENSATED_URDF
             } else {
                 "calibrated.urdf"
@@ -319,25 +333,27 @@ impl Written<'_> {
                 stiffness.map(|(_, source)| source),
                 gravity,
             )?;
-            if worse {
+            if let Some(alone_judged) = worse {
                 let flexibility = stiffness.map(|(f, _)| f);
                 let (rigid_export, rigid_alone) =
                     self.rigid_only(flexibility, &alone_name, validation)?;
                 findings.push(rigid_only_finding(
                     file,
                     [&alone, &rigid_alone, &compensated],
-                    self.before,
+                    alone_judged,
                 ));
+                judged = self.judged(
+                    &rigid_alone,
+                    &rigid_export,
+                    &alone_name,
+                    judged_rows.as_deref(),
+                )?;
                 replaced = Some((rigid_export, export.urdf.clone()));
                 alone = rigid_alone;
             }
             with_compensation = Some(compensated);
         }
-        findings.extend(alone_worse_finding(
-            &alone,
-            self.before,
-            companion.as_deref(),
-        ));
+        findings.extend(alone_worse_finding(&alone, judged, companion.as_deref()));
         let how_to_use = how_to_use(
             self.fitted,
             compensation_file,
@@ -351,6 +367,54 @@ impl Written<'_> {
             findings,
             how_to_use,
         })
+    }
+
+    /// The validation rows (as scored) the comparisons judge, when some are set aside.
+    fn judged_rows(&self, validation: &[Measurement]) -> Option<Vec<Measurement>> {
+        self.set_aside.iter().any(|&f| f).then(|| {
+            validation
+                .iter()
+                .zip(&self.set_aside)
+                .filter(|(_, &aside)| !aside)
+                .map(|(m, _)| m.clone())
+                .collect()
+        })
+    }
+
+    /// `urdf` alone (scored `score` over every row) against the registered nominal robot, over
+    /// the judged rows (`judged_rows`; every row when `None`).
+    fn judged(
+        &self,
+        score: &ArtifactScore,
+        export: &ExportReport,
+        name: &str,
+        judged_rows: Option<&[Measurement]>,
+    ) -> Result<Option<Judged>> {
+        let Some(before) = self.before else {
+            return Ok(None);
+        };
+        let Some(rows) = judged_rows else {
+            return Ok(Some(Judged {
+                rms: score.errors.rms_position_mm,
+                before,
+                set_aside: 0,
+            }));
+        };
+        let scoring = Scoring {
+            loaded: self.loaded,
+            world_from_base: self.frame,
+            scored_links: exported_links(self.loaded, export),
+            joint_errors: None,
+        };
+        let rms = scoring
+            .score(&export.urdf, name, rows, None, self.config.gravity_frame)?
+            .errors
+            .rms_position_mm;
+        Ok(Some(Judged {
+            rms,
+            before: judged_before(&self.identified.run, &self.set_aside),
+            set_aside: self.set_aside.iter().filter(|&&f| f).count(),
+        }))
     }
 
     /// The rigid-only geometry's URDF and its score alone (named `alone_name`).
@@ -378,31 +442,64 @@ impl Written<'_> {
 
 /// The `rigid-only-urdf` note: the calibrated geometry alone, the rigid-only geometry alone
 /// and the calibrated geometry with `file` (`scores` in that order), against `before`.
-fn rigid_only_finding(file: &str, scores: [&ArtifactScore; 3], before: Option<f64>) -> Finding {
-    let [alone, rigid_alone, compensated] = scores.map(|s| s.errors.rms_position_mm);
+fn rigid_only_finding(file: &str, scores: [&ArtifactScore; 3], judged: Judged) -> Finding {
+    let [_, rigid_alone, compensated] = scores.map(|s| s.errors.rms_position_mm);
+    let (rows, every) = if judged.set_aside == 0 {
+        ("on the validation rows".to_owned(), "")
+    } else {
+        (
+            format!(
+                "on the validation rows without the {} flagged as outliers",
+                judged.set_aside
+            ),
+            ", every row",
+        )
+    };
     Finding::note(
         "rigid-only-urdf",
         format!(
-            "the calibrated geometry used without {file} is {alone:.3} mm RMS on the validation rows, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({rigid_alone:.3} mm alone); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({compensated:.3} mm)",
-            before.unwrap_or(f64::NAN),
+            "the calibrated geometry used without {file} is {:.3} mm RMS {rows}, worse than the registered nominal robot ({:.3} mm): calibrated.urdf holds instead the rigid-only geometry fitted to what the compensated model predicts at the identification configurations ({rigid_alone:.3} mm alone{every}); the compensated geometry is {COMPENSATED_URDF}, to be used only with {file} ({compensated:.3} mm{every})",
+            judged.rms, judged.before,
         ),
     )
 }
 
-/// The `urdf-alone-worse` warning, when the URDF alone is clearly worse than `before` (the
-/// registered nominal robot's RMS, mm); `companion` the files it must go with.
+/// The registered nominal robot's RMS validation position error (mm) over the rows not set
+/// aside.
+fn judged_before(run: &crate::calibration::CalibrationRun, set_aside: &[bool]) -> f64 {
+    let values: Vec<f64> = run
+        .validation
+        .iter()
+        .flat_map(|arm| arm.rows.iter().zip(&arm.position_mm[0]))
+        .filter(|(&row, _)| !set_aside.get(row).copied().unwrap_or(false))
+        .map(|(_, &v)| v)
+        .collect();
+    (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
+}
+
+/// The `urdf-alone-worse` warning, when the URDF alone (`alone`, judged as `judged`) is
+/// clearly worse than the registered nominal robot; `companion` the files it must go with.
 fn alone_worse_finding(
     alone: &ArtifactScore,
-    before: Option<f64>,
+    judged: Option<Judged>,
     companion: Option<&str>,
 ) -> Option<Finding> {
-    let b = before.filter(|&b| clearly_worse(alone.errors.rms_position_mm, b))?;
+    let judged = judged.filter(|j| clearly_worse(j.rms, j.before))?;
+    let rows = if judged.set_aside == 0 {
+        "on the validation rows".to_owned()
+    } else {
+        format!(
+            "on the validation rows without the {} flagged as outliers",
+            judged.set_aside
+        )
+    };
     Some(Finding::warning(
         "urdf-alone-worse",
         format!(
-            "calibrated.urdf used alone ({}) is {:.3} mm RMS on the validation rows, worse than the registered nominal robot ({b:.3} mm): do not use it alone{}",
+            "calibrated.urdf used alone ({}) is {:.3} mm RMS {rows}, worse than the registered nominal robot ({:.3} mm): do not use it alone{}",
             alone.files,
-            alone.errors.rms_position_mm,
+            judged.rms,
+            judged.before,
             companion.map_or(String::new(), |f| format!("; it must accompany {f}"))
         ),
     ))
