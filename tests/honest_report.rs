@@ -674,6 +674,12 @@ fn a_validation_blunder_is_counted_but_does_not_fail_a_good_calibration() {
     let report = outcome.report();
     let all = number(&report["validation_strata"]["strata"][0]["rms_position_mm"]);
     assert!(all > 50.0, "the blunder counts: {all} mm");
+    let unflagged = &report["validation_strata"]["without_flagged"];
+    assert_eq!(
+        unflagged["observations"].as_u64(),
+        Some(validation.len() as u64 - 1)
+    );
+    assert!(number(&unflagged["rms_position_mm"]) < 0.5, "{unflagged}");
     let headline = outcome
         .report_markdown
         .lines()

@@ -47,6 +47,10 @@ pub struct ValidationStrata {
     pub strata: Vec<StratumFigures>,
     /// The worst row.
     pub worst: Option<WorstRow>,
+    /// With rows the robust loss flagged as outliers (they count in `strata`): the rows not
+    /// flagged, apart (`stratum` `unflagged`); absent when no row, or every row, is flagged.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub without_flagged: Option<StratumFigures>,
 }
 
 fn figures(stratum: &str, description: &str, errors: &[f64]) -> StratumFigures {
@@ -129,7 +133,18 @@ impl ValidationStrata {
                 position_mm: row.position_mm,
                 outlier: row.outlier,
             });
-        Some(Self { strata, worst })
+        let unflagged: Vec<f64> = rows
+            .iter()
+            .filter(|r| !r.outlier)
+            .map(|r| r.position_mm)
+            .collect();
+        let without_flagged = (!unflagged.is_empty() && unflagged.len() < rows.len())
+            .then(|| figures("unflagged", "rows not flagged as outliers", &unflagged));
+        Some(Self {
+            strata,
+            worst,
+            without_flagged,
+        })
     }
 
     /// The markdown paragraph and table.
@@ -142,7 +157,7 @@ impl ValidationStrata {
         let _ = writeln!(out, "| rows | n | RMS (mm) | max (mm) |");
         let _ = writeln!(out, "|---|---|---|---|");
         let mm = |v: Option<f64>| v.map_or_else(|| "—".to_owned(), |v| format!("{v:.4}"));
-        for s in &self.strata {
+        for s in self.strata.iter().chain(&self.without_flagged) {
             let _ = writeln!(
                 out,
                 "| {} | {} | {} | {} |",
