@@ -359,3 +359,98 @@ fn verify_warns_when_the_validated_compensation_is_missing() {
         "{compensated}"
     );
 }
+
+/// A bumped target among the fresh rows (every target 0.3 m off on one row): the robust refit
+/// leaves it out of the session's frame, so the other rows score as without it; the verdict
+/// judges the others and names the row to re-measure; every figure still counts it. The clean
+/// session flags nothing (no false alarm).
+#[test]
+fn a_blunder_in_the_fresh_rows_neither_drags_the_frame_nor_decides_the_verdict() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = session("2021-11-26", "three");
+    let out = dir.path().join("cal");
+    calibrate_tiago("three", &session("2021-11-30-1403", "three"), &out);
+    let text = std::fs::read_to_string(&clean).unwrap();
+    let header = text.lines().position(|l| l.starts_with("id,")).unwrap();
+    let columns: Vec<&str> = text.lines().nth(header).unwrap().split(',').collect();
+    let bumped_line = header + 10;
+    let mut bumped_id = String::new();
+    let lines: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, line)| {
+            if i != bumped_line {
+                return line.to_owned();
+            }
+            let fields: Vec<String> = line
+                .split(',')
+                .zip(&columns)
+                .map(|(value, column)| match *column {
+                    "ax" | "bx" | "cx" => format!("{}", value.parse::<f64>().unwrap() + 0.3),
+                    _ => value.to_owned(),
+                })
+                .collect();
+            bumped_id = fields[0].clone();
+            fields.join(",")
+        })
+        .collect();
+    let bumped = dir.path().join("bumped.csv");
+    std::fs::write(&bumped, lines.join("\n") + "\n").unwrap();
+    let verify = |fresh: &Path| {
+        let config = VerifyConfig {
+            max_error_mm: Some(10.0),
+            ..verify_config(&out, fresh, VerifyFrame::Fit)
+        };
+        treecal::workflow::verify(&config).expect("verify")
+    };
+    let reference = verify(&clean);
+    assert!(
+        reference.report.verdict.set_aside.is_none(),
+        "no false alarm"
+    );
+    assert!(reference.report.rows.iter().all(|r| !r.outlier));
+    let blundered = verify(&bumped);
+    let v = &blundered.report;
+    let aside = v
+        .verdict
+        .set_aside
+        .as_ref()
+        .expect("the bumped row set aside");
+    assert_eq!(aside.ids, vec![bumped_id.clone()]);
+    assert!(v.verdict.passed, "{}", v.verdict.sentence());
+    assert!(v.verdict.rms_position_mm > 30.0, "every row counts");
+    assert!(v.verdict.sentence().contains(&bumped_id));
+    // The frame is not dragged: the other rows score as in the clean session.
+    let clean_rows: HashMap<&str, f64> = reference
+        .report
+        .rows
+        .iter()
+        .map(|r| (r.id.as_str(), r.position_mm))
+        .collect();
+    for row in v.rows.iter().filter(|r| r.id != bumped_id) {
+        let e = clean_rows[row.id.as_str()];
+        assert!(
+            (row.position_mm - e).abs() < 0.3,
+            "{}: {} vs {e}",
+            row.id,
+            row.position_mm
+        );
+    }
+    let json: serde_json::Value = serde_json::from_slice(
+        &blundered
+            .files
+            .iter()
+            .find(|(n, _)| n == "report.json")
+            .unwrap()
+            .1,
+    )
+    .unwrap();
+    let marked: Vec<&str> = json["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["outlier"] == true)
+        .map(|r| r["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(marked, vec![bumped_id.as_str()]);
+}

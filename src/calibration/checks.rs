@@ -359,35 +359,38 @@ struct JudgedArm<'a> {
     after: f64,
 }
 
-/// The validation rows the checks judge. Every row counts in the report's figures; a few rows
-/// the robust loss flags as outliers (a bumped target, a mistyped joint value) would decide
-/// these checks alone — one 600 mm blunder makes any calibration "no better than the nominal
-/// robot" — so the checks judge the rows not flagged, as long as those are the majority, and
-/// say so (`set_aside` names how many rows they left out). With most rows flagged the rows are
-/// not blunders but the data: every row is judged.
+/// The validation rows the checks judge. Every row counts in the report's figures; a gross
+/// blunder (a bumped target, a mistyped joint value) would decide these checks alone — one
+/// 600 mm row makes any calibration "no better than the nominal robot" — so the checks judge
+/// the rows without the gross blunders ([`validation_set_aside`]) and say so (`set_aside`
+/// counts the rows they left out).
 struct JudgedValidation<'a> {
     arms: Vec<JudgedArm<'a>>,
     after_rms: Option<f64>,
     set_aside: usize,
 }
 
-/// Per validation row (in validation order): whether the validation checks set it aside —
-/// flagged as an outlier by the robust loss, while fewer than half the rows are flagged (with
-/// more, the rows are not blunders but the data, and none is set aside). Every row still counts
-/// in the reported figures; only the pass/fail comparisons skip these.
+/// Per validation row (in validation order): whether the validation checks set it aside — a
+/// gross blunder ([`super::gross_rows`]: flagged as an outlier by the robust loss and at least
+/// [`super::GROSS_FACTOR`] times the RMS of the rows not flagged). Every row still counts in the
+/// reported figures; only the pass/fail comparisons skip these.
 pub fn validation_set_aside(run: &CalibrationRun) -> Vec<bool> {
     let rows: usize = run.validation.iter().map(|a| a.position_mm[1].len()).sum();
     let mut flagged = vec![false; rows];
+    let mut errors = vec![0.0; rows];
+    for arm in &run.validation {
+        for (&row, &error) in arm.rows.iter().zip(&arm.position_mm[1]) {
+            if row < rows {
+                errors[row] = error;
+            }
+        }
+    }
     for outlier in &run.outliers {
         if outlier.set == super::robust::DataSet::Validation && outlier.index < rows {
             flagged[outlier.index] = true;
         }
     }
-    let count = flagged.iter().filter(|&&f| f).count();
-    if 2 * count >= rows {
-        flagged.iter_mut().for_each(|f| *f = false);
-    }
-    flagged
+    super::gross_rows(&errors, &flagged)
 }
 
 fn judged_validation(run: &CalibrationRun) -> JudgedValidation<'_> {
@@ -434,8 +437,9 @@ impl JudgedValidation<'_> {
             String::new()
         } else {
             format!(
-                " (judged without the {} validation row(s) flagged as outliers, named in the outliers warning; they count in every figure of the report)",
-                self.set_aside
+                " (judged without the {} gross blunder(s) among the validation rows flagged as outliers, each at least {}× the RMS of the others, named in the outliers warning; they count in every figure of the report)",
+                self.set_aside,
+                super::GROSS_FACTOR
             )
         }
     }

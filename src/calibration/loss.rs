@@ -125,12 +125,17 @@ pub fn weights_of(
 /// (a median absolute deviation about zero, the residuals' expected value, consistent for
 /// Gaussian rows), floored at [`SCALE_FLOOR`]. 1 when there are no residuals.
 pub fn robust_scale(residuals: &[Residual], measurements: &[Measurement]) -> f64 {
-    let mut normalised: Vec<f64> = residuals
-        .iter()
-        .zip(measurements)
-        .map(|(r, m)| r.norm / chi_median(m.observation.rows()))
-        .filter(|v| v.is_finite())
-        .collect();
+    median_scale(
+        residuals
+            .iter()
+            .zip(measurements)
+            .map(|(r, m)| r.norm / chi_median(m.observation.rows())),
+    )
+}
+
+/// The median of the finite `normalised` norms, floored at [`SCALE_FLOOR`]; 1 without any.
+pub(super) fn median_scale(normalised: impl Iterator<Item = f64>) -> f64 {
+    let mut normalised: Vec<f64> = normalised.filter(|v| v.is_finite()).collect();
     if normalised.is_empty() {
         return 1.0;
     }

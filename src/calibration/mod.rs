@@ -50,6 +50,7 @@ mod predictor;
 pub(crate) mod prior;
 mod repeatability;
 pub(crate) mod robust;
+pub(crate) mod robust_frame;
 pub(crate) mod run;
 mod session_findings;
 pub(crate) mod sessions;
@@ -117,6 +118,9 @@ pub use robust::{calibrate_robust, RobustLoss, RobustReport};
 pub use robust::{
     residuals, robust_scale, threshold, weights_of, DataSet, Outlier, Residual, MAX_ROUNDS,
     OUTLIER_WEIGHT, SCALE_FLOOR, WEIGHT_TOLERANCE,
+};
+pub use robust_frame::{
+    fit_session_frame_robust, gross_blunders, gross_rows, RobustFrame, GROSS_FACTOR,
 };
 pub use run::{
     assembled_covariance, hold_out, hold_out_indices, run_calibration, ArmResiduals,

@@ -274,7 +274,7 @@ fn mean_translation(from: &[Vec3], to: &[Vec3]) -> Pose {
 
 /// `measured ⊖ predicted` divided by the σ's (rows of a position: 3, the rest 0) and its
 /// squared norm.
-fn weighted_error(
+pub(super) fn weighted_error(
     measured: &Measurement,
     predicted: &Pose,
     sigma: [f64; 2],

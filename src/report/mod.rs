@@ -64,5 +64,5 @@ pub use simulate::{simulation_results, SimulationResults, RESULTS_SCHEMA};
 pub use stiffness::{compliance_identifiability_markdown, stiffness_markdown, StiffnessSummary};
 pub use strata::{StrataRow, StratumFigures, ValidationStrata, WorstRow};
 pub use verify::{
-    VerifyContext, VerifyReport, VerifyRow, VerifySession, VerifyVerdict, VERIFY_SCHEMA,
+    SetAside, VerifyContext, VerifyReport, VerifyRow, VerifySession, VerifyVerdict, VERIFY_SCHEMA,
 };

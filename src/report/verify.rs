@@ -31,6 +31,11 @@ pub struct VerifyRow {
     pub orientation_deg: Option<f64>,
     /// Where it lies against the calibrated ranges (`None`: no calibration record).
     pub stratum: Option<Stratum>,
+    /// Whether it is a gross blunder (a bumped target, a mistyped value: it stands out under
+    /// the robust loss and is at least `GROSS_FACTOR` = 10 times the RMS of the other rows):
+    /// left out of its session's frame fit and of the verdict; counted in every figure.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub outlier: bool,
 }
 
 /// A session's refitted measurement frame.
@@ -104,23 +109,54 @@ pub struct VerifyVerdict {
     pub max_error_mm: Option<f64>,
     /// The RMS position error over all rows (mm).
     pub rms_position_mm: f64,
-    /// Whether it is within the tolerance (true without one).
+    /// Whether it is within the tolerance (true without one), judged without the rows in
+    /// `set_aside`.
     pub passed: bool,
+    /// The gross blunders left out of the verdict (ids), with the RMS position error over the
+    /// other rows (mm).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub set_aside: Option<SetAside>,
+}
+
+/// Rows the verdict leaves out.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SetAside {
+    /// Their ids.
+    pub ids: Vec<String>,
+    /// The RMS position error over the other rows (mm): what the verdict judges.
+    pub judged_rms_position_mm: f64,
 }
 
 impl VerifyVerdict {
     /// In one sentence.
     pub fn sentence(&self) -> String {
-        match self.max_error_mm {
-            Some(max) => format!(
+        match (self.max_error_mm, &self.set_aside) {
+            (Some(max), Some(aside)) => format!(
+                "verdict: {} (RMS position error {:.3} mm without the {} gross blunder(s), {} `max_error` {max} mm; every row: {:.3} mm); re-measure the flagged rows: {}",
+                if self.passed { "passed" } else { "failed" },
+                aside.judged_rms_position_mm,
+                aside.ids.len(),
+                if self.passed { "within" } else { "above" },
+                self.rms_position_mm,
+                first_ids(&aside.ids),
+            ),
+            (Some(max), None) => format!(
                 "verdict: {} (RMS position error {:.3} mm {} `max_error` {max} mm)",
                 if self.passed { "passed" } else { "failed" },
                 self.rms_position_mm,
                 if self.passed { "within" } else { "above" },
             ),
-            None => format!(
-                "RMS position error {:.3} mm (no `max_error`: no verdict)",
-                self.rms_position_mm
+            (None, _) => format!(
+                "RMS position error {:.3} mm (no `max_error`: no verdict){}",
+                self.rms_position_mm,
+                self.set_aside
+                    .as_ref()
+                    .map_or(String::new(), |aside| format!(
+                        "; {} gross blunder(s) ({}), without them {:.3} mm",
+                        aside.ids.len(),
+                        first_ids(&aside.ids),
+                        aside.judged_rms_position_mm
+                    )),
             ),
         }
     }
@@ -151,13 +187,18 @@ impl VerifyReport {
         let summary = summary_of(&rows);
         let strata = strata_of(&rows);
         let rms = summary.rms_position_mm;
+        let set_aside = set_aside(&rows);
+        let judged = set_aside
+            .as_ref()
+            .map_or(rms, |aside| aside.judged_rms_position_mm);
         Self {
             schema_version: VERIFY_SCHEMA,
             context,
             verdict: VerifyVerdict {
                 max_error_mm,
                 rms_position_mm: rms,
-                passed: max_error_mm.is_none_or(|max| rms <= max),
+                passed: max_error_mm.is_none_or(|max| judged <= max),
+                set_aside,
             },
             summary,
             strata,
@@ -263,6 +304,43 @@ fn frame_words(c: &VerifyContext) -> String {
     }
 }
 
+/// The rows the verdict leaves out: the gross blunders (fewer than half the rows by
+/// construction).
+fn set_aside(rows: &[VerifyRow]) -> Option<SetAside> {
+    let flagged = rows.iter().filter(|r| r.outlier).count();
+    (flagged > 0 && 2 * flagged < rows.len()).then(|| {
+        let kept: Vec<f64> = rows
+            .iter()
+            .filter(|r| !r.outlier)
+            .map(|r| r.position_mm)
+            .collect();
+        SetAside {
+            ids: rows
+                .iter()
+                .filter(|r| r.outlier)
+                .map(|r| r.id.clone())
+                .collect(),
+            judged_rms_position_mm: (kept.iter().map(|v| v * v).sum::<f64>() / kept.len() as f64)
+                .sqrt(),
+        }
+    })
+}
+
+/// The first few ids, and how many more.
+fn first_ids(ids: &[String]) -> String {
+    const SHOWN: usize = 5;
+    let mut text = ids
+        .iter()
+        .take(SHOWN)
+        .map(String::as_str)
+        .collect::<Vec<_>>()
+        .join(", ");
+    if ids.len() > SHOWN {
+        text.push_str(&format!(" and {} more", ids.len() - SHOWN));
+    }
+    text
+}
+
 /// The strata rows of `rows`.
 pub(crate) fn strata_rows(rows: &[VerifyRow]) -> Vec<StrataRow> {
     rows.iter()
@@ -272,7 +350,7 @@ pub(crate) fn strata_rows(rows: &[VerifyRow]) -> Vec<StrataRow> {
             tool: r.tool.clone(),
             stratum: r.stratum,
             position_mm: r.position_mm,
-            outlier: false,
+            outlier: r.outlier,
         })
         .collect()
 }

@@ -449,7 +449,7 @@ fn rigid_only_finding(file: &str, scores: [&ArtifactScore; 3], judged: Judged) -
     } else {
         (
             format!(
-                "on the validation rows without the {} flagged as outliers",
+                "on the validation rows without the {} gross blunder(s)",
                 judged.set_aside
             ),
             ", every row",
@@ -489,7 +489,7 @@ fn alone_worse_finding(
         "on the validation rows".to_owned()
     } else {
         format!(
-            "on the validation rows without the {} flagged as outliers",
+            "on the validation rows without the {} gross blunder(s)",
             judged.set_aside
         )
     };

@@ -19,7 +19,9 @@ use super::postures::{chains_of, RecordedPostures, POSTURES_KEY};
 use super::report_json::read_calibration_report;
 use super::source::{MeasurementSource, RobotSource, StiffnessSource};
 use crate::calibration::IdentificationOptions;
-use crate::calibration::{fit_session_frame, Sessions, FRAME_BLOCK_PARAMETERS};
+use crate::calibration::{
+    fit_session_frame_robust, gross_blunders, Sessions, FRAME_BLOCK_PARAMETERS,
+};
 use crate::calibration::{ChainPostures, Stratum};
 use crate::error::{Error, Result};
 use crate::io::{read_registration, AngleUnit, LengthUnit, MeasurementReadOptions};
@@ -332,7 +334,7 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
         compensation.as_ref(),
         config.gravity_frame,
     )?;
-    let (predicted, sessions) = refit(config, &set.measurements, predicted);
+    let (predicted, sessions, outliers) = refit(config, &set.measurements, predicted);
     let chains = match &recorded {
         Some((path, report)) => match postures_of(report, path)? {
             Some(recorded) => Some(chains_of(
@@ -350,7 +352,7 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
             "no calibration record (report.json with identification_postures): the rows are not sorted into strata; give `calibration` with the calibrate output folder",
         ));
     }
-    let rows = scored_rows(&loaded, &set, &predicted, chains.as_deref());
+    let rows = scored_rows(&loaded, &set, (&predicted, &outliers), chains.as_deref());
     let report = VerifyReport::new(
         crate::report::VerifyContext {
             robot: tree.name().to_owned(),
@@ -427,51 +429,57 @@ pub(crate) fn scored_link(tree: &KinematicTree, tool: crate::tree::LinkId) -> St
         .unwrap_or(name)
 }
 
-/// With [`VerifyFrame::Fit`], each session's frame refitted to its rows (the geometry fixed)
-/// and applied to the predictions; the sessions with their frames.
+/// With [`VerifyFrame::Fit`], each session's frame refitted robustly to its rows (the geometry
+/// fixed) and applied to the predictions; the sessions with their frames; per row whether it
+/// is a gross blunder (left out of its session's fit and of the verdict).
 fn refit(
     config: &VerifyConfig,
     measurements: &[Measurement],
     mut predicted: Vec<Pose>,
-) -> (Vec<Pose>, Vec<VerifySession>) {
-    if config.frame != VerifyFrame::Fit {
-        return (predicted, Vec::new());
-    }
+) -> (Vec<Pose>, Vec<VerifySession>, Vec<bool>) {
     let options = IdentificationOptions {
         position_sigma: config.position_sigma,
         rotation_sigma: config.rotation_sigma,
         ..IdentificationOptions::default()
     };
+    let loss = options.robust;
+    if config.frame != VerifyFrame::Fit {
+        let measured: Vec<&Measurement> = measurements.iter().collect();
+        let outliers = gross_blunders(&predicted, &measured, &options, loss);
+        return (predicted, Vec::new(), outliers);
+    }
     let groups = Sessions::of(measurements);
     let mut sessions = Vec::new();
+    let mut outliers = vec![false; measurements.len()];
     for (s, name) in groups.names.iter().enumerate() {
         let rows: Vec<usize> = (0..measurements.len())
             .filter(|&i| groups.of[i] == s)
             .collect();
-        let (correction, determined) = fit_session_frame(
+        let fit = fit_session_frame_robust(
             &rows.iter().map(|&i| predicted[i]).collect::<Vec<_>>(),
             &rows.iter().map(|&i| &measurements[i]).collect::<Vec<_>>(),
-            &[],
             &options,
+            loss,
         );
-        for &i in &rows {
-            predicted[i] = correction * predicted[i];
+        for (k, &i) in rows.iter().enumerate() {
+            predicted[i] = fit.frame * predicted[i];
+            outliers[i] = fit.gross[k];
         }
         sessions.push(VerifySession::new(
             name.clone(),
             rows.len(),
-            &correction,
-            determined,
+            &fit.frame,
+            fit.determined,
         ));
     }
-    (predicted, sessions)
+    (predicted, sessions, outliers)
 }
 
 /// Every row scored, with its stratum when the calibration's postures are known.
 fn scored_rows(
     loaded: &Loaded,
     set: &crate::io::MeasurementSet,
-    predicted: &[Pose],
+    (predicted, outliers): (&[Pose], &[bool]),
     chains: Option<&[Option<ChainPostures>]>,
 ) -> Vec<VerifyRow> {
     let tree = loaded.robot.tree();
@@ -498,6 +506,7 @@ fn scored_rows(
                 position_mm,
                 orientation_deg,
                 stratum,
+                outlier: outliers.get(i).copied().unwrap_or(false),
             }
         })
         .collect()
