@@ -62,6 +62,23 @@ fn check(model: &McpcModel, q: &[f64], what: &str) {
             "{what}: tool_jacobian_into pose, tool {tool}"
         );
     }
+    // Only the columns a tool does not write are zeroed: a buffer full of other values (the
+    // caller's, say) must still come out exact, for every tool.
+    for (tool, jacobian) in analytic.iter().enumerate() {
+        single.fill(7.0);
+        model.tool_jacobian_into(tool, q, &mut chain, &mut single);
+        assert_eq!(
+            single, jacobian.jacobian,
+            "{what}: filled buffer, tool {tool}"
+        );
+    }
+    for buffered in &mut jacobians {
+        buffered.fill(-3.0);
+    }
+    model.tool_jacobians_into(q, &mut chain, &mut jacobians);
+    for (buffered, jacobian) in jacobians.iter().zip(&analytic) {
+        assert_eq!(buffered, &jacobian.jacobian, "{what}: filled buffers");
+    }
 }
 
 #[test]

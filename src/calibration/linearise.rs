@@ -148,19 +148,26 @@ pub(super) fn residual_rms(
 ) -> Result<(f64, f64)> {
     let (mut position, mut rotation, mut poses, mut count) = (0.0, 0.0, 0usize, 0usize);
     let mut error = Vec::new();
+    // Measurements of several tools at one configuration share one prediction (as in
+    // `linearise`).
+    let mut cached: Cached<'_, Vec<Pose>> = None;
     for (index, m) in measurements.iter().enumerate() {
         // Measurements left out (weight 0, robust estimation) are not part of the fit.
         if options.observation_weights.get(index) == Some(&0.0) {
             continue;
         }
         count += 1;
-        let predicted = predictor.predict_at(model, &m.q, m.payload)?;
+        let key = (m.q.as_slice(), m.payload);
+        if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+            cached = Some((key, predictor.predict_at(model, &m.q, m.payload)?));
+        }
+        let predicted = cached.as_ref().map_or(&[][..], |(_, p)| p.as_slice());
         let kind = kind_of(&m.observation);
         let state = RobotState {
             model,
             q: &m.q,
             tool: m.tool,
-            tools: Tools::Poses(&predicted),
+            tools: Tools::Poses(predicted),
             offset: offsets.map(|o| &o[index]),
             nuisance,
         };

@@ -168,8 +168,8 @@ impl<'a> DeflectedWithDerivative<'a> {
         }
     }
 
-    /// `J_exact − J_chain` at `q` in the columns `wanted` (the others may be zero), from the
-    /// cache or computed now.
+    /// Adds `J_exact − J_chain` at `q` in the columns `wanted` (the others may be zero), from
+    /// the cache or computed now, to the chain's Jacobians `chain`.
     ///
     /// A correction is reused while the parameters stay within [`CORRECTION_RADIUS`] of where
     /// it was computed. Beyond that it is recomputed only once the iterates settle (the last
@@ -182,9 +182,9 @@ impl<'a> DeflectedWithDerivative<'a> {
         model: &McpcModel,
         q: &[f64],
         payload: Option<f64>,
-        chain: &[ToolJacobian],
+        chain: &mut [ToolJacobian],
         wanted: &[usize],
-    ) -> Result<Vec<DMatrix<f64>>> {
+    ) -> Result<()> {
         let parameters = model.parameters();
         let close = |at: &[f64]| {
             at.iter()
@@ -200,7 +200,8 @@ impl<'a> DeflectedWithDerivative<'a> {
                 latest.clone_from(&parameters);
                 if close(at) || !settled {
                     if wanted.iter().all(|&c| computed[c]) {
-                        return Ok(found.clone());
+                        add_to(chain, found);
+                        return Ok(());
                     }
                     stale_at = Some(at.clone());
                 }
@@ -209,10 +210,11 @@ impl<'a> DeflectedWithDerivative<'a> {
                 // steers well enough; the correction waits until the iterates settle.
                 let zero: Vec<DMatrix<f64>> =
                     chain.iter().map(|c| c.jacobian.map(|_| 0.0)).collect();
+                add_to(chain, &zero);
                 let computed = vec![true; parameters.len()];
-                let entry = (vec![f64::INFINITY; parameters.len()], parameters, zero);
-                cache.insert(key, (entry.0, entry.1, entry.2.clone(), computed));
-                return Ok(entry.2);
+                let at = vec![f64::INFINITY; parameters.len()];
+                cache.insert(key, (at, parameters, zero, computed));
+                return Ok(());
             }
         }
         if let Some(at) = stale_at {
@@ -232,20 +234,20 @@ impl<'a> DeflectedWithDerivative<'a> {
             for c in missing {
                 computed[c] = true;
             }
-            return Ok(found.clone());
+            add_to(chain, found);
+            return Ok(());
         }
         let mut correction: Vec<DMatrix<f64>> =
             chain.iter().map(|c| c.jacobian.map(|_| 0.0)).collect();
         self.fill(model, q, payload, chain, wanted, &mut correction)?;
+        add_to(chain, &correction);
         let mut computed = vec![false; parameters.len()];
         for &c in wanted {
             computed[c] = true;
         }
-        self.lock().insert(
-            key,
-            (parameters.clone(), parameters, correction.clone(), computed),
-        );
-        Ok(correction)
+        self.lock()
+            .insert(key, (parameters.clone(), parameters, correction, computed));
+        Ok(())
     }
 
     /// Columns `columns` of `J_exact − J_chain` at `model` into `correction`: the exact
@@ -316,15 +318,16 @@ impl Predictor for DeflectedWithDerivative<'_> {
         payload: Option<f64>,
         free: &[usize],
     ) -> Result<Vec<ToolJacobian>> {
-        let chain = self.source.jacobians_at(model, q, payload)?;
-        let correction = self.correction(model, q, payload, &chain, free)?;
-        Ok(chain
-            .into_iter()
-            .zip(correction)
-            .map(|(tool, extra)| ToolJacobian {
-                pose: tool.pose,
-                jacobian: tool.jacobian + extra,
-            })
-            .collect())
+        let mut chain = self.source.jacobians_at(model, q, payload)?;
+        self.correction(model, q, payload, &mut chain, free)?;
+        Ok(chain)
+    }
+}
+
+/// `J_chain + correction`, tool by tool, in place (the correction's zero columns are added
+/// too: `−0 + 0` is `+0`, as in the sum it replaces).
+fn add_to(chain: &mut [ToolJacobian], correction: &[DMatrix<f64>]) {
+    for (tool, extra) in chain.iter_mut().zip(correction) {
+        tool.jacobian += extra;
     }
 }

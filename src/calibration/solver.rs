@@ -284,9 +284,9 @@ fn descend(model: &McpcModel, nuisance: &Nuisance, problem: &Problem<'_>) -> Res
 /// scaled normal matrix is well conditioned (the same step).
 fn damped_step(analysis: &Analysis, rank_tolerance: f64, damping: f64) -> DVector<f64> {
     let columns = analysis.scales.len();
-    if let (0.0, Some(cholesky)) = (damping, &analysis.cholesky) {
+    if let (0.0, Some(factor)) = (damping, &analysis.cholesky) {
         // The factor that proved the matrix well conditioned: `N + 0·I` is `N`.
-        return cholesky.solve(&analysis.gradient);
+        return factor.cholesky.solve(&analysis.gradient);
     }
     if let Some(normal) = &analysis.normal {
         let damped = normal + DMatrix::identity(columns, columns) * damping;

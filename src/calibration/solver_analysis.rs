@@ -4,11 +4,11 @@
 
 use super::linear_algebra::{
     certainly_conditioned, eigen_decomposition, floored_scales, qr_svd, scale_columns,
-    well_conditioned, WELL_CONDITIONED,
+    well_conditioned, ProvedFactor, WELL_CONDITIONED,
 };
 use super::normal_equations::NormalEquations;
 use crate::error::{Error, Result};
-use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+use nalgebra::{DMatrix, DVector};
 use std::cell::OnceCell;
 
 /// The column-scaled Jacobian's singular values and right singular vectors, and the scaled
@@ -23,8 +23,9 @@ pub(super) struct Analysis {
     /// The scaled normal matrix `J_sᵀJ_s` when it is well conditioned (then `v_t` is empty and
     /// steps and covariance come from its Cholesky factor).
     pub(super) normal: Option<DMatrix<f64>>,
-    /// The Cholesky factor of `normal`, when the cheap bounds proved it well conditioned.
-    pub(super) cholesky: Option<Cholesky<f64, Dyn>>,
+    /// The Cholesky factor of `normal` (and its `L⁻¹`), when the cheap bounds proved it well
+    /// conditioned.
+    pub(super) cholesky: Option<ProvedFactor>,
 }
 
 impl Analysis {
@@ -114,17 +115,19 @@ pub(super) fn analyse(
 /// conditioned: Σ over retained directions of `(v_k / s_k)² / σᵢ²`.
 pub(super) fn unscaled_inverse(analysis: &Analysis, retained: &[usize]) -> DMatrix<f64> {
     let columns = analysis.scales.len();
-    let cholesky = analysis
-        .cholesky
-        .clone()
-        .or_else(|| analysis.normal.as_ref().and_then(|n| n.clone().cholesky()));
-    match cholesky {
-        Some(cholesky) => {
-            let inverse = cholesky.inverse();
-            DMatrix::from_fn(columns, columns, |a, b| {
-                inverse[(a, b)] / (analysis.scales[a] * analysis.scales[b])
-            })
-        }
+    // The proved factor's inverse is the same bits as `Cholesky::inverse`, half the work.
+    let inverse = match &analysis.cholesky {
+        Some(factor) => Some(factor.inverse()),
+        None => analysis
+            .normal
+            .as_ref()
+            .and_then(|n| n.clone().cholesky())
+            .map(|cholesky| cholesky.inverse()),
+    };
+    match inverse {
+        Some(inverse) => DMatrix::from_fn(columns, columns, |a, b| {
+            inverse[(a, b)] / (analysis.scales[a] * analysis.scales[b])
+        }),
         None => {
             // W = S⁻¹·V_r·Σ_r⁻¹, N⁺ in parameter units = W·Wᵀ.
             let mut w = DMatrix::zeros(columns, retained.len());

@@ -112,12 +112,17 @@ impl McpcModel {
 
     /// [`Self::frame_transforms`] and every frame after its own joint's motion, Σᵢ·Q(θᵢ):
     /// the same values, each joint's motion applied once (a parent's moved frame is shared by
-    /// its children).
-    pub(crate) fn frame_and_moved_transforms(&self, q: &[f64]) -> (Vec<Transform>, Vec<Transform>) {
+    /// its children); written into `frames` and `moved` (cleared first: their buffers are
+    /// reused).
+    pub(crate) fn frame_and_moved_transforms_into(
+        &self,
+        q: &[f64],
+        frames: &mut Vec<Transform>,
+        moved: &mut Vec<Transform>,
+    ) {
         let world_from_root = self.world_from_root_transform(q);
-        let count = self.frames().len();
-        let mut frames: Vec<Transform> = Vec::with_capacity(count);
-        let mut moved: Vec<Transform> = Vec::with_capacity(count);
+        frames.clear();
+        moved.clear();
         for (index, frame) in self.frames().iter().enumerate() {
             let transform = match frame.parent {
                 Some(p) => moved[p].then(self.frame_constant(index)),
@@ -126,7 +131,6 @@ impl McpcModel {
             moved.push(self.moved(index, q, &transform));
             frames.push(transform);
         }
-        (frames, moved)
     }
 
     /// Pose of every MCPC frame Σᵢ in the base (root link) frame at configuration `q`,

@@ -257,7 +257,7 @@ impl McpcModel {
         chain.world_from_root = self.moving_root(q);
         self.set_chain_frames(frames.iter().flat_map(|f| f.iter().copied()), chain);
         self.set_chain_tool(tool, chain);
-        self.reset_jacobian(jacobian);
+        self.reset_jacobian(tool, jacobian);
         self.fill_tool_jacobian(tool, chain, jacobian);
         chain.tools[tool].to_pose()
     }
@@ -274,19 +274,49 @@ impl McpcModel {
         self.chain_frames_into(q, chain);
         jacobians.resize_with(self.tools().len(), || DMatrix::zeros(0, 0));
         for (tool, jacobian) in jacobians.iter_mut().enumerate() {
-            self.reset_jacobian(jacobian);
+            self.reset_jacobian(tool, jacobian);
             self.fill_tool_jacobian(tool, chain, jacobian);
         }
     }
 
-    /// Sizes `jacobian` to 6 × parameter_count and zeroes it.
-    fn reset_jacobian(&self, jacobian: &mut DMatrix<f64>) {
+    /// Sizes `jacobian` to 6 × parameter_count and zeroes the columns
+    /// [`Self::fill_tool_jacobian`] of `tool` does not overwrite (the buffer may hold another
+    /// tool's or configuration's columns).
+    fn reset_jacobian(&self, tool: usize, jacobian: &mut DMatrix<f64>) {
         if jacobian.shape() != (6, self.parameter_count()) {
             *jacobian = DMatrix::zeros(6, self.parameter_count());
-        } else {
-            // The contiguous slice: `DMatrix::fill` walks the matrix element by element.
-            jacobian.as_mut_slice().fill(0.0);
+            return;
         }
+        // The contiguous slice: `DMatrix::fill` walks the matrix element by element.
+        let data = jacobian.as_mut_slice();
+        // Reference columns accumulate, and joint-error and measurement-frame columns sit
+        // apart from the frames' and tools' blocks: zero everything then.
+        if self.reference().is_some() || self.has_extension_columns() {
+            data.fill(0.0);
+            return;
+        }
+        // The tool's chain writes whole blocks in increasing parameter order (frames first,
+        // parents before children), then the tool's 6 columns: zero the gaps between them.
+        let tool_block = (self.tool_parameter_offset(tool), 6);
+        let blocks = self
+            .tool_chain(tool)
+            .iter()
+            .map(|&frame| {
+                let count = self.frames()[frame].kind.parameter_count();
+                (self.frame_parameter_offset(frame), count)
+            })
+            .chain(std::iter::once(tool_block));
+        let mut cursor = 0;
+        for (offset, count) in blocks {
+            if offset < cursor {
+                // Not in increasing order (not expected): zero everything.
+                data.fill(0.0);
+                return;
+            }
+            data[6 * cursor..6 * offset].fill(0.0);
+            cursor = offset + count;
+        }
+        data[6 * cursor..].fill(0.0);
     }
 
     /// Poses and Jacobians of every tool at configuration `q`; shared frames computed once

@@ -226,6 +226,12 @@ impl McpcModel {
         self.frames().iter().map(|f| f.kind.parameter_count()).sum()
     }
 
+    /// Whether [`Self::fill_extension_columns`] writes any column (joint errors or the
+    /// measurement frame as parameters).
+    pub(crate) fn has_extension_columns(&self) -> bool {
+        self.joint_errors.is_active() || self.frame_parameters.is_some()
+    }
+
     /// Writes the joint-error and measurement-frame columns of tool `tool` (tool point `tip`).
     pub(crate) fn fill_extension_columns(
         &self,

@@ -81,11 +81,13 @@ impl FlexibilityModel {
         q: &[f64],
     ) -> Result<Vec<Pose>> {
         let evaluation = self.evaluate(tree, model, q)?;
-        Ok(self
+        let poses = self
             .deflected_tools_evaluated(model, q, &evaluation)
             .iter()
             .map(Transform::to_pose)
-            .collect())
+            .collect();
+        evaluation.recycle();
+        Ok(poses)
     }
 
     /// The whole deflected chain at configuration `q` (see [`Self::deflected_tool_poses`]):
@@ -96,7 +98,9 @@ impl FlexibilityModel {
         model: &McpcModel,
         q: &[f64],
     ) -> Result<ChainFrames> {
-        Ok(self.deflect(tree, model, q)?.chain)
+        let deflection = self.deflect(tree, model, q)?;
+        deflection.evaluation.recycle();
+        Ok(deflection.chain)
     }
 
     /// The deflected chain with the deflected moved frames `Σᵢ'·Q(θᵢ)·Exp(d_joint,i)` and the

@@ -48,7 +48,7 @@ pub struct SegmentDeformation {
 ///
 /// "Base frame" here and in the fields is the frame the MCPC model's poses are in: the root
 /// link frame, or the measurement frame if [`McpcModel::set_world_from_base`] moved it.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Deformations {
     /// One per MCPC frame, in [`McpcModel::frames`] order.
     pub joints: Vec<JointDeformation>,
@@ -57,6 +57,7 @@ pub struct Deformations {
 }
 
 /// Deformations with the nominal frames they were computed at.
+#[derive(Default)]
 pub(crate) struct Evaluation {
     pub(crate) deformations: Deformations,
     /// Σᵢ·Q(θᵢ) of every frame, base frame.
@@ -73,6 +74,21 @@ pub(crate) struct Evaluation {
     pub(crate) loads: Loads,
     /// Gravity in the base frame, m/s².
     pub(crate) gravity: Vec3,
+}
+
+thread_local! {
+    /// A spent [`Evaluation`] whose buffers the next one on this thread reuses: predictions
+    /// evaluate the loads once per configuration and iteration, and their dozen allocations
+    /// were a noticeable part of `simulate` (docs/performance.md, issue 24, round ten).
+    static SPARE: std::cell::RefCell<Option<Evaluation>> = const { std::cell::RefCell::new(None) };
+}
+
+impl Evaluation {
+    /// Hands the buffers back for the next evaluation on this thread.
+    pub(crate) fn recycle(self) {
+        // A thread being torn down just drops it.
+        let _ = SPARE.try_with(|spare| *spare.borrow_mut() = Some(self));
+    }
 }
 
 impl FlexibilityModel {
@@ -128,35 +144,24 @@ impl FlexibilityModel {
         q: &[f64],
         tree_poses: &[crate::math::Pose],
     ) -> Evaluation {
-        let (frames, moved) = model.frame_and_moved_transforms(q);
-        let tools: Vec<Transform> = model
-            .tools()
-            .iter()
-            .enumerate()
-            .map(|(t, tool)| match tool.parent {
-                Some(p) => moved[p].then(model.tool_constant(t)),
-                None => model
-                    .world_from_root_transform(q)
-                    .then(model.tool_constant(t)),
-            })
-            .collect();
-        // Frames are in the model's measurement frame; gravity is given in the root frame
-        // unless it was fixed in the measurement frame.
-        let gravity = if self.gravity_in_measurement_frame {
-            self.gravity
-        } else {
-            model.world_from_base_transform().rotation * self.gravity
-        };
-        let positions = self.mass_positions(model, &moved, &tools, tree_poses);
-        let loads = self.loads(model, &gravity, &positions, tools.len());
-        let joints = self.joint_deformations(&moved, &loads);
-        let mut segments = self.segment_deformations(&frames, &moved, &tools, &loads);
-        let mass_segments = self.add_self_weight(&mut segments, &positions, &gravity);
-        for segment in &mut segments {
-            segment.translation = segment.base_from_beam * segment.local.fixed_rows::<3>(0);
-            segment.rotation = segment.base_from_beam * segment.local.fixed_rows::<3>(3);
-        }
-        Evaluation {
+        let mut evaluation = SPARE
+            .try_with(|spare| spare.borrow_mut().take())
+            .ok()
+            .flatten()
+            .unwrap_or_default();
+        self.evaluate_into(model, q, tree_poses, &mut evaluation);
+        evaluation
+    }
+
+    /// [`Self::evaluate_with`] into `evaluation`'s buffers (every field overwritten).
+    fn evaluate_into(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        tree_poses: &[crate::math::Pose],
+        evaluation: &mut Evaluation,
+    ) {
+        let Evaluation {
             deformations: Deformations { joints, segments },
             moved,
             tools,
@@ -165,6 +170,32 @@ impl FlexibilityModel {
             mass_segments,
             loads,
             gravity,
+        } = evaluation;
+        model.frame_and_moved_transforms_into(q, frames, moved);
+        tools.clear();
+        tools.extend(model.tools().iter().enumerate().map(|(t, tool)| {
+            match tool.parent {
+                Some(p) => moved[p].then(model.tool_constant(t)),
+                None => model
+                    .world_from_root_transform(q)
+                    .then(model.tool_constant(t)),
+            }
+        }));
+        // Frames are in the model's measurement frame; gravity is given in the root frame
+        // unless it was fixed in the measurement frame.
+        *gravity = if self.gravity_in_measurement_frame {
+            self.gravity
+        } else {
+            model.world_from_base_transform().rotation * self.gravity
+        };
+        self.mass_positions(model, moved, tools, tree_poses, positions);
+        self.loads(model, gravity, positions, tools.len(), loads);
+        self.joint_deformations(moved, loads, joints);
+        self.segment_deformations(frames, moved, tools, loads, segments);
+        self.add_self_weight(segments, positions, gravity, mass_segments);
+        for segment in segments.iter_mut() {
+            segment.translation = segment.base_from_beam * segment.local.fixed_rows::<3>(0);
+            segment.rotation = segment.base_from_beam * segment.local.fixed_rows::<3>(3);
         }
     }
 
@@ -175,41 +206,38 @@ impl FlexibilityModel {
         moved: &[Transform],
         tools: &[Transform],
         tree_poses: &[crate::math::Pose],
-    ) -> Vec<Vec3> {
-        self.masses
-            .iter()
-            .map(|m| match m.place {
-                Place::Body(frame, point) => {
-                    moved[frame].rotation * point + moved[frame].translation
-                }
-                Place::Tool(tool, point) | Place::ToolBody(tool, point) => {
-                    tools[tool].rotation * point + tools[tool].translation
-                }
-                Place::ToolTree {
-                    tool,
-                    tool_link,
-                    link,
-                    point,
-                } => {
-                    let in_tool = tree_poses[tool_link.0].inverse()
-                        * tree_poses[link.0]
-                        * nalgebra::Point3::from(point);
-                    tools[tool].rotation * in_tool.coords + tools[tool].translation
-                }
-                Place::Tree {
-                    frame,
-                    body_link,
-                    link,
-                    point,
-                } => {
-                    let body_from_link = tree_poses[body_link.0].inverse() * tree_poses[link.0];
-                    let in_frame = model.frames()[frame].frame_from_link
-                        * body_from_link
-                        * nalgebra::Point3::from(point);
-                    moved[frame].rotation * in_frame.coords + moved[frame].translation
-                }
-            })
-            .collect()
+        positions: &mut Vec<Vec3>,
+    ) {
+        positions.clear();
+        positions.extend(self.masses.iter().map(|m| match m.place {
+            Place::Body(frame, point) => moved[frame].rotation * point + moved[frame].translation,
+            Place::Tool(tool, point) | Place::ToolBody(tool, point) => {
+                tools[tool].rotation * point + tools[tool].translation
+            }
+            Place::ToolTree {
+                tool,
+                tool_link,
+                link,
+                point,
+            } => {
+                let in_tool = tree_poses[tool_link.0].inverse()
+                    * tree_poses[link.0]
+                    * nalgebra::Point3::from(point);
+                tools[tool].rotation * in_tool.coords + tools[tool].translation
+            }
+            Place::Tree {
+                frame,
+                body_link,
+                link,
+                point,
+            } => {
+                let body_from_link = tree_poses[body_link.0].inverse() * tree_poses[link.0];
+                let in_frame = model.frames()[frame].frame_from_link
+                    * body_from_link
+                    * nalgebra::Point3::from(point);
+                moved[frame].rotation * in_frame.coords + moved[frame].translation
+            }
+        }));
     }
 
     /// From the tips inward, the weight each joint carries as a force and a moment about the
@@ -221,14 +249,18 @@ impl FlexibilityModel {
         gravity: &Vec3,
         positions: &[Vec3],
         tool_count: usize,
-    ) -> Loads {
+        loads: &mut Loads,
+    ) {
         let frame_count = model.frames().len();
-        let mut loads = Loads {
-            force: vec![Vec3::zeros(); frame_count],
-            torque: vec![Vec3::zeros(); frame_count],
-            tool_force: vec![Vec3::zeros(); tool_count],
-            tool_torque: vec![Vec3::zeros(); tool_count],
-        };
+        for (buffer, count) in [
+            (&mut loads.force, frame_count),
+            (&mut loads.torque, frame_count),
+            (&mut loads.tool_force, tool_count),
+            (&mut loads.tool_torque, tool_count),
+        ] {
+            buffer.clear();
+            buffer.resize(count, Vec3::zeros());
+        }
         for (mass, position) in self.masses.iter().zip(positions) {
             let weight = gravity * mass.mass;
             loads.force[mass.frame] += weight;
@@ -246,39 +278,42 @@ impl FlexibilityModel {
                 loads.torque[p] += t;
             }
         }
-        loads
     }
 
     /// Eq. (18)–(19): each joint's deflection under the moment it carries.
-    fn joint_deformations(&self, moved: &[Transform], loads: &Loads) -> Vec<JointDeformation> {
-        (0..moved.len())
-            .map(|i| {
-                let origin = moved[i].translation;
-                let moment = loads.torque[i] - origin.cross(&loads.force[i]);
-                let rotation_matrix = moved[i].rotation;
-                let local_moment = rotation_matrix.transpose() * moment;
-                let (bending, torsion) = self.joint_compliance[i];
-                let local_rotation = Vec3::new(
-                    bending * local_moment.x,
-                    bending * local_moment.y,
-                    torsion * local_moment.z,
-                );
-                JointDeformation {
-                    origin,
-                    force: loads.force[i],
-                    moment,
-                    local: Vector6::new(
-                        0.0,
-                        0.0,
-                        0.0,
-                        local_rotation.x,
-                        local_rotation.y,
-                        local_rotation.z,
-                    ),
-                    rotation: rotation_matrix * local_rotation,
-                }
-            })
-            .collect()
+    fn joint_deformations(
+        &self,
+        moved: &[Transform],
+        loads: &Loads,
+        joints: &mut Vec<JointDeformation>,
+    ) {
+        joints.clear();
+        joints.extend((0..moved.len()).map(|i| {
+            let origin = moved[i].translation;
+            let moment = loads.torque[i] - origin.cross(&loads.force[i]);
+            let rotation_matrix = moved[i].rotation;
+            let local_moment = rotation_matrix.transpose() * moment;
+            let (bending, torsion) = self.joint_compliance[i];
+            let local_rotation = Vec3::new(
+                bending * local_moment.x,
+                bending * local_moment.y,
+                torsion * local_moment.z,
+            );
+            JointDeformation {
+                origin,
+                force: loads.force[i],
+                moment,
+                local: Vector6::new(
+                    0.0,
+                    0.0,
+                    0.0,
+                    local_rotation.x,
+                    local_rotation.y,
+                    local_rotation.z,
+                ),
+                rotation: rotation_matrix * local_rotation,
+            }
+        }));
     }
 
     /// Corrected eq. (21): each segment's deflection under the load at its free end (the
@@ -289,57 +324,56 @@ impl FlexibilityModel {
         moved: &[Transform],
         tools: &[Transform],
         loads: &Loads,
-    ) -> Vec<SegmentDeformation> {
-        self.segments
-            .iter()
-            .map(|segment| {
-                let start = moved[segment.frame].translation;
-                let (end, tip_force, tip_torque) = match segment.end {
-                    SegmentEnd::Frame(j) => {
-                        (frames[j].translation, loads.force[j], loads.torque[j])
-                    }
-                    SegmentEnd::Tool(t) => (
-                        tools[t].translation,
-                        loads.tool_force[t],
-                        loads.tool_torque[t],
-                    ),
-                };
-                let base_from_beam = beam_frame(
-                    &(end - start),
-                    &moved[segment.frame].rotation,
-                    segment.reference_axis,
-                );
-                let length = (end - start).norm();
-                let local = point_load_deflection(
-                    length,
-                    &segment.compliance,
-                    length,
-                    &(base_from_beam.transpose() * tip_force),
-                    &(base_from_beam.transpose() * (tip_torque - end.cross(&tip_force))),
-                );
-                SegmentDeformation {
-                    start,
-                    end,
-                    base_from_beam,
-                    local,
-                    translation: Vec3::zeros(),
-                    rotation: Vec3::zeros(),
-                }
-            })
-            .collect()
+        segments: &mut Vec<SegmentDeformation>,
+    ) {
+        segments.clear();
+        segments.extend(self.segments.iter().map(|segment| {
+            let start = moved[segment.frame].translation;
+            let (end, tip_force, tip_torque) = match segment.end {
+                SegmentEnd::Frame(j) => (frames[j].translation, loads.force[j], loads.torque[j]),
+                SegmentEnd::Tool(t) => (
+                    tools[t].translation,
+                    loads.tool_force[t],
+                    loads.tool_torque[t],
+                ),
+            };
+            let base_from_beam = beam_frame(
+                &(end - start),
+                &moved[segment.frame].rotation,
+                segment.reference_axis,
+            );
+            let length = (end - start).norm();
+            let local = point_load_deflection(
+                length,
+                &segment.compliance,
+                length,
+                &(base_from_beam.transpose() * tip_force),
+                &(base_from_beam.transpose() * (tip_torque - end.cross(&tip_force))),
+            );
+            SegmentDeformation {
+                start,
+                end,
+                base_from_beam,
+                local,
+                translation: Vec3::zeros(),
+                rotation: Vec3::zeros(),
+            }
+        }));
     }
 
     /// Self-weight: each link's weight at its centre of mass projected on its segment, with
-    /// the moment of the offset (see docs/flexibility.md). Returns the segment each mass
-    /// loads.
+    /// the moment of the offset (see docs/flexibility.md). Sets the segment each mass
+    /// loads (`chosen`).
     fn add_self_weight(
         &self,
         segments: &mut [SegmentDeformation],
         positions: &[Vec3],
         gravity: &Vec3,
-    ) -> Vec<Option<usize>> {
-        let mut chosen = vec![None; self.masses.len()];
-        for ((mass, position), chosen) in self.masses.iter().zip(positions).zip(&mut chosen) {
+        chosen: &mut Vec<Option<usize>>,
+    ) {
+        chosen.clear();
+        chosen.resize(self.masses.len(), None);
+        for ((mass, position), chosen) in self.masses.iter().zip(positions).zip(chosen) {
             if mass.segment.is_none() {
                 continue;
             }
@@ -366,12 +400,12 @@ impl FlexibilityModel {
                 &(to_beam * (position - on_axis).cross(&weight)),
             );
         }
-        chosen
     }
 }
 
 /// The weight each joint carries, and the weight of the masses at each tool, as forces and
 /// moments about the base origin, base frame (N, N·m).
+#[derive(Default)]
 pub(crate) struct Loads {
     pub(crate) force: Vec<Vec3>,
     pub(crate) torque: Vec<Vec3>,
