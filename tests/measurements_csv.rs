@@ -342,6 +342,8 @@ fn every_bad_value_is_reported_at_its_line_and_column() {
         (format!("{HEADER},qw,qx,qy,qz\n{ROW},0.5,0.5,0.5,0.6\n"), &plain, "bad.csv:2:qw", "check the column names"),
         (format!("{HEADER},qw,qx,qy,qz\n{ROW},0,0,0,0\n"), &plain, "bad.csv:2:qw", "norm 0.000000"),
         (format!("{HEADER}\n{ROW},4\n"), &plain, "bad.csv:2", "row has 15 fields but the header has 14"),
+        (format!("{HEADER}\n{ROW}\n").replace(',', ";"), &plain, "bad.csv:1", "separated by semicolons, not commas"),
+        (format!("{HEADER}\n{ROW}\n").replace(',', "\t"), &plain, "bad.csv:1", "separated by tabs, not commas"),
         (String::new(), &plain, "bad.csv", "the file is empty"),
         ("# only a comment\n\n".into(), &plain, "bad.csv", "the file is empty"),
         (format!("# made today\n{HEADER}\n"), &plain, "bad.csv", "no data rows"),
