@@ -35,24 +35,36 @@ pub fn hold_out_indices(
     // made this O(N²); a map keyed by the values themselves cost an allocation and a long hash
     // per row, a second at 10⁶ configurations).
     let digests: Vec<u64> = measurements.par_iter().map(key_digest).collect();
+    // The first group of each digest; further groups of the same digest (rare) chained.
     let mut groups: Vec<&Measurement> = Vec::new();
-    let mut index: HashMap<u64, Vec<usize>> = HashMap::new();
+    let mut next_of_digest: Vec<Option<usize>> = Vec::new();
+    let mut index: HashMap<u64, usize> = HashMap::new();
     let group_of: Vec<usize> = measurements
         .iter()
         .zip(&digests)
         .map(|(m, &digest)| {
-            let candidates = index.entry(digest).or_default();
-            match candidates.iter().find(|&&g| same_key(groups[g], m)) {
-                Some(&g) => g,
+            let mut last = None;
+            let mut candidate = index.get(&digest).copied();
+            while let Some(g) = candidate {
+                if same_key(groups[g], m) {
+                    return g;
+                }
+                last = Some(g);
+                candidate = next_of_digest[g];
+            }
+            let g = groups.len();
+            groups.push(m);
+            next_of_digest.push(None);
+            match last {
+                Some(previous) => next_of_digest[previous] = Some(g),
                 None => {
-                    groups.push(m);
-                    candidates.push(groups.len() - 1);
-                    groups.len() - 1
+                    index.insert(digest, g);
                 }
             }
+            g
         })
         .collect();
-    drop((digests, index));
+    drop((digests, index, next_of_digest));
     let groups: Vec<(&[f64], Option<&str>)> = groups
         .iter()
         .map(|m| (m.q.as_slice(), m.stage.as_deref()))
