@@ -25,9 +25,8 @@ fn rows(count: usize) -> Vec<String> {
 /// Reads `text` from a file and whole, and checks both ways give the same.
 fn assert_same_both_ways(text: &str, options: &MeasurementReadOptions, what: &str) {
     let (tree, model) = robonaut_model();
-    let dir = std::env::temp_dir().join(format!("treecal-stream-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("m.csv");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.csv");
     std::fs::write(&path, text).unwrap();
     let origin = path.display().to_string();
     let from_file = read_measurements(&path, &tree, &model, options).map_err(|e| e.to_string());
@@ -40,7 +39,6 @@ fn assert_same_both_ways(text: &str, options: &MeasurementReadOptions, what: &st
     let tools = read_measured_tool_names(&path).map_err(|e| e.to_string());
     let whole_tools = measured_tool_names(text, &origin).map_err(|e| e.to_string());
     assert_eq!(tools, whole_tools, "{what}: tool names");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

@@ -1,8 +1,7 @@
 //! The tools and targets a measurement CSV names, read without a robot model.
 
 // The parent's types, constants and imports.
-use super::blocks::{read_plain_blocks, BlockRows};
-use super::stream::PlainHeader;
+use super::blocks::{read_plain_blocks, BlockRows, PlainHeader};
 use super::*;
 
 /// The distinct links named in the `tool` column of measurement CSV `text`, in order of first

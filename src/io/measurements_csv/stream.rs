@@ -9,10 +9,9 @@
 //! the caller reads the file again that way, so that messages name the same place with the
 //! same words whichever reader found the problem.
 
+use super::blocks::PlainHeader;
 use super::read::{HeaderPlace, SetBuilder};
 use super::*;
-use crate::limits::{MAX_CSV_BYTES, MAX_CSV_COLUMNS, MAX_CSV_FIELD_BYTES};
-use std::io::BufRead;
 
 /// Reads a measurement CSV file; see [`super::parse_measurements`]. A plain file is read in
 /// blocks of lines, anything else (and any file with an error) as one text.
@@ -59,93 +58,4 @@ fn read_plain(
     set.ids.shrink_to_fit();
     set.lines.shrink_to_fit();
     Some(set)
-}
-
-/// The header of a plain file, as [`super::blocks::read_plain_blocks`] gives it.
-pub(super) struct PlainHeader<'h> {
-    /// The column names, trimmed.
-    pub(super) headers: &'h [String],
-    /// The 1-based line of the header.
-    pub(super) line: usize,
-    /// The text above the header and the header (for the units comment).
-    pub(super) above: &'h str,
-    /// About the number of data rows, from the size of the file and of its header.
-    pub(super) rows_guess: usize,
-}
-
-/// Whether a plain line is a record (not a comment, not only empty fields); `None` if it is
-/// past a limit (too many columns, a field too long).
-pub(super) fn plain_record(text: &str) -> Option<bool> {
-    if text.starts_with('#') {
-        return Some(false);
-    }
-    let (mut count, mut any) = (0, false);
-    for field in text.split(',') {
-        if field.len() > MAX_CSV_FIELD_BYTES || count == MAX_CSV_COLUMNS {
-            return None;
-        }
-        count += 1;
-        any |= !field.trim().is_empty();
-    }
-    Some(any)
-}
-
-/// The lines of a plain file, their line breaks taken off.
-pub(super) struct PlainLines<R> {
-    pub(super) reader: R,
-    buffer: Vec<u8>,
-    /// The 1-based number of the last line given.
-    line: usize,
-    /// Bytes read so far.
-    pub(super) read: u64,
-}
-
-impl<R: BufRead> PlainLines<R> {
-    /// The lines of `reader`.
-    pub(super) fn new(reader: R) -> Self {
-        Self {
-            reader,
-            buffer: Vec::new(),
-            line: 0,
-            read: 0,
-        }
-    }
-
-    /// The next line and its number; `None` at the end, or when the file is not plain.
-    pub(super) fn next(&mut self) -> Option<(usize, &str)> {
-        self.next_or_end().flatten()
-    }
-
-    /// `Some(Some((number, line)))`, `Some(None)` at the end of the file, `None` when the file
-    /// is not plain (a quote, a lone `\r`, not UTF-8, past the size limit) or cannot be read.
-    fn next_or_end(&mut self) -> Option<Option<(usize, &str)>> {
-        self.buffer.clear();
-        let count = self.reader.read_until(b'\n', &mut self.buffer).ok()?;
-        if count == 0 {
-            return Some(None);
-        }
-        self.read += count as u64;
-        if self.read > MAX_CSV_BYTES {
-            return None;
-        }
-        self.line += 1;
-        let mut bytes = self.buffer.as_slice();
-        bytes = bytes.strip_suffix(b"\n").unwrap_or(bytes);
-        if let Some(rest) = bytes.strip_suffix(b"\r") {
-            // A `\r` at the very end (no `\n` after it) is a lone one.
-            if count == bytes.len() {
-                return None;
-            }
-            bytes = rest;
-        }
-        if bytes.iter().any(|&b| b == b'"' || b == b'\r') {
-            return None;
-        }
-        let text = std::str::from_utf8(bytes).ok()?;
-        let text = match self.line {
-            1 => text.strip_prefix('\u{feff}').unwrap_or(text),
-            _ => text,
-        };
-        Some(Some((self.line, text)))
-    }
 }
