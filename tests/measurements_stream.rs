@@ -25,9 +25,8 @@ fn rows(count: usize) -> Vec<String> {
 /// Reads `text` from a file and whole, and checks both ways give the same.
 fn assert_same_both_ways(text: &str, options: &MeasurementReadOptions, what: &str) {
     let (tree, model) = robonaut_model();
-    let dir = std::env::temp_dir().join(format!("treecal-stream-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("m.csv");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.csv");
     std::fs::write(&path, text).unwrap();
     let origin = path.display().to_string();
     let from_file = read_measurements(&path, &tree, &model, options).map_err(|e| e.to_string());
@@ -40,7 +39,6 @@ fn assert_same_both_ways(text: &str, options: &MeasurementReadOptions, what: &st
     let tools = read_measured_tool_names(&path).map_err(|e| e.to_string());
     let whole_tools = measured_tool_names(text, &origin).map_err(|e| e.to_string());
     assert_eq!(tools, whole_tools, "{what}: tool names");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -78,4 +76,63 @@ fn a_file_read_line_by_line_gives_what_its_text_gives() {
         assert_same_both_ways(text, &MeasurementReadOptions::default(), what);
         assert_same_both_ways(text, &strict, what);
     }
+}
+
+/// A file of several blocks (the reader parses blocks of about 1 MB in parallel): the rows,
+/// ids, warnings and errors are what the whole text gives, an error in a late block naming
+/// its line.
+#[test]
+fn a_file_of_many_blocks_read_in_parallel_gives_what_its_text_gives() {
+    let count = 40_000;
+    let body = rows(count).join("\n");
+    let plain = format!("# units: length=mm angle=rad\n{HEADER}\n{body}\n");
+    assert!(plain.len() > 3 << 20, "{} bytes", plain.len());
+    let late = format!("\n{},", count - 5);
+    let no_id: String = plain
+        .lines()
+        .map(|line| line.split_once(',').map_or(line, |(_, rest)| rest))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let cases = [
+        ("plain", plain.clone()),
+        ("no id column", no_id),
+        (
+            "bad value late",
+            plain.replacen(
+                &format!("{late}arms,left_tool,"),
+                &format!("{late}arms,left_tool,x"),
+                1,
+            ),
+        ),
+        (
+            "id repeated across blocks",
+            plain.replacen(&late, "\n7,", 1),
+        ),
+        (
+            "row repeated across blocks",
+            plain.replacen(
+                &late,
+                &format!(
+                    "{late}arms,left_tool,0.01,0.01,0.01,0.01,0.01,0.01,0.01,0.01,1,2,3\n{}0,",
+                    count - 5
+                ),
+                1,
+            ),
+        ),
+        (
+            "quote late",
+            plain.replacen(&late, &format!("{late}\"arms\""), 1),
+        ),
+    ];
+    for (what, text) in &cases {
+        assert_same_both_ways(text, &MeasurementReadOptions::default(), what);
+    }
+    let (tree, model) = robonaut_model();
+    let late_line = 2 + count - 5;
+    let bad = &cases[2].1;
+    let error = parse_measurements(bad, "f", &tree, &model, &Default::default()).unwrap_err();
+    assert!(
+        error.to_string().starts_with(&format!("f:{late_line}:")),
+        "{error}"
+    );
 }

@@ -6,6 +6,9 @@ use crate::measurement::Measurement;
 use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::hash::{DefaultHasher, Hash, Hasher};
 
 /// Splits off a seeded fifth of the configurations for validation: whole configurations
 /// (every tool observed there), never torso-stage ones (the staged plan needs them), at
@@ -27,20 +30,44 @@ pub fn hold_out_indices(
     fraction: f64,
     seed: u64,
 ) -> Result<(Vec<usize>, Vec<usize>)> {
-    // Distinct configurations, in file order, with the stage they belong to (hashed: a linear
-    // search made this O(N²)). `+ 0.0` makes −0 and +0 one key, as `==` does.
-    let mut groups: Vec<(&[f64], Option<&str>)> = Vec::new();
-    let mut index: std::collections::HashMap<(Vec<u64>, Option<&str>), usize> =
-        std::collections::HashMap::new();
+    // Distinct configurations, in file order, with the stage they belong to: found by a
+    // digest of each row's key (computed in parallel), then compared exactly (a linear search
+    // made this O(N²); a map keyed by the values themselves cost an allocation and a long hash
+    // per row, a second at 10⁶ configurations).
+    let digests: Vec<u64> = measurements.par_iter().map(key_digest).collect();
+    // The first group of each digest; further groups of the same digest (rare) chained.
+    let mut groups: Vec<&Measurement> = Vec::new();
+    let mut next_of_digest: Vec<Option<usize>> = Vec::new();
+    let mut index: HashMap<u64, usize> = HashMap::new();
     let group_of: Vec<usize> = measurements
         .iter()
-        .map(|m| {
-            let bits = m.q.iter().map(|v| (v + 0.0).to_bits()).collect();
-            *index.entry((bits, m.stage.as_deref())).or_insert_with(|| {
-                groups.push((m.q.as_slice(), m.stage.as_deref()));
-                groups.len() - 1
-            })
+        .zip(&digests)
+        .map(|(m, &digest)| {
+            let mut last = None;
+            let mut candidate = index.get(&digest).copied();
+            while let Some(g) = candidate {
+                if same_key(groups[g], m) {
+                    return g;
+                }
+                last = Some(g);
+                candidate = next_of_digest[g];
+            }
+            let g = groups.len();
+            groups.push(m);
+            next_of_digest.push(None);
+            match last {
+                Some(previous) => next_of_digest[previous] = Some(g),
+                None => {
+                    index.insert(digest, g);
+                }
+            }
+            g
         })
+        .collect();
+    drop((digests, index, next_of_digest));
+    let groups: Vec<(&[f64], Option<&str>)> = groups
+        .iter()
+        .map(|m| (m.q.as_slice(), m.stage.as_deref()))
         .collect();
     let mut eligible: Vec<usize> = (0..groups.len())
         .filter(|&g| groups[g].1 != Some("torso"))
@@ -70,4 +97,23 @@ pub fn hold_out_indices(
         }
     }
     Ok((identification, validation))
+}
+
+/// The configuration's joint values (`+ 0.0` makes −0 and +0 one key, as `==` does).
+fn key_bits(m: &Measurement) -> impl Iterator<Item = u64> + '_ {
+    m.q.iter().map(|v| (v + 0.0).to_bits())
+}
+
+/// A digest of the row's configuration and stage.
+fn key_digest(m: &Measurement) -> u64 {
+    let mut digest = DefaultHasher::new();
+    key_bits(m).for_each(|bits| bits.hash(&mut digest));
+    m.q.len().hash(&mut digest);
+    m.stage.as_deref().hash(&mut digest);
+    digest.finish()
+}
+
+/// Whether two rows are at the same configuration in the same stage.
+fn same_key(a: &Measurement, b: &Measurement) -> bool {
+    a.q.len() == b.q.len() && key_bits(a).eq(key_bits(b)) && a.stage == b.stage
 }

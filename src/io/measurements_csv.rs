@@ -27,6 +27,7 @@ pub use names::{
 mod write;
 pub use write::{measurements_to_csv, measurements_to_csv_with, MeasurementWriteOptions};
 
+mod blocks;
 mod checks;
 mod columns;
 mod read;

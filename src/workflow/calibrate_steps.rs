@@ -6,7 +6,7 @@ use super::cross_validation::{markdown as cross_validation_markdown, CrossValida
 use super::export::export_notes;
 use super::model_choice::{frame_joints, ModelSpec, NoiseEstimate};
 use super::note::Note;
-use super::source::{add_measured_points, measured_branches, LoadedRobot, MeasuredPoints};
+use super::source::{add_measured_points_of, measured_branches_of, LoadedRobot, MeasuredPoints};
 use crate::calibration::{
     hold_out_indices, CalibrationRun, Finding, IdentificationOptions, MeasurementFrame, Plan,
 };
@@ -65,17 +65,21 @@ impl Loaded {
             MeasurementFrameChoice::File(path) => MeasurementFrame::Known(read_registration(path)?),
         };
         let mut robot = config.robot.load()?;
-        let points = add_measured_points(
+        // The file's tools and points read once (at 10⁶ configurations a scan is seconds).
+        let targets = config.measurements.targets()?;
+        let points = add_measured_points_of(
             &mut robot.import,
             config.tools.as_deref(),
             &config.measurements,
+            targets.clone(),
         )?;
         let tools = points.tools.as_deref().or(config.tools.as_deref());
-        let branches = measured_branches(
+        let branches = measured_branches_of(
             &robot.import,
             tools,
             config.reference_link.as_deref(),
             &config.measurements,
+            || config.measurements.tool_names_given(&targets),
         )?;
         let tree = robot.tree();
         if config.identify_stiffness && branches.reference != tree.root() {

@@ -182,10 +182,24 @@ pub fn measured_branches(
     reference: Option<&str>,
     measurements: &MeasurementSource,
 ) -> Result<Branches> {
+    measured_branches_of(import, tools, reference, measurements, || {
+        measurements.tool_names()
+    })
+}
+
+/// As [`measured_branches`], the measured tool links given by `measured` (called only when
+/// `tools` is `None`).
+pub(crate) fn measured_branches_of(
+    import: &UrdfImport,
+    tools: Option<&[String]>,
+    reference: Option<&str>,
+    measurements: &MeasurementSource,
+    measured: impl FnOnce() -> Result<Vec<String>>,
+) -> Result<Branches> {
     if tools.is_some() {
         return branches(import, tools, reference);
     }
-    let measured = measurements.tool_names()?;
+    let measured = measured()?;
     let tree = &import.tree;
     let ids = measured
         .iter()
@@ -248,7 +262,17 @@ pub fn add_measured_points(
     tools: Option<&[String]>,
     measurements: &MeasurementSource,
 ) -> Result<MeasuredPoints> {
-    let pairs = measurements.targets()?;
+    add_measured_points_of(import, tools, measurements, measurements.targets()?)
+}
+
+/// As [`add_measured_points`], with the measurements' `(tool, point)` pairs read already
+/// ([`MeasurementSource::targets`]).
+pub(crate) fn add_measured_points_of(
+    import: &mut UrdfImport,
+    tools: Option<&[String]>,
+    measurements: &MeasurementSource,
+    pairs: Vec<(Option<String>, Option<String>)>,
+) -> Result<MeasuredPoints> {
     let tree = &mut import.tree;
     let body = tools
         .filter(|t| t.len() == 1)
@@ -396,6 +420,26 @@ impl MeasurementSource {
             )),
             MeasurementSource::Table(table) => table.targets(),
         }
+    }
+
+    /// The distinct measured tool links, in order of first appearance, from the `targets`
+    /// read already where they tell (a file whose rows all name a tool: the tools of its
+    /// pairs in order), else read ([`Self::tool_names`]). One scan of a large file, not two.
+    pub fn tool_names_given(
+        &self,
+        targets: &[(Option<String>, Option<String>)],
+    ) -> Result<Vec<String>> {
+        let every_row_names_a_tool = !targets.is_empty() && targets.iter().all(|t| t.0.is_some());
+        if !(matches!(self, MeasurementSource::Csv(_)) && every_row_names_a_tool) {
+            return self.tool_names();
+        }
+        let mut names: Vec<String> = Vec::new();
+        for tool in targets.iter().filter_map(|t| t.0.as_ref()) {
+            if !names.contains(tool) {
+                names.push(tool.clone());
+            }
+        }
+        Ok(names)
     }
 
     /// The distinct measured tool links, in order of first appearance.

@@ -141,7 +141,11 @@ impl Repeats {
     }
 
     pub(super) fn see(&mut self, row: CsvRow<'_>) {
-        let (key, line) = (self.fingerprint(row), row.line);
+        self.see_fingerprint(self.fingerprint(row), row.line);
+    }
+
+    /// Sees the row at `line` whose [`Self::fingerprint`] is `key`.
+    pub(super) fn see_fingerprint(&mut self, key: (u64, u64), line: usize) {
         if let Some(&first) = self.first_line.get(&key) {
             self.found.push((line, first));
         } else {
@@ -150,7 +154,7 @@ impl Repeats {
     }
 
     /// The row's fingerprint, its id left out.
-    fn fingerprint(&self, fields: CsvRow<'_>) -> (u64, u64) {
+    pub(super) fn fingerprint(&self, fields: CsvRow<'_>) -> (u64, u64) {
         use std::hash::{DefaultHasher, Hash, Hasher};
         let mut digests = [DefaultHasher::new(), DefaultHasher::new()];
         // Different first inputs make the two digests independent.

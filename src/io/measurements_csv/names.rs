@@ -1,7 +1,7 @@
 //! The tools and targets a measurement CSV names, read without a robot model.
 
 // The parent's types, constants and imports.
-use super::stream::{for_each_plain_row, PlainHeader};
+use super::blocks::{read_plain_blocks, BlockRows, PlainHeader};
 use super::*;
 
 /// The distinct links named in the `tool` column of measurement CSV `text`, in order of first
@@ -116,28 +116,84 @@ impl Targets {
     }
 }
 
+/// The pairs of one block, then of the file so far, with the file's name (an empty tool is
+/// left to the whole-text reader).
+struct PlainTargets<'o>(Targets, &'o str);
+
+impl BlockRows for PlainTargets<'_> {
+    type Part = Targets;
+
+    fn part(&self) -> Targets {
+        Targets {
+            pairs: Vec::new(),
+            ..self.0
+        }
+    }
+
+    fn row(&self, part: &mut Targets, row: CsvRow<'_>) -> Option<()> {
+        part.see(row, self.1).ok()
+    }
+
+    fn merge(&mut self, part: Targets) -> Option<()> {
+        for pair in part.pairs {
+            if !self.0.pairs.contains(&pair) {
+                self.0.pairs.push(pair);
+            }
+        }
+        Some(())
+    }
+}
+
+/// The tool names of one block, then of the file so far, with the file's name.
+struct PlainToolNames<'o>(ToolNames, &'o str);
+
+impl BlockRows for PlainToolNames<'_> {
+    type Part = ToolNames;
+
+    fn part(&self) -> ToolNames {
+        ToolNames {
+            column: self.0.column,
+            names: Vec::new(),
+        }
+    }
+
+    fn row(&self, part: &mut ToolNames, row: CsvRow<'_>) -> Option<()> {
+        part.see(row, self.1).ok()
+    }
+
+    fn merge(&mut self, part: ToolNames) -> Option<()> {
+        for name in part.names {
+            if !self.0.names.contains(&name) {
+                self.0.names.push(name);
+            }
+        }
+        Some(())
+    }
+}
+
 /// Reads a measurement CSV file's tool and point columns; see [`measured_targets`]. A plain
-/// file is read line by line (`measurements_csv::stream`), anything else as one text.
+/// file is read in blocks of lines (`measurements_csv::blocks`), anything else as one text.
 pub fn read_measured_targets(path: &Path) -> Result<Vec<(Option<String>, Option<String>)>> {
     let origin = path.display().to_string();
-    let start = |header: PlainHeader<'_>| Some(Targets::start(header.headers));
-    let each = |targets: &mut Targets, row: CsvRow<'_>| targets.see(row, &origin).ok();
-    if let Some(targets) = for_each_plain_row(path, &origin, start, each) {
-        return Ok(targets.pairs);
+    let start =
+        |header: PlainHeader<'_>| Some(PlainTargets(Targets::start(header.headers), &origin));
+    if let Some(targets) = read_plain_blocks(path, &origin, start) {
+        return Ok(targets.0.pairs);
     }
     let text = crate::limits::read_text(path, crate::limits::MAX_CSV_BYTES)?;
     measured_targets(&text, &origin)
 }
 
 /// Reads a measurement CSV file's tool column; see [`measured_tool_names`]. A plain file is
-/// read line by line (`measurements_csv::stream`), anything else as one text.
+/// read in blocks of lines (`measurements_csv::blocks`), anything else as one text.
 pub fn read_measured_tool_names(path: &Path) -> Result<Vec<String>> {
     let origin = path.display().to_string();
-    let start =
-        |header: PlainHeader<'_>| ToolNames::start(header.headers, header.line, &origin).ok();
-    let each = |names: &mut ToolNames, row: CsvRow<'_>| names.see(row, &origin).ok();
-    if let Some(names) = for_each_plain_row(path, &origin, start, each) {
-        if let Ok(names) = names.finish(&origin) {
+    let start = |header: PlainHeader<'_>| {
+        let names = ToolNames::start(header.headers, header.line, &origin).ok()?;
+        Some(PlainToolNames(names, &origin))
+    };
+    if let Some(names) = read_plain_blocks(path, &origin, start) {
+        if let Ok(names) = names.0.finish(&origin) {
             return Ok(names);
         }
     }

@@ -8,6 +8,8 @@ use super::checks::{
 use super::columns::{classify, Columns};
 use super::*;
 
+mod parts;
+
 /// Reads a measurement CSV file as one text (any file the format allows; a plain file is read
 /// line by line by [`super::read_measurements`]); see [`parse_measurements`].
 pub(super) fn read_whole(
@@ -109,6 +111,8 @@ pub(super) struct SetBuilder<'a> {
     reader: RowReader<'a>,
     set: MeasurementSet,
     tally: Tally,
+    /// A digest of every id merged from blocks read in parallel (`parts`).
+    id_digests: std::collections::HashSet<u64>,
 }
 
 impl<'a> SetBuilder<'a> {
@@ -149,7 +153,7 @@ impl<'a> SetBuilder<'a> {
         let tally = Tally {
             outside: Vec::new(),
             revolute_values: 0,
-            first_line_of_id: HashMap::new(),
+            first_line_of_id: Some(HashMap::new()),
             repeats: Repeats::new(columns.id),
             position_rows: Vec::new(),
         };
@@ -168,7 +172,12 @@ impl<'a> SetBuilder<'a> {
                 .collect(),
             tool_dofs: tool_dofs(tree, model),
         };
-        Ok(Self { reader, set, tally })
+        Ok(Self {
+            reader,
+            set,
+            tally,
+            id_digests: Default::default(),
+        })
     }
 
     /// Room for `rows` more rows.
@@ -200,6 +209,7 @@ impl<'a> SetBuilder<'a> {
             reader,
             mut set,
             tally,
+            ..
         } = self;
         let (origin, units) = (reader.origin, set.units);
         set.warnings.extend(limit_warnings(
@@ -288,7 +298,9 @@ struct RowReader<'a> {
 struct Tally {
     outside: Vec<OutsideLimits>,
     revolute_values: usize,
-    first_line_of_id: HashMap<String, usize>,
+    /// The first line of every id; `None` while a block is read in parallel (the merge checks
+    /// the ids across blocks).
+    first_line_of_id: Option<HashMap<String, usize>>,
     repeats: Repeats,
     /// The ids of the pose layout's rows read as positions.
     position_rows: Vec<String>,
@@ -373,7 +385,8 @@ impl RowReader<'_> {
             Some(column) => row.fields[column].to_owned(),
             None => (index + 1).to_string(),
         };
-        if let Some(first) = tally.first_line_of_id.insert(id.clone(), row.line) {
+        let seen = tally.first_line_of_id.as_mut();
+        if let Some(first) = seen.and_then(|seen| seen.insert(id.clone(), row.line)) {
             return Err(self.invalid(
                 row,
                 self.columns.id.unwrap_or(0),
