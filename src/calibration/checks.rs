@@ -446,7 +446,7 @@ impl JudgedValidation<'_> {
 }
 
 /// On the validation data the calibrated model must beat the registered nominal one (RMS
-/// position error over the rows [`judged_validation`] keeps), unless the nominal model is
+/// position error over every row but the gross blunders, [`validation_set_aside`]), unless the nominal model is
 /// already within the noise.
 pub fn validation_improves(run: &CalibrationRun) -> Option<Finding> {
     let expected = expected_validation_rms(run);
@@ -476,7 +476,7 @@ pub fn validation_improves(run: &CalibrationRun) -> Option<Finding> {
     })
 }
 
-/// The validation error (over the rows [`judged_validation`] keeps) against what the
+/// The validation error (over every row but the gross blunders, [`validation_set_aside`]) against what the
 /// identification predicts for it.
 pub fn validation_matches_prediction(run: &CalibrationRun) -> Option<Finding> {
     let expected = expected_validation_rms(run)?;
