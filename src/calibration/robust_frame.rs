@@ -158,3 +158,88 @@ pub fn gross_blunders(
         .collect();
     gross_rows(&errors, &flagged)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3;
+    use crate::measurement::Observation;
+    use nalgebra::{Translation3, UnitQuaternion};
+    use rand::rngs::ChaCha8Rng;
+    use rand::{RngExt, SeedableRng};
+
+    /// 30 positions seen through `truth` with 0.1 mm noise; row 7 bumped by `bump` (m).
+    fn rows(truth: &Pose, bump: f64) -> (Vec<Pose>, Vec<Measurement>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(29);
+        let mut predicted = Vec::new();
+        let mut measured = Vec::new();
+        for i in 0..30 {
+            let mut r = || rng.random_range(-0.8..0.8);
+            let p = Pose::from_parts(
+                Translation3::new(r(), r(), r() + 1.0),
+                UnitQuaternion::identity(),
+            );
+            let noise = Vec3::new(r(), r(), r()) * 1.25e-4;
+            let mut at = (truth * p).translation.vector + noise;
+            if i == 7 {
+                at.x += bump;
+            }
+            predicted.push(p);
+            measured.push(Measurement {
+                tool: 0,
+                q: Vec::new(),
+                observation: Observation::Position(at),
+                stage: None,
+                payload: None,
+                session: None,
+            });
+        }
+        (predicted, measured)
+    }
+
+    #[test]
+    fn a_gross_blunder_does_not_drag_the_frame_and_clean_rows_give_least_squares() {
+        let truth = Pose::from_parts(
+            Translation3::new(0.4, -1.2, 0.3),
+            UnitQuaternion::from_euler_angles(0.1, -0.2, 0.7),
+        );
+        let options = IdentificationOptions::default();
+        let (predicted, clean) = rows(&truth, 0.0);
+        let refs: Vec<&Measurement> = clean.iter().collect();
+        let robust = fit_session_frame_robust(&predicted, &refs, &options, RobustLoss::Huber);
+        let plain = fit_session_frame(&predicted, &refs, &[], &options).0;
+        assert_eq!(
+            robust.frame, plain,
+            "without a blunder: the least-squares frame"
+        );
+        assert!(robust.gross.iter().all(|g| !g));
+        let (predicted, bumped) = rows(&truth, 0.3);
+        let refs: Vec<&Measurement> = bumped.iter().collect();
+        let robust = fit_session_frame_robust(&predicted, &refs, &options, RobustLoss::Huber);
+        let plain = fit_session_frame(&predicted, &refs, &[], &options).0;
+        let off = |frame: &Pose| (frame.translation.vector - truth.translation.vector).norm();
+        assert_eq!(
+            robust.gross.iter().position(|&g| g),
+            Some(7),
+            "{:?}",
+            robust.gross
+        );
+        assert!(off(&robust.frame) < 2e-4, "{}", off(&robust.frame));
+        assert!(off(&plain) > 5.0 * off(&robust.frame), "{}", off(&plain));
+        assert_eq!(
+            gross_blunders(
+                &predicted
+                    .iter()
+                    .map(|p| robust.frame * p)
+                    .collect::<Vec<_>>(),
+                &refs,
+                &options,
+                RobustLoss::Huber
+            )
+            .iter()
+            .filter(|&&g| g)
+            .count(),
+            1
+        );
+    }
+}
