@@ -581,15 +581,12 @@ pub fn validate_sessions(
             let seen = sessions.frames.iter().any(|f| f.name == *name);
             let training =
                 training_frame(&validation[rows[0]], Some(sessions)).unwrap_or_else(Pose::identity);
-            // Robust: a gross blunder does not drag the re-registration (without one this
-            // is the least-squares frame).
-            let refitted = super::robust_frame::fit_session_frame_robust(
+            let (refitted, _) = fit_session_frame(
                 &rows.iter().map(|&i| predicted[i]).collect::<Vec<_>>(),
                 &rows.iter().map(|&i| &validation[i]).collect::<Vec<_>>(),
+                &[],
                 options,
-                options.robust,
-            )
-            .frame;
+            );
             SessionValidation {
                 name: name.clone(),
                 rows: rows.len(),
