@@ -148,8 +148,9 @@ fn sessions_recover_the_moved_frames_and_one_frame_does_notably_worse() {
 /// A held-out session the training never saw: the training frame (the first session's) carries
 /// its moved frame into the figure, the re-registration (six frame parameters refitted, the
 /// geometry fixed) removes it; the pose session's held-out rows use their own training frame.
-#[test]
-fn a_new_session_is_reported_in_the_training_frame_and_re_registered() {
+/// The second robot trained without its third session, which is held out with the pose
+/// session's held-out rows; `bump` (m) is added to the x of the first day-3 row.
+fn run_with_a_new_session(bump: f64) -> (SecondRobot, CalibrationRun, Vec<Measurement>) {
     let robot = second_robot(29);
     let (kept, held) = robot.split(4);
     let day3: Vec<usize> = (0..robot.measurements.len())
@@ -157,12 +158,42 @@ fn a_new_session_is_reported_in_the_training_frame_and_re_registered() {
         .collect();
     let training: Vec<usize> = kept.into_iter().filter(|i| !day3.contains(i)).collect();
     let validation: Vec<usize> = held.into_iter().chain(day3).collect();
-    let run = calibrate(
-        &robot,
-        &robot.rows(&training, true),
-        &robot.rows(&validation, true),
-        true,
-    );
+    let mut validation_rows = robot.rows(&validation, true);
+    let first_day3 = validation_rows
+        .iter_mut()
+        .find(|m| m.session.as_deref() == Some(SESSIONS[2]))
+        .unwrap();
+    if let Observation::Position(p) = &mut first_day3.observation {
+        p.x += bump;
+    }
+    let run = calibrate(&robot, &robot.rows(&training, true), &validation_rows, true);
+    (robot, run, validation_rows)
+}
+
+/// How far (m) the re-registered frame of day 3 is from the true one, where day 3 measured.
+fn day3_frame_error(robot: &SecondRobot, found: &Pose, validation_rows: &[Measurement]) -> f64 {
+    // The frame's origin is two metres from the robot, where a hundredth of a degree is a
+    // third of a millimetre: compare the frames where the session measured.
+    let truth = robot.session_from_first[2];
+    validation_rows
+        .iter()
+        .filter(|m| m.session.as_deref() == Some(SESSIONS[2]))
+        .map(|m| {
+            let Observation::Position(p) = m.observation else {
+                panic!("day 3 has positions");
+            };
+            let first = truth.inverse() * nalgebra::Point3::from(p);
+            (found * first - truth * first).norm()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// A held-out session the training never saw: the training frame (the first session's) carries
+/// its moved frame into the figure, the re-registration (six frame parameters refitted, the
+/// geometry fixed) removes it; the pose session's held-out rows use their own training frame.
+#[test]
+fn a_new_session_is_reported_in_the_training_frame_and_re_registered() {
+    let (robot, run, validation_rows) = run_with_a_new_session(0.0);
     let sessions = run.sessions.as_ref().unwrap();
     assert_eq!(sessions.frames.len(), 2);
     let [first, new] = &sessions.validation[..] else {
@@ -176,26 +207,32 @@ fn a_new_session_is_reported_in_the_training_frame_and_re_registered() {
     assert_eq!(new.refitted_parameters, 6);
     assert!(new.training_frame_rms > 4e-3, "{new:?}");
     assert!(new.reregistered_rms < 0.6e-3, "{new:?}");
-    // The frame's origin is two metres from the robot, where a hundredth of a degree is a
-    // third of a millimetre: compare the frames where the session measured.
-    let validation_rows = robot.rows(&validation, true);
-    for m in validation_rows
-        .iter()
-        .filter(|m| m.session.as_deref() == Some(SESSIONS[2]))
-    {
-        let Observation::Position(p) = m.observation else {
-            panic!("day 3 has positions");
-        };
-        let first = robot.session_from_first[2].inverse() * nalgebra::Point3::from(p);
-        let moved = (new.session_from_first * first - robot.session_from_first[2] * first).norm();
-        assert!(moved < 0.5e-3, "{moved} m");
-    }
+    let moved = day3_frame_error(&robot, &new.session_from_first, &validation_rows);
+    assert!(moved < 0.5e-3, "{moved} m");
     let note = run
         .findings
         .iter()
         .find(|f| f.code == "validation-sessions")
         .unwrap();
     assert!(note.message.contains("re-registered"), "{}", note.message);
+}
+
+/// A gross blunder among a new session's validation rows (0.1 m on one row) does not drag its
+/// re-registered frame: the frame stays where the clean rows put it, and the blunder still
+/// counts in the session's figure.
+#[test]
+fn a_blunder_in_a_new_session_does_not_drag_its_re_registration() {
+    let (robot, run, validation_rows) = run_with_a_new_session(0.1);
+    let sessions = run.sessions.as_ref().unwrap();
+    let new = &sessions.validation[1];
+    let moved = day3_frame_error(&robot, &new.session_from_first, &validation_rows);
+    assert!(moved < 0.5e-3, "{moved} m");
+    let rows = new.rows as f64;
+    let blunder_alone = 0.1 / rows.sqrt();
+    assert!(
+        new.reregistered_rms > 0.9 * blunder_alone,
+        "every row counts: {new:?}"
+    );
 }
 
 /// One labelled session: nothing to fit, no warning, the same result as without the label.

@@ -53,6 +53,7 @@ pub(crate) mod robust;
 pub(crate) mod robust_frame;
 pub(crate) mod run;
 mod session_findings;
+mod session_frame;
 pub(crate) mod sessions;
 pub(crate) mod solver;
 mod solver_analysis;
@@ -127,14 +128,15 @@ pub use run::{
     CalibrationInput, CalibrationRun, ErrorSummary, ParameterEstimate,
 };
 pub use run::{removed_percent, FrameRefinement, FRAME_PRIOR_ANGLE, FRAME_PRIOR_LENGTH};
+pub use session_frame::fit_session_frame;
 pub use sessions::{
     calibrate_sessions, SessionCalibration, SessionFrame, SessionValidation, Sessions,
     SessionsReport,
 };
 pub use sessions::{
-    finish_sessions, fit_session_frame, in_first_frame, predictions, session_findings,
-    session_label, validate_sessions, validation_in_training_frames, FRAME_BLOCK_PARAMETERS,
-    ROTATION_LENGTH, ROUND_TOLERANCE,
+    finish_sessions, in_first_frame, predictions, session_findings, session_label,
+    validate_sessions, validation_in_training_frames, FRAME_BLOCK_PARAMETERS, ROTATION_LENGTH,
+    ROUND_TOLERANCE,
 };
 pub use solver::{
     identify, identify_with_nuisance, weighted_jacobian, Combination, Deflected,

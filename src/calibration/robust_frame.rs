@@ -8,7 +8,7 @@
 use super::loss::{chi_median, median_scale, RobustLoss, OUTLIER_WEIGHT};
 use super::options::IdentificationOptions;
 use super::robust::MAX_ROUNDS;
-use super::sessions::{fit_session_frame, weighted_error};
+use super::session_frame::{fit_session_frame, weighted_error};
 use crate::math::Pose;
 use crate::measurement::Measurement;
 
