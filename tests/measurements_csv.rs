@@ -345,7 +345,12 @@ fn every_bad_value_is_reported_at_its_line_and_column() {
         (format!("{HEADER}\n{ROW}\n").replace(',', ";"), &plain, "bad.csv:1", "separated by semicolons, not commas"),
         (format!("{HEADER}\n{ROW}\n").replace(',', "\t"), &plain, "bad.csv:1", "separated by tabs, not commas"),
         (String::new(), &plain, "bad.csv", "the file is empty"),
-        ("# only a comment\n\n".into(), &plain, "bad.csv", "the file is empty"),
+        (
+            "# only a comment\n\n".into(),
+            &plain,
+            "bad.csv",
+            "the file has no header row, only comment (`#`) and blank lines",
+        ),
         (format!("# made today\n{HEADER}\n"), &plain, "bad.csv", "no data rows"),
         (
             format!("# units: m\n{HEADER}\n"),

@@ -86,11 +86,18 @@ pub fn parse_csv_fields(text: &str, origin: &str) -> Result<CsvFields> {
     }
     let table = table.ok_or_else(|| Error::InvalidData {
         origin: origin.to_owned(),
-        message: "the file is empty; it needs a header row naming joints".into(),
+        message: if text.trim().is_empty() {
+            "the file is empty; it needs a header row naming joints".into()
+        } else {
+            format!("{NO_HEADER}; it needs a header row naming joints")
+        },
     })?;
     check_unique_columns(&table.headers, &format!("{origin}:{}", table.header_line))?;
     Ok(table)
 }
+
+/// The start of the message for a file with only comment and blank lines.
+pub(crate) const NO_HEADER: &str = "the file has no header row, only comment (`#`) and blank lines";
 
 /// Whether `text` has a `\r` that is not followed by `\n`.
 fn has_lone_carriage_return(text: &str) -> bool {

@@ -47,7 +47,9 @@ impl<R: BufRead> CsvRecords<R> {
         };
         let (line, headers) = records.next_fields()?.ok_or_else(|| Error::InvalidData {
             origin: origin.to_owned(),
-            message: "the file is empty; it needs a header row naming joints".into(),
+            message: "the file is empty or has only comment (`#`) and blank lines; it needs a \
+                      header row naming joints"
+                .into(),
         })?;
         super::joints_csv::check_unique_columns(&headers, &format!("{origin}:{line}"))?;
         records.headers = headers;

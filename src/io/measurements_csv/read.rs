@@ -49,12 +49,17 @@ pub fn parse_measurements(
 /// The table and the stated units of measurement CSV text.
 fn parse_table(text: &str, origin: &str) -> Result<(CsvFields, StatedUnits)> {
     let table = parse_csv_fields(text, origin).map_err(|e| match e {
-        Error::InvalidData { origin, message } if message.starts_with("the file is empty") => {
+        Error::InvalidData { origin, message }
+            if message.starts_with("the file is empty")
+                || message.starts_with(crate::io::joints_csv::NO_HEADER) =>
+        {
+            let what = message.split(';').next().unwrap_or_default();
             Error::InvalidData {
                 origin,
-                message: "the file is empty; it needs a header row (tool, joint names, \
-                          observation columns) and one row per measurement"
-                    .into(),
+                message: format!(
+                    "{what}; it needs a header row (tool, joint names, observation columns) \
+                     and one row per measurement"
+                ),
             }
         }
         other => other,
