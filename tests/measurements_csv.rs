@@ -349,7 +349,7 @@ fn every_bad_value_is_reported_at_its_line_and_column() {
             "# only a comment\n\n".into(),
             &plain,
             "bad.csv",
-            "the file has no header row, only comment (`#`) and blank lines",
+            "the file has no header row, only comment (`#`) and blank lines; it needs a header row (tool, joint names, observation columns)",
         ),
         (format!("# made today\n{HEADER}\n"), &plain, "bad.csv", "no data rows"),
         (
@@ -366,6 +366,11 @@ fn every_bad_value_is_reported_at_its_line_and_column() {
             "expected '{expected}' in: {message}"
         );
     }
+    // The tools scan (the first read of `calibrate`) says what a measurement file needs too.
+    let message = treecal::io::measured_tool_names("# only a comment\n", "bad.csv")
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("observation columns"), "{message}");
 }
 
 #[test]

@@ -8,7 +8,7 @@ use super::*;
 /// appearance: the measured tools, read without a robot model (so that the arms can be built
 /// from them). An error when there is no `tool` column or no data row.
 pub fn measured_tool_names(text: &str, origin: &str) -> Result<Vec<String>> {
-    let table = parse_csv_fields(text, origin)?;
+    let table = parse_csv_fields(text, origin).map_err(super::read::without_header)?;
     let mut names = ToolNames::start(&table.headers, table.header_line, origin)?;
     for row in table.rows() {
         names.see(row, origin)?;
@@ -70,7 +70,7 @@ impl ToolNames {
 /// first appearance, read without a robot model: `None` for a missing `tool` column (the
 /// tool then comes from `--tools`) and for a missing or empty `point`.
 pub fn measured_targets(text: &str, origin: &str) -> Result<Vec<(Option<String>, Option<String>)>> {
-    let table = parse_csv_fields(text, origin)?;
+    let table = parse_csv_fields(text, origin).map_err(super::read::without_header)?;
     let mut targets = Targets::start(&table.headers);
     for row in table.rows() {
         targets.see(row, origin)?;

@@ -48,7 +48,13 @@ pub fn parse_measurements(
 
 /// The table and the stated units of measurement CSV text.
 fn parse_table(text: &str, origin: &str) -> Result<(CsvFields, StatedUnits)> {
-    let table = parse_csv_fields(text, origin).map_err(|e| match e {
+    let table = parse_csv_fields(text, origin).map_err(without_header)?;
+    Ok((table, parse_units_header(text, origin)?))
+}
+
+/// A CSV without a header row, told what a measurement file needs (other errors unchanged).
+pub(super) fn without_header(e: Error) -> Error {
+    match e {
         Error::InvalidData { origin, message }
             if message.starts_with("the file is empty")
                 || message.starts_with(crate::io::joints_csv::NO_HEADER) =>
@@ -63,8 +69,7 @@ fn parse_table(text: &str, origin: &str) -> Result<(CsvFields, StatedUnits)> {
             }
         }
         other => other,
-    })?;
-    Ok((table, parse_units_header(text, origin)?))
+    }
 }
 
 /// The measurements of `table` (a CSV as read, or arrays laid out as one) whose stated units
