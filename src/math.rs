@@ -94,6 +94,12 @@ pub fn xyz_angles_from_rotation(rotation: &Rotation) -> [f64; 3] {
     [wrap_angle(a), b, wrap_angle(c)]
 }
 
+/// The root mean square of `values`; `None` when there are none.
+pub fn root_mean_square(values: &[f64]) -> Option<f64> {
+    (!values.is_empty())
+        .then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())
+}
+
 /// The angle in radians of the rotation that takes `a` to `b`.
 pub fn rotation_distance(a: &Rotation, b: &Rotation) -> f64 {
     a.angle_to(b)

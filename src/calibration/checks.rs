@@ -338,8 +338,7 @@ pub fn stiffness_below_zero(report: &super::StiffnessReport) -> Option<Finding> 
 /// RMS over the position errors (mm) after calibration of every arm of a data set.
 fn rms_after(arms: &[super::outcome::ArmResiduals]) -> Option<f64> {
     let values: Vec<f64> = arms.iter().flat_map(|a| a.position_mm[1].clone()).collect();
-    (!values.is_empty())
-        .then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())
+    crate::math::root_mean_square(&values)
 }
 
 /// The RMS position error the validation data should show: the measurement noise (the RMS
@@ -397,10 +396,7 @@ fn judged_validation(run: &CalibrationRun) -> JudgedValidation<'_> {
     let flagged = validation_set_aside(run);
     let set_aside = flagged.iter().filter(|&&f| f).count();
     let keep = |row: usize| !flagged.get(row).copied().unwrap_or(false);
-    let rms = |values: Vec<f64>| {
-        (!values.is_empty())
-            .then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())
-    };
+    let rms = |values: Vec<f64>| crate::math::root_mean_square(&values);
     let mut all_after = Vec::new();
     let arms = run
         .validation

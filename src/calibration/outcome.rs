@@ -59,7 +59,7 @@ impl ErrorSummary {
     /// The summary of per-observation errors (mm, deg; no orientation: empty).
     pub fn of(position_mm: &[f64], orientation_deg: &[f64]) -> Self {
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+        let rms = |v: &[f64]| crate::math::root_mean_square(v).unwrap_or(0.0);
         let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
         let some = |v: f64| (!orientation_deg.is_empty()).then_some(v);
         Self {

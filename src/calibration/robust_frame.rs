@@ -41,18 +41,16 @@ pub fn gross_rows(errors: &[f64], flagged: &[bool]) -> Vec<bool> {
         .filter(|(_, &f)| !f)
         .map(|(&e, _)| e)
         .collect();
-    let none = vec![false; errors.len()];
-    if kept.is_empty() {
-        return none;
-    }
-    let rms = (kept.iter().map(|e| e * e).sum::<f64>() / kept.len() as f64).sqrt();
+    let Some(rms) = crate::math::root_mean_square(&kept) else {
+        return vec![false; errors.len()];
+    };
     let gross: Vec<bool> = errors
         .iter()
         .zip(flagged)
         .map(|(&e, &f)| f && e >= GROSS_FACTOR * rms)
         .collect();
     if 2 * gross.iter().filter(|&&g| g).count() >= errors.len() {
-        none
+        vec![false; errors.len()]
     } else {
         gross
     }

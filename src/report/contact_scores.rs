@@ -26,8 +26,7 @@ pub struct Errors {
 }
 
 pub(super) fn rms(values: &[f64]) -> Option<f64> {
-    (!values.is_empty())
-        .then(|| (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt())
+    crate::math::root_mean_square(values)
 }
 
 fn max_abs(values: &[f64]) -> Option<f64> {

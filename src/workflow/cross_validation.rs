@@ -395,7 +395,7 @@ fn reason(cv: &CrossValidation) -> String {
 
 /// Root mean square (0 for none).
 fn rms(values: &[f64]) -> f64 {
-    (values.iter().map(|e| e * e).sum::<f64>() / values.len().max(1) as f64).sqrt()
+    crate::math::root_mean_square(values).unwrap_or(0.0)
 }
 
 /// One candidate over every fold.
