@@ -78,16 +78,7 @@ pub fn fit_session_frame_robust(
         }
     }
     let outliers: Vec<bool> = weights.iter().map(|&w| w < OUTLIER_WEIGHT).collect();
-    let errors: Vec<f64> = predicted
-        .iter()
-        .zip(measured)
-        .map(|(p, m)| {
-            weighted_error(m, &(frame * p), [1.0, f64::INFINITY])
-                .1
-                .sqrt()
-        })
-        .collect();
-    let gross = gross_rows(&errors, &outliers);
+    let gross = gross_rows(&position_errors(&frame, predicted, measured), &outliers);
     // The frame: least squares over every row but the gross blunders (the plain least-squares
     // frame when there is none).
     let kept: Vec<f64> = gross.iter().map(|&g| if g { 0.0 } else { 1.0 }).collect();
@@ -112,6 +103,19 @@ fn norms(
         .iter()
         .zip(measured)
         .map(|(p, m)| weighted_error(m, &(frame * p), sigma).1.sqrt())
+        .collect()
+}
+
+/// Per row: the position error (m) at `frame` (rotation rows weigh nothing).
+fn position_errors(frame: &Pose, predicted: &[Pose], measured: &[&Measurement]) -> Vec<f64> {
+    predicted
+        .iter()
+        .zip(measured)
+        .map(|(p, m)| {
+            weighted_error(m, &(frame * p), [1.0, f64::INFINITY])
+                .1
+                .sqrt()
+        })
         .collect()
 }
 
@@ -149,12 +153,7 @@ pub fn gross_blunders(
     .iter()
     .map(|&w| w < OUTLIER_WEIGHT)
     .collect();
-    let errors: Vec<f64> = predicted
-        .iter()
-        .zip(measured)
-        .map(|(p, m)| weighted_error(m, p, [1.0, f64::INFINITY]).1.sqrt())
-        .collect();
-    gross_rows(&errors, &flagged)
+    gross_rows(&position_errors(&identity, predicted, measured), &flagged)
 }
 
 #[cfg(test)]
