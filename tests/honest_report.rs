@@ -338,6 +338,43 @@ fn rescore(urdf: &str, world_from_base: &Pose, links: &[String], data: &[Measure
     (sum / data.len() as f64).sqrt() * 1e3
 }
 
+/// The Robonaut URDF with `data` and `validation` written as CSVs in `dir` (the rest default).
+fn robonaut_files(
+    s: &Scene,
+    dir: &std::path::Path,
+    data: &[Measurement],
+    validation: &[Measurement],
+) -> CalibrateConfig {
+    CalibrateConfig {
+        robot: RobotSource::File(robot("robonaut/robonaut.urdf")),
+        measurements: MeasurementSource::Csv(csv(s, dir, "data.csv", data)),
+        validation: Some(MeasurementSource::Csv(csv(
+            s,
+            dir,
+            "validation.csv",
+            validation,
+        ))),
+        ..CalibrateConfig::default()
+    }
+}
+
+/// The written calibrated.urdf and the frame of the written registration.yaml.
+fn written_urdf_and_registration(files: &[(String, Vec<u8>)]) -> (&str, Pose) {
+    let urdf = file(files, "calibrated.urdf").expect("calibrated.urdf");
+    let registration = file(files, "registration.yaml").expect("registration.yaml");
+    let frame = parse_registration(registration, "registration.yaml").unwrap();
+    (urdf, frame)
+}
+
+/// The names of the scene's tool links.
+fn tool_links(s: &Scene) -> Vec<String> {
+    s.nominal
+        .tools()
+        .iter()
+        .map(|t| s.tree.link(t.link).name.clone())
+        .collect()
+}
+
 fn file<'a>(files: &'a [(String, Vec<u8>)], name: &str) -> Option<&'a str> {
     files
         .iter()
@@ -362,17 +399,9 @@ fn the_written_urdf_and_registration_are_what_was_validated() {
     let validation = measure(&mut s, 12, 1.0, &rigid);
     let dir = tempfile::tempdir().unwrap();
     let config = CalibrateConfig {
-        robot: RobotSource::File(robot("robonaut/robonaut.urdf")),
-        measurements: MeasurementSource::Csv(csv(&s, dir.path(), "data.csv", &data)),
-        validation: Some(MeasurementSource::Csv(csv(
-            &s,
-            dir.path(),
-            "validation.csv",
-            &validation,
-        ))),
         position_sigma: NOISE,
         rotation_sigma: ROTATION_NOISE,
-        ..CalibrateConfig::default()
+        ..robonaut_files(&s, dir.path(), &data, &validation)
     };
     let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
     let report = &outcome.report();
@@ -391,15 +420,8 @@ fn the_written_urdf_and_registration_are_what_was_validated() {
     ] {
         assert!(!codes.contains(&alarm), "{codes:?}");
     }
-    let urdf = file(&outcome.files, "calibrated.urdf").expect("calibrated.urdf");
-    let registration = file(&outcome.files, "registration.yaml").expect("registration.yaml");
-    let frame = parse_registration(registration, "registration.yaml").unwrap();
-    let links: Vec<String> = s
-        .nominal
-        .tools()
-        .iter()
-        .map(|t| s.tree.link(t.link).name.clone())
-        .collect();
+    let (urdf, frame) = written_urdf_and_registration(&outcome.files);
+    let links = tool_links(&s);
     let again = rescore(urdf, &frame, &links, &validation);
     let artifact = &report["artifact"];
     let alone = number(&artifact["urdf_alone"]["errors"]["rms_position_mm"]);
@@ -466,19 +488,11 @@ fn a_compensated_geometry_is_never_shipped_alone_when_worse_than_nominal() {
     let validation = measure(&mut s, 12, 1.0, &bent);
     let dir = tempfile::tempdir().unwrap();
     let config = CalibrateConfig {
-        robot: RobotSource::File(robot("robonaut/robonaut.urdf")),
-        measurements: MeasurementSource::Csv(csv(&s, dir.path(), "data.csv", &data)),
-        validation: Some(MeasurementSource::Csv(csv(
-            &s,
-            dir.path(),
-            "validation.csv",
-            &validation,
-        ))),
         stiffness: Some(StiffnessSource::File(stiffness_path)),
         measurement_frame: MeasurementFrameChoice::Base,
         position_sigma: NOISE,
         rotation_sigma: ROTATION_NOISE,
-        ..CalibrateConfig::default()
+        ..robonaut_files(&s, dir.path(), &data, &validation)
     };
     let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
     assert!(outcome.usable(), "{:?}", outcome.verdict);
@@ -637,17 +651,9 @@ fn a_validation_blunder_is_counted_but_does_not_fail_a_good_calibration() {
     }
     let dir = tempfile::tempdir().unwrap();
     let config = CalibrateConfig {
-        robot: RobotSource::File(robot("robonaut/robonaut.urdf")),
-        measurements: MeasurementSource::Csv(csv(&s, dir.path(), "data.csv", &data)),
-        validation: Some(MeasurementSource::Csv(csv(
-            &s,
-            dir.path(),
-            "validation.csv",
-            &validation,
-        ))),
         position_sigma: NOISE,
         rotation_sigma: ROTATION_NOISE,
-        ..CalibrateConfig::default()
+        ..robonaut_files(&s, dir.path(), &data, &validation)
     };
     let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
     assert!(outcome.usable(), "{:?}", outcome.verdict);
@@ -697,15 +703,8 @@ fn a_validation_blunder_is_counted_but_does_not_fail_a_good_calibration() {
         .filter(|(i, _)| *i != 5)
         .map(|(_, m)| m.clone())
         .collect();
-    let urdf = file(&outcome.files, "calibrated.urdf").expect("calibrated.urdf");
-    let registration = file(&outcome.files, "registration.yaml").expect("registration.yaml");
-    let frame = parse_registration(registration, "registration.yaml").unwrap();
-    let links: Vec<String> = s
-        .nominal
-        .tools()
-        .iter()
-        .map(|t| s.tree.link(t.link).name.clone())
-        .collect();
+    let (urdf, frame) = written_urdf_and_registration(&outcome.files);
+    let links = tool_links(&s);
     assert!(
         rescore(urdf, &frame, &links, &clean) < 0.5,
         "calibrated at the noise"
