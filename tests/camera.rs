@@ -350,6 +350,38 @@ fn a_head_cameras_neck_is_calibrated_with_the_default_tools() {
     assert!(report.max_position_mm < 1e-3, "{report:?}");
 }
 
+/// The same head camera when the user names the tools the boards ride on (`--tools
+/// l_hand,r_hand`): the neck is calibrated too, not refused with "name a link beyond it as a
+/// tool" (red team: a lab names its hands; the camera's link is observed all the same).
+#[test]
+fn a_head_cameras_neck_is_calibrated_with_named_tools() {
+    use treecal::workflow::RobotSource;
+    use treecal::workflow::{ObservationChoice, SimulateConfig};
+    let outcome = treecal::workflow::simulate(&SimulateConfig {
+        robot: RobotSource::File(crate::common::robot("humanoid/humanoid.urdf")),
+        observation: ObservationChoice::Camera,
+        camera_link: Some("camera".into()),
+        tools: Some(vec!["l_hand".into(), "r_hand".into()]),
+        pixel_sigma: 0.0,
+        noise: "0".into(),
+        poses: 30,
+        torso_poses: 0,
+        validation_poses: 10,
+        trials: 1,
+        ..SimulateConfig::default()
+    })
+    .unwrap_or_else(|e| panic!("{e}"));
+    let note = outcome
+        .notes
+        .iter()
+        .map(ToString::to_string)
+        .find(|n| n.contains("camera's link 'camera'"))
+        .unwrap_or_else(|| panic!("no note on the neck: {:?}", outcome.notes));
+    assert!(note.contains("neck_yaw"), "{note}");
+    let report = &outcome.camera_reports[0];
+    assert!(report.max_position_mm < 1e-3, "{report:?}");
+}
+
 /// `check` for camera data: with the world board every parameter is determined and nothing
 /// is said; without it the coupled branch is named, in words, as seen only relative to the
 /// camera.

@@ -84,3 +84,57 @@ fn two_sessions_calibrations_list_moved_parameters_and_the_displacement() {
         moved.len()
     );
 }
+
+/// report.md judges drift by the tools, not by parameter σ's: parameters listed as moved while
+/// the aligned tools stay within the two calibrations' combined noise prediction are read as
+/// no drift; tools beyond twice it are a drift (red team: two calibrations of one unchanged
+/// simulated SDA10F listed 5 parameters at 4–17σ, and nothing said the tools had not moved).
+#[test]
+fn compare_judges_drift_by_the_tools_against_the_predicted_noise() {
+    use treecal::report::{
+        CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures,
+        COMPARE_SCHEMA,
+    };
+    let figures = |folder: &str| ValidationFigures {
+        folder: folder.into(),
+        verdict: "ok".into(),
+        urdf_alone_rms_mm: Some(1.0),
+        urdf_alone_max_mm: Some(2.0),
+        registered_nominal_rms_mm: Some(12.0),
+        repeat_rms_mm: None,
+        inside_rms_mm: Some(1.0),
+        outside_rms_mm: None,
+        predicted_rms_mm: Some(0.3),
+    };
+    let report = |aligned_mm: f64| CompareReport {
+        schema_version: COMPARE_SCHEMA,
+        robot: "r".into(),
+        k: 3.0,
+        parameters_judged: 72,
+        moved: vec![MovedParameter {
+            name: "torso y".into(),
+            unit: "m".into(),
+            a: 0.0,
+            b: 1e-3,
+            change: 1e-3,
+            combined_std_dev: 1e-4,
+            sigmas: 10.0,
+        }],
+        displacement: Some(Displacement::of(vec![DisplacementRow {
+            tool: "left".into(),
+            deployed_mm: 5.0,
+            aligned_mm,
+        }])),
+        validation: [figures("a"), figures("b")],
+        provenance: "provenance.yaml".into(),
+    };
+    // Combined prediction √(0.3² + 0.3²) = 0.424 mm; the limit twice that, 0.849 mm.
+    let same = report(0.5).markdown();
+    assert!(same.contains("did not move beyond the noise"), "{same}");
+    assert!(same.contains("0.424 mm RMS combined"), "{same}");
+    let drifted = report(1.75).markdown();
+    assert!(
+        drifted.contains("**The tools moved:** 1.750 mm"),
+        "{drifted}"
+    );
+}

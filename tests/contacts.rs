@@ -551,3 +551,46 @@ fn a_session_without_a_plane_is_an_error_naming_the_row() {
         "a session without a plane",
     );
 }
+
+/// Touches and a bar have no plane: report.md says the sessions are none (not an empty
+/// "sessions: .") and leaves out the refitted-plane diagnostic, which would repeat the primary
+/// table (red team, on NEXTAGE's touch,bar files).
+#[test]
+fn touch_and_bar_reports_name_no_session_and_no_refitted_plane() {
+    let dir = tempfile::tempdir().unwrap();
+    let (sim, cal) = (dir.path().join("sim"), dir.path().join("cal"));
+    let run = common::cli::treecal(&[
+        "simulate",
+        "--observation",
+        "touch,bar",
+        "--poses",
+        "15",
+        "--torso-poses",
+        "5",
+        "--collision-check",
+        "primitives-only",
+        "--out",
+        common::cli::path_str(&sim),
+    ]);
+    common::cli::assert_success(&run, "simulate touch,bar");
+    let run = common::cli::treecal(&[
+        "calibrate",
+        "--contacts",
+        common::cli::path_str(&sim.join("contacts.csv")),
+        "--contact-setup",
+        common::cli::path_str(&sim.join("contact-setup.yaml")),
+        "--validation",
+        common::cli::path_str(&sim.join("contacts-validation.csv")),
+        "--out",
+        common::cli::path_str(&cal),
+    ]);
+    common::cli::assert_success(&run, "calibrate touch,bar");
+    assert!(run.stdout.contains("sessions: none"), "{}", run.stdout);
+    assert!(!run.stdout.contains("sessions: ."), "{}", run.stdout);
+    assert!(
+        !run.stdout.contains("Diagnostic: a plane refitted"),
+        "{}",
+        run.stdout
+    );
+    assert!(run.stdout.contains("gap RMS / max (mm)"), "{}", run.stdout);
+}

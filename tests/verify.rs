@@ -454,3 +454,54 @@ fn a_blunder_in_the_fresh_rows_neither_drags_the_frame_nor_decides_the_verdict()
         .collect();
     assert_eq!(marked, vec![bumped_id.as_str()]);
 }
+
+/// report.md names where the error is: with rows of two tools and two sessions, one tool
+/// drifted, the by-tool and by-session tables give each its RMS (red team: the overall RMS
+/// of a dual-arm verify mixed a drifted arm with a good one and said neither).
+#[test]
+fn the_verify_report_splits_the_error_by_tool_and_by_session() {
+    use treecal::report::{VerifyContext, VerifyReport, VerifyRow};
+    let row = |i: usize, tool: &str, session: &str, mm: f64| VerifyRow {
+        id: format!("r{i}"),
+        index: i,
+        tool: tool.into(),
+        session: Some(session.into()),
+        position_mm: mm,
+        orientation_deg: Some(0.1),
+        stratum: None,
+        outlier: false,
+    };
+    let mut rows = Vec::new();
+    for i in 0..8 {
+        let session = if i % 2 == 0 { "day1" } else { "day2" };
+        rows.push(row(2 * i, "left_tool", session, 3.0));
+        rows.push(row(2 * i + 1, "right_tool", session, 1.0));
+    }
+    let context = VerifyContext {
+        robot: "r".into(),
+        files: "calibrated.urdf".into(),
+        measurements: "fresh.csv".into(),
+        frame: "fit".into(),
+        refitted_parameters: 12,
+        sessions: Vec::new(),
+        strata_judged: false,
+    };
+    let markdown = VerifyReport::new(context, rows, Some(2.0)).markdown();
+    assert!(
+        markdown.contains("| tool | rows | RMS (mm) |"),
+        "{markdown}"
+    );
+    assert!(
+        markdown.contains("| left_tool | 8 | 3.0000 | 3.0000 | 0.1000 |"),
+        "{markdown}"
+    );
+    assert!(
+        markdown.contains("| right_tool | 8 | 1.0000 |"),
+        "{markdown}"
+    );
+    let rms = (5.0f64).sqrt();
+    assert!(
+        markdown.contains(&format!("| day1 | 8 | {rms:.4} |")),
+        "{markdown}"
+    );
+}

@@ -87,12 +87,7 @@ pub fn contact_report(
         contact_count(&problem.training),
         problem.validation.len(),
         kinds.join(", "),
-        problem
-            .planes
-            .keys()
-            .cloned()
-            .collect::<Vec<_>>()
-            .join(", "),
+        sessions_words(problem),
     );
     let tool_names: Vec<String> = problem
         .model
@@ -101,6 +96,9 @@ pub fn contact_report(
         .map(|t| tree.link(t.link).name.clone())
         .collect();
     md.push_str(&held_out_markdown(scores, HEADER, &tool_names));
+    if !problem.planes.is_empty() {
+        md.push_str(&refitted_plane_markdown(scores, HEADER));
+    }
     md.push_str("## Training fit\n\n");
     let after = &fit.after;
     let _ = writeln!(
@@ -193,7 +191,26 @@ fn held_out_markdown(scores: &ContactScores, header: &str, tools: &[String]) -> 
         });
         md.push_str(&breakdown("tool", rows));
     }
-    md.push_str(
+    md
+}
+
+/// The sessions (one plane each) named; touches and bars have none.
+fn sessions_words(problem: &ContactProblem) -> String {
+    if problem.planes.is_empty() {
+        return "none (no plane: touches and bars need no session)".to_owned();
+    }
+    problem
+        .planes
+        .keys()
+        .cloned()
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The diagnostic with a plane refitted to the held-out contacts (only with planes: without
+/// one it would repeat the primary table).
+fn refitted_plane_markdown(scores: &ContactScores, header: &str) -> String {
+    let mut md = String::from(
         "## Diagnostic: a plane refitted to the held-out contacts\n\n(Not the figure to judge \
          by: a refitted plane absorbs a plane that moved and part of the robot's error.)\n\n",
     );

@@ -245,6 +245,7 @@ impl VerifyReport {
             deg(s.rms_orientation_deg),
             deg(s.max_orientation_deg)
         );
+        out.push_str(&groups_markdown(&self.rows));
         match &self.strata {
             Some(strata) => out.push_str(&strata.markdown()),
             None => {
@@ -289,6 +290,58 @@ impl VerifyReport {
             x_labels: self.rows.iter().map(|r| r.id.clone()).collect(),
         })
     }
+}
+
+/// The rows by tool and by session (each only when there are several), so that a drift
+/// of one arm, or a session measured badly, shows where it is: the overall RMS mixes a
+/// drifted arm with the others.
+fn groups_markdown(rows: &[VerifyRow]) -> String {
+    let mut out = String::new();
+    let by_tool = group_by(rows, |r| Some(r.tool.clone()));
+    let by_session = group_by(rows, |r| r.session.clone());
+    for (label, groups) in [("tool", by_tool), ("session", by_session)] {
+        if groups.len() < 2 {
+            continue;
+        }
+        let _ = writeln!(
+            out,
+            "| {label} | rows | RMS (mm) | max (mm) | RMS (deg) |\n|---|---|---|---|---|"
+        );
+        for (name, members) in groups {
+            let position: Vec<f64> = members.iter().map(|r| r.position_mm).collect();
+            let orientation: Vec<f64> = members.iter().filter_map(|r| r.orientation_deg).collect();
+            let summary = ErrorSummary::of(&position, &orientation);
+            let _ = writeln!(
+                out,
+                "| {} | {} | {:.4} | {:.4} | {} |",
+                name.as_deref().unwrap_or("(unnamed)"),
+                members.len(),
+                summary.rms_position_mm,
+                summary.max_position_mm,
+                summary
+                    .rms_orientation_deg
+                    .map_or_else(|| "—".to_owned(), |v| format!("{v:.4}"))
+            );
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// `rows` grouped by `key`, the groups in the order of their first row.
+fn group_by(
+    rows: &[VerifyRow],
+    key: impl Fn(&VerifyRow) -> Option<String>,
+) -> Vec<(Option<String>, Vec<&VerifyRow>)> {
+    let mut groups: Vec<(Option<String>, Vec<&VerifyRow>)> = Vec::new();
+    for row in rows {
+        let name = key(row);
+        match groups.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, members)) => members.push(row),
+            None => groups.push((name, vec![row])),
+        }
+    }
+    groups
 }
 
 fn frame_words(c: &VerifyContext) -> String {

@@ -431,7 +431,6 @@ fn load(config: &CameraCalibrateConfig, notes: &mut Vec<Note>) -> Result<Setup> 
         &import.tree,
         branches(&import, config.tools.as_deref(), None)?,
         &contents.cameras,
-        config.tools.is_some(),
         notes,
     )?;
     let nominal = McpcModel::from_tree(&import.tree, &branches)?;

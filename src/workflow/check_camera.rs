@@ -52,7 +52,6 @@ pub fn check_camera(config: &CameraCheckConfig) -> Result<CameraCheck> {
         tree,
         branches(&import, config.tools.as_deref(), None)?,
         &contents.cameras,
-        config.tools.is_some(),
         &mut notes,
     )?;
     let nominal = McpcModel::from_tree(tree, &branches)?;

@@ -183,6 +183,7 @@ impl Folder {
             repeat_rms_mm: stratum("repeat"),
             inside_rms_mm: stratum("inside"),
             outside_rms_mm: stratum("outside"),
+            predicted_rms_mm: number(&["predicted_validation_rms_mm"]),
         }
     }
 }

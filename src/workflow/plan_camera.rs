@@ -104,7 +104,6 @@ pub fn plan_camera(config: &CameraPlanConfig, progress: ProgressFn<'_>) -> Resul
         tree,
         branches(&import, config.tools.as_deref(), None)?,
         &contents.cameras,
-        config.tools.is_some(),
         &mut notes,
     )?;
     let nominal = McpcModel::from_tree(tree, &branches)?;

@@ -116,8 +116,8 @@ pub(super) fn simulate_camera(
     Ok(simulation)
 }
 
-/// The camera's link (`camera_link`, if given) and the branches: the tools' (`tools`, or the
-/// default ones extended by the camera's link when joints on no branch move it).
+/// The camera's link (`camera_link`, if given) and the branches: the tools' (`tools` or the
+/// default ones), extended by the camera's link when joints on no branch move it.
 fn camera_branches(
     config: &SimulateConfig,
     import: &crate::urdf::UrdfImport,
@@ -129,7 +129,7 @@ fn camera_branches(
         None => None,
     };
     let mut branches = branches(import, config.tools.as_deref(), None)?;
-    if let (None, Some(link)) = (&config.tools, camera_link) {
+    if let Some(link) = camera_link {
         if let Some(extended) = with_camera_link(tree, &branches, link, notes)? {
             branches = extended;
         }
@@ -249,18 +249,16 @@ fn lab_files(
     Ok(files)
 }
 
-/// [`with_camera_link`] for every camera of a camera file mounted on a link, when the tools
-/// are the default ones (`tools_given` false): `branches` extended by each camera's link.
+/// [`with_camera_link`] for every camera of a camera file mounted on a link: `branches`
+/// (of the named or the default tools) extended by each camera's link. Named tools are the
+/// links the boards ride on; the camera's link is observed too, so the joints that move it
+/// are calibrated either way (issue 31) rather than refused.
 pub(super) fn with_camera_links(
     tree: &crate::KinematicTree,
     mut branches: crate::Branches,
     cameras: &[CameraSpec],
-    tools_given: bool,
     notes: &mut Vec<Note>,
 ) -> Result<crate::Branches> {
-    if tools_given {
-        return Ok(branches);
-    }
     for camera in cameras {
         if let crate::camera::Mount::Link(link) = camera.mount {
             if let Some(extended) = with_camera_link(tree, &branches, link, notes)? {
@@ -271,10 +269,10 @@ pub(super) fn with_camera_links(
     Ok(branches)
 }
 
-/// With the default tools, a camera on a link moved by joints on no branch (a head camera
-/// behind its neck) would see the boards through joints the model does not have: the
-/// branches are detected again with the camera's link as one more observed link, so that
-/// those joints are calibrated (issue 31), and a note says so. `None` when every joint that
+/// A camera on a link moved by joints on no branch (a head camera behind its neck) would
+/// see the boards through joints the model does not have: the branches are detected again
+/// with the camera's link as one more observed link, so that those joints are calibrated
+/// (issue 31), and a note says so. `None` when every joint that
 /// moves the camera is already on a branch.
 pub(super) fn with_camera_link(
     tree: &crate::KinematicTree,
@@ -299,7 +297,7 @@ pub(super) fn with_camera_link(
     tools.push(link);
     let extended = crate::detect_branches_from(tree, Some(&tools), branches.reference)?;
     notes.push(Note::info(format!(
-        "the camera's link '{}' is moved by {}, on no branch of the default tools: they are \
+        "the camera's link '{}' is moved by {}, on no branch of the tools: they are \
          calibrated too, the link observed through the camera (its extrinsics place it)",
         tree.link(link).name,
         missing.join(", ")
