@@ -302,9 +302,7 @@ pub(super) fn held_out_headline(summary: &CalibrationSummary) -> Option<Headline
     let all = summary.validation_strata.as_ref()?.strata.first()?;
     let rms = all.rms_position_mm?;
     let rows = || summary.validation.iter().flat_map(|a| a.rows.iter());
-    let root_mean_square = |values: Vec<f64>| {
-        (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
-    };
+    let root_mean_square = |values: Vec<f64>| crate::math::root_mean_square(&values).unwrap_or(0.0);
     let before_rms = root_mean_square(rows().map(|r| r.position_mm.before).collect());
     let flagged = rows().filter(|r| r.outlier).count();
     let without_flagged = (flagged > 0 && flagged < all.observations).then(|| {

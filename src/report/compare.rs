@@ -60,7 +60,7 @@ impl Displacement {
     /// The summary of `rows`.
     pub fn of(rows: Vec<DisplacementRow>) -> Self {
         let rms = |f: &dyn Fn(&DisplacementRow) -> f64| {
-            (rows.iter().map(|r| f(r).powi(2)).sum::<f64>() / rows.len().max(1) as f64).sqrt()
+            crate::math::root_mean_square(&rows.iter().map(f).collect::<Vec<_>>()).unwrap_or(0.0)
         };
         let max = |f: &dyn Fn(&DisplacementRow) -> f64| rows.iter().map(f).fold(0.0, f64::max);
         Self {

@@ -59,8 +59,7 @@ fn figures(stratum: &str, description: &str, errors: &[f64]) -> StratumFigures {
         stratum: stratum.to_owned(),
         description: description.to_owned(),
         observations: n,
-        rms_position_mm: (n > 0)
-            .then(|| (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt()),
+        rms_position_mm: crate::math::root_mean_square(errors),
         max_position_mm: (n > 0).then(|| errors.iter().copied().fold(0.0, f64::max)),
     }
 }

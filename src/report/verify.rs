@@ -373,8 +373,7 @@ fn set_aside(rows: &[VerifyRow]) -> Option<SetAside> {
                 .filter(|r| r.outlier)
                 .map(|r| r.id.clone())
                 .collect(),
-            judged_rms_position_mm: (kept.iter().map(|v| v * v).sum::<f64>() / kept.len() as f64)
-                .sqrt(),
+            judged_rms_position_mm: crate::math::root_mean_square(&kept).unwrap_or(f64::NAN),
         }
     })
 }
