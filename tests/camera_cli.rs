@@ -91,6 +91,29 @@ fn a_simulated_lab_calibrates_from_its_files_and_recovers_the_truth() {
     // Trial 1 of the default set-up: the simulation's own validation gives 1.36 mm mean.
     assert!(mean < 2.5 && max < 6.0, "tool error {mean} mm (max {max})");
     assert!(nominal > 30.0, "nominal robot {nominal} mm off");
+    // report.md names the parameters the images leave undetermined (report.json's).
+    let undetermined: Vec<&str> = report["robot_parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["determined"] == false)
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    let markdown = std::fs::read_to_string(dir.path().join("out/report.md")).unwrap();
+    let line = markdown
+        .lines()
+        .find(|l| l.contains(" parameters, ") && l.contains("determined"))
+        .expect("the robot parameters line");
+    match undetermined.first() {
+        None => assert!(line.contains("none not determined"), "{line}"),
+        Some(first) => assert!(
+            line.contains(&format!(
+                "{} not determined by these images (kept nominal: {first}",
+                undetermined.len()
+            )),
+            "{line}"
+        ),
+    }
 }
 
 #[test]

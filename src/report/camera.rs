@@ -304,14 +304,27 @@ fn poses_markdown(title: &str, poses: &[FittedPose]) -> String {
 }
 
 fn parameters_markdown(parameters: &[RobotParameter]) -> String {
-    let undetermined = parameters.iter().filter(|p| !p.determined).count();
+    let undetermined: Vec<String> = parameters
+        .iter()
+        .filter(|p| !p.determined)
+        .map(|p| p.name.clone())
+        .collect();
+    let undetermined = if undetermined.is_empty() {
+        "none not determined".to_owned()
+    } else {
+        format!(
+            "{} not determined by these images (kept nominal: {})",
+            undetermined.len(),
+            super::first_few(&undetermined)
+        )
+    };
     let mut listed: Vec<&RobotParameter> = parameters.iter().filter(|p| p.determined).collect();
     let significance = |p: &RobotParameter| {
         (p.calibrated - p.nominal).abs() / p.std_dev.unwrap_or(f64::INFINITY).max(1e-15)
     };
     listed.sort_by(|a, b| significance(b).total_cmp(&significance(a)));
     let mut text = format!(
-        "\n## Robot parameters\n\n{} parameters, {undetermined} not determined (kept nominal); \
+        "\n## Robot parameters\n\n{} parameters, {undetermined}; \
          the {} largest changes relative to their σ (all in report.json):\n\n| parameter | \
          nominal | calibrated | change | σ |\n| --- | --- | --- | --- | --- |\n",
         parameters.len(),

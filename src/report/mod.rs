@@ -66,3 +66,18 @@ pub use strata::{StrataRow, StratumFigures, ValidationStrata, WorstRow};
 pub use verify::{
     SetAside, VerifyContext, VerifyReport, VerifyRow, VerifySession, VerifyVerdict, VERIFY_SCHEMA,
 };
+
+/// The first few names, and how many more (for one line of a report).
+pub(crate) fn first_few(names: &[String]) -> String {
+    const SHOWN: usize = 5;
+    let mut text = names
+        .iter()
+        .take(SHOWN)
+        .map(String::as_str)
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > SHOWN {
+        text.push_str(&format!(" and {} more", names.len() - SHOWN));
+    }
+    text
+}

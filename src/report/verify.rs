@@ -138,7 +138,7 @@ impl VerifyVerdict {
                 aside.ids.len(),
                 if self.passed { "within" } else { "above" },
                 self.rms_position_mm,
-                first_ids(&aside.ids),
+                super::first_few(&aside.ids),
             ),
             (Some(max), None) => format!(
                 "verdict: {} (RMS position error {:.3} mm {} `max_error` {max} mm)",
@@ -154,7 +154,7 @@ impl VerifyVerdict {
                     .map_or(String::new(), |aside| format!(
                         "; {} gross blunder(s) ({}), without them {:.3} mm",
                         aside.ids.len(),
-                        first_ids(&aside.ids),
+                        super::first_few(&aside.ids),
                         aside.judged_rms_position_mm
                     )),
             ),
@@ -376,21 +376,6 @@ fn set_aside(rows: &[VerifyRow]) -> Option<SetAside> {
             judged_rms_position_mm: crate::math::root_mean_square(&kept).unwrap_or(f64::NAN),
         }
     })
-}
-
-/// The first few ids, and how many more.
-fn first_ids(ids: &[String]) -> String {
-    const SHOWN: usize = 5;
-    let mut text = ids
-        .iter()
-        .take(SHOWN)
-        .map(String::as_str)
-        .collect::<Vec<_>>()
-        .join(", ");
-    if ids.len() > SHOWN {
-        text.push_str(&format!(" and {} more", ids.len() - SHOWN));
-    }
-    text
 }
 
 /// The strata rows of `rows`.
