@@ -105,7 +105,7 @@ fn a_simulated_lab_calibrates_from_its_files_and_recovers_the_truth() {
         .find(|l| l.contains(" parameters, ") && l.contains("determined"))
         .expect("the robot parameters line");
     match undetermined.first() {
-        None => assert!(line.contains("none not determined"), "{line}"),
+        None => assert!(line.contains("all determined by these images"), "{line}"),
         Some(first) => assert!(
             line.contains(&format!(
                 "{} not determined by these images (kept nominal: {first}",

@@ -310,7 +310,7 @@ fn parameters_markdown(parameters: &[RobotParameter]) -> String {
         .map(|p| p.name.clone())
         .collect();
     let undetermined = if undetermined.is_empty() {
-        "none not determined".to_owned()
+        "all determined by these images".to_owned()
     } else {
         format!(
             "{} not determined by these images (kept nominal: {})",
