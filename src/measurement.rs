@@ -14,8 +14,9 @@ pub enum Observation {
     Position(Vec3),
     /// A contact: the tool's face flush with a plane, its contact point on a plane, touching
     /// another tool's contact point, or a known or fitted distance from it. No instrument
-    /// reading: the contact itself is the measurement (its measured value is zero).
-    Contact(Contact),
+    /// reading: the contact itself is the measurement (its measured value is zero). Boxed: a
+    /// contact is twice a pose's size, and every row of a million-row file would pay for it.
+    Contact(Box<Contact>),
 }
 
 impl Observation {
@@ -26,6 +27,22 @@ impl Observation {
             Observation::Pose(_) => 6,
             Observation::Position(_) => 3,
             Observation::Contact(contact) => contact.rows(),
+        }
+    }
+
+    /// The contact, when this observation is one.
+    pub fn contact(&self) -> Option<&Contact> {
+        match self {
+            Observation::Contact(contact) => Some(contact),
+            _ => None,
+        }
+    }
+
+    /// The contact, mutable, when this observation is one.
+    pub fn contact_mut(&mut self) -> Option<&mut Contact> {
+        match self {
+            Observation::Contact(contact) => Some(contact),
+            _ => None,
         }
     }
 }

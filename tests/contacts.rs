@@ -82,7 +82,7 @@ fn contacts(rng: &mut ChaCha8Rng) -> (Nuisance, Vec<Contact>) {
 
 fn residual(model: &McpcModel, nuisance: &Nuisance, q: &[f64], contact: &Contact) -> Vec<f64> {
     let poses = model.tool_poses(q);
-    let observation = Observation::Contact(*contact);
+    let observation = Observation::Contact(Box::new(*contact));
     let kind = kind_of(&observation);
     let at = RobotState {
         model,
@@ -116,7 +116,7 @@ fn contact_jacobians_match_finite_differences() {
     let columns: Vec<usize> = (0..count + nuisance.len()).collect();
     let tools: Vec<ToolJacobian> = model.tool_jacobians(&q);
     for contact in &all {
-        let observation = Observation::Contact(*contact);
+        let observation = Observation::Contact(Box::new(*contact));
         let kind = kind_of(&observation);
         let at = RobotState {
             model: &model,

@@ -8,7 +8,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use treecal::calibration::Criterion;
 use treecal::io::{parse_contacts, ContactRow, PoseEntry};
-use treecal::measurement::{Contact, Measurement, Observation};
+use treecal::measurement::{Contact, Measurement};
 use treecal::sim::{contact_configurations, onto_contact, true_model, ContactChoice, ErrorRanges};
 use treecal::workflow::{
     branches, contact_options, contact_problem, contact_violations, fit_contacts, no_progress,
@@ -133,8 +133,8 @@ fn contacts_on_setup_planes(
     let mut problem =
         contact_problem(&loaded.import.tree, model, &setup, rows, &[], "plan").unwrap();
     for m in &mut problem.training {
-        if let Observation::Contact(Contact::Flush { plane, .. } | Contact::Point { plane, .. }) =
-            &mut m.observation
+        if let Some(Contact::Flush { plane, .. } | Contact::Point { plane, .. }) =
+            m.observation.contact_mut()
         {
             plane.nominal = problem.setup_planes[m.session.as_deref().unwrap()];
         }
@@ -184,7 +184,7 @@ fn round_trip(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut training, mut validation) = (Vec::new(), Vec::new());
     for (row, m) in rows.iter().zip(&problem.training) {
-        let Observation::Contact(contact) = &m.observation else {
+        let Some(contact) = m.observation.contact() else {
             continue;
         };
         let Some(q) = onto_contact(&tree, truth, &problem.nuisance, (contact, m.tool), &row.q)
@@ -520,7 +520,7 @@ fn planned_touches_are_free_of_self_collision_but_for_the_hands() {
     let hands = treecal::sim::ContactCollisions::new(tree, &problem.model, checker.clone());
     let mut touching = 0;
     for m in &problem.training {
-        let Observation::Contact(contact) = &m.observation else {
+        let Some(contact) = m.observation.contact() else {
             continue;
         };
         assert!(hands.allows(Some(contact), m.tool, &m.q), "{:?}", m.q);

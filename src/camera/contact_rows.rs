@@ -17,7 +17,7 @@ use crate::calibration::{kind_of, Noise, Nuisance, RobotState, RowKind};
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ToolJacobian};
 use crate::math::Pose;
-use crate::measurement::{Measurement, Observation};
+use crate::measurement::Measurement;
 use nalgebra::{DMatrix, DVector};
 
 /// The contacts of a camera fit and the nuisance values they start from.
@@ -55,7 +55,7 @@ impl ContactRows<'_> {
     /// not have (or a rig tool), or has a bad configuration.
     pub(super) fn validate(&self, robot_tools: usize, dofs: usize) -> Result<()> {
         for (index, m) in self.rows.iter().enumerate() {
-            let Observation::Contact(contact) = &m.observation else {
+            let Some(contact) = m.observation.contact() else {
                 return Err(invalid(format!(
                     "contact row {index} is not a contact (tracker rows go in `tracker`)"
                 )));

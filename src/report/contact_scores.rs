@@ -318,8 +318,8 @@ pub(super) fn contact_count(rows: &[Measurement]) -> usize {
 
 fn has_plane(m: &Measurement) -> bool {
     matches!(
-        m.observation,
-        Observation::Contact(Contact::Flush { .. } | Contact::Point { .. })
+        m.observation.contact(),
+        Some(Contact::Flush { .. } | Contact::Point { .. })
     )
 }
 
@@ -349,9 +349,8 @@ fn refitted(
         let setup = problem.setup_planes[session];
         let start = plane_start(model, &nuisance, &of_session, &setup);
         for m in &mut rows {
-            if let Observation::Contact(
-                Contact::Flush { plane, .. } | Contact::Point { plane, .. },
-            ) = &mut m.observation
+            if let Some(Contact::Flush { plane, .. } | Contact::Point { plane, .. }) =
+                m.observation.contact_mut()
             {
                 if plane.block == *block {
                     plane.nominal = start;

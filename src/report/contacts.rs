@@ -6,7 +6,7 @@
 use crate::calibration::Nuisance;
 use crate::io::ContactKind;
 use crate::math::{Pose, Vec3};
-use crate::measurement::{Contact, Observation};
+use crate::measurement::Contact;
 use crate::tree::KinematicTree;
 use crate::workflow::{ContactFit, ContactProblem};
 use serde_json::json;
@@ -20,17 +20,18 @@ fn fitted_plane(
     nuisance: &Nuisance,
     block: usize,
 ) -> Option<(Vec3, Vec3)> {
-    let nominal =
-        problem
-            .training
-            .iter()
-            .chain(&problem.validation)
-            .find_map(|m| match &m.observation {
-                Observation::Contact(
-                    Contact::Flush { plane, .. } | Contact::Point { plane, .. },
-                ) if plane.block == block => Some(plane.nominal),
-                _ => None,
-            })?;
+    let nominal = problem
+        .training
+        .iter()
+        .chain(&problem.validation)
+        .find_map(|m| match m.observation.contact() {
+            Some(Contact::Flush { plane, .. } | Contact::Point { plane, .. })
+                if plane.block == block =>
+            {
+                Some(plane.nominal)
+            }
+            _ => None,
+        })?;
     let v = nuisance.block_values(block).ok()?;
     let tilt = nalgebra::Rotation3::from_axis_angle(&Vec3::x_axis(), v[1])
         * nalgebra::Rotation3::from_axis_angle(&Vec3::y_axis(), v[2]);

@@ -46,7 +46,7 @@ fn bumped(observation: &Observation, size: f64, rng: &mut ChaCha8Rng) -> Observa
     match observation {
         Observation::Position(p) => Observation::Position(p + offset),
         // A contact has no reading to bump.
-        Observation::Contact(contact) => Observation::Contact(*contact),
+        Observation::Contact(contact) => Observation::Contact(contact.clone()),
         Observation::Pose(pose) => {
             let mut targets = targets_on(pose);
             let which = (rand::RngExt::random::<u32>(rng) % 3) as usize;

@@ -344,7 +344,7 @@ fn encoder_weights(
     measurements
         .iter()
         .map(|m| {
-            let Observation::Contact(contact) = &m.observation else {
+            let Some(contact) = m.observation.contact() else {
                 return Ok(1.0);
             };
             let kinds = crate::calibration::kind_of(&m.observation).row_kinds();
@@ -544,7 +544,7 @@ pub fn held_out_residual(
     model.set_parameters(&report.parameters)?;
     let mut largest: f64 = 0.0;
     for m in validation {
-        if let Observation::Contact(contact) = &m.observation {
+        if let Some(contact) = m.observation.contact() {
             for value in violation(&model, &report.nuisance, contact, m.tool, &m.q)? {
                 largest = largest.max(value.abs());
             }

@@ -318,7 +318,7 @@ impl SceneRows {
             let row = |q: Vec<f64>| Measurement {
                 tool,
                 q,
-                observation: Observation::Contact(contact),
+                observation: Observation::Contact(Box::new(contact)),
                 stage: None,
                 payload: None,
                 session: None,

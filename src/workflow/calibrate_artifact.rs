@@ -73,10 +73,10 @@ fn rigid_equivalent(
                     .deflected_tool_poses(tree, model, &m.q)?[m.tool],
                 None => model.tool_poses(&m.q)[m.tool],
             };
-            let observation = match m.observation {
+            let observation = match &m.observation {
                 Observation::Pose(_) => Observation::Pose(pose),
                 Observation::Position(_) => Observation::Position(pose.translation.vector),
-                Observation::Contact(contact) => Observation::Contact(contact),
+                Observation::Contact(contact) => Observation::Contact(contact.clone()),
             };
             Ok(Measurement {
                 observation,

@@ -379,7 +379,7 @@ pub fn contact_problem(
             measurements[set].push(Measurement {
                 tool,
                 q: row.q.clone(),
-                observation: Observation::Contact(contact),
+                observation: Observation::Contact(Box::new(contact)),
                 stage: None,
                 payload: None,
                 session: Some(row.session.clone()),
@@ -445,7 +445,7 @@ fn relative_face_offsets(nuisance: &Nuisance, rows: &[Measurement]) -> Vec<usize
         k
     }
     for m in rows {
-        let Observation::Contact(Contact::Flush { plane, face }) = m.observation else {
+        let Some(&Contact::Flush { plane, face }) = m.observation.contact() else {
             continue;
         };
         parent.entry(face.block).or_insert(face.block);
@@ -490,8 +490,8 @@ fn tool_indices(
 }
 
 fn set_plane_nominal(m: &mut Measurement, block: usize, pose: Pose) {
-    if let Observation::Contact(Contact::Flush { plane, .. } | Contact::Point { plane, .. }) =
-        &mut m.observation
+    if let Some(Contact::Flush { plane, .. } | Contact::Point { plane, .. }) =
+        m.observation.contact_mut()
     {
         if plane.block == block {
             plane.nominal = pose;

@@ -107,7 +107,7 @@ pub fn contact_violations(
     model.set_parameters(parameters)?;
     rows.iter()
         .filter_map(|m| match &m.observation {
-            Observation::Contact(c) => Some((m, *c)),
+            Observation::Contact(c) => Some((m, **c)),
             _ => None,
         })
         .map(|(m, contact)| {
@@ -139,7 +139,7 @@ pub fn plane_start(
     let n0 = setup.rotation * Vec3::z();
     let (mut points, mut normals) = (Vec::new(), Vec::new());
     for m in rows {
-        let Observation::Contact(contact) = &m.observation else {
+        let Some(contact) = m.observation.contact() else {
             continue;
         };
         let tool = model.tool_poses(&m.q)[m.tool];

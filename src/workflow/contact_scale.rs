@@ -35,10 +35,8 @@ pub const SCALE_TOLERANCE: f64 = 0.15;
 pub(super) fn has_length_reference(problem: &ContactProblem) -> bool {
     problem.training.iter().any(|m| {
         !matches!(
-            m.observation,
-            Observation::Contact(
-                Contact::Flush { .. } | Contact::Point { .. } | Contact::Touch { .. }
-            )
+            m.observation.contact(),
+            Some(Contact::Flush { .. } | Contact::Point { .. } | Contact::Touch { .. })
         )
     })
 }

@@ -19,7 +19,7 @@ use crate::error::{Error, Result};
 use crate::io::{contacts_to_csv, read_contact_setup, write_atomically, ContactSetup};
 use crate::io::{ContactKind, ContactRow};
 use crate::kinematics::McpcModel;
-use crate::measurement::{Contact, Observation};
+use crate::measurement::Contact;
 use crate::report::contact_unobservable_markdown;
 use crate::sim::{choose_contacts, collision_free_contact_configurations, contact_free_parameters};
 use crate::sim::{CollisionCheck, ContactCollisions};
@@ -277,8 +277,8 @@ fn candidate_rows(
         .collect();
     let mut problem = contact_problem(tree, model.clone(), setup, &zero, &[], &origin)?;
     for m in &mut problem.training {
-        if let Observation::Contact(Contact::Flush { plane, .. } | Contact::Point { plane, .. }) =
-            &mut m.observation
+        if let Some(Contact::Flush { plane, .. } | Contact::Point { plane, .. }) =
+            m.observation.contact_mut()
         {
             let session = m.session.as_deref().unwrap_or_default();
             if let Some(pose) = problem.setup_planes.get(session) {
@@ -291,7 +291,7 @@ fn candidate_rows(
     for (k, (template, m)) in templates.iter().zip(&problem.training).enumerate() {
         // The candidates shared out: the first `candidates % groups` groups get one more.
         let per_template = config.candidates / groups + usize::from(k < config.candidates % groups);
-        let Observation::Contact(contact) = &m.observation else {
+        let Some(contact) = m.observation.contact() else {
             continue;
         };
         let what = format!(

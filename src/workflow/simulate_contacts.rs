@@ -202,7 +202,8 @@ fn true_sigmas(trial: &ContactTrial) -> Result<SigmaSetup> {
     )?;
     let mut sums: BTreeMap<&str, (f64, usize)> = BTreeMap::new();
     for (contact, values) in &violations {
-        let kinds = crate::calibration::kind_of(&Observation::Contact(*contact)).row_kinds();
+        let kinds =
+            crate::calibration::kind_of(&Observation::Contact(Box::new(*contact))).row_kinds();
         for (kind, v) in kinds.iter().zip(values) {
             let entry = sums.entry(kind.name()).or_default();
             entry.0 += v * v;
@@ -260,7 +261,7 @@ pub(super) fn lab_files(
     let rows_of = |rows: &[Measurement], setup: &mut ContactSetup| -> Result<Vec<ContactRow>> {
         let mut out = Vec::new();
         for (k, m) in rows.iter().enumerate() {
-            let Observation::Contact(contact) = &m.observation else {
+            let Some(contact) = m.observation.contact() else {
                 continue;
             };
             let name = tool_name(m.tool);

@@ -371,13 +371,13 @@ impl MeasurementKind for Contact {
             }
             Contact::Touch { .. } | Contact::Distance { .. } => {}
         }
-        Observation::Contact(contact)
+        Observation::Contact(Box::new(contact))
     }
 
     fn noise_free(&self, _at: &RobotState<'_>) -> Result<Observation> {
         // A contact has no reading: a perfect contact is the contact itself (simulation puts
         // the configurations where it holds).
-        Ok(Observation::Contact(*self))
+        Ok(Observation::Contact(Box::new(*self)))
     }
 }
 

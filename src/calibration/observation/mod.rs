@@ -385,7 +385,7 @@ pub fn kind_of(observation: &Observation) -> &dyn MeasurementKind {
     match observation {
         Observation::Position(point) => point as &dyn MeasurementKind,
         Observation::Pose(frame) => frame as &dyn MeasurementKind,
-        Observation::Contact(contact) => contact as &dyn MeasurementKind,
+        Observation::Contact(contact) => contact.as_ref() as &dyn MeasurementKind,
     }
 }
 
