@@ -23,7 +23,7 @@ use nalgebra::{DMatrix, DVector};
 /// The contacts of a camera fit and the nuisance values they start from.
 #[derive(Debug, Clone, Copy)]
 pub struct ContactRows<'a> {
-    /// Contact measurements (every observation a [`Observation::Contact`]); tools are robot
+    /// Contact measurements (every observation a [`Observation::Contact`](crate::measurement::Observation::Contact)); tools are robot
     /// tools of the augmented model.
     pub rows: &'a [Measurement],
     /// The nuisance blocks the contacts name, at their starting values.
