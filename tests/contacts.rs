@@ -594,3 +594,71 @@ fn touch_and_bar_reports_name_no_session_and_no_refitted_plane() {
     );
     assert!(run.stdout.contains("gap RMS / max (mm)"), "{}", run.stdout);
 }
+
+/// A set-up that names both hands with data of one: report.md marks the hand without contacts
+/// (red team: the report listed it like the measured one); the both-hands data mark none.
+#[test]
+fn a_tool_without_contacts_is_marked_in_the_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim");
+    let run = common::cli::treecal(&[
+        "simulate",
+        "--observation",
+        "flush",
+        "--both-hands",
+        "--poses",
+        "15",
+        "--torso-poses",
+        "5",
+        "--collision-check",
+        "primitives-only",
+        "--out",
+        common::cli::path_str(&sim),
+    ]);
+    common::cli::assert_success(&run, "simulate flush");
+    let left_only = |name: &str| {
+        let text = std::fs::read_to_string(sim.join(name)).unwrap();
+        let kept: Vec<&str> = text
+            .lines()
+            .enumerate()
+            .filter(|(i, l)| *i < 2 || l.contains(",left_tool,"))
+            .map(|(_, l)| l)
+            .collect();
+        let path = dir.path().join(format!("left_{name}"));
+        std::fs::write(&path, kept.join("\n") + "\n").unwrap();
+        path
+    };
+    let calibrate = |contacts: &std::path::Path, validation: &std::path::Path, out: &str| {
+        let run = common::cli::treecal(&[
+            "calibrate",
+            "--contacts",
+            common::cli::path_str(contacts),
+            "--contact-setup",
+            common::cli::path_str(&sim.join("contact-setup.yaml")),
+            "--validation",
+            common::cli::path_str(validation),
+            "--out",
+            common::cli::path_str(&dir.path().join(out)),
+        ]);
+        common::cli::assert_success(&run, "calibrate flush");
+        run.stdout
+    };
+    let one_hand = calibrate(
+        &left_only("contacts.csv"),
+        &left_only("contacts-validation.csv"),
+        "one",
+    );
+    assert!(
+        one_hand.contains("Tools: left_tool, right_tool (no contacts)."),
+        "{one_hand}"
+    );
+    let both = calibrate(
+        &sim.join("contacts.csv"),
+        &sim.join("contacts-validation.csv"),
+        "both",
+    );
+    assert!(
+        both.contains("Tools: left_tool, right_tool.") && !both.contains("(no contacts)"),
+        "{both}"
+    );
+}

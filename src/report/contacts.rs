@@ -78,13 +78,7 @@ pub fn contact_report(
         md,
         "Reference link: {reference}. Tools: {}. Contacts: {} training, {} held out ({}); \
          sessions: {}.\n",
-        problem
-            .model
-            .tools()
-            .iter()
-            .map(|t| tree.link(t.link).name.as_str())
-            .collect::<Vec<_>>()
-            .join(", "),
+        tool_words(problem, tree),
         contact_count(&problem.training),
         problem.validation.len(),
         kinds.join(", "),
@@ -227,6 +221,38 @@ fn refitted_plane_markdown(scores: &ContactScores, header: &str) -> String {
         scores.after_refit.overall.cells()
     );
     md
+}
+
+/// The tools by link name, each without a contact in the data marked so (a set-up that names
+/// both hands, data of one).
+fn tool_words(problem: &ContactProblem, tree: &KinematicTree) -> String {
+    let used: std::collections::BTreeSet<usize> = problem
+        .training
+        .iter()
+        .chain(&problem.validation)
+        .flat_map(|m| {
+            [
+                Some(m.tool),
+                m.observation.contact().and_then(|c| c.second_tool()),
+            ]
+        })
+        .flatten()
+        .collect();
+    problem
+        .model
+        .tools()
+        .iter()
+        .enumerate()
+        .map(|(k, t)| {
+            let name = &tree.link(t.link).name;
+            if used.contains(&k) {
+                name.clone()
+            } else {
+                format!("{name} (no contacts)")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// A table of the held-out height and tilt RMS per `what` (session, tool), before and after.
