@@ -375,18 +375,14 @@ struct JudgedValidation<'a> {
 /// reported figures; only the pass/fail comparisons skip these.
 pub fn validation_set_aside(run: &CalibrationRun) -> Vec<bool> {
     let rows: usize = run.validation.iter().map(|a| a.position_mm[1].len()).sum();
-    let mut flagged = vec![false; rows];
+    let flagged =
+        super::robust::outlier_mask(&run.outliers, super::robust::DataSet::Validation, rows);
     let mut errors = vec![0.0; rows];
     for arm in &run.validation {
         for (&row, &error) in arm.rows.iter().zip(&arm.position_mm[1]) {
             if row < rows {
                 errors[row] = error;
             }
-        }
-    }
-    for outlier in &run.outliers {
-        if outlier.set == super::robust::DataSet::Validation && outlier.index < rows {
-            flagged[outlier.index] = true;
         }
     }
     super::gross_rows(&errors, &flagged)

@@ -115,6 +115,7 @@ pub use prior::{
     DEFAULT_ANGLE_SIGMA, DEFAULT_JOINT_ERROR_SIGMA, DEFAULT_LENGTH_SIGMA, DEFAULT_OFFSET_SIGMA,
 };
 pub use repeatability::{repeatability, Repeatability};
+pub(crate) use robust::outlier_mask;
 pub use robust::{calibrate_robust, RobustLoss, RobustReport};
 pub use robust::{
     residuals, robust_scale, threshold, weights_of, DataSet, Outlier, Residual, MAX_ROUNDS,

@@ -125,6 +125,18 @@ pub struct Outlier {
     pub weight: f64,
 }
 
+/// Per row of data set `set` (`count` rows): whether `outliers` name it. Linear: a mask, not
+/// a search of the outliers per row.
+pub(crate) fn outlier_mask(outliers: &[Outlier], set: DataSet, count: usize) -> Vec<bool> {
+    let mut flagged = vec![false; count];
+    for outlier in outliers {
+        if outlier.set == set && outlier.index < count {
+            flagged[outlier.index] = true;
+        }
+    }
+    flagged
+}
+
 /// Runs `plan` robustly with the loss `options.robust`: a plain least-squares calibration,
 /// then calibrations reweighted by the loss until the weights settle, then one without the
 /// outliers (if any). Clean data end after the first calibration with every weight 1: the

@@ -19,7 +19,7 @@ use super::sessions::{
 use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
-use crate::math::Pose;
+use crate::math::{root_mean_square, Pose};
 use crate::measurement::Measurement;
 use nalgebra::DMatrix;
 use std::borrow::Cow;
@@ -112,7 +112,6 @@ pub fn run_calibration(
         validation,
     )?;
     let predicted_validation_sd_mm = predicted_spread(&report, validation);
-    let predicted_validation_rms_mm = root_mean_square(&predicted_validation_sd_mm);
     let sessions = finish_sessions(
         sessions,
         &report.model,
@@ -137,7 +136,8 @@ pub fn run_calibration(
         parameters,
         identification,
         validation: validation_residuals,
-        predicted_validation_rms_mm,
+        predicted_validation_rms_mm: root_mean_square(&predicted_validation_sd_mm)
+            .filter(|rms| rms.is_finite()),
         predicted_validation_sd_mm,
         findings,
         robust,
@@ -164,15 +164,10 @@ fn in_training_frames<'m>(
 }
 
 /// The indices of the identification rows the fit kept (of `count`), in order (for the
-/// reports' row ids). Linear: a mask, not a search of the outliers per row.
+/// reports' row ids).
 fn kept_rows(count: usize, outliers: &[Outlier]) -> Vec<usize> {
-    let mut kept = vec![true; count];
-    for outlier in outliers {
-        if outlier.set == DataSet::Identification && outlier.index < count {
-            kept[outlier.index] = false;
-        }
-    }
-    (0..count).filter(|&i| kept[i]).collect()
+    let flagged = super::robust::outlier_mask(outliers, DataSet::Identification, count);
+    (0..count).filter(|&i| !flagged[i]).collect()
 }
 
 /// The findings of the calibration itself, in order: the measurement frame's, the sessions',
@@ -264,13 +259,6 @@ fn before_and_after(
         residuals(validation, &validation_rows)?
     };
     Ok((identification, validation_residuals))
-}
-
-/// The root mean square of `values`, if there are some and it is finite.
-fn root_mean_square(values: &[f64]) -> Option<f64> {
-    (!values.is_empty())
-        .then(|| (values.iter().map(|s| s * s).sum::<f64>() / values.len() as f64).sqrt())
-        .filter(|rms| rms.is_finite())
 }
 
 /// Adds the checks' findings to `run`, and, when the residuals are far above the noise, a root

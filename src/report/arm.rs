@@ -136,15 +136,17 @@ impl ArmReport {
         };
         let mut kept: Vec<usize> = arms.iter().flat_map(|a| a.rows.iter().copied()).collect();
         kept.sort_unstable();
+        let flagged = crate::calibration::outlier_mask(
+            &run.outliers,
+            set,
+            kept.last().map_or(0, |&last| last + 1),
+        );
         let marks = |index: usize| RowMarks {
             stratum: match set {
                 DataSet::Validation => run.validation_strata.get(index).copied(),
                 DataSet::Identification => None,
             },
-            outlier: run
-                .outliers
-                .iter()
-                .any(|o| o.set == set && o.index == index),
+            outlier: flagged.get(index).copied().unwrap_or(false),
             weight: match set {
                 DataSet::Identification => {
                     run.robust.weights.get(index).copied().filter(|&w| w < 1.0)

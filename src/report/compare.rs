@@ -141,22 +141,25 @@ impl CompareReport {
         let [a, b] = &self.validation;
         let combined = a.predicted_rms_mm?.hypot(b.predicted_rms_mm?);
         let limit = DRIFT_FACTOR * combined;
-        Some(if d.rms_aligned_mm > limit {
-            format!(
-                "**The tools moved:** {:.3} mm RMS after the alignment, beyond {DRIFT_FACTOR}× what the measurement noise of the two calibrations explains ({:.3} mm RMS combined, predicted by their covariances): a drift, or a change of the robot, between A and B.",
-                d.rms_aligned_mm, combined
-            )
-        } else if self.moved.is_empty() {
-            format!(
-                "The tools did not move beyond the noise: {:.3} mm RMS after the alignment, within {DRIFT_FACTOR}× what the measurement noise of the two calibrations explains ({:.3} mm RMS combined).",
-                d.rms_aligned_mm, combined
-            )
-        } else {
-            format!(
-                "**The tools did not move beyond the noise:** {:.3} mm RMS after the alignment, within {DRIFT_FACTOR}× what the measurement noise of the two calibrations explains ({:.3} mm RMS combined). The parameters listed above traded among themselves (and with the fitted measurement frames) without moving the tools: their σ's leave that trade out, so read them as no drift.",
-                d.rms_aligned_mm, combined
-            )
-        })
+        let moved = d.rms_aligned_mm > limit;
+        let (head, tail) = match (moved, self.moved.is_empty()) {
+            (true, _) => (
+                "**The tools moved:**",
+                ": a drift, or a change of the robot, between A and B.",
+            ),
+            (false, true) => ("The tools did not move beyond the noise:", "."),
+            (false, false) => (
+                "**The tools did not move beyond the noise:**",
+                ". The parameters listed above traded among themselves (and with the fitted measurement frames) without moving the tools: their σ's leave that trade out, so read them as no drift.",
+            ),
+        };
+        Some(format!(
+            "{head} {:.3} mm RMS after the alignment, {} {DRIFT_FACTOR}× what the measurement noise of the two calibrations explains ({:.3} mm RMS combined{}){tail}",
+            d.rms_aligned_mm,
+            if moved { "beyond" } else { "within" },
+            combined,
+            if moved { ", predicted by their covariances" } else { "" },
+        ))
     }
 
     /// report.md.

@@ -579,7 +579,7 @@ fn judge(
         before_mean: mean(&before),
         mean: mean(&after),
         max: after.iter().copied().fold(0.0, f64::max),
-        rms: (after.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
+        rms: crate::math::root_mean_square(&after).unwrap_or(0.0),
         predicted_rms: if report.covariance.is_some() {
             (predicted / n).sqrt() * 1e3
         } else {

@@ -474,7 +474,7 @@ fn judged_before(run: &crate::calibration::CalibrationRun, set_aside: &[bool]) -
         .filter(|(&row, _)| !set_aside.get(row).copied().unwrap_or(false))
         .map(|(_, &v)| v)
         .collect();
-    (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
+    crate::math::root_mean_square(&values).unwrap_or(0.0)
 }
 
 /// The `urdf-alone-worse` warning, when the URDF alone (`alone`, judged as `judged`) is
