@@ -315,53 +315,16 @@ fn the_camera_file_and_detections_are_read_with_named_errors() {
     assert!(error.contains("line 3"), "{error}");
 }
 
-/// A head camera behind a neck: with the default tools (the arms), the neck joints that move
-/// the camera are calibrated too (issue 31), said in a note, and the camera calibration
-/// still recovers the arms (noise-free).
-#[test]
-fn a_head_cameras_neck_is_calibrated_with_the_default_tools() {
+/// The humanoid's head camera simulated noise-free (30 poses, 10 held out) with `tools`
+/// (`None`: the default tools, the arms): the simulation and its note on the neck.
+fn simulate_neck_camera(tools: Option<Vec<String>>) -> (treecal::workflow::Simulation, String) {
     use treecal::workflow::RobotSource;
     use treecal::workflow::{ObservationChoice, SimulateConfig};
     let outcome = treecal::workflow::simulate(&SimulateConfig {
         robot: RobotSource::File(crate::common::robot("humanoid/humanoid.urdf")),
         observation: ObservationChoice::Camera,
         camera_link: Some("camera".into()),
-        pixel_sigma: 0.0,
-        noise: "0".into(),
-        poses: 30,
-        torso_poses: 0,
-        validation_poses: 10,
-        trials: 1,
-        ..SimulateConfig::default()
-    })
-    .unwrap();
-    let note = outcome
-        .notes
-        .iter()
-        .map(ToString::to_string)
-        .find(|n| n.contains("camera's link 'camera'"))
-        .unwrap_or_else(|| panic!("no note on the neck: {:?}", outcome.notes));
-    assert!(
-        note.contains("neck_yaw") && note.contains("neck_pitch"),
-        "{note}"
-    );
-    let report = &outcome.camera_reports[0];
-    assert!(report.before_mean_position_mm > 10.0, "{report:?}");
-    assert!(report.max_position_mm < 1e-3, "{report:?}");
-}
-
-/// The same head camera when the user names the tools the boards ride on (`--tools
-/// l_hand,r_hand`): the neck is calibrated too, not refused with "name a link beyond it as a
-/// tool" (red team: a lab names its hands; the camera's link is observed all the same).
-#[test]
-fn a_head_cameras_neck_is_calibrated_with_named_tools() {
-    use treecal::workflow::RobotSource;
-    use treecal::workflow::{ObservationChoice, SimulateConfig};
-    let outcome = treecal::workflow::simulate(&SimulateConfig {
-        robot: RobotSource::File(crate::common::robot("humanoid/humanoid.urdf")),
-        observation: ObservationChoice::Camera,
-        camera_link: Some("camera".into()),
-        tools: Some(vec!["l_hand".into(), "r_hand".into()]),
+        tools,
         pixel_sigma: 0.0,
         noise: "0".into(),
         poses: 30,
@@ -377,6 +340,30 @@ fn a_head_cameras_neck_is_calibrated_with_named_tools() {
         .map(ToString::to_string)
         .find(|n| n.contains("camera's link 'camera'"))
         .unwrap_or_else(|| panic!("no note on the neck: {:?}", outcome.notes));
+    (outcome, note)
+}
+
+/// A head camera behind a neck: with the default tools (the arms), the neck joints that move
+/// the camera are calibrated too (issue 31), said in a note, and the camera calibration
+/// still recovers the arms (noise-free).
+#[test]
+fn a_head_cameras_neck_is_calibrated_with_the_default_tools() {
+    let (outcome, note) = simulate_neck_camera(None);
+    assert!(
+        note.contains("neck_yaw") && note.contains("neck_pitch"),
+        "{note}"
+    );
+    let report = &outcome.camera_reports[0];
+    assert!(report.before_mean_position_mm > 10.0, "{report:?}");
+    assert!(report.max_position_mm < 1e-3, "{report:?}");
+}
+
+/// The same head camera when the user names the tools the boards ride on (`--tools
+/// l_hand,r_hand`): the neck is calibrated too, not refused with "name a link beyond it as a
+/// tool" (red team: a lab names its hands; the camera's link is observed all the same).
+#[test]
+fn a_head_cameras_neck_is_calibrated_with_named_tools() {
+    let (outcome, note) = simulate_neck_camera(Some(vec!["l_hand".into(), "r_hand".into()]));
     assert!(note.contains("neck_yaw"), "{note}");
     let report = &outcome.camera_reports[0];
     assert!(report.max_position_mm < 1e-3, "{report:?}");

@@ -552,17 +552,12 @@ fn a_session_without_a_plane_is_an_error_naming_the_row() {
     );
 }
 
-/// Touches and a bar have no plane: report.md says the sessions are none (not an empty
-/// "sessions: .") and leaves out the refitted-plane diagnostic, which would repeat the primary
-/// table (red team, on NEXTAGE's touch,bar files).
-#[test]
-fn touch_and_bar_reports_name_no_session_and_no_refitted_plane() {
-    let dir = tempfile::tempdir().unwrap();
-    let (sim, cal) = (dir.path().join("sim"), dir.path().join("cal"));
-    let run = common::cli::treecal(&[
-        "simulate",
-        "--observation",
-        "touch,bar",
+/// `treecal simulate` of a small contact data set on the built-in robot (15 poses, 5 torso
+/// poses) with `observation` (comma-separated kinds) and `extra` flags, into `sim`.
+fn simulate_contacts(observation: &str, extra: &[&str], sim: &std::path::Path) {
+    let mut args = vec!["simulate", "--observation", observation];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&[
         "--poses",
         "15",
         "--torso-poses",
@@ -570,29 +565,53 @@ fn touch_and_bar_reports_name_no_session_and_no_refitted_plane() {
         "--collision-check",
         "primitives-only",
         "--out",
-        common::cli::path_str(&sim),
+        common::cli::path_str(sim),
     ]);
-    common::cli::assert_success(&run, "simulate touch,bar");
+    let run = common::cli::treecal(&args);
+    common::cli::assert_success(&run, &format!("simulate {observation}"));
+}
+
+/// `treecal calibrate` of `contacts` with `sim`'s set-up, validated on `validation`, into
+/// `out`: its standard output (report.md).
+fn calibrate_contacts(
+    sim: &std::path::Path,
+    contacts: &std::path::Path,
+    validation: &std::path::Path,
+    out: &std::path::Path,
+) -> String {
     let run = common::cli::treecal(&[
         "calibrate",
         "--contacts",
-        common::cli::path_str(&sim.join("contacts.csv")),
+        common::cli::path_str(contacts),
         "--contact-setup",
         common::cli::path_str(&sim.join("contact-setup.yaml")),
         "--validation",
-        common::cli::path_str(&sim.join("contacts-validation.csv")),
+        common::cli::path_str(validation),
         "--out",
-        common::cli::path_str(&cal),
+        common::cli::path_str(out),
     ]);
-    common::cli::assert_success(&run, "calibrate touch,bar");
-    assert!(run.stdout.contains("sessions: none"), "{}", run.stdout);
-    assert!(!run.stdout.contains("sessions: ."), "{}", run.stdout);
-    assert!(
-        !run.stdout.contains("Diagnostic: a plane refitted"),
-        "{}",
-        run.stdout
+    common::cli::assert_success(&run, "calibrate --contacts");
+    run.stdout
+}
+
+/// Touches and a bar have no plane: report.md says the sessions are none (not an empty
+/// "sessions: .") and leaves out the refitted-plane diagnostic, which would repeat the primary
+/// table (red team, on NEXTAGE's touch,bar files).
+#[test]
+fn touch_and_bar_reports_name_no_session_and_no_refitted_plane() {
+    let dir = tempfile::tempdir().unwrap();
+    let (sim, cal) = (dir.path().join("sim"), dir.path().join("cal"));
+    simulate_contacts("touch,bar", &[], &sim);
+    let stdout = calibrate_contacts(
+        &sim,
+        &sim.join("contacts.csv"),
+        &sim.join("contacts-validation.csv"),
+        &cal,
     );
-    assert!(run.stdout.contains("gap RMS / max (mm)"), "{}", run.stdout);
+    assert!(stdout.contains("sessions: none"), "{stdout}");
+    assert!(!stdout.contains("sessions: ."), "{stdout}");
+    assert!(!stdout.contains("Diagnostic: a plane refitted"), "{stdout}");
+    assert!(stdout.contains("gap RMS / max (mm)"), "{stdout}");
 }
 
 /// A set-up that names both hands with data of one: report.md marks the hand without contacts
@@ -601,21 +620,7 @@ fn touch_and_bar_reports_name_no_session_and_no_refitted_plane() {
 fn a_tool_without_contacts_is_marked_in_the_report() {
     let dir = tempfile::tempdir().unwrap();
     let sim = dir.path().join("sim");
-    let run = common::cli::treecal(&[
-        "simulate",
-        "--observation",
-        "flush",
-        "--both-hands",
-        "--poses",
-        "15",
-        "--torso-poses",
-        "5",
-        "--collision-check",
-        "primitives-only",
-        "--out",
-        common::cli::path_str(&sim),
-    ]);
-    common::cli::assert_success(&run, "simulate flush");
+    simulate_contacts("flush", &["--both-hands"], &sim);
     let left_only = |name: &str| {
         let text = std::fs::read_to_string(sim.join(name)).unwrap();
         let kept: Vec<&str> = text
@@ -628,34 +633,21 @@ fn a_tool_without_contacts_is_marked_in_the_report() {
         std::fs::write(&path, kept.join("\n") + "\n").unwrap();
         path
     };
-    let calibrate = |contacts: &std::path::Path, validation: &std::path::Path, out: &str| {
-        let run = common::cli::treecal(&[
-            "calibrate",
-            "--contacts",
-            common::cli::path_str(contacts),
-            "--contact-setup",
-            common::cli::path_str(&sim.join("contact-setup.yaml")),
-            "--validation",
-            common::cli::path_str(validation),
-            "--out",
-            common::cli::path_str(&dir.path().join(out)),
-        ]);
-        common::cli::assert_success(&run, "calibrate flush");
-        run.stdout
-    };
-    let one_hand = calibrate(
+    let one_hand = calibrate_contacts(
+        &sim,
         &left_only("contacts.csv"),
         &left_only("contacts-validation.csv"),
-        "one",
+        &dir.path().join("one"),
     );
     assert!(
         one_hand.contains("Tools: left_tool, right_tool (no contacts)."),
         "{one_hand}"
     );
-    let both = calibrate(
+    let both = calibrate_contacts(
+        &sim,
         &sim.join("contacts.csv"),
         &sim.join("contacts-validation.csv"),
-        "both",
+        &dir.path().join("both"),
     );
     assert!(
         both.contains("Tools: left_tool, right_tool.") && !both.contains("(no contacts)"),

@@ -338,7 +338,8 @@ fn rescore(urdf: &str, world_from_base: &Pose, links: &[String], data: &[Measure
     (sum / data.len() as f64).sqrt() * 1e3
 }
 
-/// The Robonaut URDF with `data` and `validation` written as CSVs in `dir` (the rest default).
+/// The Robonaut URDF with `data` and `validation` written as CSVs in `dir`, the scene's noise
+/// declared (the rest default).
 fn robonaut_files(
     s: &Scene,
     dir: &std::path::Path,
@@ -354,6 +355,8 @@ fn robonaut_files(
             "validation.csv",
             validation,
         ))),
+        position_sigma: NOISE,
+        rotation_sigma: ROTATION_NOISE,
         ..CalibrateConfig::default()
     }
 }
@@ -399,8 +402,6 @@ fn the_written_urdf_and_registration_are_what_was_validated() {
     let validation = measure(&mut s, 12, 1.0, &rigid);
     let dir = tempfile::tempdir().unwrap();
     let config = CalibrateConfig {
-        position_sigma: NOISE,
-        rotation_sigma: ROTATION_NOISE,
         ..robonaut_files(&s, dir.path(), &data, &validation)
     };
     let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
@@ -490,8 +491,6 @@ fn a_compensated_geometry_is_never_shipped_alone_when_worse_than_nominal() {
     let config = CalibrateConfig {
         stiffness: Some(StiffnessSource::File(stiffness_path)),
         measurement_frame: MeasurementFrameChoice::Base,
-        position_sigma: NOISE,
-        rotation_sigma: ROTATION_NOISE,
         ..robonaut_files(&s, dir.path(), &data, &validation)
     };
     let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
@@ -651,8 +650,6 @@ fn a_validation_blunder_is_counted_but_does_not_fail_a_good_calibration() {
     }
     let dir = tempfile::tempdir().unwrap();
     let config = CalibrateConfig {
-        position_sigma: NOISE,
-        rotation_sigma: ROTATION_NOISE,
         ..robonaut_files(&s, dir.path(), &data, &validation)
     };
     let outcome = calibrate(&config).unwrap_or_else(|e| panic!("{e}"));
