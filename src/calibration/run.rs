@@ -22,6 +22,7 @@ use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::Pose;
 use crate::measurement::Measurement;
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 use std::borrow::Cow;
 
 mod frame_refinement;
@@ -463,7 +464,11 @@ fn estimates(
 }
 
 /// Tool poses at a configuration with a row's payload (kg at every tool, `None`: the model's).
-type PredictAt<'a> = dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>> + 'a;
+type PredictAt<'a> = dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>> + Sync + 'a;
+
+/// One row (its index, its tool) and its position (mm) and orientation (deg) errors before
+/// and after.
+type RowErrors = ([usize; 2], [Option<f64>; 2], [Option<f64>; 2]);
 
 /// The before/after residuals of the rows `rows` of `data` (indices in the data set the run
 /// was given), per tool.
@@ -478,34 +483,47 @@ fn arm_residuals(
     let mut position = vec![[Vec::new(), Vec::new()]; tools];
     let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
     let mut indices = vec![Vec::new(); tools];
-    let mut cache: super::predictor::Cached<'_, [Vec<Pose>; 2]> = None;
-    for &row in rows {
-        let m = &data[row];
-        if let Some(list) = indices.get_mut(m.tool) {
+    // Each row's errors in parallel, gathered in row order (the same lists on any number of
+    // threads).
+    let part = |range: std::ops::Range<usize>| -> Result<Vec<RowErrors>> {
+        let mut cache: super::predictor::Cached<'_, [Vec<Pose>; 2]> = None;
+        let mut errors = Vec::with_capacity(range.len());
+        for &row in &rows[range] {
+            let m = &data[row];
+            let key = (m.q.as_slice(), m.payload);
+            if cache.as_ref().is_none_or(|(k, _)| *k != key) {
+                cache = Some((key, [before(&m.q, m.payload)?, after(&m.q, m.payload)?]));
+            }
+            let Some((_, predictions)) = &cache else {
+                continue;
+            };
+            let mut found: RowErrors = ([row, m.tool], [None; 2], [None; 2]);
+            for (k, predicted) in predictions.iter().enumerate() {
+                let pose = predicted.get(m.tool).ok_or_else(|| Error::InvalidData {
+                    origin: "measurements".into(),
+                    message: format!("tool {} does not exist", m.tool),
+                })?;
+                let kind = kind_of(&m.observation);
+                found.1[k] = kind
+                    .measured_point()
+                    .map(|measured| (measured - pose.translation.vector).norm() * 1e3);
+                found.2[k] = kind
+                    .measured_frame()
+                    .map(|measured| measured.rotation.angle_to(&pose.rotation).to_degrees());
+            }
+            errors.push(found);
+        }
+        Ok(errors)
+    };
+    super::linearise::map_rows_in_order(rows.len(), part, |([row, tool], positions, angles)| {
+        if let Some(list) = indices.get_mut(tool) {
             list.push(row);
         }
-        let key = (m.q.as_slice(), m.payload);
-        if cache.as_ref().is_none_or(|(k, _)| *k != key) {
-            cache = Some((key, [before(&m.q, m.payload)?, after(&m.q, m.payload)?]));
+        for k in 0..2 {
+            position[tool][k].extend(positions[k]);
+            orientation[tool][k].extend(angles[k]);
         }
-        let Some((_, predictions)) = &cache else {
-            continue;
-        };
-        for (k, predicted) in predictions.iter().enumerate() {
-            let pose = predicted.get(m.tool).ok_or_else(|| Error::InvalidData {
-                origin: "measurements".into(),
-                message: format!("tool {} does not exist", m.tool),
-            })?;
-            let kind = kind_of(&m.observation);
-            if let Some(measured) = kind.measured_point() {
-                position[m.tool][k].push((measured - pose.translation.vector).norm() * 1e3);
-            }
-            if let Some(measured) = kind.measured_frame() {
-                orientation[m.tool][k]
-                    .push(measured.rotation.angle_to(&pose.rotation).to_degrees());
-            }
-        }
-    }
+    })?;
     Ok((0..tools)
         .filter(|&tool| !position[tool][0].is_empty())
         .map(|tool| {
@@ -548,8 +566,9 @@ fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> V
     }
     let covariance = assembled_covariance(report);
     let model = &report.model;
+    // In parallel, in validation order.
     validation
-        .iter()
+        .par_iter()
         .map(|m| {
             let jacobian = model.tool_jacobian(m.tool, &m.q).jacobian;
             let position = jacobian.rows(0, 3);
