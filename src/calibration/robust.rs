@@ -11,6 +11,7 @@
 //! fell below [`OUTLIER_WEIGHT`] are outliers: named, and left out of one last fit. See
 //! `docs/identification.md`, "Robust estimation".
 
+use super::coarse_to_fine::COARSE_ABOVE_ROWS;
 use super::observation::{
     kind_of, norms_by_row_kind, standardized_norm, Nuisance, RobotState, Tools,
 };
@@ -142,15 +143,26 @@ pub fn calibrate_robust(
         observation_weights: weights,
         ..options.clone()
     };
-    let run = |weights: Vec<f64>| {
+    let run = |start: &McpcModel, weights: Vec<f64>| {
         calibrate(
             branches,
-            model,
+            start,
             measurements,
             compensation,
             plan,
             &weighted(weights),
         )
+    };
+    // Above the coarse-to-fine threshold a reweighted fit starts from the previous one (its
+    // optimum moves by what the weights move: one or two iterations over every row, not a
+    // descent from the start); below it every fit starts from `model`, as it always did.
+    let warm = measurements.len() > COARSE_ABOVE_ROWS;
+    let start_of = |previous: &CalibrationReport| {
+        if warm {
+            previous.model.clone()
+        } else {
+            model.clone()
+        }
     };
     let offsets = linear_offsets(compensation, model, measurements)?;
     let residuals_at = |model: &McpcModel| {
@@ -162,7 +174,7 @@ pub fn calibrate_robust(
             options,
         )
     };
-    let mut report = run(Vec::new())?;
+    let mut report = run(model, Vec::new())?;
     let mut residuals = residuals_at(&report.model)?;
     let mut weights = vec![1.0; measurements.len()];
     let (mut rounds, mut converged, mut scale) = (0, true, robust_scale(&residuals, measurements));
@@ -183,7 +195,7 @@ pub fn calibrate_robust(
                 break;
             }
             rounds += 1;
-            report = run(weights.clone())?;
+            report = run(&start_of(&report), weights.clone())?;
             residuals = residuals_at(&report.model)?;
             scale = robust_scale(&residuals, measurements);
         }
@@ -199,7 +211,7 @@ pub fn calibrate_robust(
     if !robust.outliers().is_empty() {
         // The outliers' bounded pull (Huber: k robust σ each) is a bias the data do not need:
         // the last fit leaves them out, which also keeps them out of σ̂ and the covariance.
-        report = run(robust.fit_weights())?;
+        report = run(&start_of(&report), robust.fit_weights())?;
         robust.residuals = residuals_at(&report.model)?;
         robust.rounds += 1;
     }

@@ -1,6 +1,7 @@
 //! A calibration from measured data, end to end: hold-out, initial guess, the plan, parameter
 //! uncertainties and the errors before and after, per arm (`treecal calibrate`).
 
+use super::coarse_to_fine::CoarseToFine;
 use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame};
 pub use super::hold_out::{hold_out, hold_out_indices};
 use super::initial_guess::InitialGuess;
@@ -37,11 +38,11 @@ pub fn run_calibration(
     measurements: &[Measurement],
     validation: &[Measurement],
 ) -> Result<CalibrationRun> {
-    check_length_scale(input.nominal, measurements)?;
+    check_length_scale(input.nominal, &closed_form_rows(measurements))?;
     // The measurement frame is the first session's; the others are fitted with the geometry.
     let (guess, frame, frame_finding) = choose_measurement_frame(
         input.nominal,
-        &Sessions::of(measurements).first_session(measurements),
+        &closed_form_rows(&Sessions::of(measurements).first_session(measurements)),
         input.measurement_frame,
     )?;
     let fitted_frame = frame.chosen == ChosenFrame::Fitted;
@@ -151,6 +152,18 @@ pub fn run_calibration(
     let kept = (measurements, &measurement_rows[..]);
     assess(input, &mut run, kept, fitted_frame)?;
     Ok(run)
+}
+
+/// The rows the closed-form steps (the length-scale check, the measurement frame's choice and
+/// the initial guess) read: all of `rows`, or above the coarse-to-fine threshold the
+/// identification's evenly spread subsample of whole configurations ([`CoarseToFine`]): the
+/// closed-form fits are averages that a subsample of 20,000 configurations fixes as well, and
+/// the iteration from them reaches the same optimum (`docs/performance.md`, round eleven).
+fn closed_form_rows(rows: &[Measurement]) -> Cow<'_, [Measurement]> {
+    match CoarseToFine::DEFAULT.subsample(rows) {
+        Some(selected) => Cow::Owned(selected.iter().map(|&i| rows[i].clone()).collect()),
+        None => Cow::Borrowed(rows),
+    }
 }
 
 /// The validation rows in the training frames; with one session the rows as given.
