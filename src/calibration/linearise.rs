@@ -235,3 +235,46 @@ pub(crate) fn map_rows_in_order<T: Send>(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::Error;
+
+    /// Over several windows of parts: every row once, in order, on any number of threads; a
+    /// failure gives the error of the earliest failing row, even when a later part (in an
+    /// earlier window) fails too.
+    #[test]
+    fn rows_are_folded_in_order_and_the_first_error_wins() {
+        let rows = MAP_PART_ROWS * MAP_WINDOW * 2 + 17;
+        let mut seen = Vec::new();
+        map_rows_in_order(rows, |range| Ok(range.collect()), |row| seen.push(row))
+            .expect("nothing fails");
+        assert_eq!(seen, (0..rows).collect::<Vec<usize>>());
+        let failing = [MAP_PART_ROWS * MAP_WINDOW + 5, MAP_PART_ROWS * 3 + 1];
+        let mut folded = 0;
+        let result = map_rows_in_order(
+            rows,
+            |range| {
+                range
+                    .map(|row| match failing.contains(&row) {
+                        true => Err(Error::InvalidData {
+                            origin: row.to_string(),
+                            message: "fails".into(),
+                        }),
+                        false => Ok(row),
+                    })
+                    .collect()
+            },
+            |_| folded += 1,
+        );
+        match result {
+            Err(Error::InvalidData { origin, .. }) => {
+                assert_eq!(origin, failing[1].to_string())
+            }
+            other => panic!("expected the earlier row's error, got {other:?}"),
+        }
+        // The parts before the failing one were folded, none after it.
+        assert_eq!(folded, MAP_PART_ROWS * 3);
+    }
+}
