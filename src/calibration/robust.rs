@@ -11,7 +11,6 @@
 //! fell below [`OUTLIER_WEIGHT`] are outliers: named, and left out of one last fit. See
 //! `docs/identification.md`, "Robust estimation".
 
-use super::coarse_to_fine::COARSE_ABOVE_ROWS;
 use super::observation::{
     kind_of, norms_by_row_kind, standardized_norm, Nuisance, RobotState, Tools,
 };
@@ -153,17 +152,6 @@ pub fn calibrate_robust(
             &weighted(weights),
         )
     };
-    // Above the coarse-to-fine threshold a reweighted fit starts from the previous one (its
-    // optimum moves by what the weights move: one or two iterations over every row, not a
-    // descent from the start); below it every fit starts from `model`, as it always did.
-    let warm = measurements.len() > COARSE_ABOVE_ROWS;
-    let start_of = |previous: &CalibrationReport| {
-        if warm {
-            previous.model.clone()
-        } else {
-            model.clone()
-        }
-    };
     let offsets = linear_offsets(compensation, model, measurements)?;
     let residuals_at = |model: &McpcModel| {
         residuals(
@@ -195,7 +183,7 @@ pub fn calibrate_robust(
                 break;
             }
             rounds += 1;
-            report = run(&start_of(&report), weights.clone())?;
+            report = run(model, weights.clone())?;
             residuals = residuals_at(&report.model)?;
             scale = robust_scale(&residuals, measurements);
         }
@@ -211,7 +199,7 @@ pub fn calibrate_robust(
     if !robust.outliers().is_empty() {
         // The outliers' bounded pull (Huber: k robust σ each) is a bias the data do not need:
         // the last fit leaves them out, which also keeps them out of σ̂ and the covariance.
-        report = run(&start_of(&report), robust.fit_weights())?;
+        report = run(model, robust.fit_weights())?;
         robust.residuals = residuals_at(&report.model)?;
         robust.rounds += 1;
     }
