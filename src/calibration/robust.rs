@@ -142,10 +142,10 @@ pub fn calibrate_robust(
         observation_weights: weights,
         ..options.clone()
     };
-    let run = |start: &McpcModel, weights: Vec<f64>| {
+    let run = |weights: Vec<f64>| {
         calibrate(
             branches,
-            start,
+            model,
             measurements,
             compensation,
             plan,
@@ -162,7 +162,7 @@ pub fn calibrate_robust(
             options,
         )
     };
-    let mut report = run(model, Vec::new())?;
+    let mut report = run(Vec::new())?;
     let mut residuals = residuals_at(&report.model)?;
     let mut weights = vec![1.0; measurements.len()];
     let (mut rounds, mut converged, mut scale) = (0, true, robust_scale(&residuals, measurements));
@@ -183,7 +183,7 @@ pub fn calibrate_robust(
                 break;
             }
             rounds += 1;
-            report = run(model, weights.clone())?;
+            report = run(weights.clone())?;
             residuals = residuals_at(&report.model)?;
             scale = robust_scale(&residuals, measurements);
         }
@@ -199,7 +199,7 @@ pub fn calibrate_robust(
     if !robust.outliers().is_empty() {
         // The outliers' bounded pull (Huber: k robust σ each) is a bias the data do not need:
         // the last fit leaves them out, which also keeps them out of σ̂ and the covariance.
-        report = run(model, robust.fit_weights())?;
+        report = run(robust.fit_weights())?;
         robust.residuals = residuals_at(&report.model)?;
         robust.rounds += 1;
     }
