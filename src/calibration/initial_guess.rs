@@ -9,12 +9,15 @@
 //! `last_frame⁻¹ · measured` over its measurements, and repeat a few times, since each fit
 //! improves the other.
 
+use super::linearise::map_rows_in_order;
 use super::observation::kind_of;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, McpcTool};
 use crate::math::{pose, Mat3, Pose, Rotation, Vec3};
 use crate::measurement::Measurement;
 use nalgebra::{Rotation3, UnitQuaternion};
+use rayon::prelude::*;
+use std::ops::Range;
 
 /// What the initial guess changed.
 #[derive(Debug, Clone)]
@@ -38,14 +41,16 @@ pub(crate) fn base_frame_positions(
 ) -> (Vec<Vec3>, Vec<Vec3>) {
     let mut in_base = model.clone();
     in_base.set_world_from_base(&Pose::identity());
-    // Only kinds that measure the tool's origin take part (all of today's).
-    measurements
-        .iter()
-        .filter_map(|m| {
+    // Only kinds that measure the tool's origin take part (all of today's). In parallel, in
+    // measurement order.
+    let pairs: Vec<Option<(Vec3, Vec3)>> = measurements
+        .par_iter()
+        .map(|m| {
             let measured = measured_position(m)?;
             Some((in_base.tool_pose(m.tool, &m.q).translation.vector, measured))
         })
-        .unzip()
+        .collect();
+    pairs.into_iter().flatten().unzip()
 }
 
 /// The measured position of the tool's origin, when the observation's kind measures it
@@ -54,14 +59,25 @@ pub(crate) fn measured_position(m: &Measurement) -> Option<Vec3> {
     kind_of(&m.observation).measured_point()
 }
 
+/// The rows' squares in parallel, summed in measurement order (the same sum on any number of
+/// threads).
 fn position_rms(model: &McpcModel, measurements: &[Measurement]) -> f64 {
-    let sum: f64 = measurements
-        .iter()
-        .filter_map(|m| {
-            let measured = measured_position(m)?;
-            Some((model.tool_pose(m.tool, &m.q).translation.vector - measured).norm_squared())
-        })
-        .sum();
+    let squares = |range: Range<usize>| -> Result<Vec<Option<f64>>> {
+        Ok(measurements[range]
+            .iter()
+            .map(|m| {
+                let measured = measured_position(m)?;
+                Some((model.tool_pose(m.tool, &m.q).translation.vector - measured).norm_squared())
+            })
+            .collect())
+    };
+    let mut sum = 0.0;
+    // `squares` cannot fail.
+    let _ = map_rows_in_order(measurements.len(), squares, |value| {
+        if let Some(value) = value {
+            sum += value;
+        }
+    });
     (sum / measurements.len().max(1) as f64).sqrt()
 }
 
@@ -195,7 +211,7 @@ fn fit_tools(current: &McpcModel, measurements: &[Measurement]) -> Result<McpcMo
             continue;
         }
         let last_poses: Vec<Pose> = own
-            .iter()
+            .par_iter()
             .map(|m| match tool.parent {
                 Some(f) => current
                     .moved(f, &m.q, &current.frame_transforms(&m.q)[f])

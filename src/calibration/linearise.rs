@@ -10,6 +10,8 @@ use crate::kinematics::{McpcModel, ToolJacobian};
 use crate::math::Pose;
 use crate::measurement::Measurement;
 use nalgebra::{DMatrix, DVector, Vector6};
+use rayon::prelude::*;
+use std::ops::Range;
 
 /// The stacked, weighted residual and its Jacobian over the free parameters.
 pub(super) struct Linearisation {
@@ -137,7 +139,9 @@ pub(super) fn linearise(
 }
 
 /// RMS of the position residuals (m) and of the rotation residuals (rad, over kinds with
-/// rotation rows) at `model`, over the measurements not left out.
+/// rotation rows) at `model`, over the measurements not left out. The rows' squares are
+/// computed in parallel ([`map_rows_in_order`]) and summed in row order: the same sums on any
+/// number of threads, and as a sequential loop's.
 pub(super) fn residual_rms(
     model: &McpcModel,
     nuisance: &Nuisance,
@@ -147,40 +151,52 @@ pub(super) fn residual_rms(
     options: &IdentificationOptions,
 ) -> Result<(f64, f64)> {
     let (mut position, mut rotation, mut poses, mut count) = (0.0, 0.0, 0usize, 0usize);
-    let mut error = Vec::new();
-    // Measurements of several tools at one configuration share one prediction (as in
-    // `linearise`).
-    let mut cached: Cached<'_, Vec<Pose>> = None;
-    for (index, m) in measurements.iter().enumerate() {
-        // Measurements left out (weight 0, robust estimation) are not part of the fit.
-        if options.observation_weights.get(index) == Some(&0.0) {
-            continue;
+    let part = |range: Range<usize>| -> Result<Vec<[Option<f64>; 2]>> {
+        let mut error = Vec::new();
+        let mut squares = Vec::with_capacity(range.len());
+        // Measurements of several tools at one configuration share one prediction (as in
+        // `linearise`).
+        let mut cached: Cached<'_, Vec<Pose>> = None;
+        for index in range {
+            // Measurements left out (weight 0, robust estimation) are not part of the fit.
+            if options.observation_weights.get(index) == Some(&0.0) {
+                continue;
+            }
+            let m = &measurements[index];
+            let key = (m.q.as_slice(), m.payload);
+            if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+                cached = Some((key, predictor.predict_at(model, &m.q, m.payload)?));
+            }
+            let predicted = cached.as_ref().map_or(&[][..], |(_, p)| p.as_slice());
+            let kind = kind_of(&m.observation);
+            let state = RobotState {
+                model,
+                q: &m.q,
+                tool: m.tool,
+                tools: Tools::Poses(predicted),
+                offset: offsets.map(|o| &o[index]),
+                nuisance,
+            };
+            error.resize(kind.rows(), 0.0);
+            kind.residual(&state, &mut error)?;
+            let by_kind = squares_by_row_kind(kind, &error);
+            // Position and rotation rows (`RowKind::ALL`'s first two).
+            squares.push([by_kind[0], by_kind[1]]);
         }
-        count += 1;
-        let key = (m.q.as_slice(), m.payload);
-        if cached.as_ref().is_none_or(|(k, _)| *k != key) {
-            cached = Some((key, predictor.predict_at(model, &m.q, m.payload)?));
-        }
-        let predicted = cached.as_ref().map_or(&[][..], |(_, p)| p.as_slice());
-        let kind = kind_of(&m.observation);
-        let state = RobotState {
-            model,
-            q: &m.q,
-            tool: m.tool,
-            tools: Tools::Poses(predicted),
-            offset: offsets.map(|o| &o[index]),
-            nuisance,
-        };
-        error.resize(kind.rows(), 0.0);
-        kind.residual(&state, &mut error)?;
-        let squares = squares_by_row_kind(kind, &error);
-        let (position_squares, rotation_squares) = (squares[0], squares[1]);
-        position += position_squares.unwrap_or(0.0);
-        if let Some(squares) = rotation_squares {
-            rotation += squares;
-            poses += 1;
-        }
-    }
+        Ok(squares)
+    };
+    map_rows_in_order(
+        measurements.len(),
+        part,
+        |[position_squares, rotation_squares]| {
+            count += 1;
+            position += position_squares.unwrap_or(0.0);
+            if let Some(squares) = rotation_squares {
+                rotation += squares;
+                poses += 1;
+            }
+        },
+    )?;
     let n = count.max(1) as f64;
     let rotation_rms = if poses > 0 {
         (rotation / poses as f64).sqrt()
@@ -188,4 +204,77 @@ pub(super) fn residual_rms(
         0.0
     };
     Ok(((position / n).sqrt(), rotation_rms))
+}
+
+/// Rows per part of [`map_rows_in_order`]: fixed, so that the parts do not depend on the
+/// number of threads.
+const MAP_PART_ROWS: usize = 4096;
+
+/// Parts of [`map_rows_in_order`] mapped in parallel before they are folded (bounds what is
+/// held at once).
+const MAP_WINDOW: usize = 16;
+
+/// `map` over consecutive parts of the rows `0..rows` (fixed boundaries) on rayon's workers, a
+/// window of parts at a time; `fold` then takes every part's values in row order on the
+/// calling thread, so that what it sums is summed as by a sequential loop. The first error
+/// in row order is returned (a part stops at its first).
+pub(crate) fn map_rows_in_order<T: Send>(
+    rows: usize,
+    map: impl Fn(Range<usize>) -> Result<Vec<T>> + Sync,
+    mut fold: impl FnMut(T),
+) -> Result<()> {
+    let parts: Vec<Range<usize>> = (0..rows)
+        .step_by(MAP_PART_ROWS)
+        .map(|start| start..(start + MAP_PART_ROWS).min(rows))
+        .collect();
+    for window in parts.chunks(MAP_WINDOW) {
+        let mapped: Vec<Result<Vec<T>>> = window.par_iter().map(|r| map(r.clone())).collect();
+        for part in mapped {
+            part?.into_iter().for_each(&mut fold);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::Error;
+
+    /// Over several windows of parts: every row once, in order, on any number of threads; a
+    /// failure gives the error of the earliest failing row, even when a later part (in an
+    /// earlier window) fails too.
+    #[test]
+    fn rows_are_folded_in_order_and_the_first_error_wins() {
+        let rows = MAP_PART_ROWS * MAP_WINDOW * 2 + 17;
+        let mut seen = Vec::new();
+        map_rows_in_order(rows, |range| Ok(range.collect()), |row| seen.push(row))
+            .expect("nothing fails");
+        assert_eq!(seen, (0..rows).collect::<Vec<usize>>());
+        let failing = [MAP_PART_ROWS * MAP_WINDOW + 5, MAP_PART_ROWS * 3 + 1];
+        let mut folded = 0;
+        let result = map_rows_in_order(
+            rows,
+            |range| {
+                range
+                    .map(|row| match failing.contains(&row) {
+                        true => Err(Error::InvalidData {
+                            origin: row.to_string(),
+                            message: "fails".into(),
+                        }),
+                        false => Ok(row),
+                    })
+                    .collect()
+            },
+            |_| folded += 1,
+        );
+        match result {
+            Err(Error::InvalidData { origin, .. }) => {
+                assert_eq!(origin, failing[1].to_string())
+            }
+            other => panic!("expected the earlier row's error, got {other:?}"),
+        }
+        // The parts before the failing one were folded, none after it.
+        assert_eq!(folded, MAP_PART_ROWS * 3);
+    }
 }

@@ -12,6 +12,7 @@ use super::validation::{chain_postures, ChainPostures, PostureIndex};
 use crate::kinematics::McpcModel;
 use crate::math::Vec3;
 use crate::measurement::{Measurement, Observation};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Fewer repeated pairs than this give no figure.
@@ -58,8 +59,9 @@ pub fn repeatability(
     let rows_of: Vec<Vec<&Measurement>> = (0..chains.len())
         .map(|tool| identification.iter().filter(|m| m.tool == tool).collect())
         .collect();
+    // In parallel, in validation order (rayon's collect keeps it).
     let differences: Vec<Vec3> = validation
-        .iter()
+        .par_iter()
         .filter_map(|v| {
             let index = indices
                 .get(v.tool)

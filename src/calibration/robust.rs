@@ -227,41 +227,48 @@ pub fn residuals(
     offsets: Option<&[Vector6<f64>]>,
     options: &IdentificationOptions,
 ) -> Result<Vec<Residual>> {
-    let mut cached: Cached<'_, Vec<Pose>> = None;
-    let mut out = Vec::with_capacity(measurements.len());
     let noise = options.noise();
-    let mut error = Vec::new();
-    for (index, m) in measurements.iter().enumerate() {
-        let key = (m.q.as_slice(), m.payload);
-        if cached.as_ref().is_none_or(|(k, _)| *k != key) {
-            let poses = match compensation {
-                Compensation::Exact(source) => source.predict_at(model, &m.q, m.payload)?,
-                Compensation::None | Compensation::Linear(_) => model.tool_poses(&m.q),
+    // Rows in parallel, kept in row order (`map_rows_in_order`).
+    let part = |range: std::ops::Range<usize>| -> Result<Vec<Residual>> {
+        let mut cached: Cached<'_, Vec<Pose>> = None;
+        let mut out = Vec::with_capacity(range.len());
+        let mut error = Vec::new();
+        for index in range {
+            let m = &measurements[index];
+            let key = (m.q.as_slice(), m.payload);
+            if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+                let poses = match compensation {
+                    Compensation::Exact(source) => source.predict_at(model, &m.q, m.payload)?,
+                    Compensation::None | Compensation::Linear(_) => model.tool_poses(&m.q),
+                };
+                cached = Some((key, poses));
+            }
+            let Some((_, predicted)) = cached.as_ref().filter(|(_, p)| m.tool < p.len()) else {
+                continue;
             };
-            cached = Some((key, poses));
+            let kind = kind_of(&m.observation);
+            let state = RobotState {
+                model,
+                q: &m.q,
+                tool: m.tool,
+                tools: Tools::Poses(predicted),
+                offset: offsets.and_then(|o| o.get(index)),
+                nuisance: Nuisance::none(),
+            };
+            error.resize(kind.rows(), 0.0);
+            kind.residual(&state, &mut error)?;
+            let norms = norms_by_row_kind(kind, &error);
+            let (position, rotation) = (norms[0], norms[1]);
+            out.push(Residual {
+                position: position.unwrap_or(0.0),
+                rotation,
+                norm: standardized_norm(kind, &error, &noise),
+            });
         }
-        let Some((_, predicted)) = cached.as_ref().filter(|(_, p)| m.tool < p.len()) else {
-            continue;
-        };
-        let kind = kind_of(&m.observation);
-        let state = RobotState {
-            model,
-            q: &m.q,
-            tool: m.tool,
-            tools: Tools::Poses(predicted),
-            offset: offsets.and_then(|o| o.get(index)),
-            nuisance: Nuisance::none(),
-        };
-        error.resize(kind.rows(), 0.0);
-        kind.residual(&state, &mut error)?;
-        let norms = norms_by_row_kind(kind, &error);
-        let (position, rotation) = (norms[0], norms[1]);
-        out.push(Residual {
-            position: position.unwrap_or(0.0),
-            rotation,
-            norm: standardized_norm(kind, &error, &noise),
-        });
-    }
+        Ok(out)
+    };
+    let mut out = Vec::with_capacity(measurements.len());
+    super::linearise::map_rows_in_order(measurements.len(), part, |r| out.push(r))?;
     Ok(out)
 }
 

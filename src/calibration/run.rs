@@ -1,6 +1,7 @@
 //! A calibration from measured data, end to end: hold-out, initial guess, the plan, parameter
 //! uncertainties and the errors before and after, per arm (`treecal calibrate`).
 
+use super::coarse_to_fine::CoarseToFine;
 use super::frame::{check_length_scale, choose_measurement_frame, ChosenFrame};
 pub use super::hold_out::{hold_out, hold_out_indices};
 use super::initial_guess::InitialGuess;
@@ -22,6 +23,7 @@ use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::{root_mean_square, Pose};
 use crate::measurement::Measurement;
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 use std::borrow::Cow;
 
 mod frame_refinement;
@@ -36,11 +38,11 @@ pub fn run_calibration(
     measurements: &[Measurement],
     validation: &[Measurement],
 ) -> Result<CalibrationRun> {
-    check_length_scale(input.nominal, measurements)?;
+    check_length_scale(input.nominal, &closed_form_rows(measurements))?;
     // The measurement frame is the first session's; the others are fitted with the geometry.
     let (guess, frame, frame_finding) = choose_measurement_frame(
         input.nominal,
-        &Sessions::of(measurements).first_session(measurements),
+        &closed_form_rows(&Sessions::of(measurements).first_session(measurements)),
         input.measurement_frame,
     )?;
     let fitted_frame = frame.chosen == ChosenFrame::Fitted;
@@ -150,6 +152,18 @@ pub fn run_calibration(
     let kept = (measurements, &measurement_rows[..]);
     assess(input, &mut run, kept, fitted_frame)?;
     Ok(run)
+}
+
+/// The rows the closed-form steps (the length-scale check, the measurement frame's choice and
+/// the initial guess) read: all of `rows`, or above the coarse-to-fine threshold the
+/// identification's evenly spread subsample of whole configurations ([`CoarseToFine`]): the
+/// closed-form fits are averages that a subsample of 20,000 configurations fixes as well, and
+/// the iteration from them reaches the same optimum (`docs/performance.md`, round eleven).
+fn closed_form_rows(rows: &[Measurement]) -> Cow<'_, [Measurement]> {
+    match CoarseToFine::DEFAULT.subsample(rows) {
+        Some(selected) => Cow::Owned(selected.iter().map(|&i| rows[i].clone()).collect()),
+        None => Cow::Borrowed(rows),
+    }
 }
 
 /// The validation rows in the training frames; with one session the rows as given.
@@ -451,7 +465,11 @@ fn estimates(
 }
 
 /// Tool poses at a configuration with a row's payload (kg at every tool, `None`: the model's).
-type PredictAt<'a> = dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>> + 'a;
+type PredictAt<'a> = dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>> + Sync + 'a;
+
+/// One row (its index, its tool) and its position (mm) and orientation (deg) errors before
+/// and after.
+type RowErrors = ([usize; 2], [Option<f64>; 2], [Option<f64>; 2]);
 
 /// The before/after residuals of the rows `rows` of `data` (indices in the data set the run
 /// was given), per tool.
@@ -466,34 +484,47 @@ fn arm_residuals(
     let mut position = vec![[Vec::new(), Vec::new()]; tools];
     let mut orientation = vec![[Vec::new(), Vec::new()]; tools];
     let mut indices = vec![Vec::new(); tools];
-    let mut cache: super::predictor::Cached<'_, [Vec<Pose>; 2]> = None;
-    for &row in rows {
-        let m = &data[row];
-        if let Some(list) = indices.get_mut(m.tool) {
+    // Each row's errors in parallel, gathered in row order (the same lists on any number of
+    // threads).
+    let part = |range: std::ops::Range<usize>| -> Result<Vec<RowErrors>> {
+        let mut cache: super::predictor::Cached<'_, [Vec<Pose>; 2]> = None;
+        let mut errors = Vec::with_capacity(range.len());
+        for &row in &rows[range] {
+            let m = &data[row];
+            let key = (m.q.as_slice(), m.payload);
+            if cache.as_ref().is_none_or(|(k, _)| *k != key) {
+                cache = Some((key, [before(&m.q, m.payload)?, after(&m.q, m.payload)?]));
+            }
+            let Some((_, predictions)) = &cache else {
+                continue;
+            };
+            let mut found: RowErrors = ([row, m.tool], [None; 2], [None; 2]);
+            for (k, predicted) in predictions.iter().enumerate() {
+                let pose = predicted.get(m.tool).ok_or_else(|| Error::InvalidData {
+                    origin: "measurements".into(),
+                    message: format!("tool {} does not exist", m.tool),
+                })?;
+                let kind = kind_of(&m.observation);
+                found.1[k] = kind
+                    .measured_point()
+                    .map(|measured| (measured - pose.translation.vector).norm() * 1e3);
+                found.2[k] = kind
+                    .measured_frame()
+                    .map(|measured| measured.rotation.angle_to(&pose.rotation).to_degrees());
+            }
+            errors.push(found);
+        }
+        Ok(errors)
+    };
+    super::linearise::map_rows_in_order(rows.len(), part, |([row, tool], positions, angles)| {
+        if let Some(list) = indices.get_mut(tool) {
             list.push(row);
         }
-        let key = (m.q.as_slice(), m.payload);
-        if cache.as_ref().is_none_or(|(k, _)| *k != key) {
-            cache = Some((key, [before(&m.q, m.payload)?, after(&m.q, m.payload)?]));
+        for k in 0..2 {
+            position[tool][k].extend(positions[k]);
+            orientation[tool][k].extend(angles[k]);
         }
-        let Some((_, predictions)) = &cache else {
-            continue;
-        };
-        for (k, predicted) in predictions.iter().enumerate() {
-            let pose = predicted.get(m.tool).ok_or_else(|| Error::InvalidData {
-                origin: "measurements".into(),
-                message: format!("tool {} does not exist", m.tool),
-            })?;
-            let kind = kind_of(&m.observation);
-            if let Some(measured) = kind.measured_point() {
-                position[m.tool][k].push((measured - pose.translation.vector).norm() * 1e3);
-            }
-            if let Some(measured) = kind.measured_frame() {
-                orientation[m.tool][k]
-                    .push(measured.rotation.angle_to(&pose.rotation).to_degrees());
-            }
-        }
-    }
+    })?;
     Ok((0..tools)
         .filter(|&tool| !position[tool][0].is_empty())
         .map(|tool| {
@@ -536,8 +567,9 @@ fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> V
     }
     let covariance = assembled_covariance(report);
     let model = &report.model;
+    // In parallel, in validation order.
     validation
-        .iter()
+        .par_iter()
         .map(|m| {
             let jacobian = model.tool_jacobian(m.tool, &m.q).jacobian;
             let position = jacobian.rows(0, 3);

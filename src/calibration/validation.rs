@@ -5,6 +5,7 @@
 
 use crate::kinematics::{FrameKind, McpcModel};
 use crate::measurement::Measurement;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// A validation row repeats an identification posture when every joint of its tool's chain
@@ -272,8 +273,9 @@ pub fn strata(
 ) -> Vec<Stratum> {
     let chains = chain_postures(model, identification);
     let indices: Vec<PostureIndex<'_>> = chains.iter().map(ChainPostures::index).collect();
+    // In parallel, in validation order.
     validation
-        .iter()
+        .par_iter()
         .map(|m| match indices.get(m.tool) {
             Some(index) => index.stratum(&m.q),
             // A tool the model does not know: nothing to judge against.

@@ -16,6 +16,7 @@ use crate::measurement::{Measurement, Observation};
 use crate::report::ArtifactScore;
 use crate::tree::{detect_branches, KinematicTree};
 use crate::urdf::{parse_urdf, ExportReport};
+use rayon::prelude::*;
 
 /// The compensation file the outputs go with: the user's `--stiffness` file, or the
 /// `stiffness.yaml` text `--identify-stiffness` writes.
@@ -140,8 +141,9 @@ impl Scoring<'_> {
                 "a compensation (stiffness) file with a reference link other than the URDF root cannot be scored yet: leave out the stiffness file or the reference link",
             ));
         }
-        measurements
-            .iter()
+        // In parallel, in row order; the first failing row's error, as a loop would give.
+        let poses: Vec<Result<Pose>> = measurements
+            .par_iter()
             .map(|m| {
                 let turned = self.joint_errors.map(|j| j.apply(&m.q));
                 let commanded = turned.as_deref().unwrap_or(&m.q);
@@ -166,7 +168,8 @@ impl Scoring<'_> {
                     }
                 })
             })
-            .collect()
+            .collect();
+        poses.into_iter().collect()
     }
 
     /// The validation error of the URDF text `urdf` (the files named `files`), rigid or with

@@ -84,32 +84,38 @@ pub(super) fn read_plain_blocks<S: BlockRows>(
         header_line,
         origin,
     };
-    let mut count = 0;
-    loop {
-        let mut batch = Vec::with_capacity(BATCH_BLOCKS);
-        while batch.len() < BATCH_BLOCKS {
-            match blocks.next()? {
-                Some(block) => batch.push(block),
-                None => break,
+    // The next batch is read on its own thread while this one is parsed (one batch ahead:
+    // the channel holds none, so the reader waits for the parse to take what it read).
+    std::thread::scope(|scope| {
+        let (sender, batches) = std::sync::mpsc::sync_channel(0);
+        scope.spawn(move || loop {
+            let batch = blocks.batch();
+            let more = matches!(&batch, Some(batch) if !batch.is_empty());
+            if sender.send(batch).is_err() || !more {
+                break;
+            }
+        });
+        let mut count = 0;
+        loop {
+            let batch = batches.recv().ok()??;
+            if batch.is_empty() {
+                return Some(state);
+            }
+            let parts: Vec<Option<(S::Part, usize)>> = batch
+                .par_iter()
+                .map(|block| parse_block(&state, block, place))
+                .collect();
+            drop(batch);
+            for part in parts {
+                let (part, rows) = part?;
+                count += rows;
+                if count > MAX_CSV_ROWS {
+                    return None;
+                }
+                state.merge(part)?;
             }
         }
-        if batch.is_empty() {
-            return Some(state);
-        }
-        let parts: Vec<Option<(S::Part, usize)>> = batch
-            .par_iter()
-            .map(|block| parse_block(&state, block, place))
-            .collect();
-        drop(batch);
-        for part in parts {
-            let (part, rows) = part?;
-            count += rows;
-            if count > MAX_CSV_ROWS {
-                return None;
-            }
-            state.merge(part)?;
-        }
-    }
+    })
 }
 
 /// The header a block's rows are read against, and the file's name.
@@ -141,6 +147,18 @@ struct Blocks<R> {
 }
 
 impl<R: Read> Blocks<R> {
+    /// Up to [`BATCH_BLOCKS`] blocks (none at the end); `None` as for [`Self::next`].
+    fn batch(&mut self) -> Option<Vec<Block>> {
+        let mut batch = Vec::with_capacity(BATCH_BLOCKS);
+        while batch.len() < BATCH_BLOCKS {
+            match self.next()? {
+                Some(block) => batch.push(block),
+                None => break,
+            }
+        }
+        Some(batch)
+    }
+
     /// `Some(Some(block))`, `Some(None)` at the end, `None` past the size limit or when the
     /// file cannot be read.
     fn next(&mut self) -> Option<Option<Block>> {
@@ -150,9 +168,12 @@ impl<R: Read> Blocks<R> {
         let mut text = std::mem::take(&mut self.carry);
         loop {
             let before = text.len();
-            text.resize(before + BLOCK_BYTES, 0);
-            let count = read_full(&mut self.reader, &mut text[before..]).ok()?;
-            text.truncate(before + count);
+            // `read_to_end` fills the spare capacity without zeroing it first.
+            text.reserve(BLOCK_BYTES);
+            let count = (&mut self.reader)
+                .take(BLOCK_BYTES as u64)
+                .read_to_end(&mut text)
+                .ok()?;
             self.read += count as u64;
             if self.read > MAX_CSV_BYTES {
                 return None;
@@ -181,20 +202,6 @@ impl<R: Read> Blocks<R> {
             last,
         }
     }
-}
-
-/// Fills `buffer` as far as the reader goes; the bytes read.
-fn read_full(reader: &mut impl Read, buffer: &mut [u8]) -> std::io::Result<usize> {
-    let mut filled = 0;
-    while filled < buffer.len() {
-        match reader.read(&mut buffer[filled..]) {
-            Ok(0) => break,
-            Ok(count) => filled += count,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(filled)
 }
 
 /// The rows of `block` gathered into a part of `state`, and their count; the line checks are
