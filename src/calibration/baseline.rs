@@ -58,13 +58,38 @@ pub fn registered_nominal(
         model.set_parameters(&parameters)?;
         Ok(model)
     };
-    let rows = Rows {
-        measurements,
-        weights,
-        options,
-        // Many rows: the Jacobian's tool poses from the centre's (one forward kinematics per
-        // configuration instead of one per shifted model); the same solution to the tolerance.
-        centre_poses: CoarseToFine::DEFAULT.subsample(measurements).is_some(),
+    // Many rows: the registration's few unknowns are fitted to the evenly spread subsample of
+    // whole configurations the identification starts on (`CoarseToFine`), with their weights,
+    // and the Jacobian's tool poses move the centre's (one forward kinematics per configuration
+    // instead of one per shifted model). Every row is still scored with the result.
+    let subsample = CoarseToFine::DEFAULT
+        .subsample(measurements)
+        .map(|selected| {
+            let rows: Vec<Measurement> =
+                selected.iter().map(|&i| measurements[i].clone()).collect();
+            let weights: Vec<f64> = if weights.is_empty() {
+                Vec::new()
+            } else {
+                selected
+                    .iter()
+                    .map(|&i| weights.get(i).copied().unwrap_or(1.0))
+                    .collect()
+            };
+            (rows, weights)
+        });
+    let rows = match &subsample {
+        Some((rows, weights)) => Rows {
+            measurements: rows,
+            weights,
+            options,
+            centre_poses: true,
+        },
+        None => Rows {
+            measurements,
+            weights,
+            options,
+            centre_poses: false,
+        },
     };
     model_at(&levenberg_marquardt(
         DVector::zeros(unknowns),

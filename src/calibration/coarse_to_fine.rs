@@ -105,6 +105,7 @@ mod tests {
         use crate::calibration::observation::Nuisance;
         use crate::calibration::solver::{identify_coarse_to_fine, IdentificationOptions, Rigid};
         use crate::calibration::test_problems::{problem, robonaut, with_noise};
+        use crate::kinematics::McpcModel;
 
         let robot = robonaut();
         let model = &robot.0;
@@ -117,6 +118,18 @@ mod tests {
             ..Default::default()
         };
         let free: Vec<usize> = (0..model.parameter_count()).collect();
+        let run_from =
+            |model: &McpcModel, thresholds: CoarseToFine, options: &IdentificationOptions| {
+                identify_coarse_to_fine(
+                    (model, Nuisance::none()),
+                    (&measurements, None),
+                    &Rigid,
+                    &free,
+                    options,
+                    thresholds,
+                )
+                .expect("identification")
+            };
         let run = |thresholds: CoarseToFine| {
             identify_coarse_to_fine(
                 (model, Nuisance::none()),
@@ -149,5 +162,32 @@ mod tests {
                 "parameter {p}: {difference} vs σ {sd}"
             );
         }
+        // Started at the solution (a robust refit's warm start), a large problem iterates on
+        // every row at once and stops at the first linearisation: its step is negligible.
+        let mut solved = model.clone();
+        solved
+            .set_parameters(&plain.parameters)
+            .expect("parameters");
+        let warm_options = IdentificationOptions {
+            warm_start: true,
+            ..options.clone()
+        };
+        let warm = run_from(&solved, thresholds, &warm_options);
+        assert_eq!(warm.iterations, 0);
+        assert_eq!(warm.costs.len(), 1);
+        for (k, &p) in free.iter().enumerate() {
+            let sd = plain.standard_deviations[k];
+            let difference = (plain.parameters[p] - warm.parameters[p]).abs();
+            assert!(difference <= 1e-3 * sd + 1e-12);
+        }
+        // From the start, a warm start is not taken for granted: the descent goes on.
+        let cold = run_from(model, thresholds, &warm_options);
+        assert!(cold.iterations >= 2);
+        let difference = (cold.costs.last().unwrap() - a).abs();
+        assert!(
+            difference <= 1e-8 * a,
+            "cost {a} vs {}",
+            cold.costs.last().unwrap()
+        );
     }
 }

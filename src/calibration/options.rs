@@ -41,6 +41,10 @@ pub struct IdentificationOptions {
     pub frozen: Vec<usize>,
     /// A Gaussian prior on the parameters (rows in the normal equations; `None`: no prior).
     pub prior: Option<Prior>,
+    /// The model given is already near the solution (a robust refit from the previous fit's):
+    /// a problem large enough for the coarse-to-fine start (`docs/identification.md`) skips
+    /// its coarse stage and iterates on every row from there. Smaller problems ignore it.
+    pub warm_start: bool,
 }
 
 impl IdentificationOptions {
@@ -88,6 +92,7 @@ impl IdentificationOptions {
             robust,
             frozen,
             prior,
+            warm_start,
         } = self;
         Self {
             max_iterations: *max_iterations,
@@ -110,6 +115,7 @@ impl IdentificationOptions {
             robust: *robust,
             frozen: frozen.clone(),
             prior: prior.clone(),
+            warm_start: *warm_start,
         }
     }
 }
@@ -131,6 +137,7 @@ impl Default for IdentificationOptions {
             robust: RobustLoss::default(),
             frozen: Vec::new(),
             prior: None,
+            warm_start: false,
         }
     }
 }

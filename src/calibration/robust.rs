@@ -11,6 +11,7 @@
 //! fell below [`OUTLIER_WEIGHT`] are outliers: named, and left out of one last fit. See
 //! `docs/identification.md`, "Robust estimation".
 
+use super::coarse_to_fine::CoarseToFine;
 use super::observation::{
     kind_of, norms_by_row_kind, standardized_norm, Nuisance, RobotState, Tools,
 };
@@ -149,20 +150,39 @@ pub fn calibrate_robust(
     plan: &Plan,
     options: &IdentificationOptions,
 ) -> Result<(CalibrationReport, RobustReport)> {
+    calibrate_robust_with(
+        (branches, model, plan),
+        measurements,
+        compensation,
+        options,
+        CoarseToFine::DEFAULT,
+    )
+}
+
+/// [`calibrate_robust`] with the thresholds of a large problem given (tests lower them).
+fn calibrate_robust_with(
+    (branches, model, plan): (&Branches, &McpcModel, &Plan),
+    measurements: &[Measurement],
+    compensation: Compensation<'_>,
+    options: &IdentificationOptions,
+    thresholds: CoarseToFine,
+) -> Result<(CalibrationReport, RobustReport)> {
     let loss = options.robust;
-    let weighted = |weights: Vec<f64>| IdentificationOptions {
-        observation_weights: weights,
-        ..options.clone()
+    // A large problem (above the coarse-to-fine threshold) with a loss: the first fit is the
+    // evenly spread subsample's alone (its residuals over every row set the first weights as
+    // well as the full fit's would: they differ by far less than the noise), and every fit
+    // after it starts from the previous one (`warm_start`: no coarse stage again).
+    let subsample = match loss {
+        RobustLoss::Off => None,
+        _ => thresholds.subsample(measurements),
     };
-    let run = |weights: Vec<f64>| {
-        calibrate(
-            branches,
-            model,
-            measurements,
-            compensation,
-            plan,
-            &weighted(weights),
-        )
+    let run = |start: &McpcModel, weights: Vec<f64>| {
+        let options = IdentificationOptions {
+            observation_weights: weights,
+            warm_start: subsample.is_some(),
+            ..options.clone()
+        };
+        calibrate(branches, start, measurements, compensation, plan, &options)
     };
     let offsets = linear_offsets(compensation, model, measurements)?;
     let residuals_at = |model: &McpcModel| {
@@ -174,7 +194,16 @@ pub fn calibrate_robust(
             options,
         )
     };
-    let mut report = run(Vec::new())?;
+    let mut report = match &subsample {
+        Some(selected) => {
+            let rows: Vec<Measurement> =
+                selected.iter().map(|&i| measurements[i].clone()).collect();
+            calibrate(branches, model, &rows, compensation, plan, options)?
+        }
+        None => run(model, Vec::new())?,
+    };
+    // Whether `report` is the subsample's fit, which never ends the loop.
+    let mut coarse = subsample.is_some();
     let mut residuals = residuals_at(&report.model)?;
     let mut weights = vec![1.0; measurements.len()];
     let (mut rounds, mut converged, mut scale) = (0, true, robust_scale(&residuals, measurements));
@@ -187,7 +216,7 @@ pub fn calibrate_robust(
                 .map(|(a, b)| (a - b).abs())
                 .fold(0.0, f64::max);
             weights = next;
-            if change <= WEIGHT_TOLERANCE {
+            if change <= WEIGHT_TOLERANCE && !coarse {
                 break;
             }
             if rounds == MAX_ROUNDS {
@@ -195,7 +224,13 @@ pub fn calibrate_robust(
                 break;
             }
             rounds += 1;
-            report = run(weights.clone())?;
+            let start = if subsample.is_some() {
+                &report.model
+            } else {
+                model
+            };
+            report = run(start, weights.clone())?;
+            coarse = false;
             residuals = residuals_at(&report.model)?;
             scale = robust_scale(&residuals, measurements);
         }
@@ -211,7 +246,12 @@ pub fn calibrate_robust(
     if !robust.outliers().is_empty() {
         // The outliers' bounded pull (Huber: k robust σ each) is a bias the data do not need:
         // the last fit leaves them out, which also keeps them out of σ̂ and the covariance.
-        report = run(robust.fit_weights())?;
+        let start = if subsample.is_some() {
+            &report.model
+        } else {
+            model
+        };
+        report = run(start, robust.fit_weights())?;
         robust.residuals = residuals_at(&report.model)?;
         robust.rounds += 1;
     }
@@ -277,6 +317,64 @@ mod tests {
     use super::*;
     use crate::calibration::loss::chi_median;
     use crate::measurement::Observation;
+
+    /// A large problem's robust fit (the subsample's fit first, every refit from the previous
+    /// one) ends where the plain sequence of fits from the start ends, on clean data and with
+    /// blunders: the same outliers, the parameters within a hundredth of their standard
+    /// deviation.
+    #[test]
+    fn a_large_problem_starts_on_the_subsample_and_ends_at_the_same_fit() {
+        use crate::calibration::coarse_to_fine::CoarseToFine;
+        use crate::calibration::test_problems::{problem, robonaut_with_branches, with_noise};
+
+        let (robot, branches) = robonaut_with_branches();
+        let clean = with_noise(problem(&robot, 800, true), [2e-4, 2e-3]);
+        let mut blunders = clean.clone();
+        for i in [17, 555, 1201] {
+            if let Observation::Pose(pose) = &mut blunders[i].observation {
+                pose.translation.vector.x += 0.02;
+            }
+        }
+        let options = IdentificationOptions {
+            position_sigma: 2e-4,
+            rotation_sigma: 2e-3,
+            ..Default::default()
+        };
+        for (measurements, outliers) in [(&clean, vec![]), (&blunders, vec![17, 555, 1201])] {
+            let run = |thresholds: CoarseToFine| {
+                calibrate_robust_with(
+                    (&branches, &robot.0, &Plan::simultaneous()),
+                    measurements,
+                    Compensation::None,
+                    &options,
+                    thresholds,
+                )
+                .expect("robust calibration")
+            };
+            let (plain, plain_robust) = run(CoarseToFine {
+                above_rows: usize::MAX,
+                coarse_rows: 0,
+            });
+            let (staged, staged_robust) = run(CoarseToFine {
+                above_rows: 1000,
+                coarse_rows: 400,
+            });
+            assert_eq!(plain_robust.outliers(), outliers);
+            assert_eq!(staged_robust.outliers(), outliers);
+            // The subsample's fit came first, then at least one over every row.
+            assert!(staged_robust.rounds >= 1, "rounds {}", staged_robust.rounds);
+            let (a, b) = (plain.model.parameters(), staged.model.parameters());
+            let report = &plain.stages[0].identification;
+            for (k, &p) in report.free.iter().enumerate() {
+                let sd = report.standard_deviations[k];
+                let difference = (a[p] - b[p]).abs();
+                assert!(
+                    difference <= 1e-2 * sd + 1e-12,
+                    "parameter {p}: {difference} vs σ {sd}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn huber_keeps_clean_norms_and_caps_large_ones() {

@@ -115,10 +115,14 @@ pub(crate) fn identify_coarse_to_fine(
         prior: prior_rows.as_ref(),
     };
     let descent = match thresholds.subsample(measurements) {
+        // A large problem started at the previous solution: every row from there.
+        Some(_) if nuisance.is_empty() && options.warm_start => {
+            descend(model, nuisance, &problem, Stop::Predicted)?
+        }
         Some(selected) if nuisance.is_empty() => {
             descend_from_subsample(model, nuisance, &problem, &selected)?
         }
-        _ => descend(model, nuisance, &problem)?,
+        _ => descend(model, nuisance, &problem, Stop::Evaluated)?,
     };
     summarise(descent, &problem)
 }
@@ -153,9 +157,9 @@ fn descend_from_subsample(
             prior: prior.as_ref(),
             ..*problem
         };
-        descend(model, nuisance, &subsample)?
+        descend(model, nuisance, &subsample, Stop::Evaluated)?
     };
-    let mut fine = descend(&coarse.model, &coarse.nuisance, problem)?;
+    let mut fine = descend(&coarse.model, &coarse.nuisance, problem, Stop::Predicted)?;
     fine.iterations += coarse.iterations;
     Ok(fine)
 }
@@ -180,9 +184,48 @@ struct Descent {
     lin: NormalEquations,
 }
 
+/// How [`descend`] may stop besides its step and cost tests.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stop {
+    /// Only on evaluated steps (every problem that is not large).
+    Evaluated,
+    /// Also before evaluating a step whose predicted effect is negligible
+    /// ([`NEGLIGIBLE_STEP`]): a large problem's passes over every row are dear, and near the
+    /// solution a step a thousandth of a standard deviation long lowers the cost by less than
+    /// its rounding over millions of rows, so evaluating it cannot accept it.
+    Predicted,
+}
+
+/// A Gauss–Newton step is negligible when its length in the parameters' standard deviations
+/// (`δᵀ N δ / σ̂²`, with `σ̂² = 2·cost / (equations − unknowns)`) is below this.
+const NEGLIGIBLE_STEP: f64 = 1e-3;
+
+/// Whether the full step `full_step` (scaled units, with the scaled gradient `gradient` of
+/// the linearisation) is negligible ([`NEGLIGIBLE_STEP`]) at `cost` over `equations` rows.
+fn negligible_step(
+    full_step: &DVector<f64>,
+    gradient: &DVector<f64>,
+    cost: f64,
+    equations: usize,
+) -> bool {
+    let unknowns = full_step.len();
+    if equations <= unknowns || cost.is_nan() || cost <= 0.0 {
+        return false;
+    }
+    // δ = N⁻¹g, so δᵀNδ = δᵀg: twice the decrease the linearisation predicts.
+    let squared_length = full_step.dot(gradient);
+    let variance = 2.0 * cost / (equations - unknowns) as f64;
+    squared_length <= NEGLIGIBLE_STEP * NEGLIGIBLE_STEP * variance
+}
+
 /// The damped Gauss–Newton iteration from `model` (eq. (27)–(29)): minimum-norm steps over
 /// the retained singular directions, damped (Levenberg–Marquardt) until the cost decreases.
-fn descend(model: &McpcModel, nuisance: &Nuisance, problem: &Problem<'_>) -> Result<Descent> {
+fn descend(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    problem: &Problem<'_>,
+    stop: Stop,
+) -> Result<Descent> {
     let (free, options) = (problem.free, problem.options);
     let mut current = model.clone();
     let mut current_nuisance = nuisance.clone();
@@ -196,6 +239,10 @@ fn descend(model: &McpcModel, nuisance: &Nuisance, problem: &Problem<'_>) -> Res
     let mut termination = Termination::MaxIterations;
     // The analysis of the linearisation at `current` once the loop ends, if still valid.
     let mut final_analysis: Option<Analysis> = None;
+    let equations = match stop {
+        Stop::Predicted => rows_of(problem.measurements),
+        Stop::Evaluated => 0,
+    };
 
     while iterations < options.max_iterations {
         // An SVD of a non-finite matrix never ends: stop with an error instead. The normal
@@ -225,7 +272,10 @@ fn descend(model: &McpcModel, nuisance: &Nuisance, problem: &Problem<'_>) -> Res
             .sqrt();
         // The undamped step, also the first trial below (one Cholesky factorisation, not two).
         let full_step = damped_step(&analysis, options.rank_tolerance, 0.0);
-        if full_step.norm() <= options.step_tolerance * (1.0 + scaled_parameters) {
+        if full_step.norm() <= options.step_tolerance * (1.0 + scaled_parameters)
+            || (stop == Stop::Predicted
+                && negligible_step(&full_step, &analysis.gradient, cost, equations))
+        {
             termination = Termination::StepConverged;
             final_analysis = Some(analysis);
             break;

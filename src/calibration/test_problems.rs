@@ -10,12 +10,17 @@ use rand::{RngExt, SeedableRng};
 
 /// The built-in Robonaut and its number of joint values.
 pub(super) fn robonaut() -> (McpcModel, usize) {
+    robonaut_with_branches().0
+}
+
+/// The built-in Robonaut, its number of joint values and its branches.
+pub(super) fn robonaut_with_branches() -> ((McpcModel, usize), crate::tree::Branches) {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/robonaut/robonaut.urdf");
     let tree = load_urdf(&path).expect("robonaut.urdf loads").tree;
     let branches = detect_branches(&tree, None).expect("branches");
     let model = McpcModel::from_tree(&tree, &branches).expect("model");
-    (model, tree.dof_count())
+    ((model, tree.dof_count()), branches)
 }
 
 /// Measurements of a model off the nominal one at random configurations: full poses, or
