@@ -234,7 +234,7 @@ fn parse_block<S: BlockRows>(
         }
         count += 1;
         row.clear();
-        row.push_row(line, text.split(',').map(str::trim), place.origin)
+        row.push_row(line, fields(text).map(str::trim), place.origin)
             .ok()?;
         state.row(&mut part, row.row(0))?;
     }
@@ -253,6 +253,25 @@ pub(super) struct PlainHeader<'h> {
     pub(super) rows_guess: usize,
 }
 
+/// The comma-separated fields of a plain line (`str::split(',')`, by a byte scan: faster on
+/// the short fields of a measurement file).
+fn fields(text: &str) -> impl Iterator<Item = &str> {
+    let mut rest = Some(text);
+    std::iter::from_fn(move || {
+        let text = rest?;
+        match text.bytes().position(|b| b == b',') {
+            Some(comma) => {
+                rest = text.get(comma + 1..);
+                text.get(..comma)
+            }
+            None => {
+                rest = None;
+                Some(text)
+            }
+        }
+    })
+}
+
 /// Whether a plain line is a record (not a comment, not only empty fields); `None` if it is
 /// past a limit (too many columns, a field too long).
 pub(super) fn plain_record(text: &str) -> Option<bool> {
@@ -260,7 +279,7 @@ pub(super) fn plain_record(text: &str) -> Option<bool> {
         return Some(false);
     }
     let (mut count, mut any) = (0, false);
-    for field in text.split(',') {
+    for field in fields(text) {
         if field.len() > MAX_CSV_FIELD_BYTES || count == MAX_CSV_COLUMNS {
             return None;
         }
@@ -332,6 +351,24 @@ impl<R: BufRead> PlainLines<R> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn fields_split_as_str_split_does() {
+        for text in [
+            "",
+            ",",
+            "a",
+            "a,,b,",
+            ",x",
+            "é,ü,ß",
+            " 1.5 , -2e3,id 7",
+            "a,b,c,d,e,f,g",
+        ] {
+            let ours: Vec<&str> = super::fields(text).collect();
+            let std: Vec<&str> = text.split(',').collect();
+            assert_eq!(ours, std, "{text:?}");
+        }
+    }
+
     use super::*;
 
     /// Gathers every row's line and first field.
