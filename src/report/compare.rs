@@ -7,7 +7,7 @@ use serde::Serialize;
 use std::fmt::Write;
 
 /// report.json's `schema_version` for compare.
-pub const COMPARE_SCHEMA: &str = "treecal-compare/1";
+pub const COMPARE_SCHEMA: &str = "treecal-compare/2";
 
 /// A parameter that moved beyond k combined σ.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -18,14 +18,31 @@ pub struct MovedParameter {
     pub unit: String,
     /// Calibrated in A (SI).
     pub a: f64,
-    /// Calibrated in B (SI).
+    /// B re-expressed in A's measurement frame (SI; as calibrated when it could not be).
     pub b: f64,
-    /// `b − a` (SI).
+    /// Calibrated in B, in B's own measurement frame (SI).
+    pub b_calibrated: f64,
+    /// `b − a` (SI): what no change of measurement frame explains.
     pub change: f64,
     /// `√(σa² + σb²)` (SI).
     pub combined_std_dev: f64,
     /// `|b − a|` in combined σ.
     pub sigmas: f64,
+}
+
+/// How B was re-expressed in A's measurement frame before its parameters were judged: the
+/// change of B's root frame that aligns its tools onto A's, pushed into its parameters.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameChange {
+    /// The change of B's root frame: translation (mm).
+    pub translation_mm: f64,
+    /// Its rotation (deg).
+    pub rotation_deg: f64,
+    /// Parameters re-expressed (the others are compared as calibrated).
+    pub parameters: usize,
+    /// The tool positions' RMS left by the re-expression (mm): how exactly the parameters
+    /// hold the change.
+    pub residual_mm: f64,
 }
 
 /// The predicted displacement of one tool at one configuration.
@@ -111,6 +128,9 @@ pub struct CompareReport {
     pub parameters_judged: usize,
     /// The parameters that moved beyond k σ, largest first.
     pub moved: Vec<MovedParameter>,
+    /// B's re-expression in A's measurement frame (`None`: compared as calibrated, without
+    /// configurations or a model of A's URDF).
+    pub frame_change: Option<FrameChange>,
     /// The predicted tool displacement (`None`: neither folder records its postures).
     pub displacement: Option<Displacement>,
     /// A's and B's validation figures.
@@ -180,6 +200,17 @@ impl CompareReport {
             self.parameters_judged,
             self.k
         );
+        let _ = match &self.frame_change {
+            Some(f) => writeln!(
+                out,
+                "B is re-expressed in A's measurement frame first: each calibration fits its own frame, and the first joint frames absorb what separates it from the robot's, so the two differ there by a change of frame that their σ's leave out. B's root frame moved by {:.3} mm and {:.4}° (the rigid alignment of its tools onto A's), pushed into {} parameters (tools left {:.2e} mm RMS from B's); B − A below is what no change of frame explains.\n",
+                f.translation_mm, f.rotation_deg, f.parameters, f.residual_mm
+            ),
+            None => writeln!(
+                out,
+                "B is compared as calibrated, not re-expressed in A's measurement frame (no configuration set, or A's URDF not rebuilt as a model of the tools): the first joint frames of each chain may differ by the change between the two fitted measurement frames.\n"
+            ),
+        };
         if !self.moved.is_empty() {
             let _ = writeln!(out, "| parameter | A | B | B − A | combined σ | σ's |");
             let _ = writeln!(out, "|---|---|---|---|---|---|");
