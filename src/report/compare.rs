@@ -150,10 +150,10 @@ fn in_display_unit(value: f64, unit: &str) -> String {
 impl CompareReport {
     /// Whether the tools moved more than two calibrations of one unchanged robot differ by:
     /// the aligned displacement against `DRIFT_FACTOR` times the noise-only prediction error
-    /// of the two combined. Parameter σ's leave out what the first joints' frames trade with
-    /// a fitted measurement frame, so two calibrations of one robot can list parameters
-    /// "moved" by many σ that move no tool (red team: 5 of 72 at 4–17σ on a simulated
-    /// SDA10F, aligned displacement 0.52 mm); the tools are the figure to judge drift by.
+    /// of the two combined. Parameter σ's are conditional on the fitted frames (B is
+    /// re-expressed in A's measurement frame first, but session frames and the trade between
+    /// parameters remain), so a parameter can be listed that moves no tool; the tools are the
+    /// figure to judge drift by.
     fn displacement_judgement(&self, d: &Displacement) -> Option<String> {
         /// Two calibrations of one robot differ by about the combined prediction error
         /// (measured 1.25×); a drift at the tools shows well beyond it.
@@ -170,7 +170,7 @@ impl CompareReport {
             (false, true) => ("The tools did not move beyond the noise:", "."),
             (false, false) => (
                 "**The tools did not move beyond the noise:**",
-                ". The parameters listed above traded among themselves (and with the fitted measurement frames) without moving the tools: their σ's leave that trade out, so read them as no drift.",
+                ". The parameters listed above changed without moving the tools beyond the noise: they trade among themselves (with several sessions, with the session frames too), which their σ's leave out, so read them as no drift.",
             ),
         };
         Some(format!(

@@ -97,7 +97,22 @@ struct Folder {
     tree: KinematicTree,
     world_from_base: Pose,
     postures: Option<RecordedPostures>,
+    /// Calibrated from a reference link other than the URDF root.
+    from_reference_link: bool,
     inputs: Vec<PathBuf>,
+}
+
+/// Whether the calibration in `dir` was measured from a reference link: report.json's
+/// `reference_link` (contact calibrations), or the settings recorded in provenance.yaml (the
+/// debug text of `CalibrateConfig`, which names `reference_link: Some(..)`).
+fn from_reference_link(dir: &Path, report: &serde_json::Value) -> bool {
+    if report.get("reference_link").is_some_and(|v| !v.is_null()) {
+        return true;
+    }
+    let provenance = dir.join(super::provenance::PROVENANCE_FILE);
+    provenance.is_file()
+        && crate::limits::read_text(&provenance, crate::limits::MAX_YAML_BYTES)
+            .is_ok_and(|text| text.contains("reference_link: Some("))
 }
 
 impl Folder {
@@ -138,6 +153,7 @@ impl Folder {
         Ok(Self {
             dir: dir.to_owned(),
             postures: postures_of(&report, &report_path)?,
+            from_reference_link: from_reference_link(dir, &report),
             report,
             parameters,
             tree,
@@ -307,6 +323,11 @@ fn reexpression(
     aligned: &Pose,
     configurations: &[Configuration],
 ) -> Result<Option<Reexpression>> {
+    if a.from_reference_link || b.from_reference_link {
+        // The root is then a gauge of its own, fixed by parameters of the reference path that
+        // a model of the tools' branches does not hold: compared as calibrated.
+        return Ok(None);
+    }
     let root_change = a.world_from_base.inverse() * aligned * b.world_from_base;
     reexpress(&a.tree, &b.tree, root_change, configurations)
 }
