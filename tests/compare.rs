@@ -116,10 +116,12 @@ fn compare_judges_drift_by_the_tools_against_the_predicted_noise() {
             unit: "m".into(),
             a: 0.0,
             b: 1e-3,
+            b_calibrated: 1e-3,
             change: 1e-3,
             combined_std_dev: 1e-4,
             sigmas: 10.0,
         }],
+        frame_change: None,
         displacement: Some(Displacement::of(vec![DisplacementRow {
             tool: "left".into(),
             deployed_mm: 5.0,

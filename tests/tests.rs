@@ -11,6 +11,7 @@ mod camera_plan;
 mod cli;
 mod collision;
 mod compare;
+mod compare_gauge;
 mod contacts;
 mod contacts_check;
 mod contacts_humanoid;

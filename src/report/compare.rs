@@ -7,7 +7,7 @@ use serde::Serialize;
 use std::fmt::Write;
 
 /// report.json's `schema_version` for compare.
-pub const COMPARE_SCHEMA: &str = "treecal-compare/1";
+pub const COMPARE_SCHEMA: &str = "treecal-compare/2";
 
 /// A parameter that moved beyond k combined σ.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -18,14 +18,31 @@ pub struct MovedParameter {
     pub unit: String,
     /// Calibrated in A (SI).
     pub a: f64,
-    /// Calibrated in B (SI).
+    /// B re-expressed in A's measurement frame (SI; as calibrated when it could not be).
     pub b: f64,
-    /// `b − a` (SI).
+    /// Calibrated in B, in B's own measurement frame (SI).
+    pub b_calibrated: f64,
+    /// `b − a` (SI): what no change of measurement frame explains.
     pub change: f64,
     /// `√(σa² + σb²)` (SI).
     pub combined_std_dev: f64,
     /// `|b − a|` in combined σ.
     pub sigmas: f64,
+}
+
+/// How B was re-expressed in A's measurement frame before its parameters were judged: the
+/// change of B's root frame that aligns its tools onto A's, pushed into its parameters.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameChange {
+    /// The change of B's root frame: translation (mm).
+    pub translation_mm: f64,
+    /// Its rotation (deg).
+    pub rotation_deg: f64,
+    /// Parameters re-expressed (the others are compared as calibrated).
+    pub parameters: usize,
+    /// The tool positions' RMS left by the re-expression (mm): how exactly the parameters
+    /// hold the change.
+    pub residual_mm: f64,
 }
 
 /// The predicted displacement of one tool at one configuration.
@@ -111,6 +128,9 @@ pub struct CompareReport {
     pub parameters_judged: usize,
     /// The parameters that moved beyond k σ, largest first.
     pub moved: Vec<MovedParameter>,
+    /// B's re-expression in A's measurement frame (`None`: compared as calibrated, without
+    /// configurations or a model of A's URDF).
+    pub frame_change: Option<FrameChange>,
     /// The predicted tool displacement (`None`: neither folder records its postures).
     pub displacement: Option<Displacement>,
     /// A's and B's validation figures.
@@ -130,10 +150,10 @@ fn in_display_unit(value: f64, unit: &str) -> String {
 impl CompareReport {
     /// Whether the tools moved more than two calibrations of one unchanged robot differ by:
     /// the aligned displacement against `DRIFT_FACTOR` times the noise-only prediction error
-    /// of the two combined. Parameter σ's leave out what the first joints' frames trade with
-    /// a fitted measurement frame, so two calibrations of one robot can list parameters
-    /// "moved" by many σ that move no tool (red team: 5 of 72 at 4–17σ on a simulated
-    /// SDA10F, aligned displacement 0.52 mm); the tools are the figure to judge drift by.
+    /// of the two combined. Parameter σ's are conditional on the fitted frames (B is
+    /// re-expressed in A's measurement frame first, but session frames and the trade between
+    /// parameters remain), so a parameter can be listed that moves no tool; the tools are the
+    /// figure to judge drift by.
     fn displacement_judgement(&self, d: &Displacement) -> Option<String> {
         /// Two calibrations of one robot differ by about the combined prediction error
         /// (measured 1.25×); a drift at the tools shows well beyond it.
@@ -150,7 +170,7 @@ impl CompareReport {
             (false, true) => ("The tools did not move beyond the noise:", "."),
             (false, false) => (
                 "**The tools did not move beyond the noise:**",
-                ". The parameters listed above traded among themselves (and with the fitted measurement frames) without moving the tools: their σ's leave that trade out, so read them as no drift.",
+                ". The parameters listed above changed without moving the tools beyond the noise: they trade among themselves (with several sessions, with the session frames too), which their σ's leave out, so read them as no drift.",
             ),
         };
         Some(format!(
@@ -180,6 +200,17 @@ impl CompareReport {
             self.parameters_judged,
             self.k
         );
+        let _ = match &self.frame_change {
+            Some(f) => writeln!(
+                out,
+                "B is re-expressed in A's measurement frame first: each calibration fits its own frame, and the first joint frames absorb what separates it from the robot's, so the two differ there by a change of frame that their σ's leave out. B's root frame moved by {:.3} mm and {:.4}° (the rigid alignment of its tools onto A's), pushed into {} parameters (tools left {:.2e} mm RMS from B's); B − A below is what no change of frame explains.\n",
+                f.translation_mm, f.rotation_deg, f.parameters, f.residual_mm
+            ),
+            None => writeln!(
+                out,
+                "B is compared as calibrated, not re-expressed in A's measurement frame (no configuration set, or A's URDF not rebuilt as a model of the tools): the first joint frames of each chain may differ by the change between the two fitted measurement frames.\n"
+            ),
+        };
         if !self.moved.is_empty() {
             let _ = writeln!(out, "| parameter | A | B | B − A | combined σ | σ's |");
             let _ = writeln!(out, "|---|---|---|---|---|---|");

@@ -37,7 +37,8 @@ pub use camera::{
 };
 pub use check::{CheckReport, StageCheck, CHECK_SCHEMA};
 pub use compare::{
-    CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures, COMPARE_SCHEMA,
+    CompareReport, Displacement, DisplacementRow, FrameChange, MovedParameter, ValidationFigures,
+    COMPARE_SCHEMA,
 };
 pub use contact_scores::{written_contacts, ContactScores, Errors, Judged, Scored};
 pub use contacts::{contact_report, contact_unobservable_markdown};

@@ -3,6 +3,7 @@
 //! displacement the two calibrated URDFs predict over a configuration set, and the validation
 //! figures side by side (docs/workflows.md, "Compare").
 
+use super::compare_gauge::{reexpress, Configuration, Reexpression};
 use super::postures::RecordedPostures;
 use super::provenance::Started;
 use super::verify::{postures_of, scored_link};
@@ -11,10 +12,11 @@ use crate::error::{Error, Result};
 use crate::io::read_registration;
 use crate::math::{Pose, Vec3};
 use crate::report::{
-    CompareReport, Displacement, DisplacementRow, MovedParameter, ValidationFigures,
+    CompareReport, Displacement, DisplacementRow, FrameChange, MovedParameter, ValidationFigures,
 };
 use crate::tree::KinematicTree;
 use crate::urdf::parse_urdf;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// The files [`Comparison::write`] writes.
@@ -95,7 +97,22 @@ struct Folder {
     tree: KinematicTree,
     world_from_base: Pose,
     postures: Option<RecordedPostures>,
+    /// Calibrated from a reference link other than the URDF root.
+    from_reference_link: bool,
     inputs: Vec<PathBuf>,
+}
+
+/// Whether the calibration in `dir` was measured from a reference link: report.json's
+/// `reference_link` (contact calibrations), or the settings recorded in provenance.yaml (the
+/// debug text of `CalibrateConfig`, which names `reference_link: Some(..)`).
+fn from_reference_link(dir: &Path, report: &serde_json::Value) -> bool {
+    if report.get("reference_link").is_some_and(|v| !v.is_null()) {
+        return true;
+    }
+    let provenance = dir.join(super::provenance::PROVENANCE_FILE);
+    provenance.is_file()
+        && crate::limits::read_text(&provenance, crate::limits::MAX_YAML_BYTES)
+            .is_ok_and(|text| text.contains("reference_link: Some("))
 }
 
 impl Folder {
@@ -136,6 +153,7 @@ impl Folder {
         Ok(Self {
             dir: dir.to_owned(),
             postures: postures_of(&report, &report_path)?,
+            from_reference_link: from_reference_link(dir, &report),
             report,
             parameters,
             tree,
@@ -189,8 +207,14 @@ impl Folder {
 }
 
 /// The parameters of `b` that moved from `a`'s by more than `k` combined σ, largest first
-/// (in σ); parameters without a σ in either folder are not judged.
-fn moved(a: &[Parameter], b: &[Parameter], k: f64) -> (Vec<MovedParameter>, usize) {
+/// (in σ); parameters without a σ in either folder are not judged. `reexpressed`: B − A per
+/// parameter name with B in A's measurement frame (the others are compared as calibrated).
+fn moved(
+    a: &[Parameter],
+    b: &[Parameter],
+    k: f64,
+    reexpressed: Option<&HashMap<String, f64>>,
+) -> (Vec<MovedParameter>, usize) {
     let mut judged = 0;
     let mut moved: Vec<MovedParameter> = a
         .iter()
@@ -198,12 +222,15 @@ fn moved(a: &[Parameter], b: &[Parameter], k: f64) -> (Vec<MovedParameter>, usiz
             let pb = b.iter().find(|p| p.name == pa.name)?;
             let sigma = pa.std_dev?.hypot(pb.std_dev?);
             judged += 1;
-            let change = pb.calibrated - pa.calibrated;
+            let change = reexpressed
+                .and_then(|r| r.get(&pa.name).copied())
+                .unwrap_or(pb.calibrated - pa.calibrated);
             (sigma > 0.0 && change.abs() > k * sigma).then(|| MovedParameter {
                 name: pa.name.clone(),
                 unit: pa.unit.clone(),
                 a: pa.calibrated,
-                b: pb.calibrated,
+                b: pa.calibrated + change,
+                b_calibrated: pb.calibrated,
                 change,
                 combined_std_dev: sigma,
                 sigmas: change.abs() / sigma,
@@ -215,7 +242,7 @@ fn moved(a: &[Parameter], b: &[Parameter], k: f64) -> (Vec<MovedParameter>, usiz
 }
 
 /// The configurations of both folders' recorded identification postures, per tool link name.
-fn configurations(a: &Folder, b: &Folder) -> Vec<(String, Vec<(String, f64)>)> {
+fn configurations(a: &Folder, b: &Folder) -> Vec<Configuration> {
     let mut out = Vec::new();
     for folder in [a, b] {
         let Some(recorded) = &folder.postures else {
@@ -259,15 +286,19 @@ fn tool_position(folder: &Folder, tool: &str, joints: &[(String, f64)]) -> Resul
 
 /// The displacement between the two calibrations' predictions at every configuration: as
 /// deployed (each URDF with its registration), and after the best rigid alignment of B's
-/// predictions onto A's (what no re-registration of the tracker removes).
-fn displacement(a: &Folder, b: &Folder) -> Result<Option<Displacement>> {
-    let configurations = configurations(a, b);
+/// predictions onto A's (what no re-registration of the tracker removes); with the alignment
+/// (A's measurement frame from B's).
+fn displacement(
+    a: &Folder,
+    b: &Folder,
+    configurations: &[Configuration],
+) -> Result<Option<(Displacement, Pose)>> {
     if configurations.is_empty() {
         return Ok(None);
     }
     let mut pa = Vec::new();
     let mut pb = Vec::new();
-    for (tool, joints) in &configurations {
+    for (tool, joints) in configurations {
         pa.push(tool_position(a, tool, joints)?);
         pb.push(tool_position(b, tool, joints)?);
     }
@@ -281,7 +312,24 @@ fn displacement(a: &Folder, b: &Folder) -> Result<Option<Displacement>> {
             aligned_mm: (aligned.transform_point(&(*y).into()).coords - x).norm() * 1e3,
         })
         .collect();
-    Ok(Some(Displacement::of(rows)))
+    Ok(Some((Displacement::of(rows), aligned)))
+}
+
+/// B re-expressed in A's measurement frame (see `compare_gauge`): the change of B's root frame
+/// the tool alignment `aligned` implies, pushed into B's parameters.
+fn reexpression(
+    a: &Folder,
+    b: &Folder,
+    aligned: &Pose,
+    configurations: &[Configuration],
+) -> Result<Option<Reexpression>> {
+    if a.from_reference_link || b.from_reference_link {
+        // The root is then a gauge of its own, fixed by parameters of the reference path that
+        // a model of the tools' branches does not hold: compared as calibrated.
+        return Ok(None);
+    }
+    let root_change = a.world_from_base.inverse() * aligned * b.world_from_base;
+    reexpress(&a.tree, &b.tree, root_change, configurations)
 }
 
 /// Compares two calibrate output folders. Writes nothing.
@@ -309,14 +357,36 @@ pub fn compare(config: &CompareConfig) -> Result<Comparison> {
             ),
         ));
     }
-    let (moved, judged) = moved(&a.parameters, &b.parameters, config.k);
+    let configurations = configurations(&a, &b);
+    let displacement = displacement(&a, &b, &configurations)?;
+    let reexpressed = match &displacement {
+        Some((_, aligned)) => reexpression(&a, &b, aligned, &configurations)?,
+        None => None,
+    };
+    let (moved, judged) = moved(
+        &a.parameters,
+        &b.parameters,
+        config.k,
+        reexpressed.as_ref().map(|r| &r.change),
+    );
+    let frame_change = reexpressed.as_ref().map(|r| FrameChange {
+        translation_mm: r.root_change.translation.vector.norm() * 1e3,
+        rotation_deg: r.root_change.rotation.angle().to_degrees(),
+        parameters: a
+            .parameters
+            .iter()
+            .filter(|p| r.change.contains_key(&p.name))
+            .count(),
+        residual_mm: r.residual_m * 1e3,
+    });
     let mut report = CompareReport {
         schema_version: crate::report::COMPARE_SCHEMA,
         robot: a.tree.name().to_owned(),
         k: config.k,
         parameters_judged: judged,
         moved,
-        displacement: displacement(&a, &b)?,
+        frame_change,
+        displacement: displacement.map(|(d, _)| d),
         validation: [a.figures(), b.figures()],
         provenance: super::provenance::PROVENANCE_FILE.into(),
     };

@@ -26,6 +26,7 @@ mod check_contacts;
 pub(crate) mod checker;
 pub(crate) mod checks;
 pub(crate) mod compare;
+pub(crate) mod compare_gauge;
 pub(crate) mod contact_cv;
 pub(crate) mod contact_fit;
 mod contact_model;
