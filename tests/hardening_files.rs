@@ -466,3 +466,58 @@ fn huge_numbers_show_in_exponent_notation() {
     let error = parse_plan(plan, "p.yaml").unwrap_err().to_string();
     assert!(error.len() < 400, "{error}");
 }
+
+/// Spreadsheet exports of the measurement CSV: semicolons (with decimal commas, or not) and
+/// tabs are named at the header's line with what to do, never a missing column or a field
+/// count; UTF-16 with its byte-order mark (a "Unicode text" export) reads as the UTF-8 file,
+/// and without it the message names UTF-16 and how to save the file.
+#[test]
+fn spreadsheet_exports_are_named() {
+    let (tree, model) = robonaut_model();
+    let example = std::fs::read_to_string(robot("robonaut/example/measurements.csv")).unwrap();
+    let read = |text: &str| {
+        treecal::io::parse_measurements(text, "m.csv", &tree, &model, &Default::default())
+    };
+    let plain = read(&example).unwrap();
+    let header_line = 1 + example.lines().take_while(|l| l.starts_with('#')).count();
+    let resaved = |separator: &str, decimal: &str| -> String {
+        let lines = example.lines().map(|l| match l.starts_with('#') {
+            true => l.to_owned(),
+            false => l.replace(',', separator).replace('.', decimal),
+        });
+        lines.map(|l| l + "\n").collect()
+    };
+    for (text, named) in [
+        (resaved(";", ","), "semicolons"),
+        (resaved(";", "."), "semicolons"),
+        (resaved("\t", "."), "tabs"),
+    ] {
+        let error = read(&text).unwrap_err().to_string();
+        assert!(
+            error.starts_with(&format!(
+                "m.csv:{header_line}: the header row is separated by {named}"
+            )) && error.contains("\"CSV (comma delimited)\""),
+            "{error}"
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let utf16 = |bom: bool| {
+        let path = dir.path().join("m16.csv");
+        let mut bytes: Vec<u8> = if bom { vec![0xFF, 0xFE] } else { Vec::new() };
+        bytes.extend(example.encode_utf16().flat_map(u16::to_le_bytes));
+        std::fs::write(&path, bytes).unwrap();
+        treecal::io::read_text(&path, limits::MAX_CSV_BYTES)
+    };
+    let decoded = utf16(true).unwrap();
+    assert_eq!(
+        read(&decoded).unwrap().measurements.len(),
+        plain.measurements.len()
+    );
+    let error = utf16(false).unwrap_err().to_string();
+    assert!(
+        error.contains("m16.csv")
+            && error.contains("UTF-16 without a byte-order mark")
+            && error.contains("CSV UTF-8"),
+        "{error}"
+    );
+}
