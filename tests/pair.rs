@@ -198,6 +198,39 @@ fn positions_only_and_another_seed_pair_too() {
     );
 }
 
+/// A rigid body 15–35 cm beyond the tool link (a marker body on a gripper or a long tool)
+/// logged as poses beside a 50 Hz joint log: the body's rotation speed is the tool link's,
+/// wherever the body sits, so the offset stays within one tracker period (the point's speed,
+/// which has the lever arm in it, was 1.2 periods off here and 3 periods on a lab's arm).
+#[test]
+fn a_rigid_body_far_from_the_tool_pairs_within_a_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = robonaut();
+    let (dofs, _) = moving(&tree, "right_tool");
+    // On main before the fix: -2.0, -4.5 and -10.1 ms (one tracker period is 8.3 ms).
+    for (seed, lever) in [(21, 0.15), (25, 0.15), (31, 0.35)] {
+        let motion = Motion::new(&tree, &dofs, 12, false, seed);
+        let recording = Recording {
+            joint_rate: 50.0,
+            marker_offset: treecal::math::Vec3::new(-0.03, 0.02, lever),
+            seed: seed + 1,
+            ..Recording::default()
+        };
+        let pairing = pair(&logs(dir.path(), "right_tool", &motion, &recording)).unwrap();
+        let error = pairing.offset - recording.offset();
+        eprintln!(
+            "seed {seed}: body {lever} m off: offset error {:.3} ms",
+            error * 1e3
+        );
+        assert!(
+            error.abs() < 1.0 / recording.tracker_rate,
+            "seed {seed}: offset error {:.3} ms",
+            error * 1e3
+        );
+        assert_only_holds_paired(&tree, &pairing, &motion, &recording, "right_tool");
+    }
+}
+
 /// A lifting column (prismatic, metres) under the arms: its joint values, speeds and spreads
 /// are lengths, written in the joint log's length unit.
 #[test]
