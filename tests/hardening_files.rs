@@ -521,3 +521,36 @@ fn spreadsheet_exports_are_named() {
         "{error}"
     );
 }
+
+/// Xacro leftovers in a URDF (issue 21): a `${…}` expression was "wrong vector element
+/// count", and an `<xacro:include>` or a macro call was ignored without a word (the links it
+/// would add silently missing). Both now name the line and say to expand the file first.
+#[test]
+fn xacro_leftovers_are_named_with_their_line() {
+    let urdf = std::fs::read_to_string(robot("robonaut/robonaut.urdf")).unwrap();
+    let read = |text: &str| treecal::urdf::parse_urdf(text, "r.urdf");
+    assert!(read(&urdf).is_ok());
+    let line_of =
+        |text: &str, needle: &str| 1 + text[..text.find(needle).unwrap()].matches('\n').count();
+    let first_origin = urdf.find("<origin xyz=\"").unwrap();
+    let value = first_origin + "<origin xyz=\"".len();
+    let expression = format!("{}${{offset}} {}", &urdf[..value], &urdf[value..]);
+    let include = urdf.replacen(
+        "</robot>",
+        "  <xacro:include filename=\"$(find robonaut)/urdf/hand.xacro\"/>\n  <xacro:hand side=\"left\"/>\n</robot>",
+        1,
+    );
+    for (text, needle, what) in [
+        (&expression, "${offset}", "<origin xyz=\"${offset}"),
+        (&include, "<xacro:include", "<xacro:include>"),
+    ] {
+        let error = read(text).unwrap_err().to_string();
+        let place = format!("r.urdf:{}:", line_of(text, needle));
+        assert!(
+            error.starts_with(&place)
+                && error.contains(what)
+                && error.contains("expand it first (`xacro robot.urdf.xacro > robot.urdf`"),
+            "{place} {error}"
+        );
+    }
+}
