@@ -295,3 +295,34 @@ fn too_little_motion_is_refused() {
     let error = pair(&config).unwrap_err().to_string();
     assert!(error.contains("too little motion"), "{error}");
 }
+
+/// The pairing report ends with its provenance (issue 30): treecal's version and commit and
+/// every input with its SHA-256 as `sha256sum` prints it; the same logs give the same report.
+#[test]
+fn the_pairing_report_names_its_inputs_with_their_hashes() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = robonaut();
+    let (dofs, _) = moving(&tree, "left_tool");
+    let motion = Motion::new(&tree, &dofs, 6, false, 41);
+    let recording = Recording::default();
+    let config = logs(dir.path(), "left_tool", &motion, &recording);
+    let pairing = pair(&config).unwrap();
+    let report = &pairing.report;
+    let provenance = &report[report.find("## Provenance").expect("a provenance section")..];
+    assert!(
+        provenance.contains(&format!("treecal {} (commit ", env!("CARGO_PKG_VERSION")))
+            && provenance.contains("robot: the built-in Robonaut"),
+        "{provenance}"
+    );
+    for path in [&config.joints, &config.tracker] {
+        let bytes = std::fs::read(path).unwrap();
+        let row = format!(
+            "| `{}` | {} | {} |",
+            path.display(),
+            bytes.len(),
+            treecal::io::sha256_hex(&bytes)
+        );
+        assert!(provenance.contains(&row), "{row}\n{provenance}");
+    }
+    assert_eq!(pair(&config).unwrap().report, *report);
+}

@@ -134,7 +134,7 @@ pub fn pair(config: &PairConfig) -> Result<Pairing> {
         prismatic: &series.prismatic,
         options: &config.plateaus,
     };
-    let report = pairing_markdown(&report);
+    let report = pairing_markdown(&report) + &provenance_markdown(config)?;
     if rows.is_empty() {
         return Err(Error::InvalidData {
             origin: format!("{} and {}", log.origin, tracker_log.origin),
@@ -150,6 +150,34 @@ pub fn pair(config: &PairConfig) -> Result<Pairing> {
         plateaus,
         notes,
     })
+}
+
+/// Where the pairing came from (the report's last section): treecal's version and commit,
+/// and every input file with its size and SHA-256 (what `sha256sum` prints). Nothing of the
+/// run's time, so the same logs give the same report.
+fn provenance_markdown(config: &PairConfig) -> Result<String> {
+    let commit = match crate::io::GIT_COMMIT {
+        "" => "unknown (not built from a git checkout)",
+        commit => commit,
+    };
+    let mut out = format!(
+        "## Provenance\n\ntreecal {} (commit {commit}); robot: {}\n\n| input | bytes | sha256 |\n| --- | ---: | --- |\n",
+        env!("CARGO_PKG_VERSION"),
+        config
+            .robot
+            .path()
+            .map_or_else(|| "the built-in Robonaut".to_owned(), |p| format!("`{}`", p.display()))
+    );
+    let inputs = config
+        .robot
+        .path()
+        .into_iter()
+        .chain([config.joints.as_path(), config.tracker.as_path()]);
+    for path in inputs {
+        let file = crate::io::input_file(path)?;
+        out += &format!("| `{}` | {} | {} |\n", file.path, file.bytes, file.sha256);
+    }
+    Ok(out)
 }
 
 /// A joint-log column that is an independent joint of the robot.
