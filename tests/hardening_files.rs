@@ -466,3 +466,91 @@ fn huge_numbers_show_in_exponent_notation() {
     let error = parse_plan(plan, "p.yaml").unwrap_err().to_string();
     assert!(error.len() < 400, "{error}");
 }
+
+/// Spreadsheet exports of the measurement CSV: semicolons (with decimal commas, or not) and
+/// tabs are named at the header's line with what to do, never a missing column or a field
+/// count; UTF-16 with its byte-order mark (a "Unicode text" export) reads as the UTF-8 file,
+/// and without it the message names UTF-16 and how to save the file.
+#[test]
+fn spreadsheet_exports_are_named() {
+    let (tree, model) = robonaut_model();
+    let example = std::fs::read_to_string(robot("robonaut/example/measurements.csv")).unwrap();
+    let read = |text: &str| {
+        treecal::io::parse_measurements(text, "m.csv", &tree, &model, &Default::default())
+    };
+    let plain = read(&example).unwrap();
+    let header_line = 1 + example.lines().take_while(|l| l.starts_with('#')).count();
+    let resaved = |separator: &str, decimal: &str| -> String {
+        let lines = example.lines().map(|l| match l.starts_with('#') {
+            true => l.to_owned(),
+            false => l.replace(',', separator).replace('.', decimal),
+        });
+        lines.map(|l| l + "\n").collect()
+    };
+    for (text, named) in [
+        (resaved(";", ","), "semicolons"),
+        (resaved(";", "."), "semicolons"),
+        (resaved("\t", "."), "tabs"),
+    ] {
+        let error = read(&text).unwrap_err().to_string();
+        assert!(
+            error.starts_with(&format!(
+                "m.csv:{header_line}: the header row is separated by {named}"
+            )) && error.contains("\"CSV (comma delimited)\""),
+            "{error}"
+        );
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let utf16 = |bom: bool| {
+        let path = dir.path().join("m16.csv");
+        let mut bytes: Vec<u8> = if bom { vec![0xFF, 0xFE] } else { Vec::new() };
+        bytes.extend(example.encode_utf16().flat_map(u16::to_le_bytes));
+        std::fs::write(&path, bytes).unwrap();
+        treecal::io::read_text(&path, limits::MAX_CSV_BYTES)
+    };
+    let decoded = utf16(true).unwrap();
+    assert_eq!(
+        read(&decoded).unwrap().measurements.len(),
+        plain.measurements.len()
+    );
+    let error = utf16(false).unwrap_err().to_string();
+    assert!(
+        error.contains("m16.csv")
+            && error.contains("UTF-16 without a byte-order mark")
+            && error.contains("CSV UTF-8"),
+        "{error}"
+    );
+}
+
+/// Xacro leftovers in a URDF (issue 21): a `${…}` expression was "wrong vector element
+/// count", and an `<xacro:include>` or a macro call was ignored without a word (the links it
+/// would add silently missing). Both now name the line and say to expand the file first.
+#[test]
+fn xacro_leftovers_are_named_with_their_line() {
+    let urdf = std::fs::read_to_string(robot("robonaut/robonaut.urdf")).unwrap();
+    let read = |text: &str| treecal::urdf::parse_urdf(text, "r.urdf");
+    assert!(read(&urdf).is_ok());
+    let line_of =
+        |text: &str, needle: &str| 1 + text[..text.find(needle).unwrap()].matches('\n').count();
+    let first_origin = urdf.find("<origin xyz=\"").unwrap();
+    let value = first_origin + "<origin xyz=\"".len();
+    let expression = format!("{}${{offset}} {}", &urdf[..value], &urdf[value..]);
+    let include = urdf.replacen(
+        "</robot>",
+        "  <xacro:include filename=\"$(find robonaut)/urdf/hand.xacro\"/>\n  <xacro:hand side=\"left\"/>\n</robot>",
+        1,
+    );
+    for (text, needle, what) in [
+        (&expression, "${offset}", "<origin xyz=\"${offset}"),
+        (&include, "<xacro:include", "<xacro:include>"),
+    ] {
+        let error = read(text).unwrap_err().to_string();
+        let place = format!("r.urdf:{}:", line_of(text, needle));
+        assert!(
+            error.starts_with(&place)
+                && error.contains(what)
+                && error.contains("expand it first (`xacro robot.urdf.xacro > robot.urdf`"),
+            "{place} {error}"
+        );
+    }
+}

@@ -149,3 +149,34 @@ fn headless_chromium_loads_report_html_from_a_file_with_no_console_message() {
         "no configurations listed"
     );
 }
+
+/// The parameter chart draws the tool frames in panels of their own: a measured body sits
+/// centimetres and tens of degrees from its tool link, and on one scale with the joints it
+/// flattened every joint correction to nothing (a MOVO with bodies 12 cm off the wrists: bars
+/// of 135 mm and 30° beside joint corrections of 1–4 mm and 0.1–0.5°).
+#[test]
+fn tool_frames_have_chart_panels_of_their_own() {
+    let (_dir, out) = calibrate_example(&[]);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let chart =
+        &html[html.find("id=\"parameter-changes\"").unwrap()..html.find("id=\"table2\"").unwrap()];
+    let titles: Vec<&str> = chart
+        .match_indices(" (change, ")
+        .map(|(at, _)| chart[..at].rsplit('>').next().unwrap())
+        .collect();
+    assert_eq!(
+        titles,
+        [
+            "Length parameters",
+            "Angle parameters",
+            "Tool frame length parameters",
+            "Tool frame angle parameters"
+        ],
+        "{chart}"
+    );
+    let tools_start = chart.find("Tool frame length parameters").unwrap();
+    for tool in ["left_tool", "right_tool"] {
+        let first = chart.find(&format!("<title>{tool} ")).unwrap();
+        assert!(first > tools_start, "{tool} is drawn among the joints");
+    }
+}

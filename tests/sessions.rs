@@ -402,6 +402,20 @@ fn the_report_names_every_session_with_its_rows_and_frame() {
     assert_eq!(validation[0]["refitted_parameters"], 6);
     assert!(result.report_markdown.contains("## Sessions"));
     assert!(result.report_markdown.contains("| 'day2_points' | 14 |"));
+    // registration.yaml holds the first session's frame: the report says what scores the
+    // other sessions' rows of "calibrated.urdf + registration.yaml as written".
+    let first = format!(
+        "registration.yaml is the first session's frame ('{}')",
+        SESSIONS[0]
+    );
+    assert!(
+        result.report_markdown.contains(&first)
+            && result
+                .report_markdown
+                .contains("`sessions.training[].session_from_first`"),
+        "{}",
+        result.report_markdown
+    );
     let said: Vec<&str> = result.notes.iter().map(|n| n.text.as_str()).collect();
     assert!(
         said.iter().any(|t| t.contains("3 measurement session(s)")

@@ -505,3 +505,69 @@ fn the_verify_report_splits_the_error_by_tool_and_by_session() {
         "{markdown}"
     );
 }
+
+/// provenance.yaml lists every file calibrate wrote with its SHA-256 (what `sha256sum`
+/// prints); verify on the folder says nothing of it while the files are as written, and warns
+/// (stderr and report.md, naming the file) once calibrated.urdf was edited by hand.
+#[test]
+fn verify_notices_a_calibrated_urdf_edited_after_the_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let example = repo().join("robots/robonaut/example/measurements.csv");
+    let stiffness = repo().join("robots/robonaut/stiffness.yaml");
+    let run = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&example),
+        "--stiffness",
+        path_str(&stiffness),
+        "--out",
+        path_str(&out),
+    ]);
+    assert_success(&run, "calibrate");
+    let provenance = std::fs::read_to_string(out.join("provenance.yaml")).unwrap();
+    let urdf = out.join("calibrated.urdf");
+    let sha = treecal::io::sha256_hex(&std::fs::read(&urdf).unwrap());
+    assert!(
+        provenance.contains(&format!(
+            "- name: calibrated.urdf\n  bytes: {}\n  sha256: {sha}\n",
+            std::fs::metadata(&urdf).unwrap().len()
+        )),
+        "{provenance}"
+    );
+    assert!(
+        !provenance.contains("name: provenance.yaml"),
+        "{provenance}"
+    );
+    let verified = dir.path().join("verify");
+    let verify = || {
+        treecal(&[
+            "verify",
+            "--calibration",
+            path_str(&out),
+            "--measurements",
+            path_str(&example),
+            "--stiffness",
+            path_str(&stiffness),
+            "--out",
+            path_str(&verified),
+        ])
+    };
+    let clean = verify();
+    assert_success(&clean, "verify as written");
+    assert!(!clean.stderr.contains("is not the file"), "{clean}");
+    // A hand edit: one joint origin moved by a millimetre.
+    let text = std::fs::read_to_string(&urdf).unwrap();
+    let at = text.find("<origin xyz=\"").unwrap() + "<origin xyz=\"".len();
+    std::fs::write(&urdf, format!("{}0.001{}", &text[..at], &text[at + 1..])).unwrap();
+    let edited = verify();
+    assert_success(&edited, "verify after an edit");
+    let report = std::fs::read_to_string(verified.join("report.md")).unwrap();
+    for text in [&edited.stderr, &report] {
+        assert!(
+            text.contains("calibrated.urdf is not the file `calibrate` wrote")
+                && text.contains("edited or replaced after the calibration"),
+            "{text}"
+        );
+    }
+}

@@ -61,22 +61,47 @@ fn too_big(path: &Path, size: u64, max_bytes: u64) -> Error {
     }
 }
 
-/// The UTF-8 text of the regular file `path`, at most `max_bytes` long; see [`read_bytes`].
-/// A leading UTF-8 byte-order mark is dropped (spreadsheet programs write one), so that it
-/// hides no first-line comment or key.
+/// The text of the regular file `path`, at most `max_bytes` long; see [`read_bytes`]. UTF-8,
+/// or UTF-16 with its byte-order mark (what a spreadsheet's "Unicode text" export writes). A
+/// leading UTF-8 byte-order mark is dropped (spreadsheet programs write one), so that it hides
+/// no first-line comment or key.
 pub fn read_text(path: &Path, max_bytes: u64) -> Result<String> {
-    let bytes = read_bytes(path, max_bytes)?;
-    let mut text = String::from_utf8(bytes).map_err(|e| Error::Io {
+    let mut text = decode(read_bytes(path, max_bytes)?).map_err(|message| Error::Io {
         path: path.to_owned(),
-        source: std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("not UTF-8 text ({e})"),
-        ),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, message),
     })?;
     if text.starts_with('\u{feff}') {
         text.drain(..'\u{feff}'.len_utf8());
     }
     Ok(text)
+}
+
+/// UTF-8 bytes, or UTF-16 after a byte-order mark, as text; else what the bytes are and how
+/// to save them.
+fn decode(bytes: Vec<u8>) -> std::result::Result<String, String> {
+    let utf16 = |rest: &[u8], unit: fn([u8; 2]) -> u16| {
+        let units: Vec<u16> = rest
+            .chunks(2)
+            .map(|c| unit([c[0], *c.get(1).unwrap_or(&0)]))
+            .collect();
+        String::from_utf16(&units).map_err(|e| format!("not valid UTF-16 text ({e})"))
+    };
+    match bytes.as_slice() {
+        [0xFF, 0xFE, rest @ ..] => utf16(rest, u16::from_le_bytes),
+        [0xFE, 0xFF, rest @ ..] => utf16(rest, u16::from_be_bytes),
+        _ => {
+            const SAVE: &str = "save it as UTF-8 text (a spreadsheet's \"CSV UTF-8\")";
+            let text = String::from_utf8(bytes)
+                .map_err(|e| format!("not UTF-8 text ({}); {SAVE}", e.utf8_error()))?;
+            // Text files hold no NUL; UTF-16 without its mark is ASCII with a NUL in between.
+            match text.find('\0') {
+                Some(at) => Err(format!(
+                    "a NUL byte at byte {at}: not UTF-8 text (UTF-16 without a byte-order mark?); {SAVE}"
+                )),
+                None => Ok(text),
+            }
+        }
+    }
 }
 
 fn ensure_regular(path: &Path, metadata: &std::fs::Metadata) -> Result<()> {
@@ -116,6 +141,26 @@ mod tests {
         std::fs::write(&file, "\u{feff}# units: length=mm\nabc").unwrap();
         assert_eq!(read_text(&file, 100).unwrap(), "# units: length=mm\nabc");
         let big = read_text(&file, 10).unwrap_err().to_string();
+        // UTF-16 with its byte-order mark, either order, reads as the UTF-8 text.
+        for (bom, unit) in [
+            ([0xFF, 0xFE], u16::to_le_bytes as fn(u16) -> [u8; 2]),
+            ([0xFE, 0xFF], u16::to_be_bytes),
+        ] {
+            let mut bytes = bom.to_vec();
+            bytes.extend("id,x\n1,2\n".encode_utf16().flat_map(unit));
+            std::fs::write(&file, bytes).unwrap();
+            assert_eq!(read_text(&file, 100).unwrap(), "id,x\n1,2\n");
+        }
+        let wide: Vec<u8> = "id,x\n1,2\n"
+            .encode_utf16()
+            .flat_map(u16::to_le_bytes)
+            .collect();
+        std::fs::write(&file, wide).unwrap();
+        let error = read_text(&file, 100).unwrap_err().to_string();
+        assert!(
+            error.contains("UTF-16 without a byte-order mark?") && error.contains("CSV UTF-8"),
+            "{error}"
+        );
         assert!(big.contains("more than the limit of 10"), "{big}");
     }
 }

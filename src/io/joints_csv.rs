@@ -66,10 +66,10 @@ pub fn parse_csv_fields(text: &str, origin: &str) -> Result<CsvFields> {
         }
         match &mut table {
             None => {
-                table = Some(CsvFields::new(
-                    record.iter().map(str::to_owned).collect(),
-                    line,
-                ))
+                let headers: Vec<String> = record.iter().map(str::to_owned).collect();
+                // Before any data row: its field count would be the only message.
+                check_separator(&headers, &format!("{origin}:{line}"))?;
+                table = Some(CsvFields::new(headers, line))
             }
             Some(table) => {
                 if table.len() == MAX_CSV_ROWS {
@@ -92,7 +92,7 @@ pub fn parse_csv_fields(text: &str, origin: &str) -> Result<CsvFields> {
             format!("{NO_HEADER}; it needs a header row naming joints")
         },
     })?;
-    check_unique_columns(&table.headers, &format!("{origin}:{}", table.header_line))?;
+    check_header(&table.headers, &format!("{origin}:{}", table.header_line))?;
     Ok(table)
 }
 
@@ -297,6 +297,38 @@ pub fn pose_fields(pose: &Pose) -> impl Iterator<Item = String> {
 }
 
 /// A header naming a column twice is an error at `place` (`file:line`).
+/// The header's checks: another separator than commas, then a column named twice.
+pub(super) fn check_header(headers: &[String], place: &str) -> Result<()> {
+    check_separator(headers, place)?;
+    check_unique_columns(headers, place)
+}
+
+/// Fails when the header is one column holding semicolons or tabs: a spreadsheet's export
+/// with another separator, which would else show later as a missing column or a field count.
+fn check_separator(headers: &[String], place: &str) -> Result<()> {
+    let [only] = headers else {
+        return Ok(());
+    };
+    let (separator, why) = if only.contains(';') {
+        (
+            "semicolons",
+            " (a spreadsheet's export where the decimal mark is a comma)",
+        )
+    } else if only.contains('\t') {
+        ("tabs", "")
+    } else {
+        return Ok(());
+    };
+    Err(Error::InvalidData {
+        origin: place.to_owned(),
+        message: format!(
+            "the header row is separated by {separator}, not commas{why}: treecal reads \
+             comma-separated values with `.` as the decimal mark; save the sheet as \
+             \"CSV (comma delimited)\" with `.` decimals"
+        ),
+    })
+}
+
 pub(super) fn check_unique_columns(headers: &[String], place: &str) -> Result<()> {
     let mut seen = std::collections::HashSet::with_capacity(headers.len());
     for name in headers {

@@ -51,7 +51,7 @@ impl<R: BufRead> CsvRecords<R> {
                       header row naming joints"
                 .into(),
         })?;
-        super::joints_csv::check_unique_columns(&headers, &format!("{origin}:{line}"))?;
+        super::joints_csv::check_header(&headers, &format!("{origin}:{line}"))?;
         records.headers = headers;
         records.header_line = line;
         Ok(records)

@@ -28,6 +28,17 @@ pub struct InputFile {
     pub sha256: String,
 }
 
+/// One file the command wrote into the folder (every one but provenance.yaml itself).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct OutputFile {
+    /// Its name in the folder.
+    pub name: String,
+    /// Its size (bytes).
+    pub bytes: u64,
+    /// SHA-256 of its content as written, lower-case hex.
+    pub sha256: String,
+}
+
 /// The program that wrote the folder.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Program {
@@ -61,6 +72,10 @@ pub struct ProvenanceRecord {
     pub settings: String,
     /// The input files, in the order read.
     pub inputs: Vec<InputFile>,
+    /// The files written beside provenance.yaml, by name (a file changed after the run no
+    /// longer matches: `verify` says so).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub outputs: Vec<OutputFile>,
     /// The seeds of the random choices (held-out rows, simulated noise), by name.
     pub seeds: std::collections::BTreeMap<String, u64>,
     /// Start, duration, threads: the only fields two runs of the same inputs may differ in.
@@ -93,6 +108,44 @@ pub fn input_file(path: &Path) -> Result<InputFile> {
         bytes: size,
         sha256: hex(&hasher.finalize()),
     })
+}
+
+/// The files of an output folder as written, sorted by name, leaving out provenance.yaml.
+pub fn output_files(files: &[(String, Vec<u8>)]) -> Vec<OutputFile> {
+    let mut outputs: Vec<OutputFile> = files
+        .iter()
+        .filter(|(name, _)| name != PROVENANCE_FILE)
+        .map(|(name, bytes)| OutputFile {
+            name: name.clone(),
+            bytes: bytes.len() as u64,
+            sha256: sha256_hex(bytes),
+        })
+        .collect();
+    outputs.sort_by(|a, b| a.name.cmp(&b.name));
+    outputs
+}
+
+/// The SHA-256 of every output file a provenance.yaml records, by name (none for a folder
+/// written before outputs were recorded); an error naming `origin` when it is not YAML.
+pub fn recorded_outputs(
+    text: &str,
+    origin: &str,
+) -> Result<std::collections::BTreeMap<String, String>> {
+    let value: serde_yaml::Value = serde_yaml::from_str(text).map_err(|e| Error::InvalidData {
+        origin: origin.to_owned(),
+        message: format!("not readable as provenance YAML: {e}"),
+    })?;
+    let entries = value
+        .get("outputs")
+        .and_then(serde_yaml::Value::as_sequence)
+        .map_or(&[][..], Vec::as_slice);
+    Ok(entries
+        .iter()
+        .filter_map(|entry| {
+            let field = |key: &str| entry.get(key).and_then(serde_yaml::Value::as_str);
+            Some((field("name")?.to_owned(), field("sha256")?.to_owned()))
+        })
+        .collect())
 }
 
 /// SHA-256 of `bytes` in lower-case hex.

@@ -66,6 +66,9 @@ pub struct ClockEstimate {
     pub motions: usize,
     /// Whether to use it.
     pub verdict: ClockVerdict,
+    /// Whether the signals were rotation speeds (a rigid body's, against the tool link's the
+    /// joint log implies: equal wherever the body sits on the tool) rather than point speeds.
+    pub from_rotation: bool,
 }
 
 /// Estimates the offset from the joint side's speed (`joint_times`, `joint_speeds`) and the
@@ -84,6 +87,7 @@ pub fn estimate_clock_offset(
         step: 0.0,
         motions: 0,
         verdict: ClockVerdict::Refused(reason),
+        from_rotation: false,
     };
     let (ja, jv) = finite(joint_times, joint_speeds);
     let (ta, tv) = finite(tracker_times, tracker_speeds);
@@ -131,6 +135,7 @@ pub fn estimate_clock_offset(
         step,
         motions,
         verdict,
+        from_rotation: false,
     }
 }
 

@@ -5,7 +5,9 @@ use super::arm::{ArmReport, RowErrors};
 use super::calibrate::{held_out_headline, CalibrationSummary, StageOutcome};
 use super::outliers::outliers_markdown;
 use super::plot::arm_error_plots_by_id;
-use crate::calibration::{IdentificationOptions, ParameterEstimate, Status, Verdict};
+use crate::calibration::{
+    session_label, IdentificationOptions, ParameterEstimate, Status, Verdict,
+};
 use crate::error::Result;
 use std::fmt::Write;
 
@@ -37,6 +39,7 @@ pub fn calibration_markdown(
     errors_markdown(&mut out, summary);
     if let Some(artifact) = &summary.artifact {
         out.push_str(&artifact.markdown());
+        out.push_str(&session_frames_markdown(summary));
     }
     out.push_str(&outliers_markdown(
         &summary.robust,
@@ -397,4 +400,24 @@ pub fn calibration_plots(arms: &[ArmReport], set: &str) -> Result<Vec<(String, S
         )?);
     }
     Ok(plots)
+}
+
+/// With several sessions the written registration is the first session's frame: what else
+/// scores the other sessions' rows (their frames are in report.json only).
+fn session_frames_markdown(summary: &CalibrationSummary) -> String {
+    let Some(sessions) = summary.sessions.as_ref().filter(|s| s.training.len() > 1) else {
+        return String::new();
+    };
+    let others: Vec<String> = sessions.training[1..]
+        .iter()
+        .map(|s| session_label(&s.name))
+        .collect();
+    format!(
+        "registration.yaml is the first session's frame ({}). The rows of {} are scored in \
+         their own session's frame: report.json `sessions.training[].session_from_first` \
+         (xyz m, rpy rad), applied after it (measured = session_from_first · registration · \
+         link pose).\n\n",
+        session_label(&sessions.training[0].name),
+        others.join(", ")
+    )
 }

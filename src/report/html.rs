@@ -109,8 +109,9 @@ pub fn calibration_html(report: &HtmlReport) -> Result<String> {
         table3_html(&mut out, title, arms);
     }
     plots_html(&mut out, s, report.plots);
-    out.push_str("<h2 id=\"parameter-changes\">Parameter changes</h2>\n<p>Each bar is a calibrated parameter's change from the URDF value; the whisker spans ±1 standard deviation. Grey: not identifiable on its own (kept at its start).</p>\n");
-    out.push_str(&parameter_chart_svg(&s.parameters));
+    out.push_str("<h2 id=\"parameter-changes\">Parameter changes</h2>\n<p>Each bar is a calibrated parameter's change from the URDF value; the whisker spans ±1 standard deviation. Grey: not identifiable on its own (kept at its start). The tool frames (where each measured target sits on its tool link) have panels of their own.</p>\n");
+    let tools: Vec<&str> = s.identification.iter().map(|a| a.tool.as_str()).collect();
+    out.push_str(&parameter_chart_svg(&s.parameters, &tools));
     table2_html(&mut out, &s.parameters);
     viewer_html(&mut out, report.scene)?;
     out.push_str("<h2 id=\"deploy\">Deploying the calibration</h2>\n<ul>\n");

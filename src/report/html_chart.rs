@@ -13,22 +13,30 @@ const VALUE_WIDTH: f64 = 160.0;
 const TOP: f64 = 44.0;
 const BOTTOM: f64 = 16.0;
 
-/// Both panels (lengths, angles) as inline SVG elements.
-pub fn parameter_chart_svg(parameters: &[ParameterEstimate]) -> String {
-    let (angles, lengths): (Vec<&ParameterEstimate>, Vec<&ParameterEstimate>) =
-        parameters.iter().partition(|p| p.unit == "rad");
+/// The panels as inline SVG elements: the joint frames' lengths (mm) and angles (deg), then
+/// the tool frames' (owners among `tools`). A measured body sits centimetres and tens of
+/// degrees from its tool link, so on one scale with the joints it flattens every joint
+/// correction of a few millimetres to nothing.
+pub fn parameter_chart_svg(parameters: &[ParameterEstimate], tools: &[&str]) -> String {
+    let (tool_rows, joint_rows): (Vec<&ParameterEstimate>, Vec<&ParameterEstimate>) = parameters
+        .iter()
+        .partition(|p| tools.contains(&p.owner.as_str()));
     let mut out = String::new();
-    for (title, unit, scale, set) in [
-        ("Length parameters", "mm", 1e3, &lengths),
-        (
-            "Angle parameters",
-            "deg",
-            180.0 / std::f64::consts::PI,
-            &angles,
-        ),
-    ] {
-        if !set.is_empty() {
-            out.push_str(&panel(title, unit, scale, set));
+    for (frames, rows) in [("", &joint_rows), ("Tool frame ", &tool_rows)] {
+        let (angles, lengths): (Vec<&ParameterEstimate>, Vec<&ParameterEstimate>) =
+            rows.iter().partition(|p| p.unit == "rad");
+        let degree = 180.0 / std::f64::consts::PI;
+        for (title, unit, scale, set) in [
+            ("length parameters", "mm", 1e3, &lengths),
+            ("angle parameters", "deg", degree, &angles),
+        ] {
+            if !set.is_empty() {
+                let title = match frames {
+                    "" => format!("{}{}", title[..1].to_uppercase(), &title[1..]),
+                    _ => format!("{frames}{title}"),
+                };
+                out.push_str(&panel(&title, unit, scale, set));
+            }
         }
     }
     out

@@ -73,9 +73,14 @@ fn clock_section(report: &PairingReport) -> String {
         ClockVerdict::Doubtful(why) => format!("LOW: {why}"),
         ClockVerdict::Refused(why) => format!("REFUSED: {why}"),
     };
+    let signals = if e.from_rotation {
+        "the tool link's rotation speed the joint log implies correlates {:.4} with the rigid body's rotation speed (the same wherever the body sits on the tool)"
+    } else {
+        "the tool speed the joint log implies correlates {:.4} with the tracker's target speed"
+    };
     out += &format!(
-        "estimated from the motion: the tool speed the joint log implies correlates {:.4} with the tracker's target speed at this offset (search step {:.2} ms, refined below it); {} separate motions.\n\n",
-        e.correlation,
+        "estimated from the motion: {} at this offset (search step {:.2} ms, refined below it); {} separate motions.\n\n",
+        signals.replace("{:.4}", &format!("{:.4}", e.correlation)),
         e.step * 1e3,
         e.motions
     );

@@ -179,6 +179,10 @@ pub struct VerifyReport {
     pub rows: Vec<VerifyRow>,
     /// The provenance file of the folder.
     pub provenance: String,
+    /// What the reader must know before the figures (a deployed file changed since the
+    /// calibration wrote it, values outside the joint limits, …).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 impl VerifyReport {
@@ -204,6 +208,7 @@ impl VerifyReport {
             strata,
             rows,
             provenance: String::new(),
+            warnings: Vec::new(),
         }
     }
 
@@ -227,6 +232,9 @@ impl VerifyReport {
             self.rows.len()
         );
         let _ = writeln!(out, "- Measurement frame: {}", frame_words(c));
+        for warning in &self.warnings {
+            let _ = writeln!(out, "- warning: {warning}");
+        }
         let _ = writeln!(out, "- **{}**\n", self.verdict.sentence());
         let s = &self.summary;
         let _ = writeln!(

@@ -39,6 +39,7 @@ pub fn load_urdf(path: &Path) -> Result<UrdfImport> {
 pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
     crate::limits::check_text_size(text, crate::limits::MAX_URDF_BYTES, origin)?;
     let elements = super::xml::scan(text, origin)?;
+    check_expanded(text, origin, &elements)?;
     let mut warnings = Vec::new();
     let robot = super::tolerant::read_robot(text, origin, &elements, &mut warnings)?;
     super::bounds::check_sizes(&robot, text, origin)?;
@@ -48,6 +49,52 @@ pub fn parse_urdf(text: &str, origin: &str) -> Result<UrdfImport> {
     warnings.append(&mut import.warnings);
     import.warnings = warnings;
     Ok(import)
+}
+
+/// Fails on what only xacro expands: an `<xacro:include>`, a macro call or a condition (which
+/// would silently leave links out) or a `${…}` / `$(…)` expression in an attribute (which would
+/// read as a wrong vector or a missing mesh). Leftovers that change nothing (the namespace,
+/// `xacro:property`, `xacro:arg`, macro definitions and what they hold) stay ignored.
+fn check_expanded(text: &str, origin: &str, elements: &[super::xml::Element]) -> Result<()> {
+    const EXPAND: &str = "this is a xacro file, not a URDF: expand it first (`xacro robot.urdf.xacro > robot.urdf`; ROS 2: `ros2 run xacro xacro …`) and give the expanded file";
+    const INERT: [&str; 3] = ["xacro:property", "xacro:arg", "xacro:macro"];
+    let inert = |mut index: usize| loop {
+        if INERT.contains(&elements[index].name.as_str()) {
+            return true;
+        }
+        match elements[index].parent {
+            Some(parent) => index = parent,
+            None => return false,
+        }
+    };
+    let at = |offset: usize| super::xml::position(text, origin, offset);
+    for (index, element) in elements.iter().enumerate() {
+        if inert(index) {
+            continue;
+        }
+        if element.name.starts_with("xacro:") {
+            return Err(Error::InvalidData {
+                origin: at(element.start),
+                message: format!("<{}>: {EXPAND}", element.name),
+            });
+        }
+        let expression = element.attributes.iter().find(|a| {
+            let value = &text[a.value.clone()];
+            value.contains("${") || value.contains("$(")
+        });
+        if let Some(attribute) = expression {
+            return Err(Error::InvalidData {
+                origin: at(attribute.value.start),
+                message: format!(
+                    "<{} {}=\"{}\">: a xacro expression; {EXPAND}",
+                    element.name,
+                    attribute.name,
+                    crate::limits::cut(&text[attribute.value.clone()])
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 mod dofs;

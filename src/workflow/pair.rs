@@ -134,7 +134,7 @@ pub fn pair(config: &PairConfig) -> Result<Pairing> {
         prismatic: &series.prismatic,
         options: &config.plateaus,
     };
-    let report = pairing_markdown(&report);
+    let report = pairing_markdown(&report) + &provenance_markdown(config)?;
     if rows.is_empty() {
         return Err(Error::InvalidData {
             origin: format!("{} and {}", log.origin, tracker_log.origin),
@@ -150,6 +150,34 @@ pub fn pair(config: &PairConfig) -> Result<Pairing> {
         plateaus,
         notes,
     })
+}
+
+/// Where the pairing came from (the report's last section): treecal's version and commit,
+/// and every input file with its size and SHA-256 (what `sha256sum` prints). Nothing of the
+/// run's time, so the same logs give the same report.
+fn provenance_markdown(config: &PairConfig) -> Result<String> {
+    let commit = match crate::io::GIT_COMMIT {
+        "" => "unknown (not built from a git checkout)",
+        commit => commit,
+    };
+    let mut out = format!(
+        "## Provenance\n\ntreecal {} (commit {commit}); robot: {}\n\n| input | bytes | sha256 |\n| --- | ---: | --- |\n",
+        env!("CARGO_PKG_VERSION"),
+        config
+            .robot
+            .path()
+            .map_or_else(|| "the built-in Robonaut".to_owned(), |p| format!("`{}`", p.display()))
+    );
+    let inputs = config
+        .robot
+        .path()
+        .into_iter()
+        .chain([config.joints.as_path(), config.tracker.as_path()]);
+    for path in inputs {
+        let file = crate::io::input_file(path)?;
+        out += &format!("| `{}` | {} | {} |\n", file.path, file.bytes, file.sha256);
+    }
+    Ok(out)
 }
 
 /// A joint-log column that is an independent joint of the robot.
@@ -370,28 +398,26 @@ fn clock_offset(
     if let Some(offset) = config.clock_offset {
         return Ok((offset, None));
     }
-    // The tool path the joint values imply: its speed does not depend on the tracker frame.
-    let mut q = tree.zero_configuration();
-    let mut path = Vec::with_capacity(series.times.len());
-    for values in &series.values {
-        for (c, v) in columns.watched().zip(values) {
-            q[c.dof] = *v;
+    let estimate = match &tracker.orientations {
+        // A rigid body turns as the tool link does: its rotation speed does not depend on
+        // the tracker frame nor on where the body sits (a point's speed has the lever arm).
+        Some(orientations) => {
+            let by_rotation = estimate_from(
+                config,
+                (series, columns, tree.zero_configuration()),
+                (&tracker.times, &rotation_samples(orientations)),
+                |q| Ok(rotation_entries(&tree.link_pose(tool, q)?.rotation)),
+            )?;
+            match by_rotation.verdict {
+                ClockVerdict::Confident => ClockEstimate {
+                    from_rotation: true,
+                    ..by_rotation
+                },
+                _ => by_position(config, tree, tool, columns, series, tracker)?,
+            }
         }
-        let p = tree.link_pose(tool, &q)?.translation.vector;
-        path.push([p.x, p.y, p.z]);
-    }
-    let window = config.plateaus.window;
-    let norm = crate::pairing::SpeedNorm::Euclidean;
-    let joint_speeds = windowed_speeds(&series.times, &path, window, norm);
-    let points: Vec<[f64; 3]> = tracker.positions.iter().map(|p| [p.x, p.y, p.z]).collect();
-    let tracker_speeds = windowed_speeds(&tracker.times, &points, window, norm);
-    let estimate = estimate_clock_offset(
-        &series.times,
-        &joint_speeds,
-        &tracker.times,
-        &tracker_speeds,
-        &config.clock,
-    );
+        None => by_position(config, tree, tool, columns, series, tracker)?,
+    };
     match &estimate.verdict {
         ClockVerdict::Refused(why) => Err(Error::InvalidData {
             origin: format!("{} and {}", config.joints.display(), config.tracker.display()),
@@ -408,6 +434,64 @@ fn clock_offset(
         }
         ClockVerdict::Confident => Ok((estimate.offset, Some(estimate))),
     }
+}
+
+/// The estimate from the speed of the tool point (the joint side) and of the target.
+fn by_position(
+    config: &PairConfig,
+    tree: &KinematicTree,
+    tool: crate::tree::LinkId,
+    columns: &JointColumns,
+    series: &JointSeries,
+    tracker: &TrackerSeries,
+) -> Result<ClockEstimate> {
+    let points: Vec<[f64; 3]> = tracker.positions.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let joints = (series, columns, tree.zero_configuration());
+    estimate_from(config, joints, (&tracker.times, &points), |q| {
+        let p = tree.link_pose(tool, q)?.translation.vector;
+        Ok([p.x, p.y, p.z])
+    })
+}
+
+/// The estimate from the speed of `signal` (of a configuration) along the joint log against
+/// the speed of the tracker's samples (times, values); both speeds are Euclidean norms of the
+/// change over the plateau window, which a rotation of the tracker frame does not change.
+fn estimate_from<const N: usize>(
+    config: &PairConfig,
+    (series, columns, zero): (&JointSeries, &JointColumns, Vec<f64>),
+    (tracker_times, tracker_samples): (&[f64], &[[f64; N]]),
+    signal: impl Fn(&[f64]) -> Result<[f64; N]>,
+) -> Result<ClockEstimate> {
+    let mut q = zero;
+    let mut path = Vec::with_capacity(series.times.len());
+    for values in &series.values {
+        for (c, v) in columns.watched().zip(values) {
+            q[c.dof] = *v;
+        }
+        path.push(signal(&q)?);
+    }
+    let window = config.plateaus.window;
+    let norm = crate::pairing::SpeedNorm::Euclidean;
+    let joint_speeds = windowed_speeds(&series.times, &path, window, norm);
+    let tracker_speeds = windowed_speeds(tracker_times, tracker_samples, window, norm);
+    Ok(estimate_clock_offset(
+        &series.times,
+        &joint_speeds,
+        tracker_times,
+        &tracker_speeds,
+        &config.clock,
+    ))
+}
+
+/// A rotation as the nine entries of its matrix: the Frobenius norm of a change of them is
+/// the same in any tracker frame and for any body fixed on the tool (R·B, F·R).
+fn rotation_entries(rotation: &crate::math::Rotation) -> [f64; 9] {
+    let m = rotation.to_rotation_matrix().into_inner();
+    std::array::from_fn(|k| m[(k / 3, k % 3)])
+}
+
+fn rotation_samples(orientations: &[crate::math::Rotation]) -> Vec<[f64; 9]> {
+    orientations.iter().map(rotation_entries).collect()
 }
 
 /// The CSV in the logs' units: joints as the joint log, positions as the tracker log.

@@ -53,6 +53,7 @@ pub fn record(
             .iter()
             .map(|p| input_file(p))
             .collect::<Result<Vec<_>>>()?,
+        outputs: Vec::new(),
         seeds: seeds.iter().map(|(n, s)| ((*n).to_owned(), *s)).collect(),
         run: RunFacts {
             started_utc: utc_iso8601(
@@ -74,7 +75,9 @@ pub fn settings_text<T: std::fmt::Debug>(config: &T) -> String {
 }
 
 /// Adds provenance.yaml to `files` and `"provenance": "provenance.yaml"` to the JSON report
-/// `file` among them (and to `report`, its value without its typed `parts`).
+/// `file` among them (and to `report`, its value without its typed `parts`). The record lists
+/// every file of `files` with its SHA-256 (a report.json rendered later, when it is not among
+/// them, is not listed).
 pub(super) fn attach(
     record: &ProvenanceRecord,
     file: &str,
@@ -83,6 +86,10 @@ pub(super) fn attach(
 ) -> Result<()> {
     let reference = serde_json::Value::String(PROVENANCE_FILE.into());
     super::postures::set_report_key(report, parts, files, file, "provenance", reference)?;
+    let record = ProvenanceRecord {
+        outputs: crate::io::output_files(files),
+        ..record.clone()
+    };
     files.push((PROVENANCE_FILE.into(), record.to_yaml()?.into_bytes()));
     Ok(())
 }

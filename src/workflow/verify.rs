@@ -213,6 +213,51 @@ fn resolve(config: &VerifyConfig) -> Result<Resolved> {
     })
 }
 
+/// A warning for each file read from the calibration folder that is not the file `calibrate`
+/// wrote there (its SHA-256 against provenance.yaml's `outputs`): edited or replaced after the
+/// calibration, so the figures score something that was never validated.
+fn changed_since_written(config: &VerifyConfig, files: &Resolved) -> Result<Vec<Note>> {
+    let Some(dir) = &config.calibration else {
+        return Ok(Vec::new());
+    };
+    let record = dir.join(super::provenance::PROVENANCE_FILE);
+    if !record.is_file() {
+        return Ok(Vec::new());
+    }
+    let origin = record.display().to_string();
+    let text = crate::io::read_text(&record, crate::limits::MAX_YAML_BYTES)?;
+    let written = crate::io::recorded_outputs(&text, &origin)?;
+    let mut read: Vec<&Path> = vec![&files.robot];
+    read.extend(files.registration.as_deref());
+    if let Some(StiffnessSource::File(path)) = &files.stiffness {
+        read.push(path);
+    }
+    let mut notes = Vec::new();
+    for path in read
+        .into_iter()
+        .filter(|p| p.parent() == Some(dir.as_path()))
+    {
+        let Some(recorded) = path
+            .file_name()
+            .and_then(|name| written.get(name.to_string_lossy().as_ref()))
+        else {
+            continue;
+        };
+        let now = crate::io::input_file(path)?.sha256;
+        if &now != recorded {
+            notes.push(Note::warning(format!(
+                "{} is not the file `calibrate` wrote (SHA-256 {}…, {origin} records {}…): it \
+                 was edited or replaced after the calibration, so these figures score a file \
+                 that was never validated; calibrate again, or verify the file calibrate wrote",
+                path.display(),
+                &now[..12],
+                recorded.get(..12).unwrap_or(recorded),
+            )));
+        }
+    }
+    Ok(notes)
+}
+
 fn no_robot(config: &VerifyConfig) -> Error {
     match &config.calibration {
         Some(dir) => invalid(
@@ -283,6 +328,7 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
         ));
     }
     let files = resolve(config)?;
+    let changed = changed_since_written(config, &files)?;
     let calibrate_config = CalibrateConfig {
         robot: RobotSource::File(files.robot.clone()),
         measurements: config.measurements.clone(),
@@ -290,7 +336,8 @@ pub fn verify(config: &VerifyConfig) -> Result<Verification> {
         ..CalibrateConfig::default()
     };
     let loaded = Loaded::new(&calibrate_config)?;
-    let mut notes = loaded.robot.notes();
+    let mut notes = changed;
+    notes.extend(loaded.robot.notes());
     notes.extend(loaded.points.note());
     let tree = loaded.robot.tree();
     let options = MeasurementReadOptions {
@@ -542,6 +589,11 @@ fn finish(
         started,
     )?;
     report.provenance = super::provenance::PROVENANCE_FILE.to_owned();
+    report.warnings = notes
+        .iter()
+        .filter(|n| n.level == super::note::NoteLevel::Warning)
+        .map(|n| n.text.clone())
+        .collect();
     notes.push(Note::info(report.verdict.sentence()));
     let markdown = report.markdown();
     let json = crate::io::to_json(&report)?;
