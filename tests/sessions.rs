@@ -215,6 +215,56 @@ fn a_new_session_is_reported_in_the_training_frame_and_re_registered() {
         .find(|f| f.code == "validation-sessions")
         .unwrap();
     assert!(note.message.contains("re-registered"), "{}", note.message);
+    // Day 3 was measured in another frame: every validation figure counts it re-registered
+    // (in the training frame it is over 4 mm), and a note says so.
+    assert!(new.moved() && !first.moved());
+    let rms = validation_rms(&run);
+    assert!(rms < 0.6, "validation RMS {rms} mm");
+    let moved = run
+        .findings
+        .iter()
+        .find(|f| f.code == "validation-session-moved")
+        .expect("the moved session is named");
+    assert!(moved.message.contains(SESSIONS[2]), "{}", moved.message);
+    let failed: Vec<&str> = run
+        .findings
+        .iter()
+        .filter(|f| f.status == Status::Failed)
+        .map(|f| f.message.as_str())
+        .collect();
+    assert!(failed.is_empty(), "{failed:?}");
+}
+
+/// A new session measured in the training frame (held-out rows of the first day under a new
+/// name) is not taken for a moved one: it counts in the training frame, no note.
+#[test]
+fn a_new_session_in_the_training_frame_is_not_re_registered() {
+    let robot = second_robot(29);
+    let (kept, held) = robot.split(4);
+    let day3: Vec<usize> = (0..robot.measurements.len())
+        .filter(|&i| robot.measurements[i].session.as_deref() == Some(SESSIONS[2]))
+        .collect();
+    let training: Vec<usize> = kept.into_iter().filter(|i| !day3.contains(i)).collect();
+    let first_day: Vec<usize> = held
+        .into_iter()
+        .filter(|&i| robot.measurements[i].session.as_deref() == Some(SESSIONS[0]))
+        .collect();
+    let mut validation = robot.rows(&first_day, true);
+    for m in &mut validation {
+        m.session = Some("day9".into());
+    }
+    let run = calibrate(&robot, &robot.rows(&training, true), &validation, true);
+    let sessions = run.sessions.as_ref().unwrap();
+    let [new] = &sessions.validation[..] else {
+        panic!("{:?}", sessions.validation);
+    };
+    assert!(!new.seen_in_training && !new.moved(), "{new:?}");
+    assert!(run
+        .findings
+        .iter()
+        .all(|f| f.code != "validation-session-moved"));
+    let rms = validation_rms(&run);
+    assert!(rms < 0.6, "validation RMS {rms} mm");
 }
 
 /// A gross blunder among a new session's validation rows (0.1 m on one row) does not drag its

@@ -14,8 +14,8 @@ use super::plan::{CalibrationReport, Compensation};
 use super::predictor::Deflected;
 use super::robust::{self, DataSet, Outlier, RobustLoss, RobustReport};
 use super::sessions::{
-    calibrate_sessions, finish_sessions, session_findings, validation_in_training_frames,
-    SessionCalibration, Sessions, SessionsReport,
+    calibrate_sessions, session_findings, validation_in_training_frames, SessionCalibration,
+    Sessions, SessionsReport,
 };
 use super::verdict::Finding;
 use crate::error::{Error, Result};
@@ -40,25 +40,18 @@ pub fn run_calibration(
 ) -> Result<CalibrationRun> {
     check_length_scale(input.nominal, &closed_form_rows(measurements))?;
     // The measurement frame is the first session's; the others are fitted with the geometry.
-    let (guess, frame, frame_finding) = choose_measurement_frame(
+    let (mut guess, frame, frame_finding) = choose_measurement_frame(
         input.nominal,
         &closed_form_rows(&Sessions::of(measurements).first_session(measurements)),
         input.measurement_frame,
     )?;
     let fitted_frame = frame.chosen == ChosenFrame::Fitted;
-    let compensation = match input.flexibility {
-        Some(flexibility) => Compensation::Exact(Deflected {
-            tree: input.tree,
-            flexibility,
-        }),
-        None => Compensation::None,
-    };
-    let mut guess = guess;
+    let compensation = compensation_of(input);
     let SessionCalibration {
         mut report,
         mut robust,
         measurements: in_first_frame,
-        sessions,
+        mut sessions,
     } = calibrate_sessions(
         input.branches,
         &guess.model,
@@ -68,10 +61,8 @@ pub fn run_calibration(
         input.options,
     )?;
     let (given_measurements, given_validation) = (measurements, validation);
-    // From here on every row is in the first session's frame (validation: the training frame;
-    // with one session: the data as given, not copied).
+    // From here on every row is in the first session's frame.
     let measurements = in_first_frame.as_deref().unwrap_or(measurements);
-    let validation = &in_training_frames(validation, &sessions)[..];
     let frame_refinement = match (fitted_frame, input.flexibility) {
         (true, Some(flexibility)) => Some(refine_frame(
             input,
@@ -83,6 +74,15 @@ pub fn run_calibration(
         )?),
         _ => None,
     };
+    // Validation in the training frame; a new session measured in another frame re-registered.
+    sessions.validation = new_session_frames(
+        &report.model,
+        (given_measurements, given_validation),
+        compensation,
+        &sessions,
+        input.options,
+    )?;
+    let validation = &in_training_frames(given_validation, &sessions)[..];
     let outliers = name_outliers(
         input,
         &report,
@@ -106,22 +106,22 @@ pub fn run_calibration(
     // Every validation row counts (its outliers are only marked).
     let measurement_rows = kept_rows(measurements.len(), &outliers);
     let parameters = estimates(input, &guess.model, &report);
+    let baseline_validation = &nominal_validation(
+        &baseline,
+        (given_measurements, given_validation),
+        &sessions,
+        input.options,
+    )?[..];
     let (identification, validation_residuals) = before_and_after(
         input,
         &baseline,
         &report,
         (measurements, &measurement_rows),
-        validation,
+        [baseline_validation, validation],
     )?;
     let predicted_validation_sd_mm = predicted_spread(&report, validation);
-    let sessions = finish_sessions(
-        sessions,
-        &report.model,
-        given_measurements,
-        given_validation,
-        compensation,
-        input.options,
-    )?;
+    // The sessions' report when any row names a session (its validation figures above).
+    let sessions = labelled(given_measurements, given_validation).then_some(sessions);
     let findings = first_findings(
         frame_finding,
         &sessions,
@@ -166,15 +166,77 @@ fn closed_form_rows(rows: &[Measurement]) -> Cow<'_, [Measurement]> {
     }
 }
 
-/// The validation rows in the training frames; with one session the rows as given.
+/// How the run predicts deflections: exactly with a flexibility model, not at all without.
+fn compensation_of<'a>(input: &CalibrationInput<'a>) -> Compensation<'a> {
+    match input.flexibility {
+        Some(flexibility) => Compensation::Exact(Deflected {
+            tree: input.tree,
+            flexibility,
+        }),
+        None => Compensation::None,
+    }
+}
+
+/// The validation rows in the training frames; with one session and no new session measured
+/// in another frame, the rows as given.
 fn in_training_frames<'m>(
     validation: &'m [Measurement],
     sessions: &SessionsReport,
 ) -> Cow<'m, [Measurement]> {
-    match sessions.frames.len() {
-        0 | 1 => Cow::Borrowed(validation),
-        _ => Cow::Owned(validation_in_training_frames(validation, Some(sessions))),
+    if sessions.frames.len() < 2 && !sessions.validation.iter().any(|v| v.moved()) {
+        Cow::Borrowed(validation)
+    } else {
+        Cow::Owned(validation_in_training_frames(validation, Some(sessions)))
     }
+}
+
+/// The validation rows the nominal robot's "before" is scored on: in the training frames like
+/// the calibrated model's, but a new session measured in another frame (judged at the
+/// calibrated model) placed by the nominal robot's own re-registration.
+fn nominal_validation<'m>(
+    baseline: &McpcModel,
+    (training, validation): (&[Measurement], &'m [Measurement]),
+    sessions: &SessionsReport,
+    options: &IdentificationOptions,
+) -> Result<Cow<'m, [Measurement]>> {
+    let mut nominal = sessions.clone();
+    if sessions.validation.iter().any(|v| v.moved()) {
+        let frames = new_session_frames(
+            baseline,
+            (training, validation),
+            Compensation::None,
+            sessions,
+            options,
+        )?;
+        for (session, own) in nominal.validation.iter_mut().zip(frames) {
+            session.session_from_first = own.session_from_first;
+        }
+    }
+    Ok(in_training_frames(validation, &nominal))
+}
+
+/// The validation sessions' figures at `model` (empty when no row of either set names a
+/// session): what tells a new session measured in another frame
+/// ([`super::sessions::SessionValidation::moved`]) and its re-registered frame.
+fn new_session_frames(
+    model: &McpcModel,
+    (training, validation): (&[Measurement], &[Measurement]),
+    compensation: Compensation<'_>,
+    sessions: &SessionsReport,
+    options: &IdentificationOptions,
+) -> Result<Vec<super::sessions::SessionValidation>> {
+    if !labelled(training, validation) || validation.is_empty() {
+        return Ok(Vec::new());
+    }
+    super::sessions::validate_sessions(model, validation, compensation, sessions, options)
+}
+
+/// Whether any row of either set names a session.
+fn labelled(training: &[Measurement], validation: &[Measurement]) -> bool {
+    training
+        .iter()
+        .chain(validation)
+        .any(|m| m.session.is_some())
 }
 
 /// The indices of the identification rows the fit kept (of `count`), in order (for the
@@ -246,9 +308,9 @@ fn before_and_after(
     baseline: &McpcModel,
     report: &CalibrationReport,
     (measurements, measurement_rows): (&[Measurement], &[usize]),
-    validation: &[Measurement],
+    validation: [&[Measurement]; 2],
 ) -> Result<(Vec<ArmResiduals>, Vec<ArmResiduals>)> {
-    let validation_rows: Vec<usize> = (0..validation.len()).collect();
+    let validation_rows: Vec<usize> = (0..validation[1].len()).collect();
     let predict = |model: &McpcModel, q: &[f64], payload: Option<f64>| -> Result<Vec<Pose>> {
         match input.flexibility {
             Some(flexibility) => flexibility
@@ -257,7 +319,7 @@ fn before_and_after(
             None => Ok(model.tool_poses(q)),
         }
     };
-    let residuals = |data: &[Measurement], rows: &[usize]| -> Result<Vec<ArmResiduals>> {
+    let residuals = |data: [&[Measurement]; 2], rows: &[usize]| -> Result<Vec<ArmResiduals>> {
         arm_residuals(
             input,
             data,
@@ -266,8 +328,8 @@ fn before_and_after(
             &|q, payload| predict(&report.model, q, payload),
         )
     };
-    let identification = residuals(measurements, measurement_rows)?;
-    let validation_residuals = if validation.is_empty() {
+    let identification = residuals([measurements; 2], measurement_rows)?;
+    let validation_residuals = if validation[1].is_empty() {
         Vec::new()
     } else {
         residuals(validation, &validation_rows)?
@@ -472,10 +534,11 @@ type PredictAt<'a> = dyn Fn(&[f64], Option<f64>) -> Result<Vec<Pose>> + Sync + '
 type RowErrors = ([usize; 2], [Option<f64>; 2], [Option<f64>; 2]);
 
 /// The before/after residuals of the rows `rows` of `data` (indices in the data set the run
-/// was given), per tool.
+/// was given), per tool: before against `data[0]`, after against `data[1]` (the same rows,
+/// each model's moved validation sessions placed by its own re-registration).
 fn arm_residuals(
     input: &CalibrationInput<'_>,
-    data: &[Measurement],
+    data: [&[Measurement]; 2],
     rows: &[usize],
     before: &PredictAt<'_>,
     after: &PredictAt<'_>,
@@ -490,7 +553,7 @@ fn arm_residuals(
         let mut cache: super::predictor::Cached<'_, [Vec<Pose>; 2]> = None;
         let mut errors = Vec::with_capacity(range.len());
         for &row in &rows[range] {
-            let m = &data[row];
+            let m = &data[1][row];
             let key = (m.q.as_slice(), m.payload);
             if cache.as_ref().is_none_or(|(k, _)| *k != key) {
                 cache = Some((key, [before(&m.q, m.payload)?, after(&m.q, m.payload)?]));
@@ -504,7 +567,7 @@ fn arm_residuals(
                     origin: "measurements".into(),
                     message: format!("tool {} does not exist", m.tool),
                 })?;
-                let kind = kind_of(&m.observation);
+                let kind = kind_of(&data[k][row].observation);
                 found.1[k] = kind
                     .measured_point()
                     .map(|measured| (measured - pose.translation.vector).norm() * 1e3);

@@ -91,6 +91,8 @@ pub fn session_findings(report: &SessionsReport) -> Vec<Finding> {
                     v.rows,
                     if v.seen_in_training {
                         "seen in training: its own fitted frame"
+                    } else if v.moved() {
+                        "new, measured in another frame: counted re-registered"
                     } else {
                         "new: the first session's frame"
                     },
@@ -107,6 +109,26 @@ pub fn session_findings(report: &SessionsReport) -> Vec<Finding> {
                 listed.join("; ")
             ),
         ));
+        let moved: Vec<String> = report
+            .validation
+            .iter()
+            .filter(|v| v.moved())
+            .map(|v| session_label(&v.name))
+            .collect();
+        if !moved.is_empty() {
+            findings.push(Finding::note(
+                "validation-session-moved",
+                format!(
+                    "validation session{} {} {} not seen in training and measured in another frame (the tracker or the mocap frame moved: its error in the training frame is more than {}× its re-registered error): every validation figure counts {} rows re-registered ({} frame parameters fitted to its own rows with the calibrated geometry fixed, as `treecal verify` scores a new day; slightly optimistic with few rows). If it was not moved, check that session's data",
+                    if moved.len() == 1 { "" } else { "s" },
+                    moved.join(", "),
+                    if moved.len() == 1 { "was" } else { "were" },
+                    super::sessions::MOVED_FACTOR,
+                    if moved.len() == 1 { "its" } else { "their" },
+                    super::sessions::FRAME_BLOCK_PARAMETERS
+                ),
+            ));
+        }
     }
     findings
 }

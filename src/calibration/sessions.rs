@@ -152,6 +152,25 @@ pub struct SessionValidation {
     pub session_from_first: Pose,
 }
 
+/// A new validation session was measured in another frame (the tracker or the mocap frame
+/// moved between sessions) when its RMS position error in the training frame passes its
+/// re-registered one by this factor ...
+pub const MOVED_FACTOR: f64 = 3.0;
+
+/// ... and by this much (m).
+pub const MOVED_MARGIN: f64 = 1e-3;
+
+impl SessionValidation {
+    /// Whether this session is new and was measured in another frame ([`MOVED_FACTOR`],
+    /// [`MOVED_MARGIN`]): its rows then count re-registered (placed in the training frame by
+    /// [`Self::session_from_first`]) in every validation figure, as `verify` scores a new day.
+    pub fn moved(&self) -> bool {
+        !self.seen_in_training
+            && self.training_frame_rms > MOVED_FACTOR * self.reregistered_rms
+            && self.training_frame_rms - self.reregistered_rms > MOVED_MARGIN
+    }
+}
+
 /// A calibration with one frame per session.
 #[derive(Debug, Clone)]
 pub struct SessionCalibration {
@@ -390,8 +409,10 @@ pub fn calibrate_sessions(
 }
 
 /// Rows in their training frames: a session seen in training mapped into the first
-/// session's frame by its fitted frame, a new one (and every row without sessions) as given,
-/// i.e. taken to be in the first session's frame. Maps validation rows, and the training rows
+/// session's frame by its fitted frame, a new session measured in another frame
+/// ([`SessionValidation::moved`], once `sessions.validation` holds it) by its re-registered
+/// frame, any other new one (and every row without sessions) as given, i.e. taken to be in the
+/// first session's frame. Maps validation rows, and the training rows
 /// themselves (for a later fit on the same data, e.g. the stiffness identification).
 pub fn validation_in_training_frames(
     validation: &[Measurement],
@@ -399,11 +420,23 @@ pub fn validation_in_training_frames(
 ) -> Vec<Measurement> {
     validation
         .iter()
-        .map(|m| match training_frame(m, sessions) {
+        .map(|m| match validation_frame(m, sessions) {
             Some(frame) => in_first_frame(m, &frame),
             None => m.clone(),
         })
         .collect()
+}
+
+/// The frame a validation row is placed by: its training session's fitted frame, or the
+/// re-registered frame of a new session measured in another frame ([`SessionValidation::moved`]).
+fn validation_frame(m: &Measurement, sessions: Option<&SessionsReport>) -> Option<Pose> {
+    training_frame(m, sessions).or_else(|| {
+        sessions?
+            .validation
+            .iter()
+            .find(|v| v.moved() && v.name == m.session)
+            .map(|v| v.session_from_first)
+    })
 }
 
 /// The fitted frame of the training session `m` belongs to, if it is one (not the first).

@@ -49,8 +49,8 @@ pub struct ValidationSessionRow {
     pub name: Option<String>,
     /// Its validation rows (all counted).
     pub rows: usize,
-    /// `training` (a training session: its fitted frame) or `new` (the first session's
-    /// frame).
+    /// `training` (a training session: its fitted frame), `new` (the first session's frame)
+    /// or `moved` (new, measured in another frame: its rows count re-registered).
     pub training_frame: &'static str,
     /// RMS position error in the training frame (mm).
     pub training_frame_rms_mm: f64,
@@ -112,6 +112,8 @@ pub fn sessions_summary(report: &SessionsReport) -> SessionsSummary {
                 rows: v.rows,
                 training_frame: if v.seen_in_training {
                     "training"
+                } else if v.moved() {
+                    "moved"
                 } else {
                     "new"
                 },
@@ -166,9 +168,11 @@ pub fn sessions_markdown(summary: &SessionsSummary) -> String {
     let _ = writeln!(
         out,
         "\nValidation by session, every row counted. *Training frame*: a session seen in training \
-         uses its fitted frame, a new one the first session's (the headline validation figures). \
-         *Re-registered*: the session's frame refitted to its own validation rows ({} parameters, \
-         geometry fixed), which removes what a moved tracker adds.\n",
+         uses its fitted frame, a new one the first session's. *Re-registered*: the session's \
+         frame refitted to its own validation rows ({} parameters, geometry fixed), which removes \
+         what a moved tracker adds. The headline validation figures use the training frame, but \
+         for a new session measured in another frame (more than 3× the error re-registered, \
+         training frame *moved*): its rows count re-registered.\n",
         summary
             .validation
             .first()
@@ -185,10 +189,11 @@ pub fn sessions_markdown(summary: &SessionsSummary) -> String {
             "| {} | {} | {} | {:.3} | {:.3} | {:.2}, {:.3} |",
             session_label(&v.name),
             v.rows,
-            if v.training_frame == "training" {
-                "its own (seen in training)"
-            } else {
-                "the first session's (new)"
+            match v.training_frame {
+                "training" => "its own (seen in training)",
+                "moved" =>
+                    "the first session's (new; measured in another frame: counted re-registered)",
+                _ => "the first session's (new)",
             },
             v.training_frame_rms_mm,
             v.reregistered_rms_mm,
