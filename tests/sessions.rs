@@ -145,18 +145,25 @@ fn sessions_recover_the_moved_frames_and_one_frame_does_notably_worse() {
     }
 }
 
-/// A held-out session the training never saw: the training frame (the first session's) carries
-/// its moved frame into the figure, the re-registration (six frame parameters refitted, the
-/// geometry fixed) removes it; the pose session's held-out rows use their own training frame.
-/// The second robot trained without its third session, which is held out with the pose
-/// session's held-out rows; `bump` (m) is added to the x of the first day-3 row.
-fn run_with_a_new_session(bump: f64) -> (SecondRobot, CalibrationRun, Vec<Measurement>) {
+/// The second robot with its third session left out of training: the robot, the training
+/// rows (kept, without day 3), the held-out rows (`SecondRobot::split`), and day 3's rows.
+fn without_day3() -> (SecondRobot, Vec<usize>, Vec<usize>, Vec<usize>) {
     let robot = second_robot(29);
     let (kept, held) = robot.split(4);
     let day3: Vec<usize> = (0..robot.measurements.len())
         .filter(|&i| robot.measurements[i].session.as_deref() == Some(SESSIONS[2]))
         .collect();
     let training: Vec<usize> = kept.into_iter().filter(|i| !day3.contains(i)).collect();
+    (robot, training, held, day3)
+}
+
+/// A held-out session the training never saw: the training frame (the first session's) carries
+/// its moved frame into the figure, the re-registration (six frame parameters refitted, the
+/// geometry fixed) removes it; the pose session's held-out rows use their own training frame.
+/// The second robot trained without its third session, which is held out with the pose
+/// session's held-out rows; `bump` (m) is added to the x of the first day-3 row.
+fn run_with_a_new_session(bump: f64) -> (SecondRobot, CalibrationRun, Vec<Measurement>) {
+    let (robot, training, held, day3) = without_day3();
     let validation: Vec<usize> = held.into_iter().chain(day3).collect();
     let mut validation_rows = robot.rows(&validation, true);
     let first_day3 = validation_rows
@@ -239,12 +246,7 @@ fn a_new_session_is_reported_in_the_training_frame_and_re_registered() {
 /// name) is not taken for a moved one: it counts in the training frame, no note.
 #[test]
 fn a_new_session_in_the_training_frame_is_not_re_registered() {
-    let robot = second_robot(29);
-    let (kept, held) = robot.split(4);
-    let day3: Vec<usize> = (0..robot.measurements.len())
-        .filter(|&i| robot.measurements[i].session.as_deref() == Some(SESSIONS[2]))
-        .collect();
-    let training: Vec<usize> = kept.into_iter().filter(|i| !day3.contains(i)).collect();
+    let (robot, training, held, _) = without_day3();
     let first_day: Vec<usize> = held
         .into_iter()
         .filter(|&i| robot.measurements[i].session.as_deref() == Some(SESSIONS[0]))

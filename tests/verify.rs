@@ -50,6 +50,26 @@ pub(crate) fn calibrate_tiago(kind: &str, validation: &Path, out: &Path) -> serd
     calibration.report()
 }
 
+/// The Robonaut example calibrated with its stiffness file into a temporary folder: the folder
+/// (kept alive), the output folder, the measurements and the stiffness file.
+fn calibrated_with_stiffness() -> (tempfile::TempDir, PathBuf, PathBuf, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let stiffness = repo().join("robots/robonaut/stiffness.yaml");
+    let example = repo().join("robots/robonaut/example/measurements.csv");
+    let run = treecal(&[
+        "calibrate",
+        "--measurements",
+        path_str(&example),
+        "--stiffness",
+        path_str(&stiffness),
+        "--out",
+        path_str(&out),
+    ]);
+    assert_success(&run, "calibrate with --stiffness");
+    (dir, out, example, stiffness)
+}
+
 /// calibrate's per-row validation position errors (after), by row id.
 fn calibrate_rows(report: &serde_json::Value) -> HashMap<String, f64> {
     let mut rows = HashMap::new();
@@ -320,20 +340,7 @@ fn verify_without_a_calibration_or_with_a_wrong_one_names_what_to_give() {
 /// warning, and the figure is the compensated one (no false alarm).
 #[test]
 fn verify_warns_when_the_validated_compensation_is_missing() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    let stiffness = repo().join("robots/robonaut/stiffness.yaml");
-    let example = repo().join("robots/robonaut/example/measurements.csv");
-    let run = treecal(&[
-        "calibrate",
-        "--measurements",
-        path_str(&example),
-        "--stiffness",
-        path_str(&stiffness),
-        "--out",
-        path_str(&out),
-    ]);
-    assert_success(&run, "calibrate with --stiffness");
+    let (dir, out, example, stiffness) = calibrated_with_stiffness();
     let verified = dir.path().join("verify");
     let verify = |extra: &[&str]| {
         let mut args = vec!["verify", "--calibration", path_str(&out)];
@@ -511,20 +518,7 @@ fn the_verify_report_splits_the_error_by_tool_and_by_session() {
 /// (stderr and report.md, naming the file) once calibrated.urdf was edited by hand.
 #[test]
 fn verify_notices_a_calibrated_urdf_edited_after_the_calibration() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    let example = repo().join("robots/robonaut/example/measurements.csv");
-    let stiffness = repo().join("robots/robonaut/stiffness.yaml");
-    let run = treecal(&[
-        "calibrate",
-        "--measurements",
-        path_str(&example),
-        "--stiffness",
-        path_str(&stiffness),
-        "--out",
-        path_str(&out),
-    ]);
-    assert_success(&run, "calibrate");
+    let (dir, out, example, stiffness) = calibrated_with_stiffness();
     let provenance = std::fs::read_to_string(out.join("provenance.yaml")).unwrap();
     let urdf = out.join("calibrated.urdf");
     let sha = treecal::io::sha256_hex(&std::fs::read(&urdf).unwrap());

@@ -268,16 +268,7 @@ fn configurations(a: &Folder, b: &Folder) -> Vec<Configuration> {
 /// The position of `tool`'s calibrated frame in `folder`'s measurement frame at `joints`.
 fn tool_position(folder: &Folder, tool: &str, joints: &[(String, f64)]) -> Result<Vec3> {
     let tree = &folder.tree;
-    let mut q = vec![0.0; tree.dofs().len()];
-    for (name, value) in joints {
-        if let Some(d) = tree
-            .dofs()
-            .iter()
-            .position(|&j| &tree.joint(j).name == name)
-        {
-            q[d] = *value;
-        }
-    }
+    let q = super::compare_gauge::joint_vector(tree, joints);
     let link = tree.link_id(&scored_link(tree, tree.link_id(tool)?))?;
     Ok((folder.world_from_base * tree.link_pose(link, &q)?)
         .translation

@@ -46,7 +46,7 @@ pub(crate) struct Reexpression {
 pub(crate) type Configuration = (String, Vec<(String, f64)>);
 
 /// The joint vector of `tree` for named joint values (others zero).
-fn joint_vector(tree: &KinematicTree, joints: &[(String, f64)]) -> Vec<f64> {
+pub(crate) fn joint_vector(tree: &KinematicTree, joints: &[(String, f64)]) -> Vec<f64> {
     let mut q = vec![0.0; tree.dofs().len()];
     for (name, value) in joints {
         if let Some(d) = tree
