@@ -1017,29 +1017,44 @@ fn palm_on_the_wrist_joint_calibrates_and_exports_through_the_cli() {
     assert_added_links_exact(&read(&exported), &params);
 }
 
-/// A true robot whose palms sit centimetres off the wrist axes (`simulate`'s default errors):
-/// `calibrate`'s verdict fails, naming `--add-tool-links`, and writes params.yaml and the
-/// reports but no calibrated.urdf; with it, calibrated.urdf has the
-/// `<palm>_calibrated` links at the calibrated tool frames (1e-9).
+/// A true robot whose palms sit centimetres off the wrist axes (`simulate`'s default errors, as
+/// a mocap marker body on a leaf wrist link): `calibrate` adds the `<palm>_calibrated` links at
+/// the calibrated tool frames by default (1e-9) and says so; `export` of the same params.yaml
+/// without `--add-tool-links` refuses, naming the palm and the flag.
 #[test]
-fn palm_off_the_wrist_axis_needs_added_tool_links() {
+fn palm_off_the_wrist_axis_gets_added_tool_links() {
     let dir = tempfile::tempdir().unwrap();
     let (run, out) = palms_through_the_cli(dir.path(), "0.05", &[]);
-    assert!(!out.join("calibrated.urdf").exists(), "{run}");
-    assert!(out.join("params.yaml").exists(), "{run}");
-    assert_failed_verdict(
-        &run,
-        &["l_hand", "mm off the joint axis", "--add-tool-links"],
-        "calibrate",
-    );
-    let (run, out) = palms_through_the_cli(dir.path(), "0.05", &["--add-tool-links"]);
-    assert_success(&run, "calibrate --add-tool-links");
-    assert!(
-        run.stderr.contains("added link 'r_hand_calibrated'"),
-        "{run}"
-    );
-    assert_added_links_exact(
-        &read(&out.join("calibrated.urdf")),
-        &read(&out.join("params.yaml")),
-    );
+    assert_success(&run, "calibrate");
+    for palm in ["l_hand", "r_hand"] {
+        assert!(
+            run.stderr
+                .contains(&format!("added link '{palm}_calibrated'")),
+            "{run}"
+        );
+    }
+    let calibrated = read(&out.join("calibrated.urdf"));
+    assert_added_links_exact(&calibrated, &read(&out.join("params.yaml")));
+    let robot = dir.path().join("palms.urdf");
+    let exported = dir.path().join("exported.urdf");
+    let export = |extra: &[&str]| {
+        let mut args = vec![
+            "export",
+            "--robot",
+            path_str(&robot),
+            "--tools",
+            "l_hand,r_hand",
+            "--params",
+        ];
+        let params = out.join("params.yaml");
+        let params = path_str(&params).to_owned();
+        args.push(&params);
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", path_str(&exported)]);
+        treecal(&args)
+    };
+    assert_error(&export(&[]), &["l_hand", "--add-tool-links"], "export");
+    let run = export(&["--add-tool-links"]);
+    assert_success(&run, "export --add-tool-links");
+    assert_eq!(read(&exported), calibrated);
 }

@@ -384,7 +384,7 @@ def calibrate(
     rotation_sigma: Optional[float] = None,
     ignore_columns: Sequence[str] = (),
     strict: bool = False,
-    add_tool_links: bool = False,
+    add_tool_links: bool = True,
     camera: Optional[PathLike] = None,
     detections: Optional[DetectionsLike] = None,
     pixel_sigma: float = 0.5,

@@ -75,7 +75,8 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
             GravityFrame::Measurement => treecal::workflow::GravityFrame::Measurement,
             GravityFrame::Base => treecal::workflow::GravityFrame::Base,
         },
-        add_tool_links: args.add_tool_links,
+        // On by default for calibrate (docs/export.md); the flag is kept for scripts.
+        add_tool_links: true,
         model: model_choice(args.model),
         harmonics: args.joint_errors.contains(&JointErrorArg::Harmonics),
         backlash: args.joint_errors.contains(&JointErrorArg::Backlash),
@@ -195,7 +196,7 @@ fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<
         },
         angle_unit: args.angle_unit,
         length_unit: args.joint_length_unit.or(args.length_unit),
-        add_tool_links: args.add_tool_links,
+        add_tool_links: true,
     };
     config.check_output(&args.out)?;
     let calibration = calibrate_camera_files(&config)?;

@@ -47,10 +47,10 @@ pub struct CalibrateArgs {
     /// The robot's URDF file [default: the built-in Robonaut].
     #[arg(long)]
     pub robot: Option<PathBuf>,
-    /// When a tool link is the child of a revolute joint and its calibrated origin lies off
-    /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
-    /// express), add a fixed child link `<tool>_calibrated` at the exact calibrated tool frame
-    /// instead of failing (docs/export.md).
+    /// Always on for calibrate (kept for scripts): when a tool link is the child of a revolute
+    /// joint and its calibrated origin lies off the joint axis by more than the calibration's
+    /// uncertainty (which a URDF joint cannot express), a fixed child link `<tool>_calibrated`
+    /// is added at the exact calibrated tool frame (docs/export.md).
     #[arg(long)]
     pub add_tool_links: bool,
     /// Which parameters describe the robot: `offsets` (joint zero offsets, the tools and the
