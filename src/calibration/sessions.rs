@@ -161,8 +161,8 @@ pub const MOVED_FACTOR: f64 = 3.0;
 pub const MOVED_MARGIN: f64 = 1e-3;
 
 impl SessionValidation {
-    /// Whether this session is new and was measured in another frame ([`MOVED_FACTOR`],
-    /// [`MOVED_MARGIN`]): its rows then count re-registered (placed in the training frame by
+    /// Whether this session is new and was measured in another frame (`MOVED_FACTOR`,
+    /// `MOVED_MARGIN`): its rows then count re-registered (placed in the training frame by
     /// [`Self::session_from_first`]) in every validation figure, as `verify` scores a new day.
     pub fn moved(&self) -> bool {
         !self.seen_in_training
