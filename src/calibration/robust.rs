@@ -176,7 +176,9 @@ fn calibrate_robust_with(
         RobustLoss::Off => None,
         _ => thresholds.subsample(measurements),
     };
-    let run = |start: &McpcModel, weights: Vec<f64>| {
+    // A large problem's fit starts from the previous one; any other from `model`.
+    let run = |previous: &McpcModel, weights: Vec<f64>| {
+        let start = if subsample.is_some() { previous } else { model };
         let options = IdentificationOptions {
             observation_weights: weights,
             warm_start: subsample.is_some(),
@@ -224,12 +226,7 @@ fn calibrate_robust_with(
                 break;
             }
             rounds += 1;
-            let start = if subsample.is_some() {
-                &report.model
-            } else {
-                model
-            };
-            report = run(start, weights.clone())?;
+            report = run(&report.model, weights.clone())?;
             coarse = false;
             residuals = residuals_at(&report.model)?;
             scale = robust_scale(&residuals, measurements);
@@ -246,12 +243,7 @@ fn calibrate_robust_with(
     if !robust.outliers().is_empty() {
         // The outliers' bounded pull (Huber: k robust σ each) is a bias the data do not need:
         // the last fit leaves them out, which also keeps them out of σ̂ and the covariance.
-        let start = if subsample.is_some() {
-            &report.model
-        } else {
-            model
-        };
-        report = run(start, robust.fit_weights())?;
+        report = run(&report.model, robust.fit_weights())?;
         robust.residuals = residuals_at(&report.model)?;
         robust.rounds += 1;
     }

@@ -14,8 +14,8 @@ use super::plan::{CalibrationReport, Compensation};
 use super::predictor::Deflected;
 use super::robust::{self, DataSet, Outlier, RobustLoss, RobustReport};
 use super::sessions::{
-    calibrate_sessions, session_findings, validation_in_training_frames, SessionCalibration,
-    Sessions, SessionsReport,
+    calibrate_sessions, labelled, session_findings, validation_in_training_frames,
+    SessionCalibration, Sessions, SessionsReport,
 };
 use super::verdict::Finding;
 use crate::error::{Error, Result};
@@ -108,7 +108,7 @@ pub fn run_calibration(
     let parameters = estimates(input, &guess.model, &report);
     let baseline_validation = &nominal_validation(
         &baseline,
-        (given_measurements, given_validation),
+        (given_measurements, given_validation, validation),
         &sessions,
         input.options,
     )?[..];
@@ -190,29 +190,34 @@ fn in_training_frames<'m>(
     }
 }
 
-/// The validation rows the nominal robot's "before" is scored on: in the training frames like
-/// the calibrated model's, but a new session measured in another frame (judged at the
-/// calibrated model) placed by the nominal robot's own re-registration.
+/// The validation rows the nominal robot's "before" is scored on: the calibrated model's
+/// `placed` rows (in the training frames), but when a new session was measured in another
+/// frame (judged at the calibrated model), the given rows placed with the nominal robot's own
+/// re-registration of it.
 fn nominal_validation<'m>(
     baseline: &McpcModel,
-    (training, validation): (&[Measurement], &'m [Measurement]),
+    (training, validation, placed): (&[Measurement], &[Measurement], &'m [Measurement]),
     sessions: &SessionsReport,
     options: &IdentificationOptions,
 ) -> Result<Cow<'m, [Measurement]>> {
-    let mut nominal = sessions.clone();
-    if sessions.validation.iter().any(|v| v.moved()) {
-        let frames = new_session_frames(
-            baseline,
-            (training, validation),
-            Compensation::None,
-            sessions,
-            options,
-        )?;
-        for (session, own) in nominal.validation.iter_mut().zip(frames) {
-            session.session_from_first = own.session_from_first;
-        }
+    if !sessions.validation.iter().any(|v| v.moved()) {
+        return Ok(Cow::Borrowed(placed));
     }
-    Ok(in_training_frames(validation, &nominal))
+    let frames = new_session_frames(
+        baseline,
+        (training, validation),
+        Compensation::None,
+        sessions,
+        options,
+    )?;
+    let mut nominal = sessions.clone();
+    for (session, own) in nominal.validation.iter_mut().zip(frames) {
+        session.session_from_first = own.session_from_first;
+    }
+    Ok(Cow::Owned(validation_in_training_frames(
+        validation,
+        Some(&nominal),
+    )))
 }
 
 /// The validation sessions' figures at `model` (empty when no row of either set names a
@@ -229,14 +234,6 @@ fn new_session_frames(
         return Ok(Vec::new());
     }
     super::sessions::validate_sessions(model, validation, compensation, sessions, options)
-}
-
-/// Whether any row of either set names a session.
-fn labelled(training: &[Measurement], validation: &[Measurement]) -> bool {
-    training
-        .iter()
-        .chain(validation)
-        .any(|m| m.session.is_some())
 }
 
 /// The indices of the identification rows the fit kept (of `count`), in order (for the

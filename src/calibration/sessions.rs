@@ -506,6 +506,14 @@ pub fn validate_sessions(
         .collect())
 }
 
+/// Whether any row of either set names a session.
+pub(crate) fn labelled(training: &[Measurement], validation: &[Measurement]) -> bool {
+    training
+        .iter()
+        .chain(validation)
+        .any(|m| m.session.is_some())
+}
+
 /// `report` with the validation sessions' figures at the calibrated `model`, when any row of
 /// either set names a session (`None` otherwise: the data know no sessions).
 pub fn finish_sessions(
@@ -516,11 +524,7 @@ pub fn finish_sessions(
     compensation: Compensation<'_>,
     options: &IdentificationOptions,
 ) -> Result<Option<SessionsReport>> {
-    let labelled = training
-        .iter()
-        .chain(validation)
-        .any(|m| m.session.is_some());
-    if !labelled {
+    if !labelled(training, validation) {
         return Ok(None);
     }
     report.validation = validate_sessions(model, validation, compensation, &report, options)?;
