@@ -93,6 +93,7 @@ pub(super) fn linearise(
     // Keyed by configuration and payload.
     let mut cached: Cached<'_, Vec<ToolJacobian>> = None;
     let mut cached_poses: Cached<'_, Vec<Pose>> = None;
+    let (mut block, mut weights) = (DMatrix::zeros(0, 0), Vec::new());
     for (index, m) in measurements.iter().enumerate() {
         let kind = kind_of(&m.observation);
         let count = kind.rows();
@@ -123,10 +124,22 @@ pub(super) fn linearise(
             .map_or(1.0, |w| w.sqrt());
         let weight = |row_kind| (1.0 / noise.sigma(row_kind)) * observation;
         if with_jacobian {
-            let mut block = jacobian.view_mut((row, 0), (count, free.len()));
-            kind.jacobian(&state, free, &mut block)?;
-            for (k, &row_kind) in kind.row_kinds().iter().enumerate() {
-                block.row_mut(k).scale_mut(weight(row_kind));
+            // Written and weighted in a small block (in cache), then copied once into the
+            // tall matrix, whose rows are a column's length apart.
+            if block.shape() != (count, free.len()) {
+                block = DMatrix::zeros(count, free.len());
+            } else {
+                block.fill(0.0);
+            }
+            kind.jacobian(&state, free, &mut block.view_mut((0, 0), (count, free.len())))?;
+            weights.clear();
+            weights.extend(kind.row_kinds().iter().map(|&k| weight(k)));
+            let tall = jacobian.as_mut_slice();
+            for (column, from) in block.as_slice().chunks_exact(count).enumerate() {
+                let to = &mut tall[column * rows + row..][..count];
+                for ((to, from), weight) in to.iter_mut().zip(from).zip(&weights) {
+                    *to = from * weight;
+                }
             }
         }
         kind.residual(&state, &mut residual.as_mut_slice()[row..row + count])?;

@@ -8,11 +8,12 @@
 //! a mean shift well above its scatter says the validation data were taken in another frame
 //! or robot state (`docs/calibration.md`, "Repeatability").
 
-use super::validation::{chain_postures, ChainPostures, PostureIndex};
+#[cfg(doc)]
+use super::validation::PostureIndex;
+use super::validation::{places, Stratum};
 use crate::kinematics::McpcModel;
 use crate::math::Vec3;
 use crate::measurement::{Measurement, Observation};
-use rayon::prelude::*;
 use serde::Serialize;
 
 /// Fewer repeated pairs than this give no figure.
@@ -53,25 +54,38 @@ pub fn repeatability(
     identification: &[Measurement],
     validation: &[Measurement],
 ) -> Option<Repeatability> {
-    let chains = chain_postures(model, identification);
-    let indices: Vec<PostureIndex<'_>> = chains.iter().map(ChainPostures::index).collect();
-    // Per tool, its identification rows in the order of its chain's postures.
-    let rows_of: Vec<Vec<&Measurement>> = (0..chains.len())
-        .map(|tool| identification.iter().filter(|m| m.tool == tool).collect())
-        .collect();
-    // In parallel, in validation order (rayon's collect keeps it).
+    let places = places(model, identification, validation);
+    repeatability_of(identification, validation, &places)
+}
+
+/// [`repeatability`] from the validation rows' places ([`places`]: what the strata are read
+/// from, so that the postures are looked up once for both).
+pub fn repeatability_of(
+    identification: &[Measurement],
+    validation: &[Measurement],
+    places: &[(Stratum, Option<usize>)],
+) -> Option<Repeatability> {
     let differences: Vec<Vec3> = validation
-        .par_iter()
-        .filter_map(|v| {
-            let index = indices
-                .get(v.tool)
-                .filter(|_| !chains[v.tool].dofs.is_empty())?;
-            let measured = position(v)?;
-            let repeat = rows_of[v.tool][index.repeat_of(&v.q)?];
-            Some((measured - position(repeat)?) * 1e3)
+        .iter()
+        .zip(places)
+        .filter_map(|(v, (_, repeat))| {
+            let repeat = &identification[(*repeat)?];
+            Some((position(v)? - position(repeat)?) * 1e3)
         })
         .collect();
     summarise(&differences)
+}
+
+/// The strata of the validation rows ([`super::strata`]) and their [`repeatability`], the
+/// postures looked up once for both.
+pub fn strata_and_repeatability(
+    model: &McpcModel,
+    identification: &[Measurement],
+    validation: &[Measurement],
+) -> (Vec<Stratum>, Option<Repeatability>) {
+    let places = places(model, identification, validation);
+    let repeatability = repeatability_of(identification, validation, &places);
+    (places.into_iter().map(|(s, _)| s).collect(), repeatability)
 }
 
 /// The figures of the position differences `d` (mm).

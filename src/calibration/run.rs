@@ -23,14 +23,15 @@ use crate::kinematics::{FlexibilityModel, McpcModel, ParameterOwner};
 use crate::math::{root_mean_square, Pose};
 use crate::measurement::Measurement;
 use nalgebra::DMatrix;
-use rayon::prelude::*;
 use std::borrow::Cow;
 
 mod frame_refinement;
 mod input;
+mod spread;
 use frame_refinement::refine_measurement_frame;
 pub use frame_refinement::{FRAME_PRIOR_ANGLE, FRAME_PRIOR_LENGTH};
 pub use input::CalibrationInput;
+use spread::predicted_spread;
 
 /// Calibrates from `measurements` and evaluates the result on them and on `validation`.
 pub fn run_calibration(
@@ -100,9 +101,8 @@ pub fn run_calibration(
         fitted_frame,
         input.options,
     )?;
-    let validation_strata = super::validation::strata(&report.model, measurements, validation);
-    let repeatability =
-        super::repeatability::repeatability(&report.model, measurements, validation);
+    let (validation_strata, repeatability) =
+        super::repeatability::strata_and_repeatability(&report.model, measurements, validation);
     // Every validation row counts (its outliers are only marked).
     let measurement_rows = kept_rows(measurements.len(), &outliers);
     let parameters = estimates(input, &guess.model, &report);
@@ -611,35 +611,6 @@ fn arm_residuals(
             }
         })
         .collect())
-}
-
-/// Per validation observation, `√trace(J_p·C·J_pᵀ)` with `C` the assembled parameter
-/// covariance ([`assembled_covariance`]) (mm): the spread of the predicted position that the
-/// identification noise leaves.
-fn predicted_spread(report: &CalibrationReport, validation: &[Measurement]) -> Vec<f64> {
-    // A stage without redundancy has no covariance: nothing can be predicted (not zero).
-    let undetermined = report
-        .stages
-        .iter()
-        .any(|s| s.identification.covariance.is_none());
-    if validation.is_empty() || undetermined {
-        return Vec::new();
-    }
-    let covariance = assembled_covariance(report);
-    let model = &report.model;
-    // In parallel, in validation order.
-    validation
-        .par_iter()
-        .map(|m| {
-            let jacobian = model.tool_jacobian(m.tool, &m.q).jacobian;
-            let position = jacobian.rows(0, 3);
-            (position * &covariance * position.transpose())
-                .trace()
-                .max(0.0)
-                .sqrt()
-                * 1e3
-        })
-        .collect()
 }
 
 /// The percentage of `before` that `after` removed (0 when there was nothing to remove).

@@ -7,6 +7,7 @@ use crate::kinematics::{FrameKind, McpcModel};
 use crate::measurement::Measurement;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::collections::HashMap;
 
 /// A validation row repeats an identification posture when every joint of its tool's chain
 /// is within this of that posture's value (rad; a plateau average of a repeated posture
@@ -119,12 +120,28 @@ impl ChainPostures {
             chain: self,
             ranges,
             keys: by_spread,
-            order: (0..self.postures.len()).collect(),
+            order: Vec::new(),
             cells: Vec::new(),
+            groups: HashMap::new(),
         };
-        let cells: Vec<Cell> = self.postures.iter().map(|p| index.cell(p, |k| k)).collect();
-        index.order.sort_by_key(|&i| (cells[i], i));
-        index.cells = index.order.iter().map(|&i| cells[i]).collect();
+        // Every key distinct (ties by index): the unstable parallel sort gives one order.
+        let mut sorted: Vec<(Cell, usize)> = self
+            .postures
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| (index.cell(p, |k| k), i))
+            .collect();
+        sorted.par_sort_unstable();
+        (index.cells, index.order) = sorted.into_iter().unzip();
+        let mut start = 0;
+        for end in 1..=index.cells.len() {
+            let next = index.cells.get(end).map(|c| [c[0], c[1]]);
+            let this = index.cells[start];
+            if next != Some([this[0], this[1]]) {
+                index.groups.insert([this[0], this[1]], start..end);
+                start = end;
+            }
+        }
         index
     }
 }
@@ -145,9 +162,10 @@ fn repeat_tolerance(angle: bool) -> f64 {
 
 /// [`ChainPostures`] prepared for many look-ups ([`ChainPostures::index`]): the ranges computed
 /// once, the postures sorted by their cell on (at most) three joints, each cell twice the repeat
-/// tolerance wide. Each look-up is logarithmic in the number of postures plus the postures in
-/// the 27 cells around `q` (so the strata of N rows cost about N log N, not N² as with one
-/// sorted joint), with the same result as a scan of all.
+/// tolerance wide, and grouped by their bins on the first two. A look-up reads the 9 groups
+/// around `q` from a hash map and searches the third bin within each (so the strata of N rows
+/// cost about N, not N² as with one sorted joint, nor N log N cache misses as with one sorted
+/// array), with the same result as a scan of all.
 #[derive(Debug, Clone)]
 pub struct PostureIndex<'a> {
     chain: &'a ChainPostures,
@@ -158,6 +176,8 @@ pub struct PostureIndex<'a> {
     order: Vec<usize>,
     /// Those cells, in the same order.
     cells: Vec<Cell>,
+    /// The range of `cells` on each pair of bins of the first two key joints.
+    groups: HashMap<[i64; 2], std::ops::Range<usize>>,
 }
 
 impl PostureIndex<'_> {
@@ -193,13 +213,16 @@ impl PostureIndex<'_> {
         // Every candidate lies in the cells one either side of `q`'s on every key joint; the
         // full test decides, exactly as a scan of every posture would.
         let [a, b, c] = self.cell(q, |k| chain.dofs[k].0);
+        let (c_low, c_high) = (c.saturating_sub(1), c.saturating_add(1));
         let mut first: Option<usize> = None;
         for (da, db) in (-1..=1).flat_map(|da| (-1..=1).map(move |db| (da, db))) {
             let (row, column) = (a.saturating_add(da), b.saturating_add(db));
-            let low = [row, column, c.saturating_sub(1)];
-            let high = [row, column, c.saturating_add(1)];
-            let start = self.cells.partition_point(|&c| c < low);
-            let end = self.cells.partition_point(|&c| c <= high);
+            let Some(group) = self.groups.get(&[row, column]) else {
+                continue;
+            };
+            let cells = &self.cells[group.clone()];
+            let start = group.start + cells.partition_point(|c| c[2] < c_low);
+            let end = group.start + cells.partition_point(|c| c[2] <= c_high);
             let found = self.order[start.min(end)..end]
                 .iter()
                 .copied()
@@ -215,11 +238,17 @@ impl PostureIndex<'_> {
 
     /// Where a configuration `q` of this tool lies ([`ChainPostures::stratum`]).
     pub fn stratum(&self, q: &[f64]) -> Stratum {
+        self.place(q).0
+    }
+
+    /// Where a configuration `q` of this tool lies and the posture it repeats
+    /// ([`Self::repeat_of`]): one look-up for both.
+    pub fn place(&self, q: &[f64]) -> (Stratum, Option<usize>) {
         let chain = self.chain;
         let value = |dof: usize| q.get(dof).copied().unwrap_or(0.0);
-        let repeats = self.repeat_of(q).is_some();
-        if repeats {
-            return Stratum::Repeat;
+        let repeat = self.repeat_of(q);
+        if repeat.is_some() {
+            return (Stratum::Repeat, repeat);
         }
         let inside = !chain.postures.is_empty()
             && chain
@@ -236,9 +265,9 @@ impl PostureIndex<'_> {
                     v >= low - margin && v <= high + margin
                 });
         if inside {
-            Stratum::Inside
+            (Stratum::Inside, None)
         } else {
-            Stratum::Outside
+            (Stratum::Outside, None)
         }
     }
 }
@@ -271,15 +300,47 @@ pub fn strata(
     identification: &[Measurement],
     validation: &[Measurement],
 ) -> Vec<Stratum> {
+    places(model, identification, validation)
+        .into_iter()
+        .map(|(stratum, _)| stratum)
+        .collect()
+}
+
+/// The stratum of every validation measurement (in order, as [`strata`]) with the
+/// identification row (its index in `identification`) whose posture it repeats: the first
+/// row of its tool at that posture ([`PostureIndex::repeat_of`]; none for a tool whose chain
+/// has no joint, where every row is the same posture).
+pub fn places(
+    model: &McpcModel,
+    identification: &[Measurement],
+    validation: &[Measurement],
+) -> Vec<(Stratum, Option<usize>)> {
     let chains = chain_postures(model, identification);
     let indices: Vec<PostureIndex<'_>> = chains.iter().map(ChainPostures::index).collect();
+    // Per tool, the index of its identification rows in the order of its chain's postures.
+    let rows_of: Vec<Vec<usize>> = (0..chains.len())
+        .map(|tool| {
+            let of_tool = identification.iter().enumerate();
+            of_tool
+                .filter(|(_, m)| m.tool == tool)
+                .map(|(i, _)| i)
+                .collect()
+        })
+        .collect();
     // In parallel, in validation order.
     validation
         .par_iter()
         .map(|m| match indices.get(m.tool) {
-            Some(index) => index.stratum(&m.q),
+            Some(index) => {
+                let (stratum, repeat) = index.place(&m.q);
+                let moves = !chains[m.tool].dofs.is_empty();
+                (
+                    stratum,
+                    repeat.filter(|_| moves).map(|p| rows_of[m.tool][p]),
+                )
+            }
             // A tool the model does not know: nothing to judge against.
-            None => Stratum::Outside,
+            None => (Stratum::Outside, None),
         })
         .collect()
 }

@@ -31,6 +31,22 @@ pub fn write_json_rows<T: serde::Serialize>(value: &T, out: &mut dyn Write) -> R
     out.write_all(b"\n").map_err(|e| invalid(e.to_string()))
 }
 
+/// `value` as [`to_json_rows`] lays it out where it opens inside `depth` containers (the
+/// top-level object is depth 1): the text of an element of an array at that depth, without
+/// the separator before it (its array writes that).
+pub fn json_at_depth<T: serde::Serialize>(value: &T, depth: usize) -> Result<String> {
+    let mut bytes = Vec::new();
+    let formatter = Shallow {
+        depth,
+        has_value: false,
+    };
+    let mut serializer = serde_json::Serializer::with_formatter(&mut bytes, formatter);
+    value
+        .serialize(&mut serializer)
+        .map_err(|e| invalid(e.to_string()))?;
+    String::from_utf8(bytes).map_err(|e| invalid(e.to_string()))
+}
+
 fn render<T: serde::Serialize, W: Write + ?Sized>(value: &T, out: &mut W) -> Result<()> {
     let mut serializer = serde_json::Serializer::with_formatter(out, Shallow::default());
     value

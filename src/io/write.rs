@@ -207,22 +207,22 @@ pub fn replace_folder_streamed(
     let staging = aside(&parent, &name, "new");
     let written = (|| -> Result<()> {
         std::fs::create_dir(&staging).map_err(|e| io(folder, e))?;
-        for (file, contents) in files {
-            let mut handle =
-                std::fs::File::create(staging.join(file)).map_err(|e| io(folder, e))?;
-            handle.write_all(contents).map_err(|e| io(folder, e))?;
-            handle.sync_all().map_err(|e| io(folder, e))?;
-        }
-        for (file, write) in streamed {
-            let handle = std::fs::File::create(staging.join(file)).map_err(|e| io(folder, e))?;
-            let mut buffered = std::io::BufWriter::with_capacity(1 << 20, handle);
-            write(&mut buffered)?;
-            let handle = buffered
-                .into_inner()
-                .map_err(|e| io(folder, e.into_error()))?;
-            handle.sync_all().map_err(|e| io(folder, e))?;
-        }
-        Ok(())
+        // The whole files on a thread of their own while the streamed ones are rendered.
+        std::thread::scope(|scope| {
+            let whole = scope.spawn(|| -> std::io::Result<()> {
+                for (file, contents) in files {
+                    let mut handle = std::fs::File::create(staging.join(file))?;
+                    handle.write_all(contents)?;
+                    handle.sync_all()?;
+                }
+                Ok(())
+            });
+            let streamed = streamed.iter().try_for_each(|(file, write)| {
+                write_piped(&staging.join(file), *write, &|e| io(folder, e))
+            });
+            let whole = whole.join().unwrap_or_else(|_| Err(stopped()));
+            streamed.and(whole.map_err(|e| io(folder, e)))
+        })
     })();
     if let Err(error) = written {
         let _ = std::fs::remove_dir_all(&staging);
@@ -243,6 +243,74 @@ pub fn replace_folder_streamed(
         }
     };
     std::fs::remove_dir_all(&previous).map_err(|e| io(&previous, e))
+}
+
+/// Bytes a streamed file is rendered into before its writing thread writes them.
+const PIPED_BUFFER: usize = 4 << 20;
+
+/// Writes the file `path` from what `write` renders, the rendering on this thread and the
+/// system calls (copying into the page cache, the final sync) on another, a few buffers
+/// apart; `io` names an I/O error.
+fn write_piped(
+    path: &Path,
+    write: &dyn Fn(&mut dyn Write) -> Result<()>,
+    io: &dyn Fn(std::io::Error) -> Error,
+) -> Result<()> {
+    let mut handle = std::fs::File::create(path).map_err(io)?;
+    std::thread::scope(|scope| {
+        let (sender, buffers) = std::sync::mpsc::sync_channel::<Vec<u8>>(2);
+        let writer = scope.spawn(move || -> std::io::Result<()> {
+            for buffer in buffers {
+                handle.write_all(&buffer)?;
+            }
+            handle.sync_all()
+        });
+        let mut piped = Piped {
+            sender,
+            buffer: Vec::with_capacity(PIPED_BUFFER),
+        };
+        let rendered = write(&mut piped).and_then(|()| piped.flush().map_err(io));
+        drop(piped);
+        // The writer's own error first: a render stopped by a failed write reports it.
+        let written = writer.join().unwrap_or_else(|_| Err(stopped()));
+        written.map_err(io).and(rendered)
+    })
+}
+
+/// The error of a writing thread that stopped without one of its own.
+fn stopped() -> std::io::Error {
+    std::io::Error::other("the thread writing the file stopped")
+}
+
+/// A [`Write`] that hands full buffers to a writing thread.
+struct Piped {
+    sender: std::sync::mpsc::SyncSender<Vec<u8>>,
+    buffer: Vec<u8>,
+}
+
+impl Write for Piped {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        if self.buffer.len() + bytes.len() > PIPED_BUFFER {
+            self.send()?;
+        }
+        self.buffer.extend_from_slice(bytes);
+        Ok(bytes.len())
+    }
+
+    /// Sends what is buffered.
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.send()
+    }
+}
+
+impl Piped {
+    fn send(&mut self) -> std::io::Result<()> {
+        if self.buffer.is_empty() {
+            return Ok(());
+        }
+        let full = std::mem::replace(&mut self.buffer, Vec::with_capacity(PIPED_BUFFER));
+        self.sender.send(full).map_err(|_| stopped())
+    }
 }
 
 /// The folder holding `path` (`.` for a bare name).

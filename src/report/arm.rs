@@ -83,7 +83,7 @@ impl ArmReport {
         arm: &ArmResiduals,
         kept: &[usize],
         predicted: &[f64],
-        marks: &dyn Fn(usize) -> RowMarks,
+        marks: &(dyn Fn(usize) -> RowMarks + Sync),
     ) -> Self {
         let rows = arm
             .rows
@@ -108,9 +108,9 @@ impl ArmReport {
                         after: f64::NAN,
                     }),
                     orientation_deg: pair(&arm.orientation_deg),
-                    predicted_sd_mm: kept
-                        .binary_search(&index)
-                        .ok()
+                    predicted_sd_mm: (!predicted.is_empty())
+                        .then(|| kept.binary_search(&index).ok())
+                        .flatten()
                         .and_then(|j| predicted.get(j).copied()),
                 }
             })

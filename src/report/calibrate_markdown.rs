@@ -341,64 +341,73 @@ fn verdict_markdown(out: &mut String, verdict: &Verdict) {
 /// The per-configuration error plots of one data set: `(file stem, SVG)` per arm and quantity,
 /// stems `<arm>_<set>_<quantity>`, the x axis labelled by the rows' ids.
 pub fn calibration_plots(arms: &[ArmReport], set: &str) -> Result<Vec<(String, String)>> {
+    // One arm at a time: in parallel, two arms' labels and columns (at 10⁶ configurations
+    // some hundred MB) would add to the peak memory, for half a second.
     let mut plots = Vec::new();
     for arm in arms {
-        // Outliers stay in the plots, marked `*`.
-        let ids: Vec<String> = arm
-            .rows
-            .iter()
-            .map(|r| {
-                if r.outlier {
-                    format!("{}*", r.id)
-                } else {
-                    r.id.clone()
-                }
-            })
-            .collect();
-        let marked = arm.rows.iter().any(|r| r.outlier);
-        let column = |f: &dyn Fn(&RowErrors) -> Option<f64>| -> Vec<f64> {
-            arm.rows.iter().filter_map(f).collect()
-        };
-        let position = [
-            column(&|r| Some(r.position_mm.before)),
-            column(&|r| Some(r.position_mm.after)),
-        ];
-        let orientation = [
-            column(&|r| r.orientation_deg.map(|o| o.before)),
-            column(&|r| r.orientation_deg.map(|o| o.after)),
-        ];
-        // Rows observing a position only (a mixed file) have no orientation error: the
-        // orientation plot is labelled by the rows that have one.
-        let oriented: Vec<String> = ids
-            .iter()
-            .zip(&arm.rows)
-            .filter(|(_, r)| r.orientation_deg.is_some())
-            .map(|(id, _)| id.clone())
-            .collect();
-        let title = format!(
-            "on the {set} configurations{}",
-            if marked {
-                " (* outlier, still counted)"
-            } else {
-                ""
-            }
-        );
-        let labels = ["before calibration", "after calibration"];
-        let stem = format!("{}_{set}", arm.arm);
-        let none = [Vec::new(), Vec::new()];
-        plots.extend(arm_error_plots_by_id(
-            &arm.arm, &stem, &title, &labels, &ids, &position, &none,
-        )?);
-        plots.extend(arm_error_plots_by_id(
-            &arm.arm,
-            &stem,
-            &title,
-            &labels,
-            &oriented,
-            &none,
-            &orientation,
-        )?);
+        plots.extend(arm_plots(arm, set)?);
     }
+    Ok(plots)
+}
+
+/// The position and orientation plots of one arm's rows of data set `set`.
+fn arm_plots(arm: &ArmReport, set: &str) -> Result<Vec<(String, String)>> {
+    let mut plots = Vec::new();
+    // Outliers stay in the plots, marked `*`.
+    let ids: Vec<String> = arm
+        .rows
+        .iter()
+        .map(|r| {
+            if r.outlier {
+                format!("{}*", r.id)
+            } else {
+                r.id.clone()
+            }
+        })
+        .collect();
+    let marked = arm.rows.iter().any(|r| r.outlier);
+    let column = |f: &dyn Fn(&RowErrors) -> Option<f64>| -> Vec<f64> {
+        arm.rows.iter().filter_map(f).collect()
+    };
+    let position = [
+        column(&|r| Some(r.position_mm.before)),
+        column(&|r| Some(r.position_mm.after)),
+    ];
+    let orientation = [
+        column(&|r| r.orientation_deg.map(|o| o.before)),
+        column(&|r| r.orientation_deg.map(|o| o.after)),
+    ];
+    // Rows observing a position only (a mixed file) have no orientation error: the
+    // orientation plot is labelled by the rows that have one.
+    let oriented: Vec<String> = ids
+        .iter()
+        .zip(&arm.rows)
+        .filter(|(_, r)| r.orientation_deg.is_some())
+        .map(|(id, _)| id.clone())
+        .collect();
+    let title = format!(
+        "on the {set} configurations{}",
+        if marked {
+            " (* outlier, still counted)"
+        } else {
+            ""
+        }
+    );
+    let labels = ["before calibration", "after calibration"];
+    let stem = format!("{}_{set}", arm.arm);
+    let none = [Vec::new(), Vec::new()];
+    plots.extend(arm_error_plots_by_id(
+        &arm.arm, &stem, &title, &labels, &ids, &position, &none,
+    )?);
+    plots.extend(arm_error_plots_by_id(
+        &arm.arm,
+        &stem,
+        &title,
+        &labels,
+        &oriented,
+        &none,
+        &orientation,
+    )?);
     Ok(plots)
 }
 

@@ -18,6 +18,11 @@ pub struct Started {
 }
 
 impl Started {
+    /// The wall-clock seconds since the start.
+    pub fn elapsed_s(&self) -> f64 {
+        self.clock.elapsed().as_secs_f64()
+    }
+
     /// Now.
     pub fn now() -> Self {
         Self {
@@ -62,7 +67,7 @@ pub fn record(
                     .duration_since(UNIX_EPOCH)
                     .map_or(0, |d| d.as_secs()),
             ),
-            duration_s: started.clock.elapsed().as_secs_f64(),
+            duration_s: started.elapsed_s(),
             threads: rayon::current_num_threads(),
         },
     })

@@ -77,7 +77,7 @@ pub(crate) fn summary_value(mut summary: CalibrationSummary) -> Result<(Value, R
 /// report.json's text: `report` with `parts` at their places, laid out by
 /// [`crate::io::to_json_rows`].
 pub(crate) fn render(report: &Value, parts: &ReportParts) -> Result<String> {
-    crate::io::to_json_rows(&Spliced { report, parts })
+    crate::io::to_json_rows(&Spliced::text(report, parts))
 }
 
 /// As [`render`], written to `out` as it is rendered ([`crate::io::write_json_rows`]).
@@ -86,12 +86,17 @@ pub(crate) fn write(
     parts: &ReportParts,
     out: &mut dyn std::io::Write,
 ) -> Result<()> {
-    crate::io::write_json_rows(&Spliced { report, parts }, out)
+    crate::io::write_json_rows(&Spliced::text(report, parts), out)
 }
 
 /// report.json's value: `report` with `parts` at their places.
 pub(crate) fn value(report: &Value, parts: &ReportParts) -> Result<Value> {
-    serde_json::to_value(Spliced { report, parts }).map_err(json_error)
+    let typed = Spliced {
+        report,
+        parts,
+        text: false,
+    };
+    serde_json::to_value(typed).map_err(json_error)
 }
 
 fn json_error(e: serde_json::Error) -> Error {
@@ -105,6 +110,54 @@ fn json_error(e: serde_json::Error) -> Error {
 struct Spliced<'a> {
     report: &'a Value,
     parts: &'a ReportParts,
+    /// Whether the serialiser is [`crate::io::to_json_rows`]'s: the parts' elements are then
+    /// rendered in parallel ([`rendered_seq`]), else serialised one by one.
+    text: bool,
+}
+
+impl<'a> Spliced<'a> {
+    fn text(report: &'a Value, parts: &'a ReportParts) -> Self {
+        Self {
+            report,
+            parts,
+            text: true,
+        }
+    }
+}
+
+/// The nesting depth of an arm's `rows` array in report.json (the top-level object is 1): a
+/// row object opens at 5, indented, its values on one line ([`crate::io::PRETTY_DEPTH`]).
+const ROWS_DEPTH: usize = 4;
+
+/// The nesting depth of a tool's `postures` array (in `identification_postures.tools`).
+const POSTURES_DEPTH: usize = 5;
+
+/// Elements rendered to text at once (a few MB), before they are written in order.
+const RENDERED_CHUNK: usize = 8192;
+
+/// A sequence of `items` as [`crate::io::to_json_rows`] lays it out, its elements rendered to
+/// text by `render` ([`crate::io::json_at_depth`] at the sequence's depth) in parallel, a
+/// chunk at a time, then written in order as raw JSON: the same bytes as serialising them one
+/// by one.
+fn rendered_seq<S: Serializer, T: Sync>(
+    serializer: S,
+    items: &[T],
+    render: impl Fn(&T) -> Result<String> + Sync,
+) -> std::result::Result<S::Ok, S::Error> {
+    use rayon::prelude::*;
+    use serde::ser::Error as _;
+    let mut seq = serializer.serialize_seq(Some(items.len()))?;
+    for chunk in items.chunks(RENDERED_CHUNK) {
+        let texts: Vec<Box<serde_json::value::RawValue>> = chunk
+            .par_iter()
+            .map(|item| serde_json::value::RawValue::from_string(render(item)?).map_err(json_error))
+            .collect::<Result<_>>()
+            .map_err(S::Error::custom)?;
+        for text in &texts {
+            seq.serialize_element(text)?;
+        }
+    }
+    seq.end()
 }
 
 impl Serialize for Spliced<'_> {
@@ -120,7 +173,7 @@ impl Serialize for Spliced<'_> {
                     part: |i: usize| {
                         self.parts.rows[set]
                             .get(i)
-                            .map(|rows| ("rows", Part::Rows(rows)))
+                            .map(|rows| ("rows", Part::Rows(rows, self.text)))
                     },
                 };
                 out.serialize_entry(key, &arms)?;
@@ -130,6 +183,7 @@ impl Serialize for Spliced<'_> {
                     &Postures {
                         value,
                         parts: self.parts,
+                        text: self.text,
                     },
                 )?;
             } else {
@@ -140,18 +194,24 @@ impl Serialize for Spliced<'_> {
     }
 }
 
-/// A typed part.
+/// A typed part, and whether it is rendered as text ([`Spliced::text`]).
 #[derive(Clone, Copy)]
 enum Part<'a> {
-    Rows(&'a [RowErrors]),
-    Postures(&'a ToolPostures),
+    Rows(&'a [RowErrors], bool),
+    Postures(&'a ToolPostures, bool),
 }
 
 impl Serialize for Part<'_> {
     fn serialize<S: Serializer>(&self, serializer: S) -> std::result::Result<S::Ok, S::Error> {
-        match self {
-            Part::Rows(rows) => rows.serialize(serializer),
-            Part::Postures(tool) => {
+        match *self {
+            Part::Rows(rows, true) => rendered_seq(serializer, rows, |row| {
+                crate::io::json_at_depth(row, ROWS_DEPTH)
+            }),
+            Part::Rows(rows, false) => rows.serialize(serializer),
+            Part::Postures(tool, true) => rendered_seq(serializer, &tool.postures, |posture| {
+                crate::io::json_at_depth(&Labelled { tool, posture }, POSTURES_DEPTH)
+            }),
+            Part::Postures(tool, false) => {
                 let mut seq = serializer.serialize_seq(Some(tool.postures.len()))?;
                 for posture in &tool.postures {
                     seq.serialize_element(&Labelled { tool, posture })?;
@@ -228,6 +288,8 @@ impl Serialize for With<'_> {
 struct Postures<'a> {
     value: &'a Value,
     parts: &'a ReportParts,
+    /// As [`Spliced::text`].
+    text: bool,
 }
 
 impl Serialize for Postures<'_> {
@@ -244,7 +306,7 @@ impl Serialize for Postures<'_> {
                         self.parts
                             .postures
                             .get(i)
-                            .map(|tool| ("postures", Part::Postures(tool)))
+                            .map(|tool| ("postures", Part::Postures(tool, self.text)))
                     },
                 };
                 out.serialize_entry(key, &tools)?;
@@ -296,6 +358,60 @@ fn check_schema_version(report: &Value) -> std::result::Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The parts rendered in parallel as raw text give the bytes of the typed serialisation,
+    /// across a chunk boundary, with optional fields present and absent.
+    #[test]
+    fn parts_rendered_in_parallel_are_the_typed_bytes() {
+        use crate::calibration::Stratum;
+        use crate::report::BeforeAfter;
+        let row = |i: usize| RowErrors {
+            id: format!("r{i}"),
+            index: i,
+            position_mm: BeforeAfter {
+                before: 1.0 / (i + 1) as f64,
+                after: 0.1 * i as f64,
+            },
+            orientation_deg: (i % 2 == 0).then_some(BeforeAfter {
+                before: 0.3,
+                after: 1e-17 * i as f64,
+            }),
+            predicted_sd_mm: (i % 3 == 0).then_some(0.001),
+            stratum: (i % 5 == 0).then_some(Stratum::Inside),
+            outlier: i % 7 == 0,
+            weight: (i % 11 == 0).then_some(0.5),
+        };
+        let rows: Vec<RowErrors> = (0..RENDERED_CHUNK + 3).map(row).collect();
+        let postures: Vec<Vec<f64>> = (0..RENDERED_CHUNK + 2)
+            .map(|i| vec![i as f64 * 0.001, -0.5, 2.0])
+            .collect();
+        let names = ["b".to_owned(), "a".to_owned(), "c".to_owned()];
+        let parts = ReportParts {
+            rows: [vec![rows[..5].to_vec()], vec![rows.clone(), Vec::new()]],
+            postures: vec![ToolPostures::new(&names, postures)],
+        };
+        let report = serde_json::json!({
+            "verdict": {"status": "ok"},
+            "identification": [{"arm": "left", "rows": []}],
+            "validation": [{"arm": "left", "rows": []}, {"arm": "right", "rows": []}],
+            POSTURES_KEY: {"joints": 3, "tools": [{"tool": "t", "postures": []}]},
+        });
+        let typed = Spliced {
+            report: &report,
+            parts: &parts,
+            text: false,
+        };
+        let expected = crate::io::to_json_rows(&typed).unwrap();
+        assert_eq!(render(&report, &parts).unwrap(), expected);
+        let mut written = Vec::new();
+        write(&report, &parts, &mut written).unwrap();
+        assert_eq!(String::from_utf8(written).unwrap(), expected);
+        assert!(
+            expected.contains("\"id\": \"r8194\""),
+            "{}",
+            &expected[..400]
+        );
+    }
 
     #[test]
     fn every_report_version_up_to_this_one_is_read_and_newer_ones_are_refused() {
