@@ -108,6 +108,14 @@ pub fn calibration_html(report: &HtmlReport) -> Result<String> {
     ] {
         table3_html(&mut out, title, arms);
     }
+    // report.md's own text for these (the same figures): the validation rows by stratum, and
+    // the outputs re-read and scored as written.
+    if let Some(strata) = &s.validation_strata {
+        super::html_page::markdown_body(&mut out, &strata.markdown());
+    }
+    if let Some(artifact) = &s.artifact {
+        super::html_page::markdown_body(&mut out, &artifact.markdown());
+    }
     plots_html(&mut out, s, report.plots);
     out.push_str("<h2 id=\"parameter-changes\">Parameter changes</h2>\n<p>Each bar is a calibrated parameter's change from the URDF value; the whisker spans ±1 standard deviation. Grey: not identifiable on its own (kept at its start). The tool frames (where each measured target sits on its tool link) have panels of their own.</p>\n");
     let tools: Vec<&str> = s.identification.iter().map(|a| a.tool.as_str()).collect();
@@ -147,9 +155,9 @@ fn verdict_html(out: &mut String, s: &CalibrationSummary) {
             };
             let _ = writeln!(
                 out,
-                "<li class=\"{label}\"><span class=\"label\">{label}</span> <code>{}</code>: {}</li>",
+                "<li class=\"{label}\"><span class=\"label\">{label}</span> <code class=\"finding\">{}</code>: {}</li>",
                 escape(&reason.code),
-                escape(&reason.message)
+                inline(&reason.message)
             );
         }
         out.push_str("</ul>\n");

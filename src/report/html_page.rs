@@ -13,6 +13,17 @@ pub fn markdown_page(title: &str, markdown: &str, plots: &[&str]) -> String {
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n<style>\n{STYLE}</style>\n</head>\n<body>\n",
         escape(title)
     );
+    markdown_body(&mut out, markdown);
+    for plot in plots {
+        let _ = writeln!(out, "<figure>{}</figure>", strip_xml_declaration(plot));
+    }
+    out.push_str("<p>Written by treecal; the same figures are in report.md and report.json.</p>\n</body>\n</html>\n");
+    out
+}
+
+/// `markdown`'s headings, paragraphs, lists and tables as HTML, appended to `out` (also the
+/// sections of calibrate's page that are report.md's text: the strata, the outputs as written).
+pub(super) fn markdown_body(out: &mut String, markdown: &str) {
     let lines: Vec<&str> = markdown.lines().collect();
     let mut i = 0;
     while i < lines.len() {
@@ -25,7 +36,7 @@ pub fn markdown_page(title: &str, markdown: &str, plots: &[&str]) -> String {
             i += 1;
         } else if line.starts_with('|') {
             let end = block_end(&lines, i, |l| l.starts_with('|'));
-            table(&mut out, &lines[i..end]);
+            table(out, &lines[i..end]);
             i = end;
         } else if is_item(line) {
             let end = block_end(&lines, i, is_item);
@@ -47,11 +58,6 @@ pub fn markdown_page(title: &str, markdown: &str, plots: &[&str]) -> String {
             i = end;
         }
     }
-    for plot in plots {
-        let _ = writeln!(out, "<figure>{}</figure>", strip_xml_declaration(plot));
-    }
-    out.push_str("<p>Written by treecal; the same figures are in report.md and report.json.</p>\n</body>\n</html>\n");
-    out
 }
 
 fn heading_level(line: &str) -> Option<usize> {
