@@ -244,6 +244,35 @@ fn inspect_missing_robot_file_is_named() {
     assert_error(&run, &["robots/nosuch/nosuch.urdf"], "inspect missing file");
 }
 
+/// `-` is not standard input or output: every command refuses it with the flag it was given
+/// to, before reading anything (treecal names and hashes its input files).
+#[test]
+fn a_dash_for_a_file_is_refused_with_its_flag() {
+    for (args, needle) in [
+        (
+            &["calibrate", "--measurements", "-"][..],
+            "--measurements: '-'",
+        ),
+        (
+            &["calibrate", "--measurements", "m.csv", "--validation=-"][..],
+            "--validation: '-'",
+        ),
+        (&["fk", "--joints", "-"][..], "--joints: '-'"),
+        (&["inspect", "-"][..], "the command line: '-'"),
+    ] {
+        let run = treecal(args);
+        assert_error(
+            &run,
+            &[
+                needle,
+                "is not supported",
+                "save the stream to a file first",
+            ],
+            &args.join(" "),
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // fk
 
