@@ -122,7 +122,10 @@ fn readme_example_overlay_applied_to_the_nominal_urdf_is_calibrated_urdf() {
     );
     let html = read(&out.join("report.html"));
     assert!(
-        html.contains("<code>--model</code> offsets") && !html.contains("<code>model</code>"),
+        html.contains("<code>--model</code> offsets")
+            && html.contains("give <code>--validation</code> to use your own")
+            && !html.contains("<code>model</code>")
+            && !html.contains("`validation`"),
         "report.html names the library's setting"
     );
     let provenance = read(&out.join("provenance.yaml"));

@@ -181,7 +181,7 @@ fn context_html(out: &mut String, s: &CalibrationSummary) {
         ),
         ("Measurement frame", c.measurement_frame.clone()),
     ] {
-        let _ = writeln!(out, "<dt>{term}</dt><dd>{}</dd>", escape(&value));
+        let _ = writeln!(out, "<dt>{term}</dt><dd>{}</dd>", inline(&value));
     }
     out.push_str("</dl>\n");
 }
