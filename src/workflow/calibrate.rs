@@ -13,7 +13,7 @@ use super::calibrate_steps::{check_config, export_calibrated, read_data, Loaded}
 use super::checks::{check_outputs, Output};
 use super::note::Note;
 use super::report_json::ReportParts;
-use super::spelling::{spelled_html, spelled_markdown, Spelling};
+use super::spelling::{spell_reports, spelled_markdown, Spelling};
 use crate::calibration::{ParameterEstimate, Verdict};
 use crate::error::{Error, Result};
 use crate::io::{check_output_folder, replace_folder_streamed, write_atomically, StreamedFile};
@@ -152,18 +152,6 @@ fn calibrate_rendering(
         inputs: config.inputs().into_iter().map(Path::to_owned).collect(),
         unrendered_report,
     })
-}
-
-/// report.md and report.html among `files` with their settings spelled by `spell`.
-pub(super) fn spell_reports(files: &mut [(String, Vec<u8>)], spell: Spelling<'_>) {
-    for (name, bytes) in files {
-        let spelled = match (name.as_str(), std::str::from_utf8(bytes)) {
-            ("report.md", Ok(text)) => spelled_markdown(text, spell),
-            (super::calibrate_deploy::HTML_FILE, Ok(text)) => spelled_html(text, spell),
-            _ => continue,
-        };
-        *bytes = spelled.into_bytes();
-    }
 }
 
 impl Calibration {

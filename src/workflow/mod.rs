@@ -121,6 +121,6 @@ pub use source::{
     BUILT_IN_ROBONAUT, BUILT_IN_ROBONAUT_ORIGIN, BUILT_IN_STIFFNESS, BUILT_IN_STIFFNESS_ORIGIN,
 };
 pub use source::{LoadedRobot, MeasurementSource, PlanSource, RobotSource, StiffnessSource};
-pub use spelling::Spelling;
+pub use spelling::{spell_reports, Spelling};
 pub use verify::VERIFY_FILES;
 pub use verify::{verify, Verification, VerifyConfig, VerifyFrame};

@@ -43,6 +43,20 @@ pub(crate) fn spelled_html(text: &str, spell: Spelling<'_>) -> String {
     out
 }
 
+/// report.md and report.html among `files` (an output folder's, by name) with their settings
+/// spelled by `spell`: what a front end applies to `verify`'s and `compare`'s files before
+/// writing them (`calibrate` does it itself, before provenance.yaml hashes its outputs).
+pub fn spell_reports(files: &mut [(String, Vec<u8>)], spell: Spelling<'_>) {
+    for (name, bytes) in files {
+        let spelled = match (name.as_str(), std::str::from_utf8(bytes)) {
+            ("report.md", Ok(text)) => spelled_markdown(text, spell),
+            ("report.html", Ok(text)) => spelled_html(text, spell),
+            _ => continue,
+        };
+        *bytes = spelled.into_bytes();
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
