@@ -805,6 +805,29 @@ fn simulate_rejects_bad_flags() {
         &["stiffness.yaml"],
         "stiffness of another robot",
     );
+    // A robot of its own needs a stiffness file; the error says how to simulate it rigid, and
+    // that advice works.
+    let humanoid = ["simulate", "--robot", "robots/humanoid/humanoid.urdf"];
+    assert_error(
+        &treecal(&[&humanoid[..], &["--out", out]].concat()),
+        &[
+            "--stiffness: a robot given with --robot needs its stiffness file",
+            "`self_weight: false`",
+        ],
+        "no stiffness file",
+    );
+    let rigid = dir.path().join("rigid.yaml");
+    std::fs::write(&rigid, "self_weight: false\n").unwrap();
+    let rigid_out = dir.path().join("rigid");
+    let args = [
+        "--stiffness",
+        path_str(&rigid),
+        "--trials",
+        "1",
+        "--out",
+        path_str(&rigid_out),
+    ];
+    assert_success(&treecal(&[&humanoid[..], &args].concat()), "a rigid robot");
     assert_error(
         &treecal(&["simulate", "--noise", "loud", "--out", out]),
         // The library names the setting (`noise`); the CLI spells it as its flag.

@@ -128,6 +128,11 @@ fn readme_example_overlay_applied_to_the_nominal_urdf_is_calibrated_urdf() {
             && !html.contains("`validation`"),
         "report.html names the library's setting"
     );
+    // Root frame (not fitted): no gap where "measurement frame and" would go.
+    assert!(
+        report.contains("registered like the calibrated one: its tool frames fitted"),
+        "{report}"
+    );
     let provenance = read(&out.join("provenance.yaml"));
     let line = format!("sha256: {}", treecal::io::sha256_hex(report.as_bytes()));
     assert!(provenance.contains(&line), "{provenance}");
