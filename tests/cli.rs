@@ -244,6 +244,45 @@ fn inspect_missing_robot_file_is_named() {
     assert_error(&run, &["robots/nosuch/nosuch.urdf"], "inspect missing file");
 }
 
+/// Measurements of another robot than the one loaded (no `--robot`: the built-in Robonaut)
+/// name the robot used and the flag that gives the right one.
+#[test]
+fn measurements_of_another_robot_name_the_robot_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let rigid = dir.path().join("rigid.yaml");
+    std::fs::write(&rigid, "self_weight: false\n").unwrap();
+    let csv = dir.path().join("humanoid.csv");
+    let run = treecal(&[
+        "simulate",
+        "--robot",
+        "robots/humanoid/humanoid.urdf",
+        "--stiffness",
+        path_str(&rigid),
+        "--trials",
+        "1",
+        "--write-measurements",
+        path_str(&csv),
+        "--out",
+        path_str(&dir.path().join("sim")),
+    ]);
+    assert_success(&run, "simulate the humanoid");
+    let out = dir.path().join("out");
+    assert_error(
+        &treecal(&[
+            "calibrate",
+            "--measurements",
+            path_str(&csv),
+            "--out",
+            path_str(&out),
+        ]),
+        &[
+            "humanoid.csv: tool column: unknown link",
+            "of robot 'robonaut' (give the URDF of the robot measured with --robot)",
+        ],
+        "another robot's measurements",
+    );
+}
+
 /// `-` is not standard input or output: every command refuses it with the flag it was given
 /// to, before reading anything (treecal names and hashes its input files).
 #[test]
