@@ -277,7 +277,8 @@ fn measurements_of_another_robot_name_the_robot_used() {
         ]),
         &[
             "humanoid.csv: tool column: unknown link",
-            "of robot 'robonaut' (give the URDF of the robot measured with --robot)",
+            "of robot 'robonaut'; the tool column",
+            "measurements of another robot: give its URDF with --robot",
         ],
         "another robot's measurements",
     );
