@@ -244,6 +244,75 @@ fn inspect_missing_robot_file_is_named() {
     assert_error(&run, &["robots/nosuch/nosuch.urdf"], "inspect missing file");
 }
 
+/// Measurements of another robot than the one loaded (no `--robot`: the built-in Robonaut)
+/// name the robot used and the flag that gives the right one.
+#[test]
+fn measurements_of_another_robot_name_the_robot_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let rigid = dir.path().join("rigid.yaml");
+    std::fs::write(&rigid, "self_weight: false\n").unwrap();
+    let csv = dir.path().join("humanoid.csv");
+    let run = treecal(&[
+        "simulate",
+        "--robot",
+        "robots/humanoid/humanoid.urdf",
+        "--stiffness",
+        path_str(&rigid),
+        "--trials",
+        "1",
+        "--write-measurements",
+        path_str(&csv),
+        "--out",
+        path_str(&dir.path().join("sim")),
+    ]);
+    assert_success(&run, "simulate the humanoid");
+    let out = dir.path().join("out");
+    assert_error(
+        &treecal(&[
+            "calibrate",
+            "--measurements",
+            path_str(&csv),
+            "--out",
+            path_str(&out),
+        ]),
+        &[
+            "humanoid.csv: tool column: unknown link",
+            "of robot 'robonaut'; the tool column",
+            "measurements of another robot: give its URDF with --robot",
+        ],
+        "another robot's measurements",
+    );
+}
+
+/// `-` is not standard input or output: every command refuses it with the flag it was given
+/// to, before reading anything (treecal names and hashes its input files).
+#[test]
+fn a_dash_for_a_file_is_refused_with_its_flag() {
+    for (args, needle) in [
+        (
+            &["calibrate", "--measurements", "-"][..],
+            "--measurements: '-'",
+        ),
+        (
+            &["calibrate", "--measurements", "m.csv", "--validation=-"][..],
+            "--validation: '-'",
+        ),
+        (&["fk", "--joints", "-"][..], "--joints: '-'"),
+        (&["inspect", "-"][..], "the command line: '-'"),
+    ] {
+        let run = treecal(args);
+        assert_error(
+            &run,
+            &[
+                needle,
+                "is not supported",
+                "save the stream to a file first",
+            ],
+            &args.join(" "),
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // fk
 
@@ -776,6 +845,29 @@ fn simulate_rejects_bad_flags() {
         &["stiffness.yaml"],
         "stiffness of another robot",
     );
+    // A robot of its own needs a stiffness file; the error says how to simulate it rigid, and
+    // that advice works.
+    let humanoid = ["simulate", "--robot", "robots/humanoid/humanoid.urdf"];
+    assert_error(
+        &treecal(&[&humanoid[..], &["--out", out]].concat()),
+        &[
+            "--stiffness: a robot given with --robot needs its stiffness file",
+            "`self_weight: false`",
+        ],
+        "no stiffness file",
+    );
+    let rigid = dir.path().join("rigid.yaml");
+    std::fs::write(&rigid, "self_weight: false\n").unwrap();
+    let rigid_out = dir.path().join("rigid");
+    let args = [
+        "--stiffness",
+        path_str(&rigid),
+        "--trials",
+        "1",
+        "--out",
+        path_str(&rigid_out),
+    ];
+    assert_success(&treecal(&[&humanoid[..], &args].concat()), "a rigid robot");
     assert_error(
         &treecal(&["simulate", "--noise", "loud", "--out", out]),
         // The library names the setting (`noise`); the CLI spells it as its flag.

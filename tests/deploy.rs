@@ -113,6 +113,29 @@ fn readme_example_overlay_applied_to_the_nominal_urdf_is_calibrated_urdf() {
         "{report}"
     );
     assert!(report.contains("calibration_overlay.yaml"), "{report}");
+    // The command line's reports say its flags, not the library's setting names (the Python
+    // binding's say keywords); provenance.yaml hashes the files as written.
+    assert!(
+        report.contains("(calibrate with --model offsets for an offsets-only result)")
+            && !report.contains("`model`"),
+        "{report}"
+    );
+    let html = read(&out.join("report.html"));
+    assert!(
+        html.contains("<code>--model</code> offsets")
+            && html.contains("give <code>--validation</code> to use your own")
+            && !html.contains("<code>model</code>")
+            && !html.contains("`validation`"),
+        "report.html names the library's setting"
+    );
+    // Root frame (not fitted): no gap where "measurement frame and" would go.
+    assert!(
+        report.contains("registered like the calibrated one: its tool frames fitted"),
+        "{report}"
+    );
+    let provenance = read(&out.join("provenance.yaml"));
+    let line = format!("sha256: {}", treecal::io::sha256_hex(report.as_bytes()));
+    assert!(provenance.contains(&line), "{provenance}");
 }
 
 #[test]

@@ -716,8 +716,10 @@ fn off_axis(model: &McpcModel, tool: usize) -> f64 {
 /// Palms as the wrist joints' children, every parameter perturbed (the palms end up
 /// centimetres off the wrist axes): refused by default with a way out; exported with the
 /// offsets dropped when they are within the given tolerances (orientation exact, position off
-/// by exactly the reported offset); exported with `<palm>_calibrated` links at the exact tool
-/// frames (1e-9) when asked; `check_urdf` accepts both files.
+/// by exactly the reported offset); when asked, exported with the palms where the calibrated
+/// wrist joints put them (every modelled link, palms included, at the model's pose to 1e-9:
+/// a palm carries meshes and inertia) and `<palm>_marker` links at the exact tool frames
+/// (1e-9); `check_urdf` accepts both files; exported again, the markers are rewritten in place.
 #[test]
 fn palm_on_the_wrist_joint_is_exported_dropped_or_with_an_added_link() {
     use treecal::urdf::{export_urdf_with, ExportOptions};
@@ -733,7 +735,7 @@ fn palm_on_the_wrist_joint_is_exported_dropped_or_with_an_added_link() {
     assert!(
         message.contains("l_hand")
             && message.contains("`add_tool_links`")
-            && message.contains("l_hand_calibrated"),
+            && message.contains("l_hand_marker"),
         "{message}"
     );
 
@@ -778,7 +780,17 @@ fn palm_on_the_wrist_joint_is_exported_dropped_or_with_an_added_link() {
     let report = export_urdf_with(&calibrated.text, "palms", tree, model, &options).unwrap();
     assert!(report.dropped.is_empty());
     let added: Vec<&str> = report.added_links.iter().map(|a| a.link.as_str()).collect();
-    assert_eq!(added, ["l_hand_calibrated", "r_hand_calibrated"]);
+    assert_eq!(added, ["l_hand_marker", "r_hand_marker"]);
+    for (link, offset) in report.added_links.iter().zip(&offsets) {
+        assert_eq!(link.reason, treecal::urdf::AddedReason::OffAxis);
+        assert!((link.offset_mm - offset * 1e3).abs() < 1e-9, "{link:?}");
+    }
+    // The wrist joints keep their axes: only origins change.
+    assert!(
+        report.changes.iter().all(|c| c.new_axis.is_none()),
+        "{:?}",
+        report.changes
+    );
     let exported = parse_urdf(&report.urdf, "added").unwrap().tree;
     assert_eq!(exported.links().len(), tree.links().len() + 2);
     let mut random = rng(23);
@@ -789,26 +801,34 @@ fn palm_on_the_wrist_joint_is_exported_dropped_or_with_an_added_link() {
             let link = exported.link_id(added[t]).unwrap();
             assert_close(&poses[link.0], tool_pose, TOLERANCE, added[t]);
         }
-        // Every modelled link but the palms is where the model puts it.
+        // Every modelled link, the palms too, is where the model puts it.
         for (f, link_pose) in model.link_poses(&q).iter().enumerate() {
             let link = tree.joint(model.frames()[f].joint).child;
             let name = &tree.link(link).name;
-            if !tools.contains(&name.as_str()) {
-                let exported_link = exported.link_id(name).unwrap();
-                assert_close(&poses[exported_link.0], link_pose, TOLERANCE, name);
-            }
+            let exported_link = exported.link_id(name).unwrap();
+            assert_close(&poses[exported_link.0], link_pose, TOLERANCE, name);
         }
     }
     check_urdf_accepts(&report.urdf, "palms, tool links added");
-    // Exported again, the palms now have child links (the added ones): their measured frames
-    // go into marker links and nothing is added a second time.
+    // Exported again, the palms now have child links (the markers): the markers are rewritten
+    // in place (at the tool frames to 1e-9) and nothing is added a second time.
     let again = parse_urdf(&report.urdf, "again").unwrap().tree;
     let branches = branches_with_tools(&again, Some(&tools));
     let mut model_again = McpcModel::from_tree(&again, &branches).unwrap();
     model_again.set_parameters(&model.parameters()).unwrap();
     let second = export_urdf_with(&report.urdf, "again", &again, &model_again, &options).unwrap();
-    let added: Vec<&str> = second.added_links.iter().map(|a| a.link.as_str()).collect();
-    assert_eq!(added, ["l_hand_marker", "r_hand_marker"]);
+    assert!(second.added_links.is_empty(), "{:?}", second.added_links);
+    let twice = parse_urdf(&second.urdf, "twice").unwrap().tree;
+    assert_eq!(twice.links().len(), again.links().len());
+    let mut random = rng(25);
+    for _ in 0..10 {
+        let q = random_configuration(tree, &mut random);
+        let poses = twice.link_poses(&q).unwrap();
+        for (t, tool_pose) in model_again.tool_poses(&q).iter().enumerate() {
+            let marker = twice.link_id(&format!("{}_marker", tools[t])).unwrap();
+            assert_close(&poses[marker.0], tool_pose, TOLERANCE, tools[t]);
+        }
+    }
 
     // A palm put back on its axis exports exactly, with nothing dropped or added.
     let mut on_axis = case(humanoid_with_palms_on_wrists(), Some(&tools), Some(21));
@@ -914,7 +934,7 @@ fn palms_model(params: &str) -> (KinematicTree, McpcModel) {
     (tree, model)
 }
 
-/// `urdf`'s `<palm>_calibrated` links are at `params`' calibrated tool frames (1e-9).
+/// `urdf`'s `<palm>_marker` links are at `params`' calibrated tool frames (1e-9).
 fn assert_added_links_exact(urdf: &str, params: &str) {
     let (tree, model) = palms_model(params);
     let with_links = parse_urdf(urdf, "with links").unwrap().tree;
@@ -922,7 +942,7 @@ fn assert_added_links_exact(urdf: &str, params: &str) {
     for _ in 0..10 {
         let q = random_configuration(&tree, &mut random);
         let poses = with_links.link_poses(&q).unwrap();
-        for (name, tool_pose) in ["l_hand_calibrated", "r_hand_calibrated"]
+        for (name, tool_pose) in ["l_hand_marker", "r_hand_marker"]
             .iter()
             .zip(model.tool_poses(&q))
         {
@@ -936,7 +956,7 @@ fn assert_added_links_exact(urdf: &str, params: &str) {
 /// wrist axes (no kinematic errors, AT901 noise): the calibrated palm origin lies off the axis
 /// by noise only, which the export drops and reports; the palms stay the wrist joints' children;
 /// `export --add-tool-links` from params.yaml then has nothing to add, and from a params.yaml
-/// without standard deviations it adds `<palm>_calibrated` links at the exact calibrated tool
+/// without standard deviations it adds `<palm>_marker` links at the exact calibrated tool
 /// frames (1e-9), refusing without the flag.
 #[test]
 fn palm_on_the_wrist_joint_calibrates_and_exports_through_the_cli() {
@@ -1010,15 +1030,12 @@ fn palm_on_the_wrist_joint_calibrates_and_exports_through_the_cli() {
         path_str(&exported),
     ]);
     assert_success(&run, "export --add-tool-links");
-    assert!(
-        run.stderr.contains("added link 'l_hand_calibrated'"),
-        "{run}"
-    );
+    assert!(run.stderr.contains("added link 'l_hand_marker'"), "{run}");
     assert_added_links_exact(&read(&exported), &params);
 }
 
 /// A true robot whose palms sit centimetres off the wrist axes (`simulate`'s default errors, as
-/// a mocap marker body on a leaf wrist link): `calibrate` adds the `<palm>_calibrated` links at
+/// a mocap marker body on a leaf wrist link): `calibrate` adds the `<palm>_marker` links at
 /// the calibrated tool frames by default (1e-9) and says so; `export` of the same params.yaml
 /// without `--add-tool-links` refuses, naming the palm and the flag.
 #[test]
@@ -1028,8 +1045,7 @@ fn palm_off_the_wrist_axis_gets_added_tool_links() {
     assert_success(&run, "calibrate");
     for palm in ["l_hand", "r_hand"] {
         assert!(
-            run.stderr
-                .contains(&format!("added link '{palm}_calibrated'")),
+            run.stderr.contains(&format!("added link '{palm}_marker'")),
             "{run}"
         );
     }

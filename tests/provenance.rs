@@ -141,7 +141,27 @@ fn simulate_writes_provenance_with_its_seed() {
     for needle in ["command: simulate", "master: 7", "trials: 1"] {
         assert!(text.contains(needle), "{needle} missing from\n{text}");
     }
+    // Built from a git checkout (CI, development): whether tracked files differed from the
+    // commit is said beside it.
+    if !treecal::io::GIT_COMMIT.is_empty() {
+        let line = format!("dirty: {}", treecal::io::GIT_DIRTY);
+        assert!(text.contains(&line), "{line} missing from\n{text}");
+    }
     let results: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
     assert_eq!(results["provenance"], "provenance.yaml");
+}
+
+#[test]
+fn the_commit_is_described_with_its_dirty_mark() {
+    use treecal::io::commit_description;
+    assert_eq!(commit_description("abc", false), "abc");
+    assert_eq!(
+        commit_description("abc", true),
+        "abc (dirty: built with uncommitted changes to tracked files)"
+    );
+    assert_eq!(
+        commit_description("", true),
+        "unknown (not built from a git checkout)"
+    );
 }

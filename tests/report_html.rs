@@ -180,3 +180,39 @@ fn tool_frames_have_chart_panels_of_their_own() {
         assert!(first > tools_start, "{tool} is drawn among the joints");
     }
 }
+
+/// The page has report.md's validation strata and its outputs-as-written table, with the same
+/// figures (the same text rendered: every cell of both tables is a cell of the page).
+#[test]
+fn report_html_has_the_strata_and_the_outputs_as_written() {
+    let (_dir, out) = calibrate_example(&[]);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for heading in [
+        "### Validation by stratum",
+        "## What the outputs give (validated as written)",
+    ] {
+        let title = heading.trim_start_matches('#').trim();
+        assert!(html.contains(title), "report.html lacks '{title}'");
+        let section = &markdown[markdown.find(heading).expect(heading)..];
+        let rows: Vec<&str> = section
+            .lines()
+            .skip_while(|l| !l.starts_with('|'))
+            .take_while(|l| l.starts_with('|'))
+            .skip(2)
+            .collect();
+        assert!(!rows.is_empty(), "{section}");
+        for row in rows {
+            let cells: String = row
+                .trim()
+                .trim_matches('|')
+                .split('|')
+                .map(|c| format!("<td>{}</td>", treecal::report::escape(c.trim())))
+                .collect();
+            assert!(
+                html.contains(&format!("<tr>{cells}</tr>")),
+                "{cells} not in report.html"
+            );
+        }
+    }
+}

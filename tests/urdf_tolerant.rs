@@ -34,7 +34,8 @@ fn arm(extra: &str) -> String {
 enum Expect {
     /// Loads; the warnings contain these texts (in any order).
     Loads(&'static [&'static str]),
-    /// Fails; the message starts with `case.urdf:<line>:` and contains the text.
+    /// Fails; the message starts with `case.urdf:<line>:` (then a column at an attribute) and
+    /// contains the text.
     Fails(usize, &'static str),
 }
 
@@ -164,6 +165,22 @@ fn cases() -> Vec<Case> {
             treecal: Fails(5, "<joint name=\"j\">"),
             check_urdf_accepts: false,
         },
+        // ---- a bad attribute: its own line and column, not the element's --------------------
+        Case {
+            name: "a bad number in a <limit> whose attributes span lines",
+            text: arm("").replace(
+                "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>",
+                "<limit lower=\"-1\" upper=\"1\"\n           effort=\"e\" velocity=\"1\"/>",
+            ),
+            treecal: Fails(10, "<joint name=\"j\">: <limit effort=\"e\">: custom: invalid float literal"),
+            check_urdf_accepts: false,
+        },
+        Case {
+            name: "an unknown joint type",
+            text: arm("").replace("type=\"revolute\"", "type=\"revolutex\""),
+            treecal: Fails(5, "<joint name=\"j\">: type=\"revolutex\": custom: unknown variant"),
+            check_urdf_accepts: false,
+        },
         // ---- structural damage urdfdom silently accepts: treecal refuses ---------------------
         Case {
             name: "a stray </robot> mid-file (urdf-rs used to drop every element after it)",
@@ -237,7 +254,8 @@ fn treecal_loads_exactly_what_it_should_and_check_urdf_agrees_where_stated() {
             }
             (Expect::Fails(line, text), Err(error)) => {
                 let message = error.to_string();
-                let prefix = format!("{ORIGIN}:{line}: ");
+                // `case.urdf:<line>: ` or, at an attribute, `case.urdf:<line>:<column>: `.
+                let prefix = format!("{ORIGIN}:{line}:");
                 if !message.starts_with(&prefix) || !message.contains(text) {
                     problems.push(format!(
                         "{}: expected '{prefix}… {text} …', got: {message}",

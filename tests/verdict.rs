@@ -753,7 +753,7 @@ fn plan_and_check_warn_about_weak_pose_sets() {
 /// The example data with the targets moved 20 mm along each axis of the frame they define
 /// (so the measured frame is off every joint axis) and labelled as the links of the last arm
 /// joints, which a URDF cannot give an off-axis origin; the link `calibrate` would add for it
-/// (`left_link6_calibrated`) already exists in the URDF: the export fails, and that is a failed
+/// (`left_link6_marker`) already exists in the URDF, elsewhere: the export fails, and that is a failed
 /// verdict with params.yaml and the reports written (and no calibrated.urdf).
 #[test]
 fn a_failing_export_is_a_failed_verdict_with_the_reports_written() {
@@ -813,7 +813,7 @@ fn a_failing_export_is_a_failed_verdict_with_the_reports_written() {
         urdf.replace_range(from..to, "");
     }
     // A link of the name the export would add: it refuses to write a second one.
-    let clash = "<link name=\"left_link6_calibrated\"/>\n  <joint name=\"clash_joint\" type=\"fixed\">\n    <parent link=\"base_link\"/>\n    <child link=\"left_link6_calibrated\"/>\n  </joint>\n</robot>";
+    let clash = "<link name=\"left_link6_marker\"/>\n  <joint name=\"clash_joint\" type=\"fixed\">\n    <parent link=\"base_link\"/>\n    <child link=\"left_link6_marker\"/>\n  </joint>\n</robot>";
     urdf = urdf.replacen("</robot>", clash, 1);
     let robot_file = dir.path().join("robonaut_without_tools.urdf");
     std::fs::write(&robot_file, urdf).unwrap();

@@ -277,6 +277,13 @@ fn max_error_decides_the_exit_code() {
         html.contains("failed") && html.contains("<svg"),
         "the page shows the verdict and the plot"
     );
+    // The command line's files say its flag, not the library's setting name.
+    let report = std::fs::read_to_string(dir.path().join("v2/report.md")).unwrap();
+    assert!(
+        report.contains("--max-error 2 mm") && !report.contains("`max_error`"),
+        "{report}"
+    );
+    assert!(html.contains("<code>--max-error</code>") && !html.contains("<code>max_error</code>"));
 }
 
 #[test]

@@ -44,8 +44,9 @@ pub use observations::ROTATION_MATRIX_TOLERANCE;
 pub use output_lock::{lock_output, recover, swap_in};
 pub use poses_csv::STAGES;
 pub use provenance::{
-    input_file, output_files, recorded_outputs, sha256_hex, utc_iso8601, InputFile, OutputFile,
-    Program, ProvenanceRecord, RunFacts, GIT_COMMIT, PROVENANCE_FILE,
+    commit_description, input_file, output_files, recorded_outputs, sha256_hex, utc_iso8601,
+    InputFile, OutputFile, Program, ProvenanceRecord, RunFacts, GIT_COMMIT, GIT_DIRTY,
+    PROVENANCE_FILE,
 };
 pub use ros_joint_state::{decode_joint_state, JointStateMessage};
 pub use tracker_log::TRACKER_KEYS;

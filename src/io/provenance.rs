@@ -17,6 +17,24 @@ pub const GIT_COMMIT: &str = match option_env!("TREECAL_GIT_COMMIT") {
     None => "",
 };
 
+/// Whether the git checkout treecal was built from had uncommitted changes to tracked files
+/// (`build.rs`: `git status --porcelain --untracked-files=no` printed anything); false when
+/// not built from a git checkout ([`GIT_COMMIT`] empty).
+pub const GIT_DIRTY: bool = option_env!("TREECAL_GIT_DIRTY").is_some();
+
+/// The commit treecal was built from as the reports name it: the commit, `<commit> (dirty:
+/// built with uncommitted changes to tracked files)`, or `unknown (not built from a git
+/// checkout)` for an empty `commit`.
+pub fn commit_description(commit: &str, dirty: bool) -> String {
+    match (commit, dirty) {
+        ("", _) => "unknown (not built from a git checkout)".to_owned(),
+        (commit, false) => commit.to_owned(),
+        (commit, true) => {
+            format!("{commit} (dirty: built with uncommitted changes to tracked files)")
+        }
+    }
+}
+
 /// One input file.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct InputFile {
@@ -48,6 +66,10 @@ pub struct Program {
     pub version: &'static str,
     /// The git commit it was built from, or `unknown (not built from a git checkout)`.
     pub commit: String,
+    /// Whether that checkout had uncommitted changes to tracked files when it was built (the
+    /// binary may not be the commit's code); `None` outside a git checkout.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dirty: Option<bool>,
 }
 
 /// The part of provenance that differs between two runs of the same inputs and settings.

@@ -105,9 +105,9 @@ fn errors_markdown(out: &mut String, summary: &CalibrationSummary) {
     // Table 3 layout.
     let _ = writeln!(
         out,
-        "\"Before\" is the nominal robot (the URDF's geometry) registered like the calibrated one: its {} tool frames fitted by least squares to the identification rows with the fit's weights (rigid). \"After\" is the calibrated model{}. Every validation row counts; RMS is the headline figure.\n",
+        "\"Before\" is the nominal robot (the URDF's geometry) registered like the calibrated one: its {}tool frames fitted by least squares to the identification rows with the fit's weights (rigid). \"After\" is the calibrated model{}. Every validation row counts; RMS is the headline figure.\n",
         if c.measurement_frame.starts_with("fitted") {
-            "measurement frame and"
+            "measurement frame and "
         } else {
             ""
         },

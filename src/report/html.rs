@@ -11,6 +11,7 @@
 
 use super::calibrate::{ArmReport, CalibrationSummary};
 use super::html_chart::parameter_chart_svg;
+use super::html_markdown::inline_with;
 use crate::calibration::{ParameterEstimate, Status};
 use crate::error::Result;
 use serde::Serialize;
@@ -76,19 +77,6 @@ fn inline(text: &str) -> String {
     inline_with(text, escape)
 }
 
-/// Text with markdown `code` spans as escaped `<code>`, the rest rendered by `plain`.
-pub(super) fn inline_with(text: &str, plain: impl Fn(&str) -> String) -> String {
-    let mut out = String::new();
-    for (i, part) in text.split('`').enumerate() {
-        if i % 2 == 1 {
-            let _ = write!(out, "<code>{}</code>", escape(part));
-        } else {
-            out.push_str(&plain(part));
-        }
-    }
-    out
-}
-
 /// The page.
 pub fn calibration_html(report: &HtmlReport) -> Result<String> {
     let s = report.summary;
@@ -107,6 +95,14 @@ pub fn calibration_html(report: &HtmlReport) -> Result<String> {
         ("validation configurations", &s.validation),
     ] {
         table3_html(&mut out, title, arms);
+    }
+    // report.md's own text for these (the same figures): the validation rows by stratum, and
+    // the outputs re-read and scored as written.
+    if let Some(strata) = &s.validation_strata {
+        super::html_markdown::markdown_body(&mut out, &strata.markdown());
+    }
+    if let Some(artifact) = &s.artifact {
+        super::html_markdown::markdown_body(&mut out, &artifact.markdown());
     }
     plots_html(&mut out, s, report.plots);
     out.push_str("<h2 id=\"parameter-changes\">Parameter changes</h2>\n<p>Each bar is a calibrated parameter's change from the URDF value; the whisker spans ±1 standard deviation. Grey: not identifiable on its own (kept at its start). The tool frames (where each measured target sits on its tool link) have panels of their own.</p>\n");
@@ -147,9 +143,9 @@ fn verdict_html(out: &mut String, s: &CalibrationSummary) {
             };
             let _ = writeln!(
                 out,
-                "<li class=\"{label}\"><span class=\"label\">{label}</span> <code>{}</code>: {}</li>",
+                "<li class=\"{label}\"><span class=\"label\">{label}</span> <code class=\"finding\">{}</code>: {}</li>",
                 escape(&reason.code),
-                escape(&reason.message)
+                inline(&reason.message)
             );
         }
         out.push_str("</ul>\n");
@@ -185,7 +181,7 @@ fn context_html(out: &mut String, s: &CalibrationSummary) {
         ),
         ("Measurement frame", c.measurement_frame.clone()),
     ] {
-        let _ = writeln!(out, "<dt>{term}</dt><dd>{}</dd>", escape(&value));
+        let _ = writeln!(out, "<dt>{term}</dt><dd>{}</dd>", inline(&value));
     }
     out.push_str("</dl>\n");
 }

@@ -12,6 +12,7 @@ pub(crate) mod contacts;
 pub(crate) mod html;
 pub(crate) mod html_chart;
 mod html_escape;
+mod html_markdown;
 pub(crate) mod html_page;
 pub(crate) mod inspect;
 pub(crate) mod outliers;

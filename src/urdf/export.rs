@@ -196,6 +196,9 @@ struct PendingLink {
     parent: LinkId,
     reason: AddedReason,
     base_from_link: Pose,
+    /// [`AddedReason::OffAxis`]: how far the calibrated tool origin lies off the joint axis
+    /// (m), the link's reported offset.
+    off_axis: Option<f64>,
 }
 
 /// Whether link `link` is a fixed leaf child of link `parent`: a marker link a previous export
@@ -247,6 +250,7 @@ fn calibrated_placements(
                 parent: joint.parent,
                 reason: AddedReason::Point,
                 base_from_link: previous * last_from_tool,
+                off_axis: None,
             });
             continue;
         }
@@ -268,10 +272,13 @@ fn calibrated_placements(
                     parent: tool.link,
                     reason: AddedReason::Marker,
                     base_from_link: previous * last_from_tool,
+                    off_axis: None,
                 }),
             }
             continue;
         }
+        // Where the calibrated chain puts the link at its nominal offset (a frame's child).
+        let on_chain = target[tool.link.0];
         target[tool.link.0] = Some(previous * last_from_tool);
         if !joint.kind.is_movable() {
             continue;
@@ -287,16 +294,21 @@ fn calibrated_placements(
                 ),
             });
         }
-        let link_pose = on_axis_pose(
+        match on_axis_pose(
             tree,
             (link, joint),
             (tool.link, &previous, &last_from_tool),
             options,
             dropped,
             &mut pending,
-        )?;
-        target[tool.link.0] = Some(previous * link_pose);
-        new_axis[joint_id.0] = Some(link_pose.rotation.inverse() * Vec3::z());
+        )? {
+            Some(link_pose) => {
+                target[tool.link.0] = Some(previous * link_pose);
+                new_axis[joint_id.0] = Some(link_pose.rotation.inverse() * Vec3::z());
+            }
+            // A marker link takes the frame: the tool link keeps its place, axis untouched.
+            None => target[tool.link.0] = on_chain,
+        }
     }
 
     let (placements, exported) = placements_of(tree, &target, &new_axis, in_text);
@@ -326,8 +338,10 @@ fn frame_targets(tree: &KinematicTree, model: &McpcModel) -> (Vec<Pose>, Vec<Opt
 
 /// The pose (in its moved frame) a tool link that is its joint's child gets: the calibrated
 /// `last_from_tool`, or, off a rotational joint's axis, the closest frame a URDF joint can
-/// carry, with the offset dropped (within the tolerance) or a link added for it (with
-/// `add_tool_links`), else an error.
+/// carry with the offset dropped (within the tolerance); `None` when the offset is larger and
+/// `add_tool_links` is set: the tool link (which may carry meshes and inertia) stays where its
+/// joint puts it on the calibrated chain, and a marker link `<tool>_marker` is added at the
+/// exact tool frame, as for a tool link with children. Else an error.
 fn on_axis_pose(
     tree: &KinematicTree,
     (link, joint): (&Link, &Joint),
@@ -335,7 +349,7 @@ fn on_axis_pose(
     options: &ExportOptions,
     dropped: &mut Vec<DroppedOffset>,
     pending: &mut Vec<PendingLink>,
-) -> Result<Pose> {
+) -> Result<Option<Pose>> {
     let last_from_tool = *last_from_tool;
     let off_axis = last_from_tool.translation.vector.xy().norm();
     let mut link_pose = last_from_tool;
@@ -355,16 +369,18 @@ fn on_axis_pose(
         } else if options.add_tool_links {
             pending.push(PendingLink {
                 tool: link.name.clone(),
-                link: format!("{}_calibrated", link.name),
+                link: format!("{}_marker", link.name),
                 parent: tool_link,
                 reason: AddedReason::OffAxis,
                 base_from_link: previous * last_from_tool,
+                off_axis: Some(off_axis),
             });
+            return Ok(None);
         } else {
             return Err(Error::InvalidRobot {
                 origin: tree.name().to_owned(),
                 message: format!(
-                    "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {:.4} mm off the joint axis, which a URDF joint cannot express, and more than the calibration's uncertainty allows to drop ({:.4} mm); export with `add_tool_links` to add a fixed link '{}_calibrated' at the exact calibrated tool frame, or calibrate a tool link below a fixed joint (add a <link> and a fixed <joint> under '{}')",
+                    "tool link '{}' is the child link of joint '{}' and its calibrated origin lies {:.4} mm off the joint axis, which a URDF joint cannot express, and more than the calibration's uncertainty allows to drop ({:.4} mm); export with `add_tool_links` to keep the tool link where the calibrated joint puts it and add a fixed link '{}_marker' at the exact calibrated tool frame, or calibrate a tool link below a fixed joint (add a <link> and a fixed <joint> under '{}')",
                     link.name,
                     joint.name,
                     off_axis * 1e3,
@@ -375,7 +391,7 @@ fn on_axis_pose(
             });
         }
     }
-    Ok(link_pose)
+    Ok(Some(link_pose))
 }
 
 /// The links to add to the text (measured points, markers, off-axis tools), placed relative
@@ -396,8 +412,11 @@ fn added_tool_links(
             continue;
         }
         added.push(AddedToolLink {
-            // For an off-axis tool: the dropped offset, a pure translation off the axis.
-            offset_mm: parent_from_link.translation.vector.norm() * 1e3,
+            // For an off-axis tool: how far its origin lies off the axis.
+            offset_mm: link
+                .off_axis
+                .unwrap_or_else(|| parent_from_link.translation.vector.norm())
+                * 1e3,
             tool: link.tool,
             link: link.link,
             parent: tree.link(link.parent).name.clone(),

@@ -6,8 +6,9 @@
 //! be exported while its calibrated origin lies on the joint axis. Calibrated from noisy data it
 //! almost never does exactly; the export then either drops the off-axis offset (the tool link
 //! moves onto the axis, its orientation kept) when the offset is within the calibration's own
-//! uncertainty, or, asked to, adds a fixed child link `<tool>_calibrated` at the exact tool
-//! frame. See `docs/export.md`.
+//! uncertainty, or, asked to, leaves the tool link where its joint puts it on the calibrated
+//! chain (its meshes and inertia with it) and adds a fixed child link `<tool>_marker` at the
+//! exact tool frame, as for a tool link with children. See `docs/export.md`.
 
 use crate::kinematics::McpcModel;
 use crate::math::Pose;
@@ -31,8 +32,9 @@ pub struct ExportOptions {
     /// calibration's own uncertainty of the tool origin ([`Self::with_uncertainty`]). Tools
     /// not listed get [`ON_AXIS_TOLERANCE`].
     pub tool_tolerances: BTreeMap<String, f64>,
-    /// Add a fixed child link `<tool>_calibrated` carrying the exact calibrated tool frame
-    /// under every tool link whose offset is too large to drop (instead of refusing).
+    /// Add a fixed child link `<tool>_marker` carrying the exact calibrated tool frame under
+    /// every tool link whose offset is too large to drop, the tool link left where its joint
+    /// puts it (instead of refusing).
     pub add_tool_links: bool,
 }
 
@@ -116,8 +118,9 @@ pub struct DroppedOffset {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AddedReason {
-    /// The calibrated tool origin lies off the axis of the joint that moves the tool link
-    /// ([`ExportOptions::add_tool_links`]): `<tool>_calibrated`.
+    /// The calibrated tool origin lies off the axis of the joint that moves the tool link, a
+    /// leaf ([`ExportOptions::add_tool_links`]): the tool link keeps its place on the
+    /// calibrated chain, the tool frame goes into `<tool>_marker`.
     OffAxis,
     /// The tool link has child links, which must not move with the measured frame: the
     /// measured (marker) frame goes into a new link `<tool>_marker` instead.
@@ -164,8 +167,8 @@ pub(super) fn added_links_xml(added: &[AddedToolLink], indent: &str) -> String {
         let (t, r) = (link.xyz, link.rpy);
         let why = match link.reason {
             AddedReason::OffAxis => format!(
-                "the calibrated frame of the tool, whose origin lies {:.4} mm off the axis of the joint that moves the tool link (a URDF joint cannot express that)",
-                link.offset_mm
+                "the calibrated frame of tool '{}', whose origin lies {:.4} mm off the axis of the joint that moves the tool link (a URDF joint cannot express that); the tool link keeps its place on the calibrated arm",
+                link.tool, link.offset_mm
             ),
             AddedReason::Marker => format!(
                 "the calibrated measured (marker) frame of tool '{}', kept apart so that the links below the tool stay where the robot's description puts them",

@@ -19,7 +19,7 @@
 //! warning. Any other error is located: each `<link>` and `<joint>` is read on its own to find
 //! the one at fault, and the message names its line.
 
-use super::xml::{line_at, Element};
+use super::xml::{line_at, position, Element};
 use crate::error::{Error, Result};
 
 /// The children kept under an element called `parent` (`None`: keep everything below).
@@ -89,9 +89,29 @@ pub(crate) fn read_robot(
         let what = describe(text, element);
         let line = line_at(text, element.start);
         if culprit.visuals.is_empty() {
-            return Err(Error::UrdfParse {
-                origin: format!("{origin}:{line}"),
-                message: format!("{what}: {}", culprit.message),
+            // At the attribute at fault when one is found (a tag may span lines).
+            return Err(match culprit.attribute {
+                Some((e, a)) => {
+                    let attribute = &elements[e].attributes[a];
+                    let named = format!(
+                        "{}=\"{}\"",
+                        attribute.name,
+                        crate::limits::cut(&text[attribute.value.clone()])
+                    );
+                    let named = if e == culprit.element {
+                        named
+                    } else {
+                        format!("<{} {named}>", elements[e].name)
+                    };
+                    Error::UrdfParse {
+                        origin: position(text, origin, attribute.value.start),
+                        message: format!("{what}: {named}: {}", culprit.message),
+                    }
+                }
+                None => Error::UrdfParse {
+                    origin: format!("{origin}:{line}"),
+                    message: format!("{what}: {}", culprit.message),
+                },
             });
         }
         let mut bytes = std::mem::take(&mut kinematic).into_bytes();
@@ -115,15 +135,63 @@ struct Culprit {
     element: usize,
     message: String,
     visuals: Vec<usize>,
+    /// The attribute at fault, when one is found ([`attribute_at_fault`]): its element and
+    /// its index there.
+    attribute: Option<(usize, usize)>,
+}
+
+/// Reads `snippet` (one `<link>` or `<joint>`) on its own: urdf-rs's message, if it fails.
+fn alone(snippet: &str) -> Option<String> {
+    urdf_rs::read_from_string(&format!("<robot name=\"located\">{snippet}</robot>"))
+        .err()
+        .map(|e| e.to_string())
+}
+
+/// The attribute of element `index` (a `<link>` or `<joint>` that fails with `message`) or of
+/// the elements inside it that is at fault: the one whose value the message quotes
+/// (`` `revolutex` ``, `[0 0 x]`), else the one whose value, each word replaced by `0`, makes
+/// the element readable (a bad number). `None` when no single attribute is (then the message
+/// names the element's line).
+fn attribute_at_fault(
+    kinematic: &str,
+    elements: &[Element],
+    blank: &[bool],
+    (index, message): (usize, &str),
+) -> Option<(usize, usize)> {
+    let outer = &elements[index];
+    let inside: Vec<usize> = (index..elements.len())
+        .take_while(|&e| elements[e].start < outer.end)
+        .filter(|&e| !blank[e])
+        .collect();
+    let attributes = || {
+        inside.iter().flat_map(|&e| {
+            (0..elements[e].attributes.len()).map(move |a| (e, a, &elements[e].attributes[a]))
+        })
+    };
+    let quoted = attributes().find(|(_, _, attribute)| {
+        let value = &kinematic[attribute.value.clone()];
+        !value.trim().is_empty()
+            && (message.contains(&format!("`{value}`")) || message.contains(&format!("[{value}]")))
+    });
+    if let Some((e, a, _)) = quoted {
+        return Some((e, a));
+    }
+    attributes()
+        .find(|(_, _, attribute)| {
+            let value = &kinematic[attribute.value.clone()];
+            let zeros = vec!["0"; value.split_whitespace().count().max(1)].join(" ");
+            let snippet = format!(
+                "{}{zeros}{}",
+                &kinematic[outer.start..attribute.value.start],
+                &kinematic[attribute.value.end..outer.end]
+            );
+            alone(&snippet).is_none()
+        })
+        .map(|(e, a, _)| (e, a))
 }
 
 /// Reads each kept `<link>` and `<joint>` of `kinematic` on its own; the first that fails.
 fn locate(kinematic: &str, elements: &[Element], blank: &[bool]) -> Option<Culprit> {
-    let alone = |snippet: &str| {
-        urdf_rs::read_from_string(&format!("<robot name=\"located\">{snippet}</robot>"))
-            .err()
-            .map(|e| e.to_string())
-    };
     for (index, element) in elements.iter().enumerate() {
         if element.parent != Some(0) || blank[index] {
             continue;
@@ -150,10 +218,15 @@ fn locate(kinematic: &str, elements: &[Element], blank: &[bool]) -> Option<Culpr
             Some(without) if alone(&without).is_none() => visuals,
             _ => Vec::new(),
         };
+        let attribute = visuals
+            .is_empty()
+            .then(|| attribute_at_fault(kinematic, elements, blank, (index, &message)))
+            .flatten();
         return Some(Culprit {
             element: index,
             message,
             visuals,
+            attribute,
         });
     }
     None

@@ -51,8 +51,9 @@ impl CompensationFile<'_> {
 pub(super) struct Scoring<'a> {
     pub loaded: &'a Loaded,
     pub world_from_base: Pose,
-    /// Per model tool, the written link scored: the added `<tool>_calibrated` or
-    /// `<tool>_marker` link when there is one, else the tool link.
+    /// Per model tool, the written link scored: the added `<tool>_marker` link (or
+    /// `<tool>_calibrated`, from exports before session 22) when there is one, else the tool
+    /// link.
     pub scored_links: Vec<String>,
     /// joint_errors.yaml's terms, added to the commanded joint angles (none: the URDF alone).
     pub joint_errors: Option<&'a AppliedJointErrors>,

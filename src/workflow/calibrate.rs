@@ -13,6 +13,7 @@ use super::calibrate_steps::{check_config, export_calibrated, read_data, Loaded}
 use super::checks::{check_outputs, Output};
 use super::note::Note;
 use super::report_json::ReportParts;
+use super::spelling::{spell_reports, spelled_markdown, Spelling};
 use crate::calibration::{ParameterEstimate, Verdict};
 use crate::error::{Error, Result};
 use crate::io::{check_output_folder, replace_folder_streamed, write_atomically, StreamedFile};
@@ -79,17 +80,28 @@ pub struct Calibration {
 /// Calibrates: reads the inputs, identifies the parameters (and the stiffness if asked),
 /// checks the result, exports the URDF and renders the reports. Writes nothing.
 pub fn calibrate(config: &CalibrateConfig) -> Result<Calibration> {
-    calibrate_rendering(config, true)
+    calibrate_rendering(config, true, None)
 }
 
 /// As [`calibrate`], with report.json left unrendered until [`Calibration::write`] streams it
 /// into the folder: at 10⁶ configurations a text of about 900 MB never held in memory.
 /// [`Calibration::files`] lacks report.json; [`Calibration::report`] still gives its value.
-pub fn calibrate_for_writing(config: &CalibrateConfig) -> Result<Calibration> {
-    calibrate_rendering(config, false)
+///
+/// `spell` spells the settings report.md and report.html name as the front end does
+/// ([`Spelling`]; the command line: `--model offsets` where the library says `` `model`
+/// offsets ``); `None` keeps the library's names. report.json keeps them.
+pub fn calibrate_for_writing(
+    config: &CalibrateConfig,
+    spell: Option<Spelling<'_>>,
+) -> Result<Calibration> {
+    calibrate_rendering(config, false, spell)
 }
 
-fn calibrate_rendering(config: &CalibrateConfig, render_report: bool) -> Result<Calibration> {
+fn calibrate_rendering(
+    config: &CalibrateConfig,
+    render_report: bool,
+    spell: Option<Spelling<'_>>,
+) -> Result<Calibration> {
     let started = super::provenance::Started::now();
     check_config(config)?;
     let loaded = Loaded::new(config)?;
@@ -130,6 +142,10 @@ fn calibrate_rendering(config: &CalibrateConfig, render_report: bool) -> Result<
     provenance.run.duration_s = started.elapsed_s();
     if !render_report {
         outputs.files.retain(|(name, _)| name != "report.json");
+    }
+    if let Some(spell) = spell {
+        outputs.markdown = spelled_markdown(&outputs.markdown, spell);
+        spell_reports(&mut outputs.files, spell);
     }
     super::provenance::attach(
         &provenance,

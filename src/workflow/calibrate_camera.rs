@@ -65,7 +65,7 @@ pub struct CameraCalibrateConfig {
     pub angle_unit: Option<AngleUnit>,
     /// Unit of prismatic joints [default: the comment's, else m].
     pub length_unit: Option<LengthUnit>,
-    /// Add `<tool>_calibrated` links where a calibrated tool frame is off its joint's axis.
+    /// Add `<tool>_marker` links where a calibrated tool frame is off its joint's axis.
     pub add_tool_links: bool,
 }
 

@@ -89,7 +89,7 @@ pub struct CalibrateConfig {
     pub stiffness_prior: f64,
     /// The frame of the stiffness file's gravity vector.
     pub gravity_frame: GravityFrame,
-    /// Add `<tool>_calibrated` links where a tool origin cannot be exported (docs/export.md)
+    /// Add `<tool>_marker` links where a tool origin cannot be exported (docs/export.md)
     /// [default: true: a marker body on a leaf wrist link, the usual mocap set-up, lies off
     /// the wrist axis; false fails the export instead].
     pub add_tool_links: bool,

@@ -24,8 +24,8 @@ pub struct ExportConfig {
     /// The link the parameters were calibrated from (`None`: the URDF root). Needed when it is
     /// not the root: the paths from it (up a supporting leg) are part of the model only then.
     pub reference_link: Option<String>,
-    /// Add a fixed `<tool>_calibrated` link where a tool origin cannot be expressed by its
-    /// joint (docs/export.md) instead of failing.
+    /// Add a fixed `<tool>_marker` link at the tool frame where a tool origin cannot be
+    /// expressed by its joint (docs/export.md) instead of failing.
     pub add_tool_links: bool,
 }
 
@@ -124,8 +124,8 @@ pub fn export_notes(report: &ExportReport) -> Vec<Finding> {
     });
     let added = report.added_links.iter().map(|a| match a.reason {
         AddedReason::OffAxis => format!(
-            "added link '{}' below tool '{}' at the exact calibrated tool frame ({:.4} mm off the joint axis, which the tool link itself cannot be)",
-            a.link, a.tool, a.offset_mm
+            "added link '{}' below tool '{}' at the exact calibrated tool frame, {:.4} mm off the axis of the joint that moves '{}' (which a URDF joint cannot carry): '{}' keeps its place on the calibrated arm, with its meshes and inertia; use '{}' for the measured frame",
+            a.link, a.tool, a.offset_mm, a.tool, a.tool, a.link
         ),
         AddedReason::Marker => format!(
             "added link '{}' below tool '{}' at the calibrated measured (marker) frame, {:.1} mm from the tool link's origin: '{}' has child links, which keep their place on the calibrated arm; use '{}' for the measured frame",

@@ -52,6 +52,7 @@ mod simulate_camera;
 mod simulate_config;
 mod simulate_contacts;
 pub(crate) mod source;
+pub(crate) mod spelling;
 pub(crate) mod verify;
 
 pub use artifact_joint_errors::JOINT_ERRORS_FILE;
@@ -120,5 +121,6 @@ pub use source::{
     BUILT_IN_ROBONAUT, BUILT_IN_ROBONAUT_ORIGIN, BUILT_IN_STIFFNESS, BUILT_IN_STIFFNESS_ORIGIN,
 };
 pub use source::{LoadedRobot, MeasurementSource, PlanSource, RobotSource, StiffnessSource};
+pub use spelling::{spell_reports, Spelling};
 pub use verify::VERIFY_FILES;
 pub use verify::{verify, Verification, VerifyConfig, VerifyFrame};

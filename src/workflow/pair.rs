@@ -156,10 +156,7 @@ pub fn pair(config: &PairConfig) -> Result<Pairing> {
 /// and every input file with its size and SHA-256 (what `sha256sum` prints). Nothing of the
 /// run's time, so the same logs give the same report.
 fn provenance_markdown(config: &PairConfig) -> Result<String> {
-    let commit = match crate::io::GIT_COMMIT {
-        "" => "unknown (not built from a git checkout)",
-        commit => commit,
-    };
+    let commit = crate::io::commit_description(crate::io::GIT_COMMIT, crate::io::GIT_DIRTY);
     let mut out = format!(
         "## Provenance\n\ntreecal {} (commit {commit}); robot: {}\n\n| input | bytes | sha256 |\n| --- | ---: | --- |\n",
         env!("CARGO_PKG_VERSION"),

@@ -46,11 +46,8 @@ pub fn record(
         program: Program {
             name: "treecal",
             version: env!("CARGO_PKG_VERSION"),
-            commit: if commit.is_empty() {
-                "unknown (not built from a git checkout)".into()
-            } else {
-                commit.into()
-            },
+            commit: crate::io::commit_description(commit, false),
+            dirty: (!commit.is_empty()).then_some(crate::io::GIT_DIRTY),
         },
         command: command.to_owned(),
         settings,

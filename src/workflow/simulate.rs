@@ -316,8 +316,10 @@ fn stiffness(
         (Some(source), _) => source.read(tree, nominal)?,
         (None, RobotSource::BuiltIn) => StiffnessSource::BuiltIn.read(tree, nominal)?,
         (None, _) => {
-            let message =
-                "a robot given with `robot` needs its stiffness file (see docs/flexibility.md)";
+            let message = "a robot given with `robot` needs its stiffness file: the simulated \
+                           robot bends under its link weights and payloads (docs/flexibility.md, \
+                           section 8); for a rigid robot give a file holding `self_weight: false` \
+                           (and no payloads: nothing then loads the structure)";
             return Err(invalid("stiffness", message.into()));
         }
     };

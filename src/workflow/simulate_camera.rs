@@ -194,7 +194,7 @@ struct LabFiles<'a> {
 /// identification images), tracker.csv (with `mixed`: the tracker rows at the same
 /// configurations, in the root frame), validation_detections.csv (held-out images of the same robot),
 /// cameras.yaml (the nominal camera and targets) and truth.urdf (the true robot, with
-/// `<tool>_calibrated` links where a true tool frame is off its joint's axis), to judge the
+/// `<tool>_marker` links where a true tool frame is off its joint's axis), to judge the
 /// calibration against.
 fn lab_files(
     setup: &CameraSetup<'_>,

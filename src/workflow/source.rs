@@ -214,7 +214,8 @@ pub(crate) fn measured_branches_of(
                     MeasurementSource::Table(table) => table.place_of_tool(name),
                 },
                 message: format!(
-                    "{e}; the tool column names the measured tool links (points on one body: name the body's link with `tools`)"
+                    "{e} of robot '{}'; the tool column names the measured tool links of the robot loaded (points on one body: name the body's link with `tools`; measurements of another robot: give its URDF with `robot`)",
+                    tree.name()
                 ),
             })
         })

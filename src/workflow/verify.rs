@@ -457,11 +457,13 @@ fn scored_links(tree: &KinematicTree, loaded: &Loaded) -> Vec<String> {
 }
 
 /// The link of a written URDF that carries the calibrated frame of tool link `tool`: a fixed
-/// leaf `<tool>_calibrated` or `<tool>_marker` below it when the export added one, else the
+/// leaf `<tool>_marker` (or `<tool>_calibrated`, written by exports before session 22) below
+/// it when the export added one, else the
 /// tool link (`calibrate` names the same links from its export report).
 pub(crate) fn scored_link(tree: &KinematicTree, tool: crate::tree::LinkId) -> String {
     let name = tree.link(tool).name.clone();
-    ["calibrated", "marker"]
+    // A marker first: exported again, an older file's `_calibrated` link is left behind.
+    ["marker", "calibrated"]
         .iter()
         .map(|suffix| format!("{name}_{suffix}"))
         .find(|added| {

@@ -32,7 +32,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     // is not a previous output before computing anything.
     config.check_output(&args.out)?;
     // report.json is rendered straight into the folder (at 10⁶ configurations ~900 MB).
-    let calibration = calibrate_for_writing(&config)?;
+    // report.md and report.html say the flags (`--model offsets`), as stdout and stderr do.
+    let flag = |setting: &str| crate::settings::flag(setting).map(str::to_owned);
+    let calibration = calibrate_for_writing(&config, Some(&flag))?;
     finish(
         &args,
         &calibration.notes,

@@ -11,7 +11,10 @@ pub fn run(args: CompareArgs) -> Result<()> {
         b: args.b,
         k: args.k,
     };
-    let comparison = compare(&config)?;
+    let mut comparison = compare(&config)?;
+    // report.md and report.html say the flags, as stdout does.
+    let flag = |setting: &str| crate::settings::flag(setting).map(str::to_owned);
+    treecal::workflow::spell_reports(&mut comparison.files, &flag);
     comparison.write(&args.out)?;
     crate::output::print(&comparison.markdown)?;
     crate::output::note(format_args!("wrote {}", args.out.display()));

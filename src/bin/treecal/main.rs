@@ -26,6 +26,11 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    // `-` is not standard input or output here: say so before clap or a file open would.
+    if let Err(error) = checks::no_standard_streams(std::env::args_os()) {
+        output::note(format_args!("error: {error}"));
+        return ExitCode::FAILURE;
+    }
     let args = cli::Cli::parse();
     let result = match args.command {
         cli::Command::Inspect(a) => inspect::run(a),

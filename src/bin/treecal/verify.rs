@@ -30,7 +30,10 @@ pub fn run(args: VerifyArgs) -> Result<()> {
         rotation_sigma: args.rotation_sigma,
         max_error_mm: args.max_error,
     };
-    let verification = verify(&config)?;
+    let mut verification = verify(&config)?;
+    // report.md and report.html say the flags, as stdout does.
+    let flag = |setting: &str| crate::settings::flag(setting).map(str::to_owned);
+    treecal::workflow::spell_reports(&mut verification.files, &flag);
     for note in &verification.notes {
         crate::output::note(note);
     }

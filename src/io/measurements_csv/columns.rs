@@ -35,7 +35,8 @@ pub(super) fn classify(
     options: &MeasurementReadOptions,
     origin: &str,
 ) -> Result<Columns> {
-    not_another_separator(headers, places.header(origin, header_line, None))?;
+    // A header of one field holding semicolons or tabs (another separator) was refused when
+    // the table was read (`joints_csv::check_separator`, the only such check).
     let mut id = None;
     let mut stage = None;
     let mut payload = None;
@@ -117,27 +118,6 @@ pub(super) fn classify(
         observation,
         observed,
     })
-}
-
-/// A header that is one field holding semicolons or tabs: a file separated by something other
-/// than commas (a spreadsheet's export in many locales), which would otherwise read as "no
-/// observation columns".
-fn not_another_separator(headers: &[String], header: String) -> Result<()> {
-    let [only] = headers else { return Ok(()) };
-    let separator = [(';', "semicolons"), ('\t', "tabs")]
-        .into_iter()
-        .find(|(c, _)| only.contains(*c));
-    match separator {
-        None => Ok(()),
-        Some((_, name)) => Err(Error::InvalidData {
-            origin: header,
-            message: format!(
-                "the header is one column with {name} in it: the file is separated by {name}, \
-                 not commas; save it as comma-separated CSV with '.' as the decimal mark (a \
-                 spreadsheet's \"CSV (comma delimited)\" export)"
-            ),
-        }),
-    }
 }
 
 /// The observation layout whose columns the header has, exactly; `header` names the header

@@ -49,8 +49,9 @@ pub struct CalibrateArgs {
     pub robot: Option<PathBuf>,
     /// Always on for calibrate (kept for scripts): when a tool link is the child of a revolute
     /// joint and its calibrated origin lies off the joint axis by more than the calibration's
-    /// uncertainty (which a URDF joint cannot express), a fixed child link `<tool>_calibrated`
-    /// is added at the exact calibrated tool frame (docs/export.md).
+    /// uncertainty (which a URDF joint cannot express), the tool link stays where its joint
+    /// puts it and a fixed child link `<tool>_marker` is added at the exact calibrated tool
+    /// frame (docs/export.md).
     #[arg(long)]
     pub add_tool_links: bool,
     /// Which parameters describe the robot: `offsets` (joint zero offsets, the tools and the

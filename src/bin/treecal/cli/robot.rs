@@ -116,8 +116,8 @@ pub struct ExportArgs {
     pub output: PathBuf,
     /// When a tool link is the child of a revolute joint and its calibrated origin lies off
     /// the joint axis by more than the calibration's uncertainty (which a URDF joint cannot
-    /// express), add a fixed child link `<tool>_calibrated` at the exact calibrated tool frame
-    /// instead of failing (docs/export.md).
+    /// express), leave the tool link where its joint puts it and add a fixed child link
+    /// `<tool>_marker` at the exact calibrated tool frame instead of failing (docs/export.md).
     #[arg(long)]
     pub add_tool_links: bool,
 }
