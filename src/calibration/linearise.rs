@@ -131,7 +131,11 @@ pub(super) fn linearise(
             } else {
                 block.fill(0.0);
             }
-            kind.jacobian(&state, free, &mut block.view_mut((0, 0), (count, free.len())))?;
+            kind.jacobian(
+                &state,
+                free,
+                &mut block.view_mut((0, 0), (count, free.len())),
+            )?;
             weights.clear();
             weights.extend(kind.row_kinds().iter().map(|&k| weight(k)));
             let tall = jacobian.as_mut_slice();

@@ -214,6 +214,8 @@ fn parse_block<S: BlockRows>(
     let mut part = state.part();
     let mut row = CsvFields::new(place.headers.to_vec(), place.header_line);
     let mut count = 0;
+    // A line's trimmed fields, split once for the record test and the row.
+    let mut line_fields: Vec<&str> = Vec::new();
     let pieces = block.text.split_inclusive(|&b| b == b'\n');
     for (k, piece) in pieces.enumerate() {
         let line = block.first_line + k;
@@ -225,16 +227,27 @@ fn parse_block<S: BlockRows>(
             }
             bytes = rest;
         }
-        if bytes.iter().any(|&b| b == b'"' || b == b'\r') {
+        if memchr::memchr2(b'"', b'\r', bytes).is_some() {
             return None;
         }
         let text = std::str::from_utf8(bytes).ok()?;
-        if !plain_record(text)? {
+        // As `plain_record`, splitting the line once.
+        if text.starts_with('#') {
+            continue;
+        }
+        line_fields.clear();
+        for field in fields(text) {
+            if field.len() > MAX_CSV_FIELD_BYTES || line_fields.len() == MAX_CSV_COLUMNS {
+                return None;
+            }
+            line_fields.push(field.trim());
+        }
+        if line_fields.iter().all(|f| f.is_empty()) {
             continue;
         }
         count += 1;
         row.clear();
-        row.push_row(line, fields(text).map(str::trim), place.origin)
+        row.push_row(line, line_fields.iter().copied(), place.origin)
             .ok()?;
         state.row(&mut part, row.row(0))?;
     }
@@ -259,7 +272,7 @@ fn fields(text: &str) -> impl Iterator<Item = &str> {
     let mut rest = Some(text);
     std::iter::from_fn(move || {
         let text = rest?;
-        match text.bytes().position(|b| b == b',') {
+        match memchr::memchr(b',', text.as_bytes()) {
             Some(comma) => {
                 rest = text.get(comma + 1..);
                 text.get(..comma)

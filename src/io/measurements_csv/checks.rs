@@ -160,11 +160,8 @@ impl Repeats {
         // Different first inputs make the two digests independent.
         0u8.hash(&mut digests[0]);
         1u8.hash(&mut digests[1]);
-        for (column, field) in fields.fields().enumerate() {
-            let field = if Some(column) == self.id { "" } else { field };
-            for digest in &mut digests {
-                field.hash(digest);
-            }
+        for digest in &mut digests {
+            fields.hash_without(self.id, digest);
         }
         let [a, b] = digests;
         (a.finish(), b.finish())
