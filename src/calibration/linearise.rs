@@ -129,7 +129,7 @@ pub(super) fn linearise(
             if block.shape() != (count, free.len()) {
                 block = DMatrix::zeros(count, free.len());
             } else {
-                block.fill(0.0);
+                block.as_mut_slice().fill(0.0);
             }
             kind.jacobian(
                 &state,

@@ -108,8 +108,9 @@ pub(super) fn copy_tool_rows(
         let mut to = out.column_mut(column);
         if parameter < model_columns {
             let from = &from[parameter * stride..][..rows];
-            for (to, from) in to.iter_mut().zip(from) {
-                *to = *from;
+            // By index: nalgebra's view iterators step element by element.
+            for (k, from) in from.iter().enumerate() {
+                to[k] = *from;
             }
         } else {
             to.fill(0.0);

@@ -185,7 +185,7 @@ impl<R: Read> Blocks<R> {
                 }
                 return Some(Some(self.block(text, true)));
             }
-            if let Some(end) = text[before..].iter().rposition(|&b| b == b'\n') {
+            if let Some(end) = memchr::memrchr(b'\n', &text[before..]) {
                 self.carry = text[before + end + 1..].to_vec();
                 text.truncate(before + end + 1);
                 return Some(Some(self.block(text, false)));
@@ -195,7 +195,7 @@ impl<R: Read> Blocks<R> {
 
     fn block(&mut self, text: Vec<u8>, last: bool) -> Block {
         let first_line = self.next_line;
-        self.next_line += text.iter().filter(|&&b| b == b'\n').count();
+        self.next_line += memchr::memchr_iter(b'\n', &text).count();
         Block {
             text,
             first_line,
