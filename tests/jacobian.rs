@@ -79,6 +79,19 @@ fn check(model: &McpcModel, q: &[f64], what: &str) {
     for (buffered, jacobian) in jacobians.iter().zip(&analytic) {
         assert_eq!(buffered, &jacobian.jacobian, "{what}: filled buffers");
     }
+    // The reusing form (what the fit's rows take), after another configuration and with its
+    // matrices filled with other values: the same poses and matrices bit for bit.
+    let mut reused = Vec::new();
+    model.tool_jacobians_reusing(&other, &mut reused);
+    for tool in &mut reused {
+        tool.jacobian.fill(5.0);
+    }
+    model.tool_jacobians_reusing(q, &mut reused);
+    assert_eq!(reused.len(), analytic.len());
+    for (reused, jacobian) in reused.iter().zip(&analytic) {
+        assert_eq!(reused.jacobian, jacobian.jacobian, "{what}: reusing");
+        assert_eq!(reused.pose, jacobian.pose, "{what}: reusing pose");
+    }
 }
 
 #[test]

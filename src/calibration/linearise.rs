@@ -6,7 +6,7 @@ use super::observation::{kind_of, squares_by_row_kind, Nuisance, RobotState, Too
 use super::options::IdentificationOptions;
 use super::predictor::{Cached, Predictor};
 use crate::error::Result;
-use crate::kinematics::{McpcModel, ToolJacobian};
+use crate::kinematics::McpcModel;
 use crate::math::Pose;
 use crate::measurement::Measurement;
 use nalgebra::{DMatrix, DVector, Vector6};
@@ -91,7 +91,7 @@ pub(super) fn linearise(
     let mut row = 0;
     // Measurements of several tools at one configuration share one evaluation.
     // Keyed by configuration and payload.
-    let mut cached: Cached<'_, Vec<ToolJacobian>> = None;
+    let (mut jacobians, mut jacobians_at) = (Vec::new(), None);
     let mut cached_poses: Cached<'_, Vec<Pose>> = None;
     let (mut block, mut weights) = (DMatrix::zeros(0, 0), Vec::new());
     for (index, m) in measurements.iter().enumerate() {
@@ -99,10 +99,11 @@ pub(super) fn linearise(
         let count = kind.rows();
         let key = (m.q.as_slice(), m.payload);
         let tools = if with_jacobian {
-            if cached.as_ref().is_none_or(|(k, _)| *k != key) {
-                cached = Some((key, predictor.jacobians_for(model, &m.q, m.payload, free)?));
+            if jacobians_at != Some(key) {
+                predictor.jacobians_for_into(model, &m.q, m.payload, free, &mut jacobians)?;
+                jacobians_at = Some(key);
             }
-            Tools::Jacobians(cached.as_ref().map_or(&[][..], |(_, j)| j.as_slice()))
+            Tools::Jacobians(&jacobians)
         } else {
             if cached_poses.as_ref().is_none_or(|(k, _)| *k != key) {
                 cached_poses = Some((key, predictor.predict_at(model, &m.q, m.payload)?));

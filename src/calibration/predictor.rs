@@ -53,6 +53,20 @@ pub trait Predictor: Sync {
         let _ = free;
         self.jacobians_at(model, q, payload)
     }
+
+    /// [`Self::jacobians_for`] into `out`, its matrices reused where the predictor can (the
+    /// rigid one: no allocation per configuration); the same values.
+    fn jacobians_for_into(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        payload: Option<f64>,
+        free: &[usize],
+        out: &mut Vec<ToolJacobian>,
+    ) -> Result<()> {
+        *out = self.jacobians_for(model, q, payload, free)?;
+        Ok(())
+    }
 }
 
 /// The rigid MCPC forward kinematics.
@@ -62,6 +76,18 @@ pub struct Rigid;
 impl Predictor for Rigid {
     fn predict(&self, model: &McpcModel, q: &[f64]) -> Result<Vec<Pose>> {
         Ok(model.tool_poses(q))
+    }
+
+    fn jacobians_for_into(
+        &self,
+        model: &McpcModel,
+        q: &[f64],
+        _payload: Option<f64>,
+        _free: &[usize],
+        out: &mut Vec<ToolJacobian>,
+    ) -> Result<()> {
+        model.tool_jacobians_reusing(q, out);
+        Ok(())
     }
 }
 

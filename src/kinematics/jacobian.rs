@@ -233,6 +233,24 @@ impl McpcModel {
             .collect()
     }
 
+    /// [`McpcModel::tool_jacobians`] into `out`, its matrices reused (no allocation once they
+    /// have their size): the same poses and matrices bit for bit.
+    pub fn tool_jacobians_reusing(&self, q: &[f64], out: &mut Vec<ToolJacobian>) {
+        SCRATCH.with(|scratch| {
+            let mut chain = scratch.borrow_mut();
+            self.chain_frames_into(q, &mut chain);
+            out.resize_with(self.tools().len(), || ToolJacobian {
+                pose: Pose::identity(),
+                jacobian: DMatrix::zeros(0, 0),
+            });
+            for (tool, out) in out.iter_mut().enumerate() {
+                self.reset_jacobian(tool, &mut out.jacobian);
+                self.fill_tool_jacobian(tool, &chain, &mut out.jacobian);
+                out.pose = chain.tools[tool].to_pose();
+            }
+        })
+    }
+
     /// Tool pose and identification Jacobian of tool `tool` at configuration `q`.
     pub fn tool_jacobian(&self, tool: usize, q: &[f64]) -> ToolJacobian {
         let mut jacobian = DMatrix::zeros(6, self.parameter_count());
