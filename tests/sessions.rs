@@ -317,6 +317,19 @@ fn one_session_changes_nothing() {
         .iter()
         .filter(|f| f.code.contains("session"))
         .all(|f| f.status == Status::Ok));
+    // One session is said as one frame, without rounds of frame fits that did not run.
+    let said: Vec<&str> = labelled
+        .findings
+        .iter()
+        .filter(|f| f.code == "sessions")
+        .map(|f| f.message.as_str())
+        .collect();
+    assert!(
+        said.iter()
+            .any(|m| m.starts_with("1 measurement session, in one measurement frame")),
+        "{said:#?}"
+    );
+    assert!(said.iter().all(|m| !m.contains("round(s)")), "{said:#?}");
 }
 
 /// The frame block's fit recovers a known frame exactly from noiseless poses and positions,
@@ -470,8 +483,9 @@ fn the_report_names_every_session_with_its_rows_and_frame() {
     );
     let said: Vec<&str> = result.notes.iter().map(|n| n.text.as_str()).collect();
     assert!(
-        said.iter().any(|t| t.contains("3 measurement session(s)")
-            && t.contains("'day3_points' 14 rows (frame")),
+        said.iter()
+            .any(|t| t.contains("3 measurement sessions")
+                && t.contains("'day3_points' 14 rows (frame")),
         "{said:#?}"
     );
     assert!(

@@ -41,17 +41,21 @@ pub fn session_findings(report: &SessionsReport) -> Vec<Finding> {
             }
         })
         .collect();
-    findings.push(Finding::note(
-        "sessions",
-        format!(
-            "{} measurement session(s), one measurement frame each ({} parameters per session \
-             after the first, fitted with the geometry in {} round(s)): {}",
-            report.frames.len(),
+    let message = match report.frames.len() {
+        // One session: one frame, nothing fitted beside the geometry.
+        1 => format!(
+            "1 measurement session, in one measurement frame: {}",
+            listed.join("; ")
+        ),
+        sessions => format!(
+            "{sessions} measurement sessions, one measurement frame each ({} parameters per \
+             session after the first, fitted with the geometry in {} round(s)): {}",
             FRAME_BLOCK_PARAMETERS,
             report.rounds,
             listed.join("; ")
         ),
-    ));
+    };
+    findings.push(Finding::note("sessions", message));
     if !report.converged {
         findings.push(Finding::warning(
             "sessions",
