@@ -134,13 +134,10 @@ impl ChainPostures {
         sorted.par_sort_unstable();
         (index.cells, index.order) = sorted.into_iter().unzip();
         let mut start = 0;
-        for end in 1..=index.cells.len() {
-            let next = index.cells.get(end).map(|c| [c[0], c[1]]);
-            let this = index.cells[start];
-            if next != Some([this[0], this[1]]) {
-                index.groups.insert([this[0], this[1]], start..end);
-                start = end;
-            }
+        for group in index.cells.chunk_by(|a, b| a[..2] == b[..2]) {
+            let end = start + group.len();
+            index.groups.insert([group[0][0], group[0][1]], start..end);
+            start = end;
         }
         index
     }

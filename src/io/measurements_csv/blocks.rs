@@ -55,8 +55,9 @@ pub(super) fn read_plain_blocks<S: BlockRows>(
         let (line, text) = lines.next()?;
         above.push_str(text);
         above.push('\n');
-        if plain_record(text)? {
-            break (line, text.split(',').map(|f| f.trim().to_owned()).collect());
+        let mut fields = Vec::new();
+        if plain_record(text, &mut fields)? {
+            break (line, fields.into_iter().map(str::to_owned).collect());
         }
     };
     if above.starts_with('\u{feff}') {
@@ -231,18 +232,7 @@ fn parse_block<S: BlockRows>(
             return None;
         }
         let text = std::str::from_utf8(bytes).ok()?;
-        // As `plain_record`, splitting the line once.
-        if text.starts_with('#') {
-            continue;
-        }
-        line_fields.clear();
-        for field in fields(text) {
-            if field.len() > MAX_CSV_FIELD_BYTES || line_fields.len() == MAX_CSV_COLUMNS {
-                return None;
-            }
-            line_fields.push(field.trim());
-        }
-        if line_fields.iter().all(|f| f.is_empty()) {
+        if !plain_record(text, &mut line_fields)? {
             continue;
         }
         count += 1;
@@ -285,21 +275,21 @@ fn fields(text: &str) -> impl Iterator<Item = &str> {
     })
 }
 
-/// Whether a plain line is a record (not a comment, not only empty fields); `None` if it is
-/// past a limit (too many columns, a field too long).
-pub(super) fn plain_record(text: &str) -> Option<bool> {
+/// Whether a plain line is a record (not a comment, not only empty fields), its trimmed
+/// fields put in `trimmed` (emptied first; left empty for a comment); `None` if it is past a
+/// limit (too many columns, a field too long).
+pub(super) fn plain_record<'t>(text: &'t str, trimmed: &mut Vec<&'t str>) -> Option<bool> {
+    trimmed.clear();
     if text.starts_with('#') {
         return Some(false);
     }
-    let (mut count, mut any) = (0, false);
     for field in fields(text) {
-        if field.len() > MAX_CSV_FIELD_BYTES || count == MAX_CSV_COLUMNS {
+        if field.len() > MAX_CSV_FIELD_BYTES || trimmed.len() == MAX_CSV_COLUMNS {
             return None;
         }
-        count += 1;
-        any |= !field.trim().is_empty();
+        trimmed.push(field.trim());
     }
-    Some(any)
+    Some(trimmed.iter().any(|f| !f.is_empty()))
 }
 
 /// The lines of a plain file, their line breaks taken off.
