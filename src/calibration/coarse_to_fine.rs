@@ -127,6 +127,7 @@ mod tests {
                     &free,
                     options,
                     thresholds,
+                    None,
                 )
                 .expect("identification")
             };
@@ -138,6 +139,7 @@ mod tests {
                 &free,
                 &options,
                 thresholds,
+                None,
             )
             .expect("identification")
         };

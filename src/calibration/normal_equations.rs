@@ -27,6 +27,9 @@ use nalgebra::{DMatrix, DMatrixView, DVector, Vector6};
 use rayon::prelude::*;
 use std::ops::Range;
 
+mod memo;
+pub(crate) use memo::ProductsMemo;
+
 /// Rows per chunk (at least; a chunk ends at the next change of configuration). 192 rows of
 /// 64 columns are 96 KiB: a chunk's Jacobian stays in the core's L2 cache.
 pub(super) const CHUNK_ROWS: usize = 192;
@@ -218,6 +221,9 @@ pub(super) struct Problem<'a> {
     pub options: &'a IdentificationOptions,
     /// The prior's rows over the free parameters, if any.
     pub prior: Option<&'a super::prior::PriorRows>,
+    /// The last products over these measurements, to be updated where only some robust
+    /// weights changed ([`ProductsMemo`]).
+    pub memo: Option<&'a ProductsMemo<'a>>,
 }
 
 /// The products of one chunk.
@@ -291,6 +297,35 @@ pub(super) fn accumulate_with(
     problem: &Problem<'_>,
     products: Products,
 ) -> Result<NormalEquations> {
+    let updated = problem
+        .memo
+        .and_then(|memo| memo.updated(model, nuisance, problem, products));
+    let mut total = match updated {
+        Some(products) => products?,
+        None => streamed(model, nuisance, problem, products)?,
+    };
+    if let Some(memo) = problem.memo {
+        memo.record(model, nuisance, problem, &total);
+    }
+    if let Some(prior) = problem.prior {
+        add_prior(&mut total, model, nuisance, problem.free, prior);
+    }
+    let columns = total.gradient.len().max(problem.free.len());
+    if let Some(factor) = total.factor.as_mut() {
+        if factor.nrows() < columns {
+            *factor = factor.clone().resize_vertically(columns, 0.0);
+        }
+    }
+    Ok(total)
+}
+
+/// The products of every chunk of `problem`, added in chunk order (no prior).
+fn streamed(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    problem: &Problem<'_>,
+    products: Products,
+) -> Result<NormalEquations> {
     let mut total: Option<NormalEquations> = None;
     for window in chunks(problem.measurements).chunks(WINDOW) {
         let parts: Vec<Result<NormalEquations>> = window
@@ -305,17 +340,7 @@ pub(super) fn accumulate_with(
             }
         }
     }
-    let mut total = total.unwrap_or_else(|| NormalEquations::zeros(problem.free.len(), products));
-    if let Some(prior) = problem.prior {
-        add_prior(&mut total, model, nuisance, problem.free, prior);
-    }
-    let columns = total.gradient.len().max(problem.free.len());
-    if let Some(factor) = total.factor.as_mut() {
-        if factor.nrows() < columns {
-            *factor = factor.clone().resize_vertically(columns, 0.0);
-        }
-    }
-    Ok(total)
+    Ok(total.unwrap_or_else(|| NormalEquations::zeros(problem.free.len(), products)))
 }
 
 /// Adds the prior rows `√w·(θ₀ − θ)` (Jacobian `√w` on their own column) to the products.
@@ -381,6 +406,7 @@ mod tests {
                 free: &free,
                 options: &options,
                 prior: None,
+                memo: None,
             };
             let (stacked, streamed) =
                 streamed_and_stacked(model, &problem, Products::NormalAndFactor);
@@ -421,6 +447,7 @@ mod tests {
             free: &free,
             options: &options,
             prior: None,
+            memo: None,
         };
         streamed_and_stacked(model, &problem, Products::Normal);
     }
@@ -482,6 +509,7 @@ mod tests {
             free: &free,
             options: &options,
             prior: None,
+            memo: None,
         };
         let on = |threads: usize| {
             rayon::ThreadPoolBuilder::new()

@@ -2,9 +2,10 @@
 //! (paper section 5.3.1). A plan is data; the paper's staging is the [`Plan::staged`] preset.
 
 use super::gauge::reference_gauge;
+use super::normal_equations::ProductsMemo;
 use super::options::IdentificationOptions;
 use super::predictor::{Deflected, DeflectedWithDerivative, Rigid};
-use super::solver::{identify, IdentificationReport};
+use super::solver::{identify, identify_reusing, IdentificationReport};
 use super::verdict::Finding;
 use crate::error::{Error, Result};
 use crate::kinematics::{McpcModel, ParameterOwner};
@@ -176,6 +177,8 @@ struct StageContext<'a> {
     exact_predictor: Option<DeflectedWithDerivative<'a>>,
     /// 1, or [`MAX_CYCLES`] for a staged plan under exact compensation.
     max_cycles: usize,
+    /// The last products over the caller's measurements (a robust loop's refits).
+    memo: Option<&'a ProductsMemo<'a>>,
 }
 
 /// One stage's measurements (indices and copies; the rows given, not a copy, when the stage
@@ -200,6 +203,24 @@ pub fn calibrate(
     compensation: Compensation<'_>,
     plan: &Plan,
     options: &IdentificationOptions,
+) -> Result<CalibrationReport> {
+    calibrate_reusing(
+        (branches, model, plan),
+        measurements,
+        compensation,
+        options,
+        None,
+    )
+}
+
+/// [`calibrate`] with the last products over `measurements` kept in `memo`
+/// ([`ProductsMemo`]: a robust loop's refits from the previous solution).
+pub(crate) fn calibrate_reusing<'a>(
+    (branches, model, plan): (&Branches, &McpcModel, &Plan),
+    measurements: &'a [Measurement],
+    compensation: Compensation<'a>,
+    options: &'a IdentificationOptions,
+    memo: Option<&'a ProductsMemo<'a>>,
 ) -> Result<CalibrationReport> {
     if plan.stages.is_empty() {
         return Err(Error::InvalidData {
@@ -237,6 +258,7 @@ pub fn calibrate(
         } else {
             1
         },
+        memo,
     };
     let inputs = stage_inputs(plan, &skipped, measurements, options)?;
     let mut current = model.clone();
@@ -510,13 +532,14 @@ fn free_stage(
     // The exact predictor exists exactly under exact compensation.
     let identification = match &context.exact_predictor {
         Some(predictor) => identify(current, data, None, predictor, &free, &input.options)?,
-        None => identify(
+        // Rigid, without offsets: the products of a refit at the same model can be updated.
+        None => identify_reusing(
             current,
-            data,
-            offsets.as_deref(),
+            (data, offsets.as_deref()),
             &Rigid,
             &free,
             &input.options,
+            context.memo,
         )?,
     };
     current.set_parameters(&identification.parameters)?;

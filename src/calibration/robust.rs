@@ -12,11 +12,14 @@
 //! `docs/identification.md`, "Robust estimation".
 
 use super::coarse_to_fine::CoarseToFine;
+use super::normal_equations::ProductsMemo;
 use super::observation::{
     kind_of, norms_by_row_kind, standardized_norm, Nuisance, RobotState, Tools,
 };
 use super::options::IdentificationOptions;
-use super::plan::{calibrate, linear_offsets, CalibrationReport, Compensation, Plan};
+use super::plan::{
+    calibrate, calibrate_reusing, linear_offsets, CalibrationReport, Compensation, Plan,
+};
 use super::predictor::{Cached, Predictor};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
@@ -176,7 +179,10 @@ fn calibrate_robust_with(
         RobustLoss::Off => None,
         _ => thresholds.subsample(measurements),
     };
-    // A large problem's fit starts from the previous one; any other from `model`.
+    // A large problem's fit starts from the previous one; any other from `model`. Started at
+    // the previous solution, a refit's first products are the previous fit's last ones
+    // updated where the weights changed (`memo`), not a pass over every row.
+    let memo = ProductsMemo::new(measurements);
     let run = |previous: &McpcModel, weights: Vec<f64>| {
         let start = if subsample.is_some() { previous } else { model };
         let options = IdentificationOptions {
@@ -184,7 +190,13 @@ fn calibrate_robust_with(
             warm_start: subsample.is_some(),
             ..options.clone()
         };
-        calibrate(branches, start, measurements, compensation, plan, &options)
+        calibrate_reusing(
+            (branches, start, plan),
+            measurements,
+            compensation,
+            &options,
+            Some(&memo),
+        )
     };
     let offsets = linear_offsets(compensation, model, measurements)?;
     let residuals_at = |model: &McpcModel| {

@@ -17,7 +17,7 @@
 
 use super::coarse_to_fine::CoarseToFine;
 use super::linearise::{residual_rms, rows_of};
-use super::normal_equations::{accumulate_with, NormalEquations, Problem, Products};
+use super::normal_equations::{accumulate_with, NormalEquations, Problem, Products, ProductsMemo};
 use super::observation::{kind_of, Nuisance};
 use super::solver_analysis::{analyse, unscaled_inverse, Analysis};
 pub(crate) use super::solver_report::combination;
@@ -80,11 +80,34 @@ pub fn identify_with_nuisance(
         free,
         options,
         CoarseToFine::DEFAULT,
+        None,
+    )
+}
+
+/// [`identify`] with the last products over `measurements` kept in `memo` (a robust loop's
+/// refits): a refit at the same parameters whose weights changed on few measurements updates
+/// them instead of a pass over every row.
+pub(crate) fn identify_reusing(
+    model: &McpcModel,
+    (measurements, offsets): (&[Measurement], Option<&[Vector6<f64>]>),
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+    memo: Option<&ProductsMemo<'_>>,
+) -> Result<IdentificationReport> {
+    identify_coarse_to_fine(
+        (model, Nuisance::none()),
+        (measurements, offsets),
+        predictor,
+        free,
+        options,
+        CoarseToFine::DEFAULT,
+        memo,
     )
 }
 
 /// [`identify_with_nuisance`] with the thresholds of the coarse-to-fine start given (tests
-/// lower them).
+/// lower them) and the memo of [`identify_reusing`].
 pub(crate) fn identify_coarse_to_fine(
     (model, nuisance): (&McpcModel, &Nuisance),
     (measurements, offsets): (&[Measurement], Option<&[Vector6<f64>]>),
@@ -92,6 +115,7 @@ pub(crate) fn identify_coarse_to_fine(
     free: &[usize],
     options: &IdentificationOptions,
     thresholds: CoarseToFine,
+    memo: Option<&ProductsMemo<'_>>,
 ) -> Result<IdentificationReport> {
     validate(model, nuisance, measurements, offsets, free, options)?;
     let prior_rows = if nuisance.is_empty() {
@@ -113,6 +137,7 @@ pub(crate) fn identify_coarse_to_fine(
         free,
         options,
         prior: prior_rows.as_ref(),
+        memo,
     };
     let descent = match thresholds.subsample(measurements) {
         // A large problem started at the previous solution: every row from there.
@@ -155,6 +180,7 @@ fn descend_from_subsample(
             offsets: offsets.as_deref(),
             options: &options,
             prior: prior.as_ref(),
+            memo: None,
             ..*problem
         };
         descend(model, nuisance, &subsample, Stop::Evaluated)?
@@ -280,12 +306,17 @@ fn descend(
             final_analysis = Some(analysis);
             break;
         }
-        let Some(((candidate, candidate_nuisance), trial, trial_cost)) = first_decrease(
+        // A large problem's undamped step is nearly always taken: its trial computes the
+        // products the next iteration needs, in place of a cost-only pass and then a pass.
+        let trial_products = match (stop, lin.factor.is_some()) {
+            (Stop::Predicted, false) => Products::Normal,
+            _ => Products::Cost,
+        };
+        let Some(accepted) = first_decrease(
             (&current, &current_nuisance),
             &parameters,
             problem,
-            &analysis,
-            &full_step,
+            (&analysis, &full_step, trial_products),
             cost,
             &mut damping,
         )?
@@ -295,10 +326,10 @@ fn descend(
             break;
         };
         let previous = cost;
-        current = candidate;
-        current_nuisance = candidate_nuisance;
-        parameters = trial;
-        cost = trial_cost;
+        current = accepted.model;
+        current_nuisance = accepted.nuisance;
+        parameters = accepted.parameters;
+        cost = accepted.cost;
         costs.push(cost);
         iterations += 1;
         damping *= 0.1;
@@ -309,12 +340,16 @@ fn descend(
             final_analysis = Some(analysis);
             break;
         }
-        let products = if lin.factor.is_some() {
-            Products::NormalAndFactor
-        } else {
-            Products::Normal
+        lin = match accepted.products {
+            Some(products) => products,
+            None if lin.factor.is_some() => accumulate_with(
+                &current,
+                &current_nuisance,
+                problem,
+                Products::NormalAndFactor,
+            )?,
+            None => accumulate_with(&current, &current_nuisance, problem, Products::Normal)?,
         };
-        lin = accumulate_with(&current, &current_nuisance, problem, products)?;
     }
     parameters.truncate(current.parameter_count());
     Ok(Descent {
@@ -358,19 +393,30 @@ fn damped_step(analysis: &Analysis, rank_tolerance: f64, damping: f64) -> DVecto
     step
 }
 
+/// A step [`first_decrease`] took.
+struct Accepted {
+    model: McpcModel,
+    nuisance: Nuisance,
+    /// The model's parameters, then the nuisance values.
+    parameters: Vec<f64>,
+    cost: f64,
+    /// The products there, when the trial computed them.
+    products: Option<NormalEquations>,
+}
+
 /// The first of up to 40 ever more damped steps from `current` that lowers the cost below
-/// `cost`: the model there, its parameters and its cost; `None` when none does. `damping` is
-/// left where the accepted step was taken (or where the attempts gave up).
-#[allow(clippy::type_complexity)]
+/// `cost`; `None` when none does. The undamped step (`full_step`) is tried with
+/// `first_products` (the cost only, or the products the next iteration needs), the damped
+/// ones with the cost only. `damping` is left where the accepted step was taken (or where
+/// the attempts gave up).
 fn first_decrease(
     (current, nuisance): (&McpcModel, &Nuisance),
     parameters: &[f64],
     problem: &Problem<'_>,
-    analysis: &Analysis,
-    full_step: &DVector<f64>,
+    (analysis, full_step, first_products): (&Analysis, &DVector<f64>, Products),
     cost: f64,
     damping: &mut f64,
-) -> Result<Option<((McpcModel, Nuisance), Vec<f64>, f64)>> {
+) -> Result<Option<Accepted>> {
     let count = current.parameter_count();
     // Only a rejected step needs σ_max (the first damping): the eigenvalues wait until then.
     let sigma_max = || {
@@ -395,10 +441,20 @@ fn first_decrease(
         candidate.set_parameters(&trial[..count])?;
         let mut candidate_nuisance = nuisance.clone();
         candidate_nuisance.set_values(&trial[count..])?;
-        let trial_cost =
-            accumulate_with(&candidate, &candidate_nuisance, problem, Products::Cost)?.cost;
-        if trial_cost < cost {
-            return Ok(Some(((candidate, candidate_nuisance), trial, trial_cost)));
+        let products = if *damping == 0.0 {
+            first_products
+        } else {
+            Products::Cost
+        };
+        let at_trial = accumulate_with(&candidate, &candidate_nuisance, problem, products)?;
+        if at_trial.cost < cost {
+            return Ok(Some(Accepted {
+                model: candidate,
+                nuisance: candidate_nuisance,
+                parameters: trial,
+                cost: at_trial.cost,
+                products: (products != Products::Cost).then_some(at_trial),
+            }));
         }
         *damping = if *damping == 0.0 {
             1e-6 * sigma_max() * sigma_max()
