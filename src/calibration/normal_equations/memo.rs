@@ -144,7 +144,7 @@ fn updated_products(
 ) -> Result<NormalEquations> {
     // The options without observation weights: every weight 1.
     let unit = problem.options.for_range(0..0);
-    let parts: Vec<Result<(DMatrix<f64>, nalgebra::DVector<f64>, f64)>> = changed
+    let parts: Vec<Result<NormalEquations>> = changed
         .par_iter()
         .map(|&(i, change)| {
             let lin = linearise(
@@ -157,19 +157,17 @@ fn updated_products(
                 &unit,
                 true,
             )?;
-            Ok((
-                lin.jacobian.tr_mul(&lin.jacobian) * change,
-                lin.jacobian.tr_mul(&lin.residual) * change,
-                0.5 * lin.residual.norm_squared() * change,
-            ))
+            Ok(NormalEquations {
+                normal: lin.jacobian.tr_mul(&lin.jacobian) * change,
+                gradient: lin.jacobian.tr_mul(&lin.residual) * change,
+                cost: 0.5 * lin.residual.norm_squared() * change,
+                factor: None,
+            })
         })
         .collect();
     let mut total = previous.clone();
     for part in parts {
-        let (normal, gradient, cost) = part?;
-        total.normal += normal;
-        total.gradient += gradient;
-        total.cost += cost;
+        total.add(part?);
     }
     Ok(total)
 }
