@@ -20,7 +20,6 @@ use crate::calibration::observation::{Noise, Nuisance};
 use crate::error::Result;
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;
-use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::sync::Mutex;
 
@@ -179,7 +178,7 @@ mod tests {
     use crate::calibration::options::IdentificationOptions;
     use crate::calibration::predictor::Rigid;
     use crate::calibration::test_problems::{problem, robonaut, with_noise};
-    use nalgebra::Vector6;
+    use nalgebra::{DMatrix, Vector6};
 
     fn relative(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
         (a - b).amax() / b.amax()
