@@ -126,7 +126,7 @@ pub(super) fn angles_look_like_radians(
 /// rows share a fingerprint with probability about `n² / 2¹²⁹`.
 pub(super) struct Repeats {
     id: Option<usize>,
-    first_line: HashMap<(u64, u64), usize>,
+    first_line: HashMap<(u64, u64), usize, Digests>,
     /// `(line, line it repeats)` of every repeated row.
     found: Vec<(usize, usize)>,
 }
@@ -135,7 +135,7 @@ impl Repeats {
     pub(super) fn new(id: Option<usize>) -> Self {
         Self {
             id,
-            first_line: HashMap::new(),
+            first_line: HashMap::default(),
             found: Vec::new(),
         }
     }
@@ -146,10 +146,13 @@ impl Repeats {
 
     /// Sees the row at `line` whose [`Self::fingerprint`] is `key`.
     pub(super) fn see_fingerprint(&mut self, key: (u64, u64), line: usize) {
-        if let Some(&first) = self.first_line.get(&key) {
-            self.found.push((line, first));
-        } else {
-            self.first_line.insert(key, line);
+        match self.first_line.entry(key) {
+            std::collections::hash_map::Entry::Occupied(first) => {
+                self.found.push((line, *first.get()))
+            }
+            std::collections::hash_map::Entry::Vacant(slot) => {
+                slot.insert(line);
+            }
         }
     }
 
@@ -184,24 +187,28 @@ impl Repeats {
 
 /// A finite number, or what is wrong with the text.
 pub(super) fn number(text: &str, unit: &str) -> std::result::Result<f64, String> {
-    let unit = if unit.is_empty() {
-        String::new()
-    } else {
-        format!(" in {unit}")
-    };
-    if text.is_empty() {
-        return Err(format!("the value is missing; give a number{unit}"));
-    }
     match text.parse::<f64>() {
         Ok(value) if value.is_finite() => Ok(value),
-        Ok(_) => Err(format!(
-            "'{}' is not a finite number; give a number{unit}",
-            crate::limits::cut(text)
-        )),
-        Err(_) => Err(format!(
-            "'{}' is not a number; give a number{unit}",
-            crate::limits::cut(text)
-        )),
+        // The unit is worded only for an error: formatting it for every field cost more
+        // than parsing the number.
+        parsed => {
+            let unit = if unit.is_empty() {
+                String::new()
+            } else {
+                format!(" in {unit}")
+            };
+            Err(match parsed {
+                _ if text.is_empty() => format!("the value is missing; give a number{unit}"),
+                Ok(_) => format!(
+                    "'{}' is not a finite number; give a number{unit}",
+                    crate::limits::cut(text)
+                ),
+                Err(_) => format!(
+                    "'{}' is not a number; give a number{unit}",
+                    crate::limits::cut(text)
+                ),
+            })
+        }
     }
 }
 
@@ -211,4 +218,28 @@ pub(super) fn quoted_list(names: &[&str]) -> String {
         .map(|n| format!("'{n}'"))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// Hashes keys that are digests already (uniform 64-bit words, [`Repeats::fingerprint`] and
+/// the ids' digests): their words mixed by one multiplication, not hashed again by SipHash.
+pub(super) type Digests = std::hash::BuildHasherDefault<DigestHasher>;
+
+/// The [`Digests`] hasher.
+#[derive(Default)]
+pub(super) struct DigestHasher(u64);
+
+impl std::hash::Hasher for DigestHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            self.write_u64(u64::from(byte));
+        }
+    }
+
+    fn write_u64(&mut self, word: u64) {
+        self.0 = (self.0.rotate_left(29) ^ word).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
 }
