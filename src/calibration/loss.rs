@@ -139,12 +139,53 @@ pub(super) fn median_scale(normalised: impl Iterator<Item = f64>) -> f64 {
     if normalised.is_empty() {
         return 1.0;
     }
-    normalised.sort_by(f64::total_cmp);
+    // The middle elements by selection, not a sort (linear time: 1.6·10⁶ norms at 10⁶
+    // configurations); the same values a sort puts there.
     let n = normalised.len();
+    let (below, &mut upper, _) = normalised.select_nth_unstable_by(n / 2, f64::total_cmp);
     let median = if n % 2 == 1 {
-        normalised[n / 2]
+        upper
     } else {
-        0.5 * (normalised[n / 2 - 1] + normalised[n / 2])
+        let lower = below
+            .iter()
+            .copied()
+            .max_by(f64::total_cmp)
+            .unwrap_or(upper);
+        0.5 * (lower + upper)
     };
     median.max(SCALE_FLOOR)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The selected median is the sorted one, bit for bit, for odd and even counts, repeated
+    /// values and non-finite norms (left out).
+    #[test]
+    fn the_selected_median_is_the_sorted_one() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for count in [1, 2, 3, 4, 101, 1000, 1001] {
+            let mut values: Vec<f64> = (0..count).map(|_| 0.02 + 3.0 * next()).collect();
+            values.extend([f64::NAN, f64::INFINITY, values[0]]);
+            let mut sorted: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+            sorted.sort_by(f64::total_cmp);
+            let n = sorted.len();
+            let expected = match n % 2 {
+                1 => sorted[n / 2],
+                _ => 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]),
+            };
+            assert_eq!(
+                median_scale(values.into_iter()).to_bits(),
+                expected.max(SCALE_FLOOR).to_bits()
+            );
+        }
+        assert_eq!(median_scale(std::iter::empty()), 1.0);
+    }
 }

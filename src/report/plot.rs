@@ -526,17 +526,106 @@ fn draw_panel(
     for &index in &panel.series {
         let series = &plot.series[index];
         let (colour, kind) = style_of(index);
-        let points: Vec<(f64, f64)> = series
-            .values
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| ((i + 1) as f64, v))
-            .collect();
-        chart.draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))?;
+        let line = pixel_envelope(&series.values, 2 * WIDTH as usize);
+        chart.draw_series(LineSeries::new(line, colour.stroke_width(2)))?;
         // Markers go on the whole picture in pixels: one drawing routine serves the legend too.
-        for point in points.iter().step_by(marker_every) {
-            draw_marker(root, kind, chart.backend_coord(point), colour)?;
+        for (i, &v) in series.values.iter().enumerate().step_by(marker_every) {
+            draw_marker(
+                root,
+                kind,
+                chart.backend_coord(&((i + 1) as f64, v)),
+                colour,
+            )?;
         }
     }
     Ok(())
+}
+
+/// The points `(k + 1, values[k])` of a curve, or, when there are more than four per one of
+/// `columns` equal slices of the x range (finer than the plot's pixels), each slice's first,
+/// lowest, highest and last point in order (M4 aggregation): the polyline through them
+/// colours the same pixels as the one through every point, in a fraction of the SVG (an arm's
+/// 8·10⁵ configurations were a 12.8 MB file).
+fn pixel_envelope(values: &[f64], columns: usize) -> Vec<(f64, f64)> {
+    let point = |k: usize| ((k + 1) as f64, values[k]);
+    if values.len() <= 4 * columns.max(1) {
+        return (0..values.len()).map(point).collect();
+    }
+    let mut kept = Vec::with_capacity(4 * columns);
+    let mut start = 0;
+    for column in 0..columns {
+        let end = (values.len() * (column + 1)).div_ceil(columns);
+        if end <= start {
+            continue;
+        }
+        let slice = &values[start..end];
+        let by_value = |a: &(usize, &f64), b: &(usize, &f64)| a.1.total_cmp(b.1);
+        let low = slice
+            .iter()
+            .enumerate()
+            .min_by(by_value)
+            .map_or(0, |(k, _)| k);
+        let high = slice
+            .iter()
+            .enumerate()
+            .max_by(by_value)
+            .map_or(0, |(k, _)| k);
+        let mut picks = [0, low, high, slice.len() - 1];
+        picks.sort_unstable();
+        let mut previous = None;
+        for k in picks {
+            if previous != Some(k) {
+                kept.push(point(start + k));
+                previous = Some(k);
+            }
+        }
+        start = end;
+    }
+    kept
+}
+
+#[cfg(test)]
+mod tests {
+    use super::pixel_envelope;
+
+    /// A short curve keeps every point; a long one keeps, per slice of the x range, its first,
+    /// lowest, highest and last point, in order, each a real point of the curve.
+    #[test]
+    fn the_envelope_keeps_each_slices_extremes_in_order() {
+        let short = [1.0, 3.0, 2.0];
+        assert_eq!(
+            pixel_envelope(&short, 10),
+            [(1.0, 1.0), (2.0, 3.0), (3.0, 2.0)]
+        );
+        let values: Vec<f64> = (0..100_003)
+            .map(|k| (k as f64 * 0.37).sin().abs() + if k % 9973 == 0 { 5.0 } else { 0.0 })
+            .collect();
+        let columns = 300;
+        let kept = pixel_envelope(&values, columns);
+        assert!(kept.len() <= 4 * columns && kept.len() >= 2 * columns);
+        assert!(kept.windows(2).all(|pair| pair[0].0 < pair[1].0));
+        for &(x, v) in &kept {
+            assert_eq!(values[x as usize - 1], v);
+        }
+        assert_eq!(kept.first(), Some(&(1.0, values[0])));
+        assert_eq!(
+            kept.last(),
+            Some(&(values.len() as f64, values[values.len() - 1]))
+        );
+        let mut start = 0;
+        for column in 0..columns {
+            let end = (values.len() * (column + 1)).div_ceil(columns);
+            let inside: Vec<f64> = kept
+                .iter()
+                .filter(|(x, _)| (start + 1..=end).contains(&(*x as usize)))
+                .map(|&(_, v)| v)
+                .collect();
+            let slice = &values[start..end];
+            let extreme =
+                |pick: fn(f64, f64) -> f64, of: &[f64]| of.iter().copied().fold(of[0], pick);
+            assert_eq!(extreme(f64::min, &inside), extreme(f64::min, slice));
+            assert_eq!(extreme(f64::max, &inside), extreme(f64::max, slice));
+            start = end;
+        }
+    }
 }
