@@ -2,6 +2,7 @@
 
 pub mod calibration;
 pub mod camera;
+mod digests;
 pub mod error;
 pub mod io;
 pub mod kinematics;

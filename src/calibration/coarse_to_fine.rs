@@ -5,6 +5,7 @@
 //! [`COARSE_ABOVE_ROWS`] rows nothing changes. See `docs/identification.md`.
 
 use crate::measurement::Measurement;
+use rayon::prelude::*;
 
 /// Measurement rows above which an identification starts on a subsample.
 pub(crate) const COARSE_ABOVE_ROWS: usize = 60_000;
@@ -37,6 +38,7 @@ impl CoarseToFine {
             return None;
         }
         let starts: Vec<usize> = (0..measurements.len())
+            .into_par_iter()
             .filter(|&i| i == 0 || measurements[i].q != measurements[i - 1].q)
             .collect();
         let every = measurements.len().div_ceil(self.coarse_rows);

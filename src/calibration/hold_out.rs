@@ -38,7 +38,7 @@ pub fn hold_out_indices(
     // The first group of each digest; further groups of the same digest (rare) chained.
     let mut groups: Vec<&Measurement> = Vec::new();
     let mut next_of_digest: Vec<Option<usize>> = Vec::new();
-    let mut index: HashMap<u64, usize> = HashMap::new();
+    let mut index: HashMap<u64, usize, crate::digests::Digests> = HashMap::default();
     let group_of: Vec<usize> = measurements
         .iter()
         .zip(&digests)

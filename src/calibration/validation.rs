@@ -275,8 +275,9 @@ pub fn chain_postures(model: &McpcModel, identification: &[Measurement]) -> Vec<
     (0..model.tools().len())
         .map(|tool| {
             let dofs = chain_dofs(model, tool);
+            // In parallel (rayon's collect keeps the order): a posture per row.
             let postures = identification
-                .iter()
+                .par_iter()
                 .filter(|m| m.tool == tool)
                 .map(|m| {
                     dofs.iter()
@@ -317,7 +318,7 @@ pub fn places(
     // Per tool, the index of its identification rows in the order of its chain's postures.
     let rows_of: Vec<Vec<usize>> = (0..chains.len())
         .map(|tool| {
-            let of_tool = identification.iter().enumerate();
+            let of_tool = identification.par_iter().enumerate();
             of_tool
                 .filter(|(_, m)| m.tool == tool)
                 .map(|(i, _)| i)

@@ -126,7 +126,7 @@ pub(super) fn angles_look_like_radians(
 /// rows share a fingerprint with probability about `n² / 2¹²⁹`.
 pub(super) struct Repeats {
     id: Option<usize>,
-    first_line: HashMap<(u64, u64), usize, Digests>,
+    first_line: HashMap<(u64, u64), usize, crate::digests::Digests>,
     /// `(line, line it repeats)` of every repeated row.
     found: Vec<(usize, usize)>,
 }
@@ -218,28 +218,4 @@ pub(super) fn quoted_list(names: &[&str]) -> String {
         .map(|n| format!("'{n}'"))
         .collect::<Vec<_>>()
         .join(", ")
-}
-
-/// Hashes keys that are digests already (uniform 64-bit words, [`Repeats::fingerprint`] and
-/// the ids' digests): their words mixed by one multiplication, not hashed again by SipHash.
-pub(super) type Digests = std::hash::BuildHasherDefault<DigestHasher>;
-
-/// The [`Digests`] hasher.
-#[derive(Default)]
-pub(super) struct DigestHasher(u64);
-
-impl std::hash::Hasher for DigestHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-
-    fn write(&mut self, bytes: &[u8]) {
-        for &byte in bytes {
-            self.write_u64(u64::from(byte));
-        }
-    }
-
-    fn write_u64(&mut self, word: u64) {
-        self.0 = (self.0.rotate_left(29) ^ word).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-    }
 }
