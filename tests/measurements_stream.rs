@@ -88,6 +88,16 @@ fn a_file_of_many_blocks_read_in_parallel_gives_what_its_text_gives() {
     let plain = format!("# units: length=mm angle=rad\n{HEADER}\n{body}\n");
     assert!(plain.len() > 3 << 20, "{} bytes", plain.len());
     let late = format!("\n{},", count - 5);
+    // Copies of rows 10 and 20000 under new ids.
+    let copy_of = |row: usize, id: usize| {
+        let line = plain.lines().nth(row + 1).unwrap_or_default();
+        format!("{id}{}", &line[line.find(',').unwrap_or(0)..])
+    };
+    let (thrice, twice, thrice_again) = (
+        copy_of(10, count + 1),
+        copy_of(20_000, count + 2),
+        copy_of(10, count + 3),
+    );
     let no_id: String = plain
         .lines()
         .map(|line| line.split_once(',').map_or(line, |(_, rest)| rest))
@@ -123,11 +133,27 @@ fn a_file_of_many_blocks_read_in_parallel_gives_what_its_text_gives() {
             "quote late",
             plain.replacen(&late, &format!("{late}\"arms\""), 1),
         ),
+        (
+            "a row repeated thrice, another twice, across blocks",
+            plain.replacen(
+                &late,
+                &format!("\n{thrice}\n{twice}\n{thrice_again}{late}"),
+                1,
+            ),
+        ),
     ];
     for (what, text) in &cases {
         assert_same_both_ways(text, &MeasurementReadOptions::default(), what);
     }
     let (tree, model) = robonaut_model();
+    let repeated = parse_measurements(&cases[6].1, "f", &tree, &model, &Default::default());
+    let warnings = repeated.map(|set| set.warnings).unwrap_or_default();
+    assert!(
+        warnings.iter().any(
+            |w| w.contains("the row repeats line 12") && w.contains("(3 repeated rows in all)")
+        ),
+        "{warnings:?}"
+    );
     let late_line = 2 + count - 5;
     let bad = &cases[2].1;
     let error = parse_measurements(bad, "f", &tree, &model, &Default::default()).unwrap_err();

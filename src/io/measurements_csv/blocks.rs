@@ -34,6 +34,10 @@ pub(super) trait BlockRows: Sync {
     fn row(&self, part: &mut Self::Part, row: CsvRow<'_>) -> Option<()>;
     /// Merges the next block's part; `None` when the rows so far are wrong together.
     fn merge(&mut self, part: Self::Part) -> Option<()>;
+    /// After the last part: `None` when the rows are wrong together.
+    fn end(&mut self) -> Option<()> {
+        Some(())
+    }
 }
 
 /// Reads the plain CSV file `path` (named `origin`): `start` with its header, then every data
@@ -100,6 +104,7 @@ pub(super) fn read_plain_blocks<S: BlockRows>(
         loop {
             let batch = batches.recv().ok()??;
             if batch.is_empty() {
+                state.end()?;
                 return Some(state);
             }
             let parts: Vec<Option<(S::Part, usize)>> = batch

@@ -122,7 +122,7 @@ pub(super) struct SetBuilder<'a> {
     set: MeasurementSet,
     tally: Tally,
     /// A digest of every id merged from blocks read in parallel (`parts`).
-    id_digests: std::collections::HashSet<u64, crate::digests::Digests>,
+    id_digests: Vec<u64>,
 }
 
 impl<'a> SetBuilder<'a> {

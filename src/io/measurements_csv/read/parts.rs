@@ -55,14 +55,9 @@ impl BlockRows for SetBuilder<'_> {
         Some(())
     }
 
-    /// `None` when an id repeats one of an earlier row, or its digest does (the sequential
-    /// reader then names the row, or reads the file when two ids only share a digest).
+    /// Adds the part's rows; their ids and repeats are checked at the [`Self::end`].
     fn merge(&mut self, part: Part) -> Option<()> {
-        for digest in part.id_digests {
-            if !self.id_digests.insert(digest) {
-                return None;
-            }
-        }
+        self.id_digests.extend(part.id_digests);
         let first_index = self.set.lines.len();
         let mut ids = part.ids;
         if self.reader.columns.id.is_none() {
@@ -70,9 +65,7 @@ impl BlockRows for SetBuilder<'_> {
                 *id = (first_index + k + 1).to_string();
             }
         }
-        for (&key, &line) in part.fingerprints.iter().zip(&part.lines) {
-            self.tally.repeats.see_fingerprint(key, line);
-        }
+        self.tally.repeats.defer(&part.fingerprints, &part.lines);
         let tally = part.tally;
         self.tally.outside.extend(tally.outside);
         self.tally.revolute_values += tally.revolute_values;
@@ -80,6 +73,20 @@ impl BlockRows for SetBuilder<'_> {
         self.set.measurements.extend(part.measurements);
         self.set.ids.extend(ids);
         self.set.lines.extend(part.lines);
+        Some(())
+    }
+
+    /// `None` when an id repeats an earlier row's, or its digest does (the sequential reader
+    /// then names the row, or reads the file when two ids only share a digest); the repeated
+    /// rows found. Both by parallel sorts of the digests, not hash tables filled row by row.
+    fn end(&mut self) -> Option<()> {
+        use rayon::slice::ParallelSliceMut;
+        self.id_digests.par_sort_unstable();
+        if self.id_digests.windows(2).any(|pair| pair[0] == pair[1]) {
+            return None;
+        }
+        self.id_digests = Vec::new();
+        self.tally.repeats.settle();
         Some(())
     }
 }
