@@ -9,6 +9,7 @@ use crate::calibration::{
     session_label, IdentificationOptions, ParameterEstimate, Status, Verdict,
 };
 use crate::error::Result;
+use std::borrow::Cow;
 use std::fmt::Write;
 
 fn display(p: &ParameterEstimate, value: f64) -> f64 {
@@ -379,12 +380,15 @@ fn arm_plots(arm: &ArmReport, set: &str) -> Result<Vec<(String, String)>> {
     ];
     // Rows observing a position only (a mixed file) have no orientation error: the
     // orientation plot is labelled by the rows that have one.
-    let oriented: Vec<String> = ids
-        .iter()
-        .zip(&arm.rows)
-        .filter(|(_, r)| r.orientation_deg.is_some())
-        .map(|(id, _)| id.clone())
-        .collect();
+    let oriented: Cow<'_, [String]> = if arm.rows.iter().all(|r| r.orientation_deg.is_some()) {
+        Cow::Borrowed(&ids)
+    } else {
+        ids.iter()
+            .zip(&arm.rows)
+            .filter(|(_, r)| r.orientation_deg.is_some())
+            .map(|(id, _)| id.clone())
+            .collect()
+    };
     let title = format!(
         "on the {set} configurations{}",
         if marked {
