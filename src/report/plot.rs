@@ -546,7 +546,7 @@ fn draw_panel(
             } else {
                 "measurement id"
             },
-            &plot.y_label,
+            plot.y_label,
         ],
         &|x| configuration_label(plot, *x),
     )?;
@@ -556,7 +556,7 @@ fn draw_panel(
     for &index in &panel.series {
         let series = &plot.series[index];
         let (colour, kind) = style_of(index);
-        let line = pixel_envelope(&series.values, 2 * WIDTH as usize);
+        let line = pixel_envelope(series.values, 2 * WIDTH as usize);
         chart.draw_series(LineSeries::new(line, colour.stroke_width(2)))?;
         // Markers go on the whole picture in pixels: one drawing routine serves the legend too.
         for (i, &v) in series.values.iter().enumerate().step_by(marker_every) {
