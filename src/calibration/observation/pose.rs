@@ -106,12 +106,11 @@ pub(super) fn copy_tool_rows(
     let from = tool.jacobian.as_slice();
     for (column, &parameter) in columns.iter().enumerate() {
         let mut to = out.column_mut(column);
+        // A column of the view is contiguous: copied as a slice (nalgebra's view iterators
+        // and indexing step element by element).
+        let to = &mut to.as_mut_slice()[..rows];
         if parameter < model_columns {
-            let from = &from[parameter * stride..][..rows];
-            // By index: nalgebra's view iterators step element by element.
-            for (k, from) in from.iter().enumerate() {
-                to[k] = *from;
-            }
+            to.copy_from_slice(&from[parameter * stride..][..rows]);
         } else {
             to.fill(0.0);
         }
