@@ -49,6 +49,7 @@ pub const JOINT_ERROR_FAILED: f64 = 0.3;
 /// the validation checks.
 pub fn assess(run: &CalibrationRun, tree: &KinematicTree) -> Vec<Finding> {
     let mut findings: Vec<Finding> = position_only(run).into_iter().collect();
+    findings.extend(run.repeatability.as_ref().and_then(|r| r.not_held_out()));
     findings.extend(
         super::gauge::gauge_summary(&run.report.model, tree)
             .map(|text| Finding::note("reference-gauge", text)),

@@ -11,6 +11,7 @@
 #[cfg(doc)]
 use super::validation::PostureIndex;
 use super::validation::{places, Stratum};
+use super::verdict::Finding;
 use crate::kinematics::McpcModel;
 use crate::math::Vec3;
 use crate::measurement::{Measurement, Observation};
@@ -38,7 +39,14 @@ pub struct Repeatability {
     /// report.json).
     #[serde(skip)]
     pub sessions: SessionLabels,
+    /// Pairs whose two measurements are the same to [`IDENTICAL_MM`]: no instrument repeats
+    /// itself that closely, so the validation row is the identification row again (the same
+    /// file given twice, copied rows).
+    pub identical: usize,
 }
+
+/// Two measured positions closer than this (mm, 1 nm) are one measurement written twice.
+pub const IDENTICAL_MM: f64 = 1e-6;
 
 /// How the repeated pairs name their measurement sessions (the `session` column, or one file
 /// per session): a shift between the data sets is fitted away only when the validation rows
@@ -138,10 +146,26 @@ fn summarise(d: &[Vec3]) -> Option<Repeatability> {
         scatter_mm: scatter,
         shifted,
         sessions: SessionLabels::Unnamed,
+        identical: d.iter().filter(|v| v.norm() < IDENTICAL_MM).count(),
     })
 }
 
 impl Repeatability {
+    /// A warning when the validation rows are largely the identification rows again
+    /// ([`Self::identical`]: at least [`MIN_PAIRS`] and half the pairs): their "held-out"
+    /// figures are fit residuals, not a test.
+    pub fn not_held_out(&self) -> Option<Finding> {
+        (self.identical >= MIN_PAIRS && 2 * self.identical >= self.pairs).then(|| {
+            Finding::warning(
+                "validation-not-held-out",
+                format!(
+                    "{} of the {} validation rows at an identification posture are the identification row again (the same configuration and the same measurement to 1 nm, which no instrument repeats): the same file given as `validation`, or copied rows; they are not held out, so the validation figures flatter the calibration: give rows measured apart, or leave `validation` out to hold out a seeded fifth",
+                    self.identical, self.pairs
+                ),
+            )
+        })
+    }
+
     /// One sentence for reports: the pairs, the RMS, the shift and the scatter.
     pub fn describe(&self) -> String {
         let [x, y, z] = self.mean_shift_mm;
@@ -188,6 +212,29 @@ mod tests {
         assert!((moved.mean_shift_mm[1] - (plain.mean_shift_mm[1] - 0.8)).abs() < 1e-12);
         assert!((moved.scatter_mm - plain.scatter_mm).abs() < 1e-12);
         assert!(summarise(&scatter[..4]).is_none());
+    }
+
+    /// Validation rows that are the identification rows again (the same file given twice)
+    /// are named as not held out; a real repeat (another measurement, 1 mm apart) is not.
+    #[test]
+    fn validation_rows_that_are_identification_rows_are_not_held_out() {
+        let (identification, _) = shifted_sets(None, None);
+        let places: Vec<(Stratum, Option<usize>)> =
+            (0..20).map(|i| (Stratum::Repeat, Some(i))).collect();
+        let same = repeatability_of(&identification, &identification, &places).unwrap();
+        assert_eq!((same.identical, same.pairs), (20, 20));
+        let finding = same.not_held_out().expect("a warning");
+        assert!(
+            finding.message.starts_with("20 of the 20 validation rows"),
+            "{finding:?}"
+        );
+        let (_, held) = shifted_sets(None, None);
+        let places: Vec<(Stratum, Option<usize>)> = (0..20)
+            .map(|i| (Stratum::Repeat, Some(i * 7 % 20)))
+            .collect();
+        let apart = repeatability_of(&identification, &held, &places).unwrap();
+        assert_eq!(apart.identical, 0);
+        assert!(apart.not_held_out().is_none());
     }
 
     /// Rows at one posture each, the validation rows shifted by 1 mm, the sessions named
