@@ -39,7 +39,7 @@ pub struct Repeatability {
     /// report.json).
     #[serde(skip)]
     pub sessions: SessionLabels,
-    /// Pairs whose two measurements are the same to [`IDENTICAL_MM`]: no instrument repeats
+    /// Pairs whose two measurements are the same to 1 nm (`IDENTICAL_MM`): no instrument repeats
     /// itself that closely, so the validation row is the identification row again (the same
     /// file given twice, copied rows).
     pub identical: usize,
@@ -152,7 +152,7 @@ fn summarise(d: &[Vec3]) -> Option<Repeatability> {
 
 impl Repeatability {
     /// A warning when the validation rows are largely the identification rows again
-    /// ([`Self::identical`]: at least [`MIN_PAIRS`] and half the pairs): their "held-out"
+    /// ([`Self::identical`]: at least `MIN_PAIRS` (5) and half the pairs): their "held-out"
     /// figures are fit residuals, not a test.
     pub fn not_held_out(&self) -> Option<Finding> {
         (self.identical >= MIN_PAIRS && 2 * self.identical >= self.pairs).then(|| {
