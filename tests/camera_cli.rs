@@ -184,6 +184,50 @@ fn camera_calibration_files_with_errors_are_named() {
     assert!(!run.success && run.stderr.contains("--detections"), "{run}");
 }
 
+/// Detections 0.5 px noisy calibrated with `--pixel-sigma 0.1`: σ̂ ≈ 5 warns, and report.md
+/// names the setting by its flag as the terminal does (the library says `` `pixel_sigma` ``,
+/// report.json keeps that).
+#[test]
+fn a_noisier_detector_than_declared_is_named_by_its_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim");
+    let simulate = [
+        "simulate",
+        "--observation",
+        "camera",
+        "--trials",
+        "1",
+        "--poses",
+        "20",
+        "-o",
+        sim.to_str().unwrap(),
+    ];
+    assert_success(&treecal(&simulate), "simulate");
+    let out = dir.path().join("out");
+    let path = |name: &str| sim.join(name).to_str().unwrap().to_owned();
+    let run = treecal(&[
+        "calibrate",
+        "--camera",
+        &path("cameras.yaml"),
+        "--detections",
+        &path("detections.csv"),
+        "--pixel-sigma",
+        "0.1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_success(&run, "calibrate --camera --pixel-sigma 0.1");
+    let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        markdown.contains("the declared --pixel-sigma 0.1 px")
+            && !markdown.contains("`pixel_sigma`"),
+        "{markdown}"
+    );
+    assert_eq!(markdown, run.stdout, "report.md is what stdout printed");
+    let json = std::fs::read_to_string(out.join("report.json")).unwrap();
+    assert!(json.contains("`pixel_sigma`"), "{json}");
+}
+
 /// `tracker.csv` rewritten in a tracker frame 30° about z and (2, −1, 0.5) m from the robot's
 /// root (poses: x, y, z, qw, qx, qy, qz).
 fn in_a_tracker_frame(text: &str) -> String {

@@ -51,3 +51,60 @@ fn check_names_what_contacts_leave_undetermined() {
     ]);
     assert_error(&run, &["nowhere"], "missing contacts");
 }
+
+/// A misspelt link in the setup file (red team): the error named the link alone ("unknown
+/// link 'right_tol'"), not the file nor the tool it belongs to; it now names both, with the
+/// hint, for `check` and `calibrate` alike, and a misspelt `reference_link` likewise.
+#[test]
+fn a_misspelt_setup_link_names_the_setup_file_and_the_tool() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim");
+    let run = treecal(&[
+        "simulate",
+        "--observation",
+        "touch",
+        "--poses",
+        "10",
+        "--torso-poses",
+        "0",
+        "--trials",
+        "1",
+        "--out",
+        path_str(&sim),
+    ]);
+    assert_success(&run, "simulate touch");
+    let text = std::fs::read_to_string(sim.join("contact-setup.yaml")).unwrap();
+    let contacts = path_str(&sim.join("contacts.csv")).to_owned();
+    for (from, to, needles) in [
+        (
+            "link: right_tool",
+            "link: right_tol",
+            ["bad.yaml", "tool 'right_tool'", "did you mean 'right_tool'"],
+        ),
+        (
+            "tools:",
+            "reference_link: base_lnk\ntools:",
+            ["bad.yaml", "reference_link", "did you mean 'base_link'"],
+        ),
+    ] {
+        assert!(text.contains(from), "{text}");
+        let bad = dir.path().join("bad.yaml");
+        std::fs::write(&bad, text.replacen(from, to, 1)).unwrap();
+        let setup = path_str(&bad).to_owned();
+        let out = path_str(&dir.path().join("out")).to_owned();
+        for args in [
+            vec!["check", "--contacts", &contacts, "--contact-setup", &setup],
+            vec![
+                "calibrate",
+                "--contacts",
+                &contacts,
+                "--contact-setup",
+                &setup,
+                "-o",
+                &out,
+            ],
+        ] {
+            assert_error(&treecal(&args), &needles, to);
+        }
+    }
+}

@@ -239,4 +239,14 @@ fn a_contact_fit_that_shrinks_the_robot_is_refitted_or_refused() {
         "{json}"
     );
     assert!(!dir.path().join("forced/calibrated.urdf").exists());
+    // report.md says the flag as stdout does (the library's `prior`, kept in report.json).
+    let markdown = std::fs::read_to_string(dir.path().join("forced/report.md")).unwrap();
+    assert!(
+        markdown.contains("use the default model or --prior,") && !markdown.contains("`prior`"),
+        "{markdown}"
+    );
+    assert!(
+        json["refused"].as_str().unwrap().contains("`prior`"),
+        "{json}"
+    );
 }

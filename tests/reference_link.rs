@@ -408,3 +408,59 @@ fn noise_free_recovery_from_a_sole() {
         );
     }
 }
+
+/// Red team: whole-body data measured from Atlas's left sole, calibrated as a lab that forgot
+/// `--reference-link` does: the verdict fails (σ̂ in the thousands) and its causes now name
+/// the reference link with its flag; with it the same files calibrate (no false alarm).
+#[test]
+fn data_from_a_sole_without_the_reference_link_fail_naming_it() {
+    let atlas = shared_robot("atlas_v5/atlas_v5.urdf");
+    let dir = tempfile::tempdir().unwrap();
+    let stiffness = dir.path().join("rigid.yaml");
+    std::fs::write(&stiffness, "self_weight: false\n").unwrap();
+    let measurements = dir.path().join("m.csv");
+    let simulate = treecal(&[
+        "simulate",
+        "--robot",
+        atlas.to_str().unwrap(),
+        "--stiffness",
+        stiffness.to_str().unwrap(),
+        "--tools",
+        "l_hand,r_hand,head",
+        "--reference-link",
+        "l_foot",
+        "--collision-check",
+        "off",
+        "--write-measurements",
+        measurements.to_str().unwrap(),
+        "-o",
+        dir.path().join("sim").to_str().unwrap(),
+    ]);
+    assert_success(&simulate, "simulate Atlas from its left sole");
+    let calibrate = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "calibrate",
+            "--robot",
+            atlas.to_str().unwrap(),
+            "--measurements",
+            measurements.to_str().unwrap(),
+            "-o",
+        ];
+        let out = dir.path().join(out);
+        let out = out.to_str().unwrap().to_owned();
+        args.push(&out);
+        args.extend_from_slice(extra);
+        treecal(&args)
+    };
+    let forgot = calibrate("forgot", &[]);
+    assert!(!forgot.success, "{forgot}");
+    assert!(
+        forgot.stdout.contains("**Verdict: failed**")
+            && forgot
+                .stdout
+                .contains("a robot measured from a link other than its URDF root (a sole on the floor, a mobile base: name it with --reference-link)"),
+        "{forgot}"
+    );
+    let given = calibrate("given", &["--reference-link", "l_foot"]);
+    assert_success(&given, "the same data from l_foot");
+}

@@ -29,6 +29,7 @@ mod hardening;
 mod hardening_files;
 mod hardening_outputs;
 mod honest_report;
+mod humanoid_camera;
 mod identifiability;
 mod identification;
 mod jacobian;

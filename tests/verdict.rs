@@ -587,6 +587,15 @@ fn lab_mistakes_fail_without_a_urdf() {
     assert!(codes.contains(&"sigma-ratio"), "{codes:?}");
     let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(markdown.contains("**Verdict: failed**"), "{markdown}");
+    // Nothing was written, so no figure says "as written" (red team, round four).
+    assert!(
+        !markdown.contains("as written")
+            && markdown.contains("(not written: the verdict failed) would give")
+            && markdown
+                .contains("## What the outputs would give (not written: the verdict failed)"),
+        "{markdown}"
+    );
+    assert!(!codes.contains(&"urdf-export"), "{codes:?}");
 }
 
 /// The output folder is one set: a second run replaces the first's files (a failed run leaves

@@ -49,6 +49,7 @@ pub const JOINT_ERROR_FAILED: f64 = 0.3;
 /// the validation checks.
 pub fn assess(run: &CalibrationRun, tree: &KinematicTree) -> Vec<Finding> {
     let mut findings: Vec<Finding> = position_only(run).into_iter().collect();
+    findings.extend(run.repeatability.as_ref().and_then(|r| r.not_held_out()));
     findings.extend(
         super::gauge::gauge_summary(&run.report.model, tree)
             .map(|text| Finding::note("reference-gauge", text)),
@@ -187,7 +188,7 @@ pub fn residual_scale(stage: &StageReport) -> Option<Finding> {
         Some(Finding::failed(
             "sigma-ratio",
             format!(
-                "stage '{}': σ̂ = {scale:.4e}: the residuals ({residuals}) are far larger than any measurement noise; typical causes: lengths in mm read as m (`length_unit`), angles in degrees read as radians (`angle_unit`), swapped or mislabelled tool columns, the wrong robot or measurement frame, large deflections left uncompensated (`stiffness`)",
+                "stage '{}': σ̂ = {scale:.4e}: the residuals ({residuals}) are far larger than any measurement noise; typical causes: lengths in mm read as m (`length_unit`), angles in degrees read as radians (`angle_unit`), swapped or mislabelled tool columns, the wrong robot or measurement frame, a robot measured from a link other than its URDF root (a sole on the floor, a mobile base: name it with `reference_link`), large deflections left uncompensated (`stiffness`)",
                 stage.name
             ),
         ))

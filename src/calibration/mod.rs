@@ -114,7 +114,7 @@ pub use prior::Prior;
 pub use prior::{
     DEFAULT_ANGLE_SIGMA, DEFAULT_JOINT_ERROR_SIGMA, DEFAULT_LENGTH_SIGMA, DEFAULT_OFFSET_SIGMA,
 };
-pub use repeatability::{repeatability, Repeatability};
+pub use repeatability::{repeatability, Repeatability, SessionLabels};
 pub(crate) use robust::outlier_mask;
 pub use robust::{calibrate_robust, RobustLoss, RobustReport};
 pub use robust::{

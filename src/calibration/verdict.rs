@@ -71,6 +71,10 @@ impl Finding {
     }
 }
 
+/// The code of the findings on the calibrated URDF's export (`workflow::export_notes`, and a
+/// failed export).
+const EXPORT_CODE: &str = "urdf-export";
+
 /// The verdict of a calibration: the worst status among its findings, and the findings.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Verdict {
@@ -81,13 +85,19 @@ pub struct Verdict {
 }
 
 impl Verdict {
-    /// The verdict of `findings`: `ok` when there are none above a note.
-    pub fn from_findings(findings: Vec<Finding>) -> Self {
+    /// The verdict of `findings`: `ok` when there are none above a note. A failed verdict
+    /// writes no calibrated URDF, so the notes on what that URDF holds (code `urdf-export`: a
+    /// `<tool>_marker` link added, a tool moved onto its joint's axis) are left out: they would
+    /// name links of a file that does not exist.
+    pub fn from_findings(mut findings: Vec<Finding>) -> Self {
         let status = findings
             .iter()
             .map(|f| f.status)
             .max()
             .unwrap_or(Status::Ok);
+        if status == Status::Failed {
+            findings.retain(|f| !(f.code == EXPORT_CODE && f.status == Status::Ok));
+        }
         Self {
             status,
             reasons: findings,
@@ -117,5 +127,25 @@ mod tests {
         assert_eq!(verdict.reasons.len(), 3);
         let json = serde_json::to_string(&verdict).unwrap_or_default();
         assert!(json.starts_with(r#"{"status":"failed","reasons":[{"status":"ok","code":"a""#));
+    }
+
+    /// A failed verdict writes no URDF: its export notes ("added link 'tool_marker' … use
+    /// 'tool_marker'") go, a failed export stays; a usable verdict keeps them.
+    #[test]
+    fn a_failed_verdict_names_no_link_of_an_unwritten_urdf() {
+        let findings = |sigma: Finding| {
+            vec![
+                Finding::note(EXPORT_CODE, "added link 'hand_marker'"),
+                sigma,
+                Finding::note("measurement-frame", "fitted"),
+            ]
+        };
+        let failed = Verdict::from_findings(findings(Finding::failed("sigma-ratio", "far")));
+        let codes: Vec<&str> = failed.reasons.iter().map(|f| f.code.as_str()).collect();
+        assert_eq!(codes, ["sigma-ratio", "measurement-frame"]);
+        let usable = Verdict::from_findings(findings(Finding::warning("sigma-ratio", "high")));
+        assert_eq!(usable.reasons.len(), 3);
+        let export_failed = Verdict::from_findings(vec![Finding::failed(EXPORT_CODE, "cannot")]);
+        assert_eq!(export_failed.reasons.len(), 1);
     }
 }

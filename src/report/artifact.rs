@@ -57,12 +57,29 @@ pub struct ArtifactReport {
 impl ArtifactReport {
     /// The report.md section.
     pub fn markdown(&self) -> String {
+        self.markdown_written(true)
+    }
+
+    /// The report.md section; `written` false when the verdict failed and nothing was written:
+    /// the figures are then those of the files the calibration would have written.
+    pub fn markdown_written(&self, written: bool) -> String {
         let mut out = String::new();
-        let _ = writeln!(out, "## What the outputs give (validated as written)\n");
-        let _ = writeln!(
-            out,
-            "Every figure below re-reads the written files and scores them on every validation row.\n"
-        );
+        if written {
+            let _ = writeln!(out, "## What the outputs give (validated as written)\n");
+            let _ = writeln!(
+                out,
+                "Every figure below re-reads the written files and scores them on every validation row.\n"
+            );
+        } else {
+            let _ = writeln!(
+                out,
+                "## What the outputs would give (not written: the verdict failed)\n"
+            );
+            let _ = writeln!(
+                out,
+                "The verdict failed, so calibrated.urdf and the files beside it were not written; every figure below scores the files the calibration would have written on every validation row.\n"
+            );
+        }
         let _ = writeln!(out, "| used | n | RMS (mm) | max (mm) | mean (mm) |");
         let _ = writeln!(out, "|---|---|---|---|---|");
         for score in [

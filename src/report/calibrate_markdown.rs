@@ -39,7 +39,7 @@ pub fn calibration_markdown(
     context_markdown(&mut out, summary, options);
     errors_markdown(&mut out, summary);
     if let Some(artifact) = &summary.artifact {
-        out.push_str(&artifact.markdown());
+        out.push_str(&artifact.markdown_written(summary.verdict.usable()));
         out.push_str(&session_frames_markdown(summary));
     }
     out.push_str(&outliers_markdown(
@@ -288,10 +288,15 @@ fn headline_markdown(out: &mut String, summary: &CalibrationSummary) {
             .into_iter()
             .flatten()
     });
+    let as_written = if summary.verdict.usable() {
+        "as written"
+    } else {
+        "(not written: the verdict failed) would give"
+    };
     for score in written {
         let _ = write!(
             out,
-            "; {} as written: {:.3} mm",
+            "; {} {as_written}: {:.3} mm",
             score.files, score.errors.rms_position_mm
         );
     }

@@ -123,6 +123,9 @@ pub struct RobotParameter {
     pub std_dev: Option<f64>,
     /// Whether the images determine it.
     pub determined: bool,
+    /// Not fitted at all: a tool frame of the link that carries a camera (the camera's
+    /// extrinsics place that link), kept at its nominal value.
+    pub held: bool,
 }
 
 /// Everything report.json holds.
@@ -304,12 +307,15 @@ fn poses_markdown(title: &str, poses: &[FittedPose]) -> String {
 }
 
 fn parameters_markdown(parameters: &[RobotParameter]) -> String {
-    let undetermined: Vec<String> = parameters
-        .iter()
-        .filter(|p| !p.determined)
-        .map(|p| p.name.clone())
-        .collect();
-    let undetermined = if undetermined.is_empty() {
+    let names = |held: bool| -> Vec<String> {
+        parameters
+            .iter()
+            .filter(|p| !p.determined && p.held == held)
+            .map(|p| p.name.clone())
+            .collect()
+    };
+    let (undetermined, held) = (names(false), names(true));
+    let mut undetermined = if undetermined.is_empty() {
         "all determined by these images".to_owned()
     } else {
         format!(
@@ -318,6 +324,16 @@ fn parameters_markdown(parameters: &[RobotParameter]) -> String {
             super::first_few(&undetermined)
         )
     };
+    if !held.is_empty() {
+        // A camera's link placed by the camera's extrinsics: not an unknown of the fit, so
+        // "What the images cannot determine" rightly does not list them.
+        undetermined = format!(
+            "{} held at their nominal values and not fitted (the frame of a link that carries \
+             a camera, which the camera's extrinsics place: {}); of the others, {undetermined}",
+            held.len(),
+            super::first_few(&held)
+        );
+    }
     let mut listed: Vec<&RobotParameter> = parameters.iter().filter(|p| p.determined).collect();
     let significance = |p: &RobotParameter| {
         (p.calibrated - p.nominal).abs() / p.std_dev.unwrap_or(f64::INFINITY).max(1e-15)

@@ -102,7 +102,10 @@ pub fn calibration_html(report: &HtmlReport) -> Result<String> {
         super::html_markdown::markdown_body(&mut out, &strata.markdown());
     }
     if let Some(artifact) = &s.artifact {
-        super::html_markdown::markdown_body(&mut out, &artifact.markdown());
+        super::html_markdown::markdown_body(
+            &mut out,
+            &artifact.markdown_written(s.verdict.usable()),
+        );
     }
     plots_html(&mut out, s, report.plots);
     out.push_str("<h2 id=\"parameter-changes\">Parameter changes</h2>\n<p>Each bar is a calibrated parameter's change from the URDF value; the whisker spans ±1 standard deviation. Grey: not identifiable on its own (kept at its start). The tool frames (where each measured target sits on its tool link) have panels of their own.</p>\n");

@@ -88,6 +88,27 @@ pub fn outlier_rows(
         .collect()
 }
 
+/// What the robust estimation did, in words: the rows it down-weighted and the calibrations
+/// it ran after the plain least-squares one (0, 1 or n of each, no empty clause).
+fn robust_sentence(robust: &RobustSummary) -> String {
+    let down = match robust.down_weighted {
+        0 => "no identification measurement down-weighted".to_owned(),
+        1 => "1 identification measurement down-weighted".to_owned(),
+        n => format!("{n} identification measurements down-weighted"),
+    };
+    let rounds = match robust.rounds {
+        0 => "the plain least-squares calibration is the result (no reweighted one ran)".to_owned(),
+        1 => "1 more calibration after the plain least-squares one".to_owned(),
+        n => format!("{n} more calibrations after the plain least-squares one"),
+    };
+    let settled = if robust.converged {
+        ""
+    } else {
+        " (the weights had not settled)"
+    };
+    format!("{down}; {rounds}{settled}")
+}
+
 /// The `## Outliers` section of `report.md` (empty when the loss is off and nothing to say);
 /// `down_weighted`: the identification rows the fit kept with a weight below 1, as
 /// `(id, weight, position residual after calibration in mm)`.
@@ -107,11 +128,9 @@ pub fn outliers_markdown(
     let _ = writeln!(out, "## Outliers (robust {} loss)\n", robust.loss);
     let _ = writeln!(
         out,
-        "Robust scale of the residuals: {:.3} of the assumed noise; {} identification measurement(s) down-weighted, {} calibration(s) after the first{}.\n",
+        "Robust scale of the residuals: {:.3} of the assumed noise; {}.\n",
         robust.scale,
-        robust.down_weighted,
-        robust.rounds,
-        if robust.converged { "" } else { " (the weights had not settled)" }
+        robust_sentence(robust)
     );
     if !down_weighted.is_empty() {
         let _ = writeln!(
@@ -157,4 +176,43 @@ pub fn outliers_markdown(
     }
     out.push('\n');
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn summary(down_weighted: usize, rounds: usize, converged: bool) -> RobustSummary {
+        RobustSummary {
+            loss: RobustLoss::Huber,
+            scale: 1.0,
+            rounds,
+            converged,
+            down_weighted,
+        }
+    }
+
+    /// "0 calibration(s) after the first" is said for 0, 1 and n, without empty clauses.
+    #[test]
+    fn the_robust_line_counts_in_words() {
+        let line = |s: &RobustSummary| outliers_markdown(s, &[], &[]);
+        let clean = line(&summary(0, 0, true));
+        assert!(
+            clean.contains("1.000 of the assumed noise; no identification measurement down-weighted; the plain least-squares calibration is the result (no reweighted one ran).\n"),
+            "{clean}"
+        );
+        let one = line(&summary(1, 1, true));
+        assert!(
+            one.contains("; 1 identification measurement down-weighted; 1 more calibration after the plain least-squares one.\n"),
+            "{one}"
+        );
+        let many = line(&summary(3, 4, false));
+        assert!(
+            many.contains("; 3 identification measurements down-weighted; 4 more calibrations after the plain least-squares one (the weights had not settled).\n"),
+            "{many}"
+        );
+        for text in [clean, one, many] {
+            assert!(!text.contains("(s)") && !text.contains(" 0 "), "{text}");
+        }
+    }
 }

@@ -354,6 +354,7 @@ fn visible_configurations(
         .filter(|&t| setup.rig.targets[t].tool < setup.rig.robot_tools)
         .collect();
     let mut accepted = Vec::with_capacity(count);
+    let mut unsampled = None;
     let attempts = 500 * count.max(1);
     for _ in 0..attempts {
         if accepted.len() == count {
@@ -379,15 +380,22 @@ fn visible_configurations(
                 )
             })
             .collect();
-        let q = sample_configurations(
+        let q = match sample_configurations(
             tree,
             setup.checker,
             1,
             rng,
             &SamplingOptions::default(),
             &fixed,
-        )?
-        .remove(0);
+        ) {
+            Ok(mut drawn) => drawn.remove(0),
+            // This torso leaves nothing collision-free (a humanoid's back bent into its
+            // pelvis): draw another; the error stands if no draw ever samples.
+            Err(error) => {
+                unsampled = Some(error);
+                continue;
+            }
+        };
         // Each configuration shows the tool boards in turn (every tool is seen as often),
         // and whatever else is in view.
         let visible = visible_targets(setup.rig, model, &q, options);
@@ -401,6 +409,9 @@ fn visible_configurations(
         if world_seen && visible.iter().any(|v| wanted.is_none_or(|t| v.target == t)) {
             accepted.push(q);
         }
+    }
+    if let (true, Some(error)) = (accepted.is_empty(), unsampled) {
+        return Err(error);
     }
     Err(Error::InvalidData {
         origin: "camera simulation".into(),

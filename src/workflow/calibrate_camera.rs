@@ -604,6 +604,7 @@ fn robot_parameters(
                 calibrated: fitted[p],
                 std_dev: std.parameter(p),
                 determined: k.is_some_and(|k| fit.identifiable[k]),
+                held: k.is_none(),
             }
         })
         .collect())

@@ -145,7 +145,7 @@ pub fn calibrate_contacts(config: &ContactCalibrateConfig) -> Result<ContactCali
         model,
     } = setup_model(
         &robot.import,
-        &setup,
+        (&setup, &config.setup),
         config.reference_link.as_ref(),
         &tracked,
     )?;

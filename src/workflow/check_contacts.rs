@@ -47,7 +47,13 @@ pub fn check_contacts(config: &ContactCheckConfig) -> Result<ContactCheck> {
     let setup = read_contact_setup(&config.setup)?;
     let tree = &robot.import.tree;
     let table = read_contacts(&config.contacts, tree)?;
-    let model = setup_model(&robot.import, &setup, config.reference_link.as_ref(), &[])?.model;
+    let model = setup_model(
+        &robot.import,
+        (&setup, &config.setup),
+        config.reference_link.as_ref(),
+        &[],
+    )?
+    .model;
     let origin = config.contacts.display().to_string();
     let problem = contact_problem(tree, model, &setup, &table.rows, &[], &origin)?;
     let options = super::contact_options(&setup);

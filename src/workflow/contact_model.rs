@@ -27,13 +27,31 @@ pub(super) struct SetupModel {
     pub model: McpcModel,
 }
 
-/// [`SetupModel`] of `setup` on the robot `import`.
+/// [`SetupModel`] of `setup` (read from `setup_path`) on the robot `import`; a link of the
+/// setup that the robot does not have is an error naming the file and the tool.
 pub(super) fn setup_model(
     import: &UrdfImport,
-    setup: &ContactSetup,
+    (setup, setup_path): (&ContactSetup, &Path),
     reference: Option<&String>,
     extra: &[String],
 ) -> Result<SetupModel> {
+    let in_setup = |what: String, error: Error| Error::InvalidData {
+        origin: setup_path.display().to_string(),
+        message: format!("{what} names a link the robot does not have: {error}"),
+    };
+    for (name, tool) in &setup.tools {
+        if let Err(error) = import.tree.link_id(&tool.link) {
+            return Err(in_setup(
+                format!("tool '{}'", crate::limits::cut(name)),
+                error,
+            ));
+        }
+    }
+    if let (None, Some(link)) = (reference, &setup.reference_link) {
+        if let Err(error) = import.tree.link_id(link) {
+            return Err(in_setup("reference_link".into(), error));
+        }
+    }
     let reference = reference.or(setup.reference_link.as_ref()).cloned();
     let mut links: Vec<String> = setup.tools.values().map(|t| t.link.clone()).collect();
     for link in extra {

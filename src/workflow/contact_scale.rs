@@ -125,7 +125,7 @@ pub(super) fn hold_scale(
     if fitted.2.prior || !data_choose {
         let reason = format!(
             "the calibrated robot is {first:.3}× the nominal robot's size (its tools' spread \
-             over the training configurations): {why}; use the default model or --prior, or add \
+             over the training configurations): {why}; use the default model or `prior`, or add \
              a bar of known length or tracker rows"
         );
         notes.push(Note::warning(reason.clone()));

@@ -124,7 +124,13 @@ pub fn plan_contacts(
     let setup = read_contact_setup(&config.setup)?;
     let tree = &robot.import.tree;
     let origin = config.setup.display().to_string();
-    let model = setup_model(&robot.import, &setup, config.reference_link.as_ref(), &[])?.model;
+    let model = setup_model(
+        &robot.import,
+        (&setup, &config.setup),
+        config.reference_link.as_ref(),
+        &[],
+    )?
+    .model;
     let check = (config.package_paths.as_slice(), config.collision_check);
     let collisions = contact_collisions(&config.robot, tree, &model, check, &mut notes)?;
     let tools = chosen_tools(&setup, config.tools.as_deref(), &origin)?;

@@ -108,7 +108,7 @@ fn config(args: &CalibrateArgs) -> CalibrateConfig {
 fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<()> {
     use treecal::workflow::{calibrate_contacts, ContactCalibrateConfig, CONTACT_OUTPUTS};
     treecal::io::check_output_folder(&args.out, &|name| CONTACT_OUTPUTS.contains(&name))?;
-    let calibration = calibrate_contacts(&ContactCalibrateConfig {
+    let mut calibration = calibrate_contacts(&ContactCalibrateConfig {
         robot: RobotSource::from_path(args.robot.clone()),
         contacts: contacts.to_owned(),
         setup: setup.to_owned(),
@@ -126,6 +126,9 @@ fn run_contacts(args: &CalibrateArgs, contacts: &Path, setup: &Path) -> Result<(
             free: args.free.clone(),
         },
     })?;
+    // report.md says the flags (`--prior`), as stdout and stderr do; report.json keeps the
+    // library's names.
+    calibration.report_markdown = crate::settings::with_flags(&calibration.report_markdown);
     finish(
         args,
         &calibration.notes,
@@ -205,7 +208,11 @@ fn run_camera(args: &CalibrateArgs, camera: &Path, detections: &Path) -> Result<
         add_tool_links: true,
     };
     config.check_output(&args.out)?;
-    let calibration = calibrate_camera_files(&config)?;
+    let mut calibration = calibrate_camera_files(&config)?;
+    // report.md says the flags (`--pixel-sigma`), as stdout and stderr do.
+    calibration.report_markdown = crate::settings::with_flags(&calibration.report_markdown);
+    let flag = |setting: &str| crate::settings::flag(setting).map(str::to_owned);
+    treecal::workflow::spell_reports(&mut calibration.files, &flag);
     finish(
         args,
         &calibration.notes,
