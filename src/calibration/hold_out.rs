@@ -39,31 +39,42 @@ pub fn hold_out_indices(
     let mut groups: Vec<&Measurement> = Vec::new();
     let mut next_of_digest: Vec<Option<usize>> = Vec::new();
     let mut index: HashMap<u64, usize, crate::digests::Digests> = HashMap::default();
-    let group_of: Vec<usize> = measurements
-        .iter()
-        .zip(&digests)
-        .map(|(m, &digest)| {
-            let mut last = None;
-            let mut candidate = index.get(&digest).copied();
-            while let Some(g) = candidate {
-                if same_key(groups[g], m) {
-                    return g;
-                }
-                last = Some(g);
-                candidate = next_of_digest[g];
+    // A configuration's rows (one per tool) follow each other: a row at the previous row's
+    // configuration joins its group without a look-up.
+    let mut group_of: Vec<usize> = Vec::with_capacity(measurements.len());
+    for (row, (m, &digest)) in measurements.iter().zip(&digests).enumerate() {
+        if let Some(&g) = group_of.last() {
+            if digests[row - 1] == digest && same_key(groups[g], m) {
+                group_of.push(g);
+                continue;
             }
-            let g = groups.len();
-            groups.push(m);
-            next_of_digest.push(None);
-            match last {
-                Some(previous) => next_of_digest[previous] = Some(g),
-                None => {
-                    index.insert(digest, g);
-                }
+        }
+        let mut last = None;
+        let mut candidate = index.get(&digest).copied();
+        while let Some(g) = candidate {
+            if same_key(groups[g], m) {
+                break;
             }
-            g
-        })
-        .collect();
+            last = Some(g);
+            candidate = next_of_digest[g];
+        }
+        let g = match candidate {
+            Some(g) => g,
+            None => {
+                let g = groups.len();
+                groups.push(m);
+                next_of_digest.push(None);
+                match last {
+                    Some(previous) => next_of_digest[previous] = Some(g),
+                    None => {
+                        index.insert(digest, g);
+                    }
+                }
+                g
+            }
+        };
+        group_of.push(g);
+    }
     drop((digests, index, next_of_digest));
     let groups: Vec<(&[f64], Option<&str>)> = groups
         .iter()

@@ -25,6 +25,7 @@ use crate::error::{Error, Result};
 use crate::kinematics::McpcModel;
 use crate::measurement::Measurement;
 use nalgebra::{DMatrix, DVector, Vector6};
+use rayon::prelude::*;
 
 pub use super::linearise::{weighted_jacobian, weighted_residual};
 pub use super::options::IdentificationOptions;
@@ -664,28 +665,30 @@ fn validate(
             )));
         }
     }
-    for (index, m) in measurements.iter().enumerate() {
+    let tools = model.tools().len();
+    let problem = |(index, m): (usize, &Measurement)| {
         let second = match &m.observation {
             crate::measurement::Observation::Contact(contact) => contact.second_tool(),
             _ => None,
         };
-        if let Some(tool) = second.filter(|&t| t >= model.tools().len()) {
-            return Err(bad(format!(
-                "measurement {index} names a second tool {tool} of {}",
-                model.tools().len()
-            )));
+        if let Some(tool) = second.filter(|&t| t >= tools) {
+            return Some(format!(
+                "measurement {index} names a second tool {tool} of {tools}"
+            ));
         }
-        if m.tool >= model.tools().len() {
-            return Err(bad(format!(
-                "measurement {index} names tool {} of {}",
-                m.tool,
-                model.tools().len()
-            )));
+        if m.tool >= tools {
+            return Some(format!(
+                "measurement {index} names tool {} of {tools}",
+                m.tool
+            ));
         }
         let finite = m.q.iter().all(|v| v.is_finite()) && kind_of(&m.observation).is_finite();
-        if !finite {
-            return Err(bad(format!("measurement {index} has a non-finite value")));
-        }
+        (!finite).then(|| format!("measurement {index} has a non-finite value"))
+    };
+    // In parallel (a serial scan at every fit of 10⁶ configurations); the first wrong
+    // measurement is named, as a scan in order would.
+    if let Some(message) = measurements.par_iter().enumerate().find_map_first(problem) {
+        return Err(bad(message));
     }
     Ok(())
 }
