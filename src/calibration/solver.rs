@@ -341,15 +341,14 @@ fn descend(
             final_analysis = Some(analysis);
             break;
         }
+        let products = if lin.factor.is_some() {
+            Products::NormalAndFactor
+        } else {
+            Products::Normal
+        };
         lin = match accepted.products {
-            Some(products) => products,
-            None if lin.factor.is_some() => accumulate_with(
-                &current,
-                &current_nuisance,
-                problem,
-                Products::NormalAndFactor,
-            )?,
-            None => accumulate_with(&current, &current_nuisance, problem, Products::Normal)?,
+            Some(at_trial) => at_trial,
+            None => accumulate_with(&current, &current_nuisance, problem, products)?,
         };
     }
     parameters.truncate(current.parameter_count());
