@@ -7,7 +7,6 @@ use crate::kinematics::{FrameKind, McpcModel};
 use crate::measurement::Measurement;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::collections::HashMap;
 
 /// A validation row repeats an identification posture when every joint of its tool's chain
 /// is within this of that posture's value (rad; a plateau average of a repeated posture
@@ -122,7 +121,7 @@ impl ChainPostures {
             keys: by_spread,
             order: Vec::new(),
             cells: Vec::new(),
-            groups: HashMap::new(),
+            groups: Vec::new(),
         };
         // Every key distinct (ties by index): the unstable parallel sort gives one order.
         let mut sorted: Vec<(Cell, usize)> = self
@@ -136,7 +135,7 @@ impl ChainPostures {
         let mut start = 0;
         for group in index.cells.chunk_by(|a, b| a[..2] == b[..2]) {
             let end = start + group.len();
-            index.groups.insert([group[0][0], group[0][1]], start..end);
+            index.groups.push(([group[0][0], group[0][1]], start..end));
             start = end;
         }
         index
@@ -159,10 +158,11 @@ fn repeat_tolerance(angle: bool) -> f64 {
 
 /// [`ChainPostures`] prepared for many look-ups ([`ChainPostures::index`]): the ranges computed
 /// once, the postures sorted by their cell on (at most) three joints, each cell twice the repeat
-/// tolerance wide, and grouped by their bins on the first two. A look-up reads the 9 groups
-/// around `q` from a hash map and searches the third bin within each (so the strata of N rows
-/// cost about N, not N² as with one sorted joint, nor N log N cache misses as with one sorted
-/// array), with the same result as a scan of all.
+/// tolerance wide, and grouped by their bins on the first two. A look-up finds the 9 groups
+/// around `q` by a binary search of the groups' (sorted) bins and searches the third bin within
+/// each, with the same result as a scan of all. Many look-ups are cheapest in the order of
+/// their cells ([`Self::query_cell`]; [`places`] sorts them so): neighbouring queries then
+/// read the same groups and postures from the cache instead of memory.
 #[derive(Debug, Clone)]
 pub struct PostureIndex<'a> {
     chain: &'a ChainPostures,
@@ -173,8 +173,9 @@ pub struct PostureIndex<'a> {
     order: Vec<usize>,
     /// Those cells, in the same order.
     cells: Vec<Cell>,
-    /// The range of `cells` on each pair of bins of the first two key joints.
-    groups: HashMap<[i64; 2], std::ops::Range<usize>>,
+    /// The range of `cells` on each pair of bins of the first two key joints, sorted by the
+    /// pair.
+    groups: Vec<([i64; 2], std::ops::Range<usize>)>,
 }
 
 impl PostureIndex<'_> {
@@ -190,6 +191,12 @@ impl PostureIndex<'_> {
             })
         };
         [on(0), on(1), on(2)]
+    }
+
+    /// The cell of a configuration `q` of this tool: look-ups in the order of their cells
+    /// share the cache.
+    pub fn query_cell(&self, q: &[f64]) -> [i64; 3] {
+        self.cell(q, |k| self.chain.dofs[k].0)
     }
 
     /// The identification posture (its index in [`ChainPostures::postures`], the first of
@@ -214,9 +221,10 @@ impl PostureIndex<'_> {
         let mut first: Option<usize> = None;
         for (da, db) in (-1..=1).flat_map(|da| (-1..=1).map(move |db| (da, db))) {
             let (row, column) = (a.saturating_add(da), b.saturating_add(db));
-            let Some(group) = self.groups.get(&[row, column]) else {
+            let Ok(found) = self.groups.binary_search_by(|(k, _)| k.cmp(&[row, column])) else {
                 continue;
             };
+            let group = &self.groups[found].1;
             let cells = &self.cells[group.clone()];
             let start = group.start + cells.partition_point(|c| c[2] < c_low);
             let end = group.start + cells.partition_point(|c| c[2] <= c_high);
@@ -325,22 +333,35 @@ pub fn places(
                 .collect()
         })
         .collect();
-    // In parallel, in validation order.
-    validation
+    // In parallel, in the order of the rows' cells (neighbouring look-ups share the cache;
+    // in validation order each one read its groups and postures from memory), then put back
+    // in validation order.
+    let mut queries: Vec<(usize, [i64; 3], usize)> = validation
         .par_iter()
-        .map(|m| match indices.get(m.tool) {
+        .enumerate()
+        .map(|(i, m)| {
+            let cell = indices.get(m.tool).map_or([0; 3], |x| x.query_cell(&m.q));
+            (m.tool, cell, i)
+        })
+        .collect();
+    queries.par_sort_unstable();
+    let found: Vec<(Stratum, Option<usize>)> = queries
+        .par_iter()
+        .map(|&(tool, _, i)| match indices.get(tool) {
             Some(index) => {
-                let (stratum, repeat) = index.place(&m.q);
-                let moves = !chains[m.tool].dofs.is_empty();
-                (
-                    stratum,
-                    repeat.filter(|_| moves).map(|p| rows_of[m.tool][p]),
-                )
+                let (stratum, repeat) = index.place(&validation[i].q);
+                let moves = !chains[tool].dofs.is_empty();
+                (stratum, repeat.filter(|_| moves).map(|p| rows_of[tool][p]))
             }
             // A tool the model does not know: nothing to judge against.
             None => (Stratum::Outside, None),
         })
-        .collect()
+        .collect();
+    let mut places = vec![(Stratum::Outside, None); validation.len()];
+    for (&(_, _, i), place) in queries.iter().zip(found) {
+        places[i] = place;
+    }
+    places
 }
 
 #[cfg(test)]
@@ -356,6 +377,49 @@ mod tests {
                 (p - q.get(d).copied().unwrap_or(0.0)).abs() <= repeat_tolerance(angle)
             })
         })
+    }
+
+    /// `places` (its look-ups sorted by cell, then put back) gives every validation row, in
+    /// validation order, what a look-up of that row alone gives: on two tools, with repeats of
+    /// identification postures, near misses, new postures and a tool the model does not know.
+    #[test]
+    fn places_are_the_rows_own_look_ups_in_validation_order() {
+        let robot = crate::calibration::test_problems::robonaut();
+        let model = &robot.0;
+        let identification = crate::calibration::test_problems::problem(&robot, 300, true);
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut validation: Vec<Measurement> = (0..900)
+            .map(|i| {
+                let mut m = identification[(i * 7) % identification.len()].clone();
+                let shift = [0.0, 0.004, 0.03, 1.0][i % 4];
+                for q in &mut m.q {
+                    *q += rng.random_range(-shift..=shift);
+                }
+                m
+            })
+            .collect();
+        validation[17].tool = 9;
+        let placed = places(model, &identification, &validation);
+        let chains = chain_postures(model, &identification);
+        let indices: Vec<PostureIndex<'_>> = chains.iter().map(ChainPostures::index).collect();
+        let mut counts = [0; 3];
+        for (i, (m, &(stratum, repeat))) in validation.iter().zip(&placed).enumerate() {
+            let Some(index) = indices.get(m.tool) else {
+                assert_eq!((stratum, repeat), (Stratum::Outside, None), "row {i}");
+                continue;
+            };
+            let (own, posture) = index.place(&m.q);
+            assert_eq!(stratum, own, "row {i}");
+            let rows: Vec<usize> = (0..identification.len())
+                .filter(|&r| identification[r].tool == m.tool)
+                .collect();
+            assert_eq!(repeat, posture.map(|p| rows[p]), "row {i}");
+            if let Some(r) = repeat {
+                assert_eq!(identification[r].tool, m.tool);
+            }
+            counts[stratum as usize] += 1;
+        }
+        assert!(counts.iter().all(|&c| c > 50), "{counts:?}");
     }
 
     /// The binned index finds the same repeat (the first one) as a scan of every posture, on
