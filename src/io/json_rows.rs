@@ -47,6 +47,30 @@ pub fn json_at_depth<T: serde::Serialize>(value: &T, depth: usize) -> Result<Str
     String::from_utf8(bytes).map_err(|e| invalid(e.to_string()))
 }
 
+/// Text that is one JSON value already (rendered by [`json_at_depth`]), written by
+/// serde_json's serialisers as it is. serde_json's own `RawValue::from_string` parses the text
+/// again to check it: about a second of CPU for report.json's 2·10⁶ rows at 10⁶
+/// configurations. Serialised as `RawValue` serialises itself (a struct under serde_json's
+/// raw-value name, whose one field is the text), which its serialisers write verbatim; any
+/// other serialiser sees a struct with one string field.
+pub struct Verbatim<'a>(pub &'a str);
+
+/// serde_json's name for a raw value (`serde_json::raw::TOKEN`, with its `raw_value`
+/// feature): the test `verbatim_text_is_written_as_it_is` fails if it ever changes.
+const RAW_VALUE_TOKEN: &str = "$serde_json::private::RawValue";
+
+impl serde::Serialize for Verbatim<'_> {
+    fn serialize<S: serde::Serializer>(
+        &self,
+        serializer: S,
+    ) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut raw = serializer.serialize_struct(RAW_VALUE_TOKEN, 1)?;
+        raw.serialize_field(RAW_VALUE_TOKEN, self.0)?;
+        raw.end()
+    }
+}
+
 fn render<T: serde::Serialize, W: Write + ?Sized>(value: &T, out: &mut W) -> Result<()> {
     let mut serializer = serde_json::Serializer::with_formatter(out, Shallow::default());
     value
@@ -171,6 +195,45 @@ impl Formatter for Shallow {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A [`Verbatim`] text is written as it is, inside containers at any depth, by both of
+    /// this module's layouts: the bytes of the parsed value serialised the same way.
+    #[test]
+    fn verbatim_text_is_written_as_it_is() {
+        let element =
+            serde_json::json!({"id": "r1", "position_mm": {"before": 1.25, "after": 0.5}});
+        // `levels` of `{"k": [...]}` around the element: it opens inside twice as many
+        // containers.
+        for levels in [0, 2, 3] {
+            let text = json_at_depth(&element, 2 * levels).expect("text");
+            let mut typed = element.clone();
+            for _ in 0..levels {
+                typed = serde_json::json!({ "k": [typed] });
+            }
+            struct Nest<'a>(usize, &'a str);
+            impl serde::Serialize for Nest<'_> {
+                fn serialize<S: serde::Serializer>(
+                    &self,
+                    serializer: S,
+                ) -> std::result::Result<S::Ok, S::Error> {
+                    use serde::ser::SerializeMap;
+                    if self.0 == 0 {
+                        return Verbatim(self.1).serialize(serializer);
+                    }
+                    let mut map = serializer.serialize_map(Some(1))?;
+                    map.serialize_entry("k", &[Nest(self.0 - 1, self.1)])?;
+                    map.end()
+                }
+            }
+            let mut spliced = Vec::new();
+            write_json_rows(&Nest(levels, &text), &mut spliced).expect("spliced");
+            let expected = to_json_rows(&typed).expect("typed");
+            assert_eq!(String::from_utf8(spliced).expect("utf-8"), expected);
+        }
+        // serde_json's compact writer too.
+        let compact = serde_json::to_string(&Verbatim("[1, {\"a\": 2}]")).expect("compact");
+        assert_eq!(compact, "[1, {\"a\": 2}]");
+    }
 
     #[test]
     fn deep_containers_are_one_line_and_the_value_round_trips() {

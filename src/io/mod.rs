@@ -68,7 +68,7 @@ pub use joints_csv::{
     append_poses, configurations, joint_value, parse_csv, pose_fields, ColumnMapping, POSE_COLUMNS,
 };
 pub use joints_stream::{open_csv_records, CsvRecords};
-pub use json_rows::{json_at_depth, to_json_rows, write_json_rows};
+pub use json_rows::{json_at_depth, to_json_rows, write_json_rows, Verbatim};
 pub use mcpc_table::{mcpc_table_to_yaml, parse_mcpc_table, read_mcpc_table};
 pub use measurement_table::{MeasurementTable, ObservationRows};
 pub use measurements_csv::{

@@ -148,13 +148,13 @@ fn rendered_seq<S: Serializer, T: Sync>(
     use serde::ser::Error as _;
     let mut seq = serializer.serialize_seq(Some(items.len()))?;
     for chunk in items.chunks(RENDERED_CHUNK) {
-        let texts: Vec<Box<serde_json::value::RawValue>> = chunk
+        let texts: Vec<String> = chunk
             .par_iter()
-            .map(|item| serde_json::value::RawValue::from_string(render(item)?).map_err(json_error))
+            .map(&render)
             .collect::<Result<_>>()
             .map_err(S::Error::custom)?;
         for text in &texts {
-            seq.serialize_element(text)?;
+            seq.serialize_element(&crate::io::Verbatim(text))?;
         }
     }
     seq.end()
