@@ -8,7 +8,7 @@ use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::hash::{DefaultHasher, Hash, Hasher};
+use std::hash::{Hash, Hasher};
 
 /// Splits off a seeded fifth of the configurations for validation: whole configurations
 /// (every tool observed there), never torso-stage ones (the staged plan needs them), at
@@ -117,7 +117,7 @@ fn key_bits(m: &Measurement) -> impl Iterator<Item = u64> + '_ {
 
 /// A digest of the row's configuration and stage.
 fn key_digest(m: &Measurement) -> u64 {
-    let mut digest = DefaultHasher::new();
+    let mut digest = crate::digests::digest_hasher(0);
     key_bits(m).for_each(|bits| bits.hash(&mut digest));
     m.q.len().hash(&mut digest);
     m.stage.as_deref().hash(&mut digest);

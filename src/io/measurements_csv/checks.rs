@@ -198,11 +198,9 @@ impl Repeats {
 
     /// The row's fingerprint, its id left out.
     pub(super) fn fingerprint(&self, fields: CsvRow<'_>) -> (u64, u64) {
-        use std::hash::{DefaultHasher, Hash, Hasher};
-        let mut digests = [DefaultHasher::new(), DefaultHasher::new()];
-        // Different first inputs make the two digests independent.
-        0u8.hash(&mut digests[0]);
-        1u8.hash(&mut digests[1]);
+        use std::hash::Hasher;
+        // Different seeds make the two digests independent.
+        let mut digests = [1, 2].map(crate::digests::digest_hasher);
         for digest in &mut digests {
             fields.hash_without(self.id, digest);
         }

@@ -5,7 +5,7 @@
 
 use super::super::blocks::BlockRows;
 use super::*;
-use std::hash::{DefaultHasher, Hash, Hasher};
+use std::hash::{Hash, Hasher};
 
 /// The rows of one block.
 pub(in crate::io::measurements_csv) struct Part {
@@ -44,7 +44,7 @@ impl BlockRows for SetBuilder<'_> {
         let index = part.lines.len();
         let (id, measurement) = self.reader.read_row(index, row, &mut part.tally).ok()?;
         if self.reader.columns.id.is_some() {
-            let mut digest = DefaultHasher::new();
+            let mut digest = crate::digests::digest_hasher(0);
             id.hash(&mut digest);
             part.id_digests.push(digest.finish());
         }
