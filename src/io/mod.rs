@@ -9,6 +9,7 @@ pub(crate) mod contacts_yaml;
 mod csv_fields;
 mod csv_scan;
 pub(crate) mod detections_csv;
+mod direct_write;
 mod joint_errors;
 mod joint_log;
 mod joint_log_mcap;

@@ -256,17 +256,24 @@ fn write_piped(
     write: &dyn Fn(&mut dyn Write) -> Result<()>,
     io: &dyn Fn(std::io::Error) -> Error,
 ) -> Result<()> {
-    let mut handle = std::fs::File::create(path).map_err(io)?;
+    let mut handle = super::direct_write::DirectFile::create(path, PIPED_BUFFER).map_err(io)?;
     std::thread::scope(|scope| {
         let (sender, buffers) = std::sync::mpsc::sync_channel::<Vec<u8>>(2);
+        // Written buffers go back to be filled again (a fresh 4 MB buffer per send cost its
+        // page faults).
+        let (give_back, returned) = std::sync::mpsc::channel::<Vec<u8>>();
         let writer = scope.spawn(move || -> std::io::Result<()> {
-            for buffer in buffers {
+            for mut buffer in buffers {
                 handle.write_all(&buffer)?;
+                buffer.clear();
+                // The renderer may have finished: a buffer nobody takes back is dropped.
+                let _ = give_back.send(buffer);
             }
-            handle.sync_all()
+            handle.finish()
         });
         let mut piped = Piped {
             sender,
+            returned,
             buffer: Vec::with_capacity(PIPED_BUFFER),
         };
         let rendered = write(&mut piped).and_then(|()| piped.flush().map_err(io));
@@ -285,6 +292,8 @@ fn stopped() -> std::io::Error {
 /// A [`Write`] that hands full buffers to a writing thread.
 struct Piped {
     sender: std::sync::mpsc::SyncSender<Vec<u8>>,
+    /// Buffers the writing thread has written, to be filled again.
+    returned: std::sync::mpsc::Receiver<Vec<u8>>,
     buffer: Vec<u8>,
 }
 
@@ -308,7 +317,11 @@ impl Piped {
         if self.buffer.is_empty() {
             return Ok(());
         }
-        let full = std::mem::replace(&mut self.buffer, Vec::with_capacity(PIPED_BUFFER));
+        let next = self
+            .returned
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(PIPED_BUFFER));
+        let full = std::mem::replace(&mut self.buffer, next);
         self.sender.send(full).map_err(|_| stopped())
     }
 }
