@@ -84,9 +84,41 @@ pub(super) fn linearise(
     options: &IdentificationOptions,
     with_jacobian: bool,
 ) -> Result<Linearisation> {
+    linearise_into(
+        model,
+        nuisance,
+        measurements,
+        offsets,
+        predictor,
+        free,
+        options,
+        with_jacobian,
+        Vec::new(),
+    )
+}
+
+/// [`linearise`], the Jacobian written into `spare` (the storage of an earlier one, reused
+/// without zeroing: every entry is written below), so that the chunks of a pass on one
+/// thread do not each allocate and zero their Jacobian.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn linearise_into(
+    model: &McpcModel,
+    nuisance: &Nuisance,
+    measurements: &[Measurement],
+    offsets: Option<&[Vector6<f64>]>,
+    predictor: &dyn Predictor,
+    free: &[usize],
+    options: &IdentificationOptions,
+    with_jacobian: bool,
+    mut spare: Vec<f64>,
+) -> Result<Linearisation> {
     let rows = rows_of(measurements);
     let mut residual = DVector::zeros(rows);
-    let mut jacobian = DMatrix::zeros(if with_jacobian { rows } else { 0 }, free.len());
+    let height = if with_jacobian { rows } else { 0 };
+    // Each measurement's block below writes its rows of every column: the stale values
+    // `spare` keeps are all overwritten.
+    spare.resize(height * free.len(), 0.0);
+    let mut jacobian = DMatrix::from_vec(height, free.len(), spare);
     let noise = options.noise();
     let mut row = 0;
     // Measurements of several tools at one configuration share one evaluation.
@@ -258,6 +290,49 @@ pub(crate) fn map_rows_in_order<T: Send>(
 mod tests {
     use super::*;
     use crate::error::Error;
+
+    /// A reused Jacobian's stale values (NaN here, and longer or shorter than needed) are all
+    /// overwritten: the same matrix as a fresh one, bit for bit, for poses and positions.
+    #[test]
+    fn a_reused_jacobian_is_a_fresh_one() {
+        use crate::calibration::predictor::Rigid;
+        use crate::calibration::test_problems::{problem, robonaut};
+        let robot = robonaut();
+        let model = &robot.0;
+        let options = IdentificationOptions::default();
+        let free: Vec<usize> = (0..model.parameter_count()).step_by(3).collect();
+        for poses in [true, false] {
+            let measurements = problem(&robot, 40, poses);
+            let fresh = linearise(
+                model,
+                Nuisance::none(),
+                &measurements,
+                None,
+                &Rigid,
+                &free,
+                &options,
+                true,
+            )
+            .expect("fresh");
+            let size = fresh.jacobian.len();
+            for spare_len in [size / 2, size, 2 * size] {
+                let reused = linearise_into(
+                    model,
+                    Nuisance::none(),
+                    &measurements,
+                    None,
+                    &Rigid,
+                    &free,
+                    &options,
+                    true,
+                    vec![f64::NAN; spare_len],
+                )
+                .expect("reused");
+                assert_eq!(reused.jacobian, fresh.jacobian);
+                assert_eq!(reused.residual, fresh.residual);
+            }
+        }
+    }
 
     /// Over several windows of parts: every row once, in order, on any number of threads; a
     /// failure gives the error of the earliest failing row, even when a later part (in an

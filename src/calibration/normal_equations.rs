@@ -16,7 +16,7 @@
 //! Jacobian `J·S⁻¹`, so the QR + SVD decision is the one the stacked form made.
 //! See `docs/identification.md` and `docs/performance.md`.
 
-use super::linearise::linearise;
+use super::linearise::linearise_into;
 use super::observation::Nuisance;
 use super::options::IdentificationOptions;
 use super::predictor::Predictor;
@@ -226,6 +226,12 @@ pub(super) struct Problem<'a> {
     pub memo: Option<&'a ProductsMemo<'a>>,
 }
 
+std::thread_local! {
+    /// The storage of this thread's last chunk Jacobian, for its next chunk
+    /// ([`linearise_into`]).
+    static SPARE_JACOBIAN: std::cell::Cell<Vec<f64>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
 /// The products of one chunk.
 fn chunk_products(
     model: &McpcModel,
@@ -243,7 +249,7 @@ fn chunk_products(
         sliced = problem.options.for_range(range.clone());
         &sliced
     };
-    let lin = linearise(
+    let lin = linearise_into(
         model,
         nuisance,
         &problem.measurements[range.clone()],
@@ -252,6 +258,10 @@ fn chunk_products(
         problem.free,
         options,
         products != Products::Cost,
+        match products {
+            Products::Cost => Vec::new(),
+            _ => SPARE_JACOBIAN.take(),
+        },
     )?;
     let cost = 0.5 * lin.residual.norm_squared();
     if products == Products::Cost {
@@ -269,7 +279,13 @@ fn chunk_products(
         &problem.measurements[range.clone()],
     );
     let gradient = lin.jacobian.tr_mul(&lin.residual);
-    let factor = (products == Products::NormalAndFactor).then(|| triangle(lin.jacobian));
+    let factor = match products {
+        Products::NormalAndFactor => Some(triangle(lin.jacobian)),
+        _ => {
+            SPARE_JACOBIAN.set(lin.jacobian.data.into());
+            None
+        }
+    };
     Ok(NormalEquations {
         normal,
         gradient,
@@ -383,7 +399,7 @@ fn add_prior(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::linearise::Linearisation;
+    use crate::calibration::linearise::{linearise, Linearisation};
     use crate::calibration::predictor::Rigid;
     use crate::calibration::test_problems::{problem, robonaut};
 
