@@ -53,10 +53,7 @@ pub(crate) fn certainly_conditioned(normal: &DMatrix<f64>, ratio: f64) -> Option
             inverse_trace += value * value;
         }
     }
-    let largest_bound = normal
-        .row_iter()
-        .map(|row| row.iter().map(|v| v.abs()).sum::<f64>())
-        .fold(0.0, f64::max);
+    let largest_bound = absolute_row_sums(normal).into_iter().fold(0.0, f64::max);
     let smallest_bound = 1.0 / inverse_trace;
     (smallest_bound.is_finite() && smallest_bound > 2.0 * ratio * largest_bound).then_some(
         ProvedFactor {
@@ -64,6 +61,18 @@ pub(crate) fn certainly_conditioned(normal: &DMatrix<f64>, ratio: f64) -> Option
             l_inverse,
         },
     )
+}
+
+/// Each row's sum of absolute values, added left to right as a row iterator's `sum` would
+/// (from −0, which the first term replaces), column by column over the contiguous storage.
+fn absolute_row_sums(matrix: &DMatrix<f64>) -> Vec<f64> {
+    let mut sums = vec![-0.0; matrix.nrows()];
+    for column in matrix.column_iter() {
+        for (sum, v) in sums.iter_mut().zip(column.iter()) {
+            *sum += v.abs();
+        }
+    }
+    sums
 }
 
 /// nalgebra's `Cholesky::new`, bit for bit, on contiguous columns. nalgebra's left-looking
@@ -89,8 +98,9 @@ pub(crate) fn cholesky(mut matrix: DMatrix<f64>) -> Option<Cholesky<f64, Dyn>> {
         let mut k = 0;
         while k + 4 <= j {
             let [(a0, x0), (a1, x1), (a2, x2), (a3, x3)] = [k, k + 1, k + 2, k + 3].map(column);
-            for (i, y) in target.iter_mut().enumerate() {
-                *y = a3 * x3[i] + (a2 * x2[i] + (a1 * x1[i] + (a0 * x0[i] + *y)));
+            let xs = x0.iter().zip(x1).zip(x2.iter().zip(x3));
+            for (y, ((x0, x1), (x2, x3))) in target.iter_mut().zip(xs) {
+                *y = a3 * x3 + (a2 * x2 + (a1 * x1 + (a0 * x0 + *y)));
             }
             k += 4;
         }
@@ -142,14 +152,14 @@ fn lower_inverse(l: &DMatrix<f64>) -> DMatrix<f64> {
                 let [x0, x1, x2, x3] = &mut xs[..] else {
                     unreachable!("four columns")
                 };
-                let below = &column[k + 1..];
                 let (x0, x1) = (&mut x0[k + 1..], &mut x1[k + 1..]);
                 let (x2, x3) = (&mut x2[k + 1..], &mut x3[k + 1..]);
-                for (i, l) in below.iter().enumerate() {
-                    x0[i] -= l * values[0];
-                    x1[i] -= l * values[1];
-                    x2[i] -= l * values[2];
-                    x3[i] -= l * values[3];
+                let xs = x0.iter_mut().zip(x1).zip(x2.iter_mut().zip(x3));
+                for (l, ((x0, x1), (x2, x3))) in column[k + 1..].iter().zip(xs) {
+                    *x0 -= l * values[0];
+                    *x1 -= l * values[1];
+                    *x2 -= l * values[2];
+                    *x3 -= l * values[3];
                 }
             } else {
                 for (c, x) in xs[..active].iter_mut().enumerate() {
@@ -338,6 +348,22 @@ mod tests {
                 .expect("positive definite")
                 .inverse();
             assert_eq!(bits(&factor.inverse()), bits(&expected), "n = {n}");
+        }
+    }
+
+    /// The row sums of absolute values are the row iterator's sums bit for bit.
+    #[test]
+    fn absolute_row_sums_are_the_rows_sums() {
+        let mut rng = ChaCha8Rng::seed_from_u64(16);
+        for (rows, columns) in [(0, 0), (1, 1), (3, 5), (17, 17), (56, 56)] {
+            let m: DMatrix<f64> =
+                DMatrix::from_fn(rows, columns, |_, _| rng.random_range(-1.0..1.0) * 1e3);
+            let expected: Vec<u64> = m
+                .row_iter()
+                .map(|row| row.iter().map(|v| v.abs()).sum::<f64>().to_bits())
+                .collect();
+            let ours: Vec<u64> = absolute_row_sums(&m).iter().map(|v| v.to_bits()).collect();
+            assert_eq!(ours, expected, "{rows} × {columns}");
         }
     }
 
