@@ -107,12 +107,12 @@ pub(crate) fn cholesky(mut matrix: DMatrix<f64>) -> Option<Cholesky<f64, Dyn>> {
         for k in k..j {
             let (a, x) = column(k);
             for (y, x) in target.iter_mut().zip(x) {
-                *y = a * x + *y;
+                *y += a * x;
             }
         }
         let diagonal = target[0];
         // nalgebra: a zero diagonal, or one `try_sqrt` refuses (negative or NaN), fails.
-        if diagonal == 0.0 || !(diagonal >= 0.0) {
+        if diagonal.is_nan() || diagonal <= 0.0 {
             return None;
         }
         let denominator = diagonal.sqrt();
