@@ -67,8 +67,8 @@ pub(crate) fn certainly_conditioned(normal: &DMatrix<f64>, ratio: f64) -> Option
 /// (from −0, which the first term replaces), column by column over the contiguous storage.
 fn absolute_row_sums(matrix: &DMatrix<f64>) -> Vec<f64> {
     let mut sums = vec![-0.0; matrix.nrows()];
-    for column in matrix.column_iter() {
-        for (sum, v) in sums.iter_mut().zip(column.iter()) {
+    for column in matrix.as_slice().chunks_exact(matrix.nrows().max(1)) {
+        for (sum, v) in sums.iter_mut().zip(column) {
             *sum += v.abs();
         }
     }
