@@ -3,7 +3,7 @@
 //! identifiable subspace (used by the loop in `solver`).
 
 use super::linear_algebra::{
-    certainly_conditioned, eigen_decomposition, floored_scales, qr_svd, scale_columns,
+    certainly_conditioned, cholesky, eigen_decomposition, floored_scales, qr_svd, scale_columns,
     well_conditioned, ProvedFactor, WELL_CONDITIONED,
 };
 use super::normal_equations::NormalEquations;
@@ -121,7 +121,7 @@ pub(super) fn unscaled_inverse(analysis: &Analysis, retained: &[usize]) -> DMatr
         None => analysis
             .normal
             .as_ref()
-            .and_then(|n| n.clone().cholesky())
+            .and_then(|n| cholesky(n.clone()))
             .map(|cholesky| cholesky.inverse()),
     };
     match inverse {

@@ -113,14 +113,17 @@ impl McpcModel {
     /// [`Self::frame_transforms`] and every frame after its own joint's motion, Σᵢ·Q(θᵢ):
     /// the same values, each joint's motion applied once (a parent's moved frame is shared by
     /// its children); written into `frames` and `moved` (cleared first: their buffers are
-    /// reused).
+    /// reused). The joints' sines and cosines are left in `motions` (all at once, the same
+    /// bits as one by one) for whatever else moves the same joints at `q`.
     pub(crate) fn frame_and_moved_transforms_into(
         &self,
         q: &[f64],
         frames: &mut Vec<Transform>,
         moved: &mut Vec<Transform>,
+        motions: &mut JointMotions,
     ) {
         let world_from_root = self.world_from_root_transform(q);
+        motions.fill(self, q);
         frames.clear();
         moved.clear();
         for (index, frame) in self.frames().iter().enumerate() {
@@ -128,7 +131,7 @@ impl McpcModel {
                 Some(p) => moved[p].then(self.frame_constant(index)),
                 None => world_from_root.then(self.frame_constant(index)),
             };
-            moved.push(self.moved(index, q, &transform));
+            moved.push(motions.apply(self, index, &transform));
             frames.push(transform);
         }
     }

@@ -3,7 +3,9 @@
 
 use super::names::{describe, name, DETERMINED, GROUPS, GROUP_NAMES};
 use super::problem::{Linearisation, Problem};
-use crate::calibration::linear_algebra::{certainly_conditioned, column_scales, scale_columns};
+use crate::calibration::linear_algebra::{
+    certainly_conditioned, cholesky, column_scales, scale_columns,
+};
 use crate::calibration::options::IdentificationOptions;
 use crate::error::Result;
 use crate::kinematics::ComplianceParameter;
@@ -110,7 +112,8 @@ pub(super) fn select(
         // The proved factor's inverse: the same bits as `Cholesky::inverse`, half the work.
         let inverse = match factor {
             Some(factor) => factor.inverse(),
-            None => match information.cholesky() {
+            // nalgebra's factor, bit for bit (`linear_algebra::cholesky`).
+            None => match cholesky(information) {
                 Some(cholesky) => cholesky.inverse(),
                 None => break,
             },

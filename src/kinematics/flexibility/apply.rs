@@ -4,7 +4,7 @@
 use super::loads::Evaluation;
 use super::model::FlexibilityModel;
 use crate::error::Result;
-use crate::kinematics::{ChainFrames, FrameKind, McpcModel};
+use crate::kinematics::{ChainFrames, McpcModel};
 use crate::math::{Mat3, Pose, Transform, Vec3};
 use crate::tree::KinematicTree;
 use nalgebra::Vector6;
@@ -155,7 +155,12 @@ impl FlexibilityModel {
         q: &[f64],
         evaluation: &Evaluation,
     ) -> Vec<Transform> {
-        self.deflected_frames(model, q, evaluation, false).tools
+        let DeflectedFrames {
+            deflected, tools, ..
+        } = self.deflected_frames(model, q, evaluation, false);
+        // A thread being torn down just drops it.
+        let _ = SPARE_DEFLECTED.try_with(|spare| *spare.borrow_mut() = deflected);
+        tools
     }
 
     /// The deflected frames; `previous` and `frames` (Σᵢ' before the motion) only if `whole`,
@@ -187,7 +192,16 @@ impl FlexibilityModel {
         let count = model.frames().len();
         let kept = if whole { count } else { 0 };
         let world_from_root = model.world_from_root_transform(q);
-        let mut deflected: Vec<Transform> = Vec::with_capacity(count);
+        // Predictions (not `whole`) hand their `deflected` buffer back (`SPARE_DEFLECTED`).
+        let mut deflected: Vec<Transform> = if whole {
+            Vec::with_capacity(count)
+        } else {
+            let mut spare = SPARE_DEFLECTED
+                .try_with(|spare| std::mem::take(&mut *spare.borrow_mut()))
+                .unwrap_or_default();
+            spare.clear();
+            spare
+        };
         let mut previous: Vec<Transform> = Vec::with_capacity(kept);
         let mut frames: Vec<Transform> = Vec::with_capacity(kept);
         for (i, frame) in model.frames().iter().enumerate() {
@@ -199,11 +213,8 @@ impl FlexibilityModel {
                 (None, _) => world_from_root,
             };
             let sigma = before.then(model.frame_constant(i));
-            let value = model.joint_value(i, q);
-            let after_motion = match frame.kind {
-                FrameKind::Revolute => sigma.rotated_z(value),
-                FrameKind::Prismatic => sigma.translated_z(value),
-            };
+            // The evaluation's sines and cosines: it was made for this model at `q`.
+            let after_motion = evaluation.motions.apply(model, i, &sigma);
             let local = deformations.joints[i].local.fixed_rows::<3>(3).into_owned();
             deflected.push(after_motion.then(&Transform {
                 rotation: exp(&local),
@@ -214,20 +225,24 @@ impl FlexibilityModel {
                 frames.push(sigma);
             }
         }
-        let tool_previous: Vec<Transform> = model
-            .tools()
-            .iter()
-            .enumerate()
-            .map(|(t, tool)| match (tool.parent, self.segment_to_tool[t]) {
-                (Some(p), Some(index)) => deflected[p].then(&segment_transform(index)),
-                (Some(p), None) => deflected[p],
-                (None, _) => world_from_root,
-            })
+        let tool_before = |t: usize| match (model.tools()[t].parent, self.segment_to_tool[t]) {
+            (Some(p), Some(index)) => deflected[p].then(&segment_transform(index)),
+            (Some(p), None) => deflected[p],
+            (None, _) => world_from_root,
+        };
+        let tool_count = model.tools().len();
+        // `tool_previous` only if `whole`: a prediction needs the tools alone.
+        let tool_previous: Vec<Transform> = (0..if whole { tool_count } else { 0 })
+            .map(tool_before)
             .collect();
-        let tools: Vec<Transform> = tool_previous
-            .iter()
-            .enumerate()
-            .map(|(t, before)| before.then(model.tool_constant(t)))
+        let tools: Vec<Transform> = (0..tool_count)
+            .map(|t| {
+                let before = tool_previous
+                    .get(t)
+                    .copied()
+                    .unwrap_or_else(|| tool_before(t));
+                before.then(model.tool_constant(t))
+            })
             .collect();
         // A reference link other than the root deflects with its chain; it is held fixed, so
         // everything moves back by its deflection.
@@ -257,6 +272,12 @@ impl FlexibilityModel {
             tools,
         }
     }
+}
+
+thread_local! {
+    /// The deflected frames' buffer of the latest prediction on this thread, for the next.
+    static SPARE_DEFLECTED: std::cell::RefCell<Vec<Transform>> =
+        const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// The frames of a deflected chain (see [`ChainFrames`] for their meaning).

@@ -7,6 +7,7 @@
 use super::beam::point_load_deflection;
 use super::model::{FlexibilityModel, Place, SegmentEnd};
 use crate::error::{Error, Result};
+use crate::kinematics::forward::JointMotions;
 use crate::kinematics::McpcModel;
 use crate::math::{Mat3, Transform, Vec3};
 use crate::tree::KinematicTree;
@@ -74,6 +75,9 @@ pub(crate) struct Evaluation {
     pub(crate) loads: Loads,
     /// Gravity in the base frame, m/s².
     pub(crate) gravity: Vec3,
+    /// The joints' motions at the configuration (their sines and cosines), for the deflected
+    /// chain built on these frames.
+    pub(crate) motions: JointMotions,
 }
 
 thread_local! {
@@ -170,8 +174,9 @@ impl FlexibilityModel {
             mass_segments,
             loads,
             gravity,
+            motions,
         } = evaluation;
-        model.frame_and_moved_transforms_into(q, frames, moved);
+        model.frame_and_moved_transforms_into(q, frames, moved, motions);
         tools.clear();
         tools.extend(model.tools().iter().enumerate().map(|(t, tool)| {
             match tool.parent {
