@@ -10,6 +10,7 @@ use super::strata::ValidationStrata;
 use crate::calibration::DataSet;
 use crate::calibration::{CalibrationRun, ParameterEstimate, Termination, Verdict};
 use crate::math::{rpy_from_rotation, Pose};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// What the report says about where the data came from.
@@ -159,10 +160,13 @@ impl CalibrationSummary {
             (&mut self.identification, ids[0]),
             (&mut self.validation, ids[1]),
         ] {
-            for row in arms.iter_mut().flat_map(|a| a.rows.iter_mut()) {
-                if let Some(id) = ids.get(row.index) {
-                    row.id.clone_from(id);
-                }
+            // In parallel: 2·10⁶ ids at 10⁶ configurations.
+            for arm in arms.iter_mut() {
+                arm.rows.par_iter_mut().for_each(|row| {
+                    if let Some(id) = ids.get(row.index) {
+                        row.id.clone_from(id);
+                    }
+                });
             }
         }
         self.validation_strata = ValidationStrata::of(&self.validation);
