@@ -163,7 +163,7 @@ fn repeat_tolerance(angle: bool) -> f64 {
 /// tolerance wide, and grouped by their bins on the first two. A look-up finds the 9 groups
 /// around `q` by a binary search of the groups' (sorted) bins and searches the third bin within
 /// each, with the same result as a scan of all. Many look-ups are cheapest in the order of
-/// their cells ([`Self::query_cell`]; [`places`] sorts them so): neighbouring queries then
+/// their cells ([`Self::query_cell`]; `places` sorts them so): neighbouring queries then
 /// read the same groups and postures from the cache instead of memory.
 #[derive(Debug, Clone)]
 pub struct PostureIndex<'a> {
