@@ -29,16 +29,9 @@ pub fn hold_out_indices(
     fraction: f64,
     seed: u64,
 ) -> Result<(Vec<usize>, Vec<usize>)> {
-    let (groups, group_of) = configurations(measurements);
-    let groups: Vec<(&[f64], Option<&str>)> = groups
-        .iter()
-        .map(|&row| {
-            let m = &measurements[row];
-            (m.q.as_slice(), m.stage.as_deref())
-        })
-        .collect();
-    let mut eligible: Vec<usize> = (0..groups.len())
-        .filter(|&g| groups[g].1 != Some("torso"))
+    let (firsts, group_of) = configurations(measurements);
+    let mut eligible: Vec<usize> = (0..firsts.len())
+        .filter(|&g| measurements[firsts[g]].stage.as_deref() != Some("torso"))
         .collect();
     let count = ((eligible.len() as f64 * fraction).round() as usize).max(1);
     if eligible.len() < count + 2 {
@@ -52,7 +45,7 @@ pub fn hold_out_indices(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     eligible.shuffle(&mut rng);
-    let mut held = vec![false; groups.len()];
+    let mut held = vec![false; firsts.len()];
     for &g in &eligible[..count] {
         held[g] = true;
     }

@@ -163,7 +163,7 @@ fn repeat_tolerance(angle: bool) -> f64 {
 /// tolerance wide, and grouped by their bins on the first two. A look-up finds the 9 groups
 /// around `q` by a binary search of the groups' (sorted) bins and searches the third bin within
 /// each, with the same result as a scan of all. Many look-ups are cheapest in the order of
-/// their cells ([`Self::query_cell`]; `places` sorts them so): neighbouring queries then
+/// their cells (`places` sorts them so): neighbouring queries then
 /// read the same groups and postures from the cache instead of memory.
 #[derive(Debug, Clone)]
 pub struct PostureIndex<'a> {
@@ -197,7 +197,7 @@ impl PostureIndex<'_> {
 
     /// The cell of a configuration `q` of this tool: look-ups in the order of their cells
     /// share the cache.
-    pub fn query_cell(&self, q: &[f64]) -> [i64; 3] {
+    fn query_cell(&self, q: &[f64]) -> Cell {
         self.cell(q, |k| self.chain.dofs[k].0)
     }
 
@@ -218,7 +218,7 @@ impl PostureIndex<'_> {
         }
         // Every candidate lies in the cells one either side of `q`'s on every key joint; the
         // full test decides, exactly as a scan of every posture would.
-        let [a, b, c] = self.cell(q, |k| chain.dofs[k].0);
+        let [a, b, c] = self.query_cell(q);
         let (c_low, c_high) = (c.saturating_sub(1), c.saturating_add(1));
         let mut first: Option<usize> = None;
         for (da, db) in (-1..=1).flat_map(|da| (-1..=1).map(move |db| (da, db))) {
